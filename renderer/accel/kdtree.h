@@ -50,3 +50,91 @@ struct TraversalCounters {
 };
 
 }  // namespace kdt
+
+namespace kdt {
+
+/// One 8-byte node. word & 3 is the split axis (0, 1, 2) or 3 for a leaf.
+/// Inner: word >> 2 is the index of the first child; the second child follows it
+/// (children adjacent, depth-first order); `split` is the plane position.
+/// Leaf: word >> 2 is the triangle count; `first` indexes KdTree::indices().
+struct KdNode {
+    uint32_t word = 3;
+    union {
+        float split;
+        uint32_t first = 0;
+    };
+
+    bool is_leaf() const { return (word & 3u) == 3u; }
+    int axis() const { return int(word & 3u); }
+    uint32_t child() const { return word >> 2; }
+    uint32_t count() const { return word >> 2; }
+
+    static KdNode make_leaf(uint32_t count, uint32_t first_index) {
+        KdNode n;
+        n.word = (count << 2) | 3u;
+        n.first = first_index;
+        return n;
+    }
+    static KdNode make_inner(int axis, float split_pos, uint32_t first_child) {
+        KdNode n;
+        n.word = (first_child << 2) | uint32_t(axis);
+        n.split = split_pos;
+        return n;
+    }
+};
+static_assert(sizeof(KdNode) == 8, "kd-tree nodes are 8 bytes");
+
+/// What a build produced, as the thesis's tables report it.
+struct KdTreeStats {
+    uint64_t nodes = 0, leaves = 0, empty_leaves = 0;
+    uint64_t references = 0;          ///< triangle indices stored in leaves
+    double refs_per_triangle = 0.0;
+    double mean_leaf_size = 0.0;      ///< over non-empty leaves
+    uint32_t max_leaf_size = 0;
+    uint32_t max_depth_reached = 0;
+    std::vector<uint64_t> depth_histogram;  ///< leaves per depth
+    uint64_t median_splits = 0, center_splits = 0, cutoff_splits = 0, sah_splits = 0;
+    uint64_t bytes = 0;               ///< nodes + indices + any per-triangle data
+    double bytes_per_triangle = 0.0;
+    double build_seconds = 0.0;
+    uint64_t peak_build_bytes = 0;    ///< estimate of builder scratch memory at its peak
+};
+
+/// An immutable kd-tree over one mesh. Shares ownership of the mesh it was built on.
+class KdTree {
+public:
+    KdTree() = default;
+    KdTree(std::shared_ptr<const TriangleMesh> mesh, Bounds3f bounds, std::vector<KdNode> nodes,
+           std::vector<uint32_t> indices, KdTreeParams params, KdTreeStats stats);
+
+    const TriangleMesh& mesh() const { return *mesh_; }
+    const std::shared_ptr<const TriangleMesh>& mesh_ptr() const { return mesh_; }
+    const Bounds3f& bounds() const { return bounds_; }
+    const std::vector<KdNode>& nodes() const { return nodes_; }
+    const std::vector<uint32_t>& indices() const { return indices_; }
+    const KdTreeParams& params() const { return params_; }
+    const KdTreeStats& stats() const { return stats_; }
+
+    /// Closest hit in [ray.tmin, ray.tmax]. Returns false and leaves hit.prim == kNoHit on
+    /// a miss; never throws or allocates. Non-finite rays miss.
+    bool intersect(const Ray& ray, Hit& hit, TraversalCounters* counters = nullptr) const;
+    /// Any hit in [ray.tmin, ray.tmax] (shadow rays).
+    bool occluded(const Ray& ray, TraversalCounters* counters = nullptr) const;
+
+private:
+    std::shared_ptr<const TriangleMesh> mesh_;
+    Bounds3f bounds_;
+    std::vector<KdNode> nodes_;
+    std::vector<uint32_t> indices_;
+    KdTreeParams params_;
+    KdTreeStats stats_;
+};
+
+/// Builds a tree with params.builder. Throws kdt::Error for out-of-range parameters.
+std::shared_ptr<const KdTree> build_kdtree(std::shared_ptr<const TriangleMesh> mesh,
+                                           const KdTreeParams& params);
+
+/// Checks parameters; throws kdt::Error naming the bad one (q outside (0,1], n0 < 0, ...).
+void validate(const KdTreeParams& params);
+
+}  // namespace kdt

@@ -1,0 +1,36 @@
+// Loading triangle meshes from files: PLY (ascii, binary little/big endian, optionally
+// gzip-compressed) and OBJ, chosen by file content and extension. The only module that
+// touches files. Depends on core and geometry.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "renderer/geometry/mesh.h"
+
+namespace kdt {
+
+struct MeshLoadOptions {
+    bool drop_invalid = false;  ///< drop faces using non-finite vertices instead of failing
+    bool keep_normals = true;   ///< keep per-vertex normals when the file has them
+    bool keep_colors = true;    ///< keep per-vertex colours when the file has them
+};
+
+/// What a load found, for `kdtrace info` and reports.
+struct MeshLoadInfo {
+    std::string format;       ///< "ply", "obj"
+    std::string encoding;     ///< "ascii", "binary_little_endian", "binary_big_endian", "text"
+    bool gzip = false;
+    uint64_t file_bytes = 0;  ///< bytes of file data parsed (uncompressed)
+    uint64_t source_faces = 0;     ///< polygons in the file
+    uint64_t dropped_faces = 0;    ///< with drop_invalid: faces dropped for non-finite vertices
+    uint64_t degenerate_faces = 0; ///< faces with repeated indices (kept)
+    double seconds = 0.0;
+};
+
+/// Loads any supported mesh file. Throws kdt::Error with file name, element, index and
+/// line or byte offset on any malformed input; never crashes on hostile files.
+TriangleMesh load_mesh(const std::string& path, const MeshLoadOptions& options = {},
+                       MeshLoadInfo* info = nullptr);
+
+}  // namespace kdt

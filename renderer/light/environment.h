@@ -1,0 +1,51 @@
+// The environment light: a constant colour or an HDR map (lat-long or angular "light
+// probe" mapping) with rotation and intensity, and its importance-sampling distribution.
+// Depends on core and io (image loading).
+#pragma once
+
+#include <array>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "renderer/core/math.h"
+
+namespace kdt {
+
+enum class EnvMapping : uint8_t { latlong, angular };
+inline constexpr std::array<const char*, 2> kEnvMappingNames = {"latlong", "angular"};
+
+/// How a scene describes its environment. file empty = constant colour.
+struct EnvironmentDesc {
+    Vec3f color{1.0f};            ///< constant radiance when file is empty
+    std::string file;             ///< .hdr, .exr or .pfm
+    EnvMapping mapping = EnvMapping::latlong;
+    float rotation_degrees = 0.0f;  ///< about the world +y axis
+    float intensity = 1.0f;       ///< multiplies the map (or the colour)
+};
+
+/// A direction sampled from the environment with its radiance and solid-angle pdf.
+struct EnvSample {
+    Vec3f dir{0.0f, 1.0f, 0.0f};  ///< unit world-space direction towards the light
+    Vec3f radiance{0.0f};
+    float pdf_solid_angle = 0.0f;  ///< 0 when the map is black
+};
+
+/// Immutable once built; safe to query from many threads.
+class EnvironmentLight {
+public:
+    virtual ~EnvironmentLight() = default;
+    /// Radiance arriving from unit world direction `dir` (dir points away from the scene).
+    virtual Vec3f eval(const Vec3f& dir) const = 0;
+    /// Importance-samples a direction from u in [0,1)^2.
+    virtual EnvSample sample(const Vec2f& u) const = 0;
+    /// Solid-angle pdf with which sample() would return dir.
+    virtual float pdf(const Vec3f& dir) const = 0;
+    /// True for a constant colour (a furnace); lets the integrator sample cosine-weighted.
+    virtual bool is_constant() const = 0;
+};
+
+/// Builds the light; throws kdt::Error for a missing or malformed map file.
+std::shared_ptr<const EnvironmentLight> make_environment_light(const EnvironmentDesc& desc);
+
+}  // namespace kdt

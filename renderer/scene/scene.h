@@ -1,0 +1,77 @@
+// The editable scene: what io loads from JSON (or builds in code) and the UI edits.
+// Plain structs; the render session compiles a Scene into an immutable snapshot.
+// Depends on core, geometry, io.
+#pragma once
+
+#include <array>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "renderer/core/math.h"
+#include "renderer/geometry/mesh.h"
+#include "renderer/light/environment.h"
+
+namespace kdt {
+
+enum class MaterialType : uint8_t { diffuse, mirror, dielectric, emissive, conductor };
+inline constexpr std::array<const char*, 5> kMaterialTypeNames = {"diffuse", "mirror", "dielectric",
+                                                                  "emissive", "conductor"};
+
+/// Every material is two-sided. Unused fields are ignored by the type.
+struct MaterialDesc {
+    MaterialType type = MaterialType::diffuse;
+    Vec3f albedo{0.8f};       ///< diffuse reflectance; tint of mirror and conductor
+    float ior = 1.5f;         ///< dielectric index of refraction (outside is 1)
+    Vec3f emission{0.0f};     ///< emissive radiance
+    float roughness = 0.2f;   ///< conductor: GGX alpha
+};
+
+/// One mesh placed in the world. The mesh itself is loaded by load_scene().
+struct MeshInstance {
+    std::string file;                       ///< empty for generated meshes
+    Mat4f world_from_object{1.0f};
+    MaterialDesc material;
+    bool smooth = true;                     ///< smooth shading (file normals, else computed)
+    std::shared_ptr<const TriangleMesh> mesh;
+};
+
+/// Pinhole camera; vfov is the full vertical field of view.
+struct CameraDesc {
+    Vec3f eye{0.0f, 0.0f, 5.0f};
+    Vec3f target{0.0f};
+    Vec3f up{0.0f, 1.0f, 0.0f};
+    float vfov_degrees = 40.0f;
+};
+
+struct Scene {
+    std::string name;
+    std::vector<MeshInstance> meshes;
+    CameraDesc camera;
+    EnvironmentDesc environment;
+};
+
+/// Options for loading mesh files referenced by a scene.
+struct SceneLoadOptions {
+    bool drop_invalid = false;  ///< drop faces with non-finite vertices instead of failing
+};
+
+/// Loads a JSON scene file; mesh paths are relative to the scene file. Unknown keys,
+/// wrong types and missing files throw kdt::Error naming the file and the key.
+Scene load_scene(const std::string& path, const SceneLoadOptions& options = {});
+
+/// A scene around one model file (.ply, .ply.gz, .obj): a camera framing its bounds,
+/// a diffuse grey material and a constant white environment.
+Scene scene_from_model(const std::string& path, const SceneLoadOptions& options = {});
+
+/// Loads a scene file (.json) or a model file.
+Scene load_scene_or_model(const std::string& path, const SceneLoadOptions& options = {});
+
+/// The built-in default scene, generated in code (no download): a displaced, subdivided
+/// sphere of a few hundred thousand triangles on a ground plane under a sky.
+Scene make_default_scene();
+
+/// A camera that frames `bounds` from the front-right, above.
+CameraDesc frame_bounds(const Bounds3f& bounds, float vfov_degrees = 40.0f);
+
+}  // namespace kdt
