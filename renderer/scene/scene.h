@@ -71,6 +71,14 @@ Scene load_scene_or_model(const std::string& path, const SceneLoadOptions& optio
 /// sphere of a few hundred thousand triangles on a ground plane under a sky.
 Scene make_default_scene();
 
+/// Generated meshes (also reachable from scene files as "builtin:<name>").
+TriangleMesh make_icosphere(int levels);          ///< unit sphere, 20 * 4^levels triangles
+TriangleMesh make_displaced_sphere(int levels);   ///< the default scene's object, radius ~1
+TriangleMesh make_ground_plane(float half_size, float height);  ///< two triangles facing +y
+
+/// Writes a scene as JSON that load_scene() reads back (generated meshes as "builtin:" names).
+std::string scene_to_json(const Scene& scene);
+
 /// A camera that frames `bounds` from the front-right, above.
 CameraDesc frame_bounds(const Bounds3f& bounds, float vfov_degrees = 40.0f);
 
