@@ -10,10 +10,12 @@
 namespace kdt::app {
 
 void add_scene_command(CLI::App& parent) {
-    auto* cmd = parent.add_subcommand("scene", "Check a scene file, or export the built-in default scene");
+    auto* cmd =
+        parent.add_subcommand("scene", "Check a scene file, or export the built-in default scene");
     static std::string input, output;
     static bool drop_invalid = false;
-    cmd->add_option("SCENE", input, "Scene (.json) or model file; omitted = the built-in default scene");
+    cmd->add_option("SCENE", input,
+                    "Scene (.json) or model file; omitted = the built-in default scene");
     cmd->add_option("-o,--output", output, "Write the scene as JSON to this file");
     cmd->add_flag("--drop-invalid", drop_invalid, "Drop faces with non-finite vertices");
     cmd->callback([] {

@@ -112,7 +112,8 @@ Mat4f read_transform(const Reader& r) {
         if (r.has("translate") || r.has("rotate") || r.has("scale"))
             r.fail("\"matrix\" cannot be combined with translate/rotate/scale");
         const json& m = r.raw("matrix");
-        if (!m.is_array() || m.size() != 16) r.fail_key("matrix", "expected 16 numbers (row-major)");
+        if (!m.is_array() || m.size() != 16)
+            r.fail_key("matrix", "expected 16 numbers (row-major)");
         Mat4f out(1.0f);
         for (int row = 0; row < 4; ++row) {
             for (int col = 0; col < 4; ++col) {
@@ -167,7 +168,8 @@ CameraDesc read_camera(const Reader& r) {
         r.fail_key("vfov", "vertical field of view must lie in (0, 180) degrees");
     Vec3f fwd = c.target - c.eye;
     if (!(glm::length(fwd) > 0.0f)) r.fail("eye and target coincide");
-    if (!(glm::length(glm::cross(fwd, c.up)) > 0.0f)) r.fail("up is parallel to the view direction");
+    if (!(glm::length(glm::cross(fwd, c.up)) > 0.0f))
+        r.fail("up is parallel to the view direction");
     return c;
 }
 
@@ -189,20 +191,24 @@ EnvironmentDesc read_environment(const Reader& r, const fs::path& base) {
 }
 
 std::shared_ptr<const TriangleMesh> builtin_mesh(const std::string& name) {
-    if (name == "displaced_sphere") return std::make_shared<const TriangleMesh>(make_displaced_sphere(7));
+    if (name == "displaced_sphere")
+        return std::make_shared<const TriangleMesh>(make_displaced_sphere(7));
     if (name == "icosphere") return std::make_shared<const TriangleMesh>(make_icosphere(5));
-    if (name == "ground_plane") return std::make_shared<const TriangleMesh>(make_ground_plane(20.0f, 0.0f));
+    if (name == "ground_plane")
+        return std::make_shared<const TriangleMesh>(make_ground_plane(20.0f, 0.0f));
     return nullptr;
 }
 
 std::string read_text_file(const std::string& path) {
     std::error_code ec;
-    if (fs::is_directory(path, ec)) throw Error(ErrorLocation{path}, "is a directory, not a scene file");
+    if (fs::is_directory(path, ec))
+        throw Error(ErrorLocation{path}, "is a directory, not a scene file");
     std::ifstream in(path, std::ios::binary);
     if (!in) throw Error(ErrorLocation{path}, "cannot open file");
     in.seekg(0, std::ios::end);
     auto size = in.tellg();
-    if (size > (std::streamoff(64) << 20)) throw Error(ErrorLocation{path}, "scene file larger than 64 MiB");
+    if (size > (std::streamoff(64) << 20))
+        throw Error(ErrorLocation{path}, "scene file larger than 64 MiB");
     in.seekg(0);
     std::string text(size_t(size), '\0');
     in.read(text.data(), size);

@@ -91,7 +91,8 @@ TEST(Scene, RoundTripsThroughJson) {
         EXPECT_EQ(b.meshes[i].material.type, a.meshes[i].material.type);
         for (int c = 0; c < 4; ++c)
             for (int r = 0; r < 4; ++r)
-                EXPECT_FLOAT_EQ(b.meshes[i].world_from_object[c][r], a.meshes[i].world_from_object[c][r]);
+                EXPECT_FLOAT_EQ(b.meshes[i].world_from_object[c][r],
+                                a.meshes[i].world_from_object[c][r]);
     }
     EXPECT_EQ(b.camera.eye, a.camera.eye);
     EXPECT_EQ(b.environment.color, a.environment.color);
@@ -104,7 +105,8 @@ TEST(Scene, ErrorsNameFileAndKey) {
         const char* json;
         const char* expect;
     } cases[] = {
-        {R"({"meshes": [{"file": "cube.ply", "colour": 1}]})", "meshes/0/colour: unknown key \"colour\""},
+        {R"({"meshes": [{"file": "cube.ply", "colour": 1}]})",
+         "meshes/0/colour: unknown key \"colour\""},
         {R"({"meshes": [{"file": "cube.ply"}], "camrea": {}})", "camrea: unknown key"},
         {R"({"meshes": [{"file": "cube.ply", "material": {"type": "plastic"}}]})",
          "meshes/0/material/type: unknown value \"plastic\""},
@@ -117,7 +119,8 @@ TEST(Scene, ErrorsNameFileAndKey) {
         {R"({"meshes": [{"file": "cube.ply"}], "camera": {"vfov": 180}})", "camera/vfov"},
         {R"({"meshes": [{"file": "cube.ply"}], "camera": {"eye": [0,0,0], "target": [0,0,0]}})",
          "eye and target coincide"},
-        {R"({"meshes": [{"file": "cube.ply", "transform": {"scale": 0}}]})", "scale must be non-zero"},
+        {R"({"meshes": [{"file": "cube.ply", "transform": {"scale": 0}}]})",
+         "scale must be non-zero"},
         {R"({"meshes": [{"file": "builtin:teapot"}]})", "unknown builtin mesh"},
         {R"({"meshes": [{"file": "cube.ply"}], "environment": {"intensity": -1}})",
          "environment/intensity"},
@@ -129,7 +132,8 @@ TEST(Scene, ErrorsNameFileAndKey) {
         auto path = write_file(dir, "bad" + std::to_string(i++) + ".json", c.json);
         std::string msg = error_of(path);
         EXPECT_NE(msg.find(path), std::string::npos) << msg;
-        EXPECT_NE(msg.find(c.expect), std::string::npos) << "got: " << msg << "\nwanted: " << c.expect;
+        EXPECT_NE(msg.find(c.expect), std::string::npos)
+            << "got: " << msg << "\nwanted: " << c.expect;
     }
     EXPECT_NE(error_of((dir / "nope.json").string()).find("cannot open"), std::string::npos);
     EXPECT_NE(error_of(dir.string()).find("is a directory"), std::string::npos);
