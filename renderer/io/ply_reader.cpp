@@ -109,14 +109,18 @@ constexpr size_t kMaxHeaderBytes = size_t(4) << 20;  // "missing end_header" bey
 constexpr size_t kMaxLineBytes = size_t(256) << 20;  // one ascii element per line
 
 inline bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
-inline bool is_digit(char c) { return c >= '0' && c <= '9'; }
+inline bool is_digit(char c) { return unsigned(c - '0') < 10u; }
 
 // ---------------------------------------------------------------------------------------
 // Block input: a reused buffer refilled from the reader; never reads past its data.
 
 class Input {
 public:
-    explicit Input(FileReader& reader) : reader_(reader), buf_(kBlockBytes) {
+    // kPad zero bytes after the usable capacity let the digit parser load 8 bytes at once
+    // near the end of the data without leaving the allocation.
+    static constexpr size_t kPad = 16;
+
+    explicit Input(FileReader& reader) : reader_(reader), buf_(kBlockBytes + kPad) {
         pos_ = end_ = buf_.data();
     }
 
@@ -137,15 +141,15 @@ public:
             pos_ = buf_.data();
             end_ = pos_ + have;
         }
-        if (n > buf_.size()) {
-            std::vector<char> bigger(std::max(n, 2 * buf_.size()));
+        if (n > buf_.size() - kPad) {
+            std::vector<char> bigger(std::max(n, 2 * (buf_.size() - kPad)) + kPad);
             std::memcpy(bigger.data(), buf_.data(), have);
             buf_.swap(bigger);
             pos_ = buf_.data();
             end_ = pos_ + have;
         }
         while (avail() < n && !eof_) {
-            size_t room = buf_.size() - size_t(end_ - buf_.data());
+            size_t room = buf_.size() - kPad - size_t(end_ - buf_.data());
             size_t got = reader_.read(const_cast<char*>(end_), room);
             if (got == 0) eof_ = true;
             end_ += got;
@@ -270,29 +274,149 @@ inline const char* skip_token(const char* p, const char* e) {
 
 enum class IntResult { ok, invalid, overflow };
 
-// Parses an integer token starting at p; on success p is moved past it.
-inline IntResult parse_int(const char*& p, const char* e, int64_t& out) {
+constexpr uint64_t kPow10Int[] = {1, 10, 100, 1000, 10000, 100000, 1000000, 10000000, 100000000};
+
+// Reads the run of up to 8 decimal digits at q with one 8-byte load (SWAR): returns how
+// many there are before e and stores their value. May load up to 8 bytes past e, which
+// the Input padding keeps inside the buffer; those bytes never count.
+[[gnu::always_inline]] inline int digits8(const char* q, const char* e, uint64_t& value) {
+    uint64_t x;
+    std::memcpy(&x, q, 8);
+    // Bytes outside '0'..'9' get a non-zero high nibble in t or t + 6 (borrows only move
+    // towards later bytes, past the first non-digit, so they do not matter).
+    uint64_t t = x - 0x3030303030303030ull;
+    uint64_t bad = (t | (t + 0x0606060606060606ull)) & 0xf0f0f0f0f0f0f0f0ull;
+    int n = bad ? __builtin_ctzll(bad) >> 3 : 8;
+    if (n > e - q) n = int(e - q);
+    if (n == 0) {
+        value = 0;
+        return 0;
+    }
+    // Keep the first n digits as the low-order end of an 8-digit number, then combine
+    // pairs, quads and octets by multiply-shift.
+    uint64_t d = (x & 0x0f0f0f0f0f0f0f0full) << (8 * (8 - n));
+    d = (d * 10 + (d >> 8)) & 0x00ff00ff00ff00ffull;
+    d = (d * 100 + (d >> 16)) & 0x0000ffff0000ffffull;
+    d = (d * 10000 + (d >> 32)) & 0xffffffffull;
+    value = d;
+    return n;
+}
+
+// Parses an integer token starting at p; on success p is moved past it. Overflow is
+// detected by the digit count (18 significant digits always fit).
+[[gnu::always_inline]] inline IntResult parse_int(const char*& p, const char* e, int64_t& out) {
     const char* q = p;
     bool neg = false;
     if (q < e && (*q == '-' || *q == '+')) neg = *q++ == '-';
-    if (q == e || !is_digit(*q)) return IntResult::invalid;
-    uint64_t v = 0;
-    bool overflow = false;
-    for (; q < e && is_digit(*q); ++q) {
-        if (v > (uint64_t(1) << 62)) overflow = true;
-        else v = v * 10 + uint64_t(*q - '0');
+    const char* d0 = q;
+    uint64_t v = 0, chunk;
+    for (;;) {
+        int n = digits8(q, e, chunk);
+        v = v * kPow10Int[n] + chunk;
+        q += n;
+        if (n < 8) break;
     }
-    if (q < e && !is_blank(*q)) return IntResult::invalid;
-    if (overflow || v > (uint64_t(1) << 62)) return IntResult::overflow;
+    if (q == d0 || (q < e && !is_blank(*q))) return IntResult::invalid;
+    if (q - d0 > 18) {
+        while (d0 < q - 1 && *d0 == '0') ++d0;
+        if (q - d0 > 18) return IntResult::overflow;
+    }
     out = neg ? -int64_t(v) : int64_t(v);
     p = q;
     return IntResult::ok;
 }
 
-// Parses a float token (from_chars; out-of-range values fall back to strtod, which gives
-// 0 for underflow and +-inf for overflow). Returns false for a malformed token.
+constexpr double kPow10[] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,  1e10, 1e11,
+                             1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
+
+// Clinger's fast path: a decimal with a mantissa below 2^53 and a power of ten up to 22 is
+// m * 10^e or m / 10^e in one correctly rounded double operation (Clinger 1990). Splits
+// the token into m (exact as a double) and e; returns false for anything else (the
+// caller then uses from_chars).
+[[gnu::always_inline]] inline bool fast_decimal(const char*& p, const char* e, double& mant, int& exp10_out,
+                                                bool& negative) {
+    const char* q = p;
+    bool neg = false;
+    if (q < e && (*q == '-' || *q == '+')) neg = *q++ == '-';
+    uint64_t m = 0, chunk;
+    int digits = 0, exp10 = 0;
+    for (;;) {
+        int n = digits8(q, e, chunk);
+        m = m * kPow10Int[n] + chunk;
+        q += n;
+        digits += n;
+        if (n < 8 || digits > 19) break;
+    }
+    if (q < e && *q == '.') {
+        ++q;
+        for (;;) {
+            int n = digits8(q, e, chunk);
+            m = m * kPow10Int[n] + chunk;
+            q += n;
+            digits += n;
+            exp10 -= n;
+            if (n < 8 || digits > 19) break;
+        }
+    }
+    if (digits == 0 || digits > 19) return false;
+    if (q < e && (*q == 'e' || *q == 'E')) {
+        ++q;
+        bool eneg = false;
+        if (q < e && (*q == '-' || *q == '+')) eneg = *q++ == '-';
+        if (q == e || !is_digit(*q)) return false;
+        int x = 0;
+        while (q < e && is_digit(*q)) {
+            if (x < 10000) x = x * 10 + (*q - '0');
+            ++q;
+        }
+        exp10 += eneg ? -x : x;
+    }
+    if (q < e && !is_blank(*q)) return false;
+    if (m > (uint64_t(1) << 53) || exp10 < -22 || exp10 > 22) return false;
+    mant = double(m);
+    exp10_out = exp10;
+    negative = neg;
+    p = q;
+    return true;
+}
+
+constexpr double kInvPow10[] = {1e0,   1e-1,  1e-2,  1e-3,  1e-4,  1e-5,  1e-6,  1e-7,
+                                1e-8,  1e-9,  1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15,
+                                1e-16, 1e-17, 1e-18, 1e-19, 1e-20, 1e-21, 1e-22};
+
 template <typename T>
 inline bool parse_real(const char*& p, const char* e, T& out) {
+    double m;
+    int exp10;
+    bool neg;
+    const char* fp = p;
+    if (fast_decimal(fp, e, m, exp10, neg)) {
+        if constexpr (sizeof(T) == 8) {
+            double d = exp10 < 0 ? m / kPow10[-exp10] : m * kPow10[exp10];
+            out = neg ? -d : d;
+            p = fp;
+            return true;
+        } else {
+            // For a float result, multiplying by a rounded 10^-k (no division latency) is
+            // within 2 double ulps of m / 10^k. Rounding that to float gives the correctly
+            // rounded float unless a float midpoint lies within those ulps; such rare
+            // values take the exact division, and a result exactly on a midpoint (where
+            // rounding twice could differ) goes to from_chars.
+            double d;
+            if (exp10 >= 0) {
+                d = m * kPow10[exp10];
+            } else {
+                d = m * kInvPow10[-exp10];
+                uint64_t low = std::bit_cast<uint64_t>(d) & 0x1fffffffu;
+                if (low - 0x10000000u + 4u <= 8u) d = m / kPow10[-exp10];
+            }
+            if ((std::bit_cast<uint64_t>(d) & 0x1fffffffu) != 0x10000000u) {
+                out = float(neg ? -d : d);
+                p = fp;
+                return true;
+            }
+        }
+    }
     const char* q = p;
     if (q < e && *q == '+') ++q;
     auto r = std::from_chars(q, e, out);
@@ -824,6 +948,8 @@ bool PlyParser::next_data_line(const char*& b, const char*& e) {
 
 void PlyParser::read_ascii_element(Element& el) {
     const bool is_vertex = &el == &elements_[size_t(vertex_el_)];
+    const bool is_face = face_el_ >= 0 && &el == &elements_[size_t(face_el_)];
+    const bool face_fast = is_face && el.props.size() == 1;
     const char* b;
     const char* e;
     float v[9] = {};
@@ -833,6 +959,26 @@ void PlyParser::read_ascii_element(Element& el) {
                       "unexpected end of data (file truncated? the header declares " +
                           std::to_string(el.count) + " " + el.name + " elements)");
         const char* p = b;
+        if (face_fast) {
+            // "3 a b c": the triangle lines of nearly every ascii mesh.
+            p = skip_blanks(p, e);
+            int64_t idx[3];
+            const char* q = p;
+            if (e - q > 2 && q[0] == '3' && is_blank(q[1])) {
+                q = skip_blanks(q + 1, e);
+                bool ok = q < e && parse_int(q, e, idx[0]) == IntResult::ok;
+                if (ok) q = skip_blanks(q, e), ok = q < e && parse_int(q, e, idx[1]) == IntResult::ok;
+                if (ok) q = skip_blanks(q, e), ok = q < e && parse_int(q, e, idx[2]) == IntResult::ok;
+                if (ok && skip_blanks(q, e) == e && uint64_t(idx[0]) < vertex_count_ &&
+                    uint64_t(idx[1]) < vertex_count_ && uint64_t(idx[2]) < vertex_count_ &&
+                    bad_vertex_.empty() && idx[0] != idx[1] && idx[1] != idx[2] && idx[0] != idx[2]) {
+                    ++source_faces_;
+                    mesh_.triangles.emplace_back(uint32_t(idx[0]), uint32_t(idx[1]), uint32_t(idx[2]));
+                    continue;
+                }
+            }
+            // Anything else takes the general path below, which reports errors.
+        }
         bool have_face = false;
         for (const Property& prop : el.props) {
             p = skip_blanks(p, e);
