@@ -44,9 +44,8 @@ void validate(const KdTreeParams& p) {
     if (p.threads < 0) bad_param("threads", std::to_string(p.threads), "[0, inf) (0 = default)");
 }
 
-KdTree::KdTree(std::shared_ptr<const TriangleMesh> mesh, Bounds3f bounds,
-               std::vector<KdNode> nodes, std::vector<uint32_t> indices, KdTreeParams params,
-               KdTreeStats stats)
+KdTree::KdTree(std::shared_ptr<const TriangleMesh> mesh, Bounds3f bounds, std::vector<KdNode> nodes,
+               std::vector<uint32_t> indices, KdTreeParams params, KdTreeStats stats)
     : mesh_(std::move(mesh)),
       bounds_(bounds),
       nodes_(std::move(nodes)),
@@ -64,8 +63,9 @@ KdTree::KdTree(std::shared_ptr<const TriangleMesh> mesh, Bounds3f bounds,
         throw Error("kd-tree: non-finite bounds");
     const size_t ntri = mesh_->triangles.size(), nvert = mesh_->positions.size();
     for (uint32_t id : indices_) {
-        if (id >= ntri) throw Error("kd-tree: triangle index " + std::to_string(id) +
-                                    " out of range (" + std::to_string(ntri) + " triangles)");
+        if (id >= ntri)
+            throw Error("kd-tree: triangle index " + std::to_string(id) + " out of range (" +
+                        std::to_string(ntri) + " triangles)");
         const Vec3u& t = mesh_->triangles[id];
         if (t.x >= nvert || t.y >= nvert || t.z >= nvert)
             throw Error(ErrorLocation{"", "triangle", int64_t(id)},
@@ -116,8 +116,10 @@ void finalize_stats(KdBuildOutput& out, size_t triangle_count) {
             continue;
         }
         ++s.leaves;
-        if (n.count() == 0) ++s.empty_leaves;
-        else ++nonempty;
+        if (n.count() == 0)
+            ++s.empty_leaves;
+        else
+            ++nonempty;
         s.references += n.count();
         s.max_leaf_size = std::max(s.max_leaf_size, n.count());
         s.max_depth_reached = std::max(s.max_depth_reached, it.depth);

@@ -126,8 +126,7 @@ void evaluate_axis(Context& ctx, const Work& w, int axis, Scratch& s, Choice& be
     const float q = ctx.params.q;
     const int n0 = ctx.params.n0;
     auto f = [&](size_t k) { return double(thesis_f(float(k), q, n0)); };
-    auto consider = [&](SplitKind kind, float p, size_t left_only, size_t right_only,
-                        size_t both) {
+    auto consider = [&](SplitKind kind, float p, size_t left_only, size_t right_only, size_t both) {
         if (!(p > box_lo && p < box_hi)) return;  // only planes strictly inside the box
         Bounds3f lb = w.box, rb = w.box;
         lb.upper[axis] = p;
@@ -197,10 +196,17 @@ void build_node(Context& ctx, Subtree& st, uint32_t slot, Work w) {
         return;
     }
     switch (best.kind) {
-        case SplitKind::cutoff: ++st.cutoff_splits; break;
-        case SplitKind::center: ++st.center_splits; break;
-        case SplitKind::median: ++st.median_splits; break;
-        case SplitKind::none: break;
+        case SplitKind::cutoff:
+            ++st.cutoff_splits;
+            break;
+        case SplitKind::center:
+            ++st.center_splits;
+            break;
+        case SplitKind::median:
+            ++st.median_splits;
+            break;
+        case SplitKind::none:
+            break;
     }
 
     // Partition against exactly the float stored in the node.
@@ -266,8 +272,7 @@ void flatten(Subtree& st, uint32_t root_slot, KdBuildOutput& out, KdTreeStats& s
     for (size_t k = 0; k < st.nodes.size(); ++k) {
         const KdNode& n = st.nodes[k];
         KdNode g = n.is_leaf() ? KdNode::make_leaf(n.count(), uint32_t(n.first + index_base))
-                               : KdNode::make_inner(n.axis(), n.split,
-                                                    uint32_t(global(n.child())));
+                               : KdNode::make_inner(n.axis(), n.split, uint32_t(global(n.child())));
         out.nodes[global(uint32_t(k))] = g;
     }
     out.indices.insert(out.indices.end(), st.indices.begin(), st.indices.end());
@@ -305,9 +310,8 @@ KdBuildOutput build_thesis_tree(const TriangleMesh& mesh, const KdTreeParams& pa
     }
     Context ctx{mesh, params};
     const double n = double(std::max<size_t>(root.tris.size(), 1));
-    ctx.max_depth = params.max_depth > 0
-                        ? params.max_depth
-                        : std::min(64, int(8.0 + 1.3 * std::log2(n)));
+    ctx.max_depth =
+        params.max_depth > 0 ? params.max_depth : std::min(64, int(8.0 + 1.3 * std::log2(n)));
     ctx.add_bytes(int64_t(root.tris.capacity()) * 4);
     root.budget = kMaxReferencesPerTriangle * root.tris.size();
     out.bounds = root.box;

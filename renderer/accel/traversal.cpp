@@ -37,8 +37,7 @@ struct RayState {
 // Rejects non-finite or zero-direction rays and clips the interval to the root box.
 // Directions with extreme magnitudes are rescaled by a power of two (exact), so
 // 1 / d and the distances stay finite. Returns false on a certain miss.
-inline bool setup_ray(const Ray& ray, const Bounds3f& bounds, RayState& rs, float& t0,
-                      float& t1) {
+inline bool setup_ray(const Ray& ray, const Bounds3f& bounds, RayState& rs, float& t0, float& t1) {
     if (!is_finite(ray.origin) || !is_finite(ray.dir) || std::isnan(ray.tmin) ||
         std::isnan(ray.tmax) || !(ray.tmin <= ray.tmax) || bounds.empty())
         return false;
@@ -173,8 +172,7 @@ bool KdTree::occluded(const Ray& ray, TraversalCounters* counters) const {
     const TriangleMesh& m = *mesh_;
     if (counters)
         return traverse<true, true>(nodes_.data(), indices_.data(), m.positions.data(),
-                                    m.triangles.data(), rs, t0, t1, tmin, tmax, nullptr,
-                                    counters);
+                                    m.triangles.data(), rs, t0, t1, tmin, tmax, nullptr, counters);
     return traverse<true, false>(nodes_.data(), indices_.data(), m.positions.data(),
                                  m.triangles.data(), rs, t0, t1, tmin, tmax, nullptr, nullptr);
 }

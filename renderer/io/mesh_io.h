@@ -18,15 +18,21 @@ struct MeshLoadOptions {
 
 /// What a load found, for `kdtrace info` and reports.
 struct MeshLoadInfo {
-    std::string format;       ///< "ply", "obj"
-    std::string encoding;     ///< "ascii", "binary_little_endian", "binary_big_endian", "text"
+    std::string format;    ///< "ply", "obj"
+    std::string encoding;  ///< "ascii", "binary_little_endian", "binary_big_endian", "text"
     bool gzip = false;
-    uint64_t file_bytes = 0;  ///< bytes of file data parsed (uncompressed)
-    uint64_t source_faces = 0;     ///< polygons in the file
-    uint64_t dropped_faces = 0;    ///< with drop_invalid: faces dropped for non-finite vertices
-    uint64_t degenerate_faces = 0; ///< faces with repeated indices (kept)
+    uint64_t file_bytes = 0;        ///< bytes of file data parsed (uncompressed)
+    uint64_t source_faces = 0;      ///< polygons in the file
+    uint64_t dropped_faces = 0;     ///< with drop_invalid: faces dropped for non-finite vertices
+    uint64_t degenerate_faces = 0;  ///< faces with repeated indices (kept)
     double seconds = 0.0;
 };
+
+enum class MeshFormat : uint8_t { unknown, ply, obj };
+
+/// Format of a mesh file by content (a stream starting with "ply", gzip or not), else by
+/// extension (.obj, .ply, .ply.gz). Throws kdt::Error when the file cannot be opened.
+MeshFormat detect_mesh_format(const std::string& path);
 
 /// Loads any supported mesh file. Throws kdt::Error with file name, element, index and
 /// line or byte offset on any malformed input; never crashes on hostile files.

@@ -63,7 +63,8 @@ std::vector<Ray> make_rays(const TriangleMesh& mesh, size_t n, uint32_t seed) {
                 const Vec3u& t = mesh.triangles[rng() % mesh.triangles.size()];
                 float a = u01(rng), bb = u01(rng);
                 if (a + bb > 1) a = 1 - a, bb = 1 - bb;
-                Vec3f target = mesh.positions[t.x] + a * (mesh.positions[t.y] - mesh.positions[t.x]) +
+                Vec3f target = mesh.positions[t.x] +
+                               a * (mesh.positions[t.y] - mesh.positions[t.x]) +
                                bb * (mesh.positions[t.z] - mesh.positions[t.x]);
                 r.dir = (target - r.origin) * (0.5f + u01(rng));
                 break;
@@ -133,9 +134,9 @@ TEST_P(KdTreeBruteForce, ClosestAndAnyHitMatchBruteForce) {
                               << (got ? std::to_string(hit.t) + " prim " + std::to_string(hit.prim)
                                       : "miss")
                               << ", brute force "
-                              << (ref.valid() ? std::to_string(ref.t) + " prim " +
-                                                    std::to_string(ref.prim)
-                                              : "miss")
+                              << (ref.valid()
+                                      ? std::to_string(ref.t) + " prim " + std::to_string(ref.prim)
+                                      : "miss")
                               << ", occluded " << occ;
             }
         }
@@ -144,17 +145,17 @@ TEST_P(KdTreeBruteForce, ClosestAndAnyHitMatchBruteForce) {
     EXPECT_GT(hits, rays_checked / 4);  // the comparison is not vacuous
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Builders, KdTreeBruteForce,
-    ::testing::Combine(::testing::Values(KdBuilder::thesis, KdBuilder::sah),
-                       ::testing::Range(0, int(std::size(kParamCases)))),
-    [](const ::testing::TestParamInfo<std::tuple<KdBuilder, int>>& pi) {
-        std::string name = std::string(kKdBuilderNames[size_t(std::get<0>(pi.param))]) + "_" +
-                           kParamCases[std::get<1>(pi.param)].name;
-        for (char& ch : name)
-            if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
-        return name;
-    });
+INSTANTIATE_TEST_SUITE_P(Builders, KdTreeBruteForce,
+                         ::testing::Combine(::testing::Values(KdBuilder::thesis, KdBuilder::sah),
+                                            ::testing::Range(0, int(std::size(kParamCases)))),
+                         [](const ::testing::TestParamInfo<std::tuple<KdBuilder, int>>& pi) {
+                             std::string name =
+                                 std::string(kKdBuilderNames[size_t(std::get<0>(pi.param))]) + "_" +
+                                 kParamCases[std::get<1>(pi.param)].name;
+                             for (char& ch : name)
+                                 if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+                             return name;
+                         });
 
 TEST(KdTreeParams, ValidateNamesTheBadParameter) {
     auto expect_error = [](KdTreeParams p, const std::string& name) {
@@ -287,9 +288,9 @@ TEST(KdTree, ConstructorRejectsCorruptTrees) {
         return KdTree(mesh, mesh->bounds(), std::move(nodes), std::move(indices), {}, {});
     };
     EXPECT_NO_THROW(make({KdNode::make_leaf(2, 0)}, {0, 9}));
-    EXPECT_THROW(make({KdNode::make_leaf(3, 0)}, {0, 9}), Error);         // past indices
-    EXPECT_THROW(make({KdNode::make_leaf(2, 0)}, {0, 10}), Error);        // bad triangle
-    EXPECT_THROW(make({KdNode::make_inner(0, 0.0f, 0)}, {}), Error);      // self loop
+    EXPECT_THROW(make({KdNode::make_leaf(3, 0)}, {0, 9}), Error);     // past indices
+    EXPECT_THROW(make({KdNode::make_leaf(2, 0)}, {0, 10}), Error);    // bad triangle
+    EXPECT_THROW(make({KdNode::make_inner(0, 0.0f, 0)}, {}), Error);  // self loop
     EXPECT_THROW(make({KdNode::make_inner(0, 0.0f, 1), KdNode::make_leaf(0, 0)}, {}), Error);
     EXPECT_THROW(make({}, {}), Error);
     // A chain deeper than 64 levels.
