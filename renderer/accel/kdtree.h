@@ -60,9 +60,9 @@ namespace kdt {
 /// Inner: word >> 2 is the index of the first child; the second child follows it
 /// (children adjacent, depth-first order); `split` is the plane position.
 /// Leaf: word >> 2 is the triangle count; `first` indexes KdTree::indices().
-/// Builder contract the traversal relies on: a triangle goes left if some vertex is < split
-/// and right if some vertex is >= split (the thesis's section 5.2.1), so the right child
-/// holds every triangle touching the plane. Rays lying in a plane visit only the right side.
+/// Builder contract the traversal relies on: a child references every triangle that meets
+/// its closed box outside the split plane; a triangle meeting it only within the plane may go
+/// to either side (or both). Rays lying in a split plane visit both children.
 struct KdNode {
     uint32_t word = 3;
     union {

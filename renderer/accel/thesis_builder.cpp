@@ -5,8 +5,7 @@
 // stored float plane as the thesis's section 5.2.1 does (a vertex on the plane counts as
 // positive): min < split goes left, max >= split goes right. Straddlers are referenced from
 // both children; a triangle touching the plane from the right or lying in it goes right
-// only, one touching it from the left goes to both. So the right (closed) side holds every
-// triangle that touches the plane, which the traversal uses for rays lying in a plane.
+// only, one touching it from the left goes to both (the contract in kdtree.h allows either).
 #include <algorithm>
 #include <atomic>
 #include <cmath>

@@ -41,9 +41,7 @@ inline bool setup_ray(const Ray& ray, const Bounds3f& bounds, RayState& rs, floa
     if (!is_finite(ray.origin) || !is_finite(ray.dir) || std::isnan(ray.tmin) ||
         std::isnan(ray.tmax) || !(ray.tmin <= ray.tmax) || bounds.empty())
         return false;
-    // Zero components become -0, so 1/d = -inf and the right child counts as near: a ray
-    // lying in a split plane (t = 0 * inf = NaN) visits only the near side, the right one,
-    // which holds every triangle touching the plane (see thesis_builder.cpp).
+    // Zero components become -0 so that 1/d = -inf and dir_neg agree on the sign.
     Vec3f d = ray.dir;
     const float m = std::max(std::fabs(d.x), std::max(std::fabs(d.y), std::fabs(d.z)));
     if (!(m > 0.0f)) return false;
@@ -87,13 +85,15 @@ bool traverse(const KdNode* nodes, const uint32_t* indices, const Vec3f* positio
             const uint32_t first = node.child();
             const uint32_t near_child = first + rs.dir_neg[axis];
             const uint32_t far_child = first + 1 - rs.dir_neg[axis];
-            // NaN (origin on the plane, d = -0) visits the near (right) side only.
+            // A ray lying in the plane (origin on it, d = 0: t = 0 * inf = NaN) visits both
+            // sides: a builder may reference a triangle that only touches the plane from
+            // either side. Comparisons are written so that NaN means "visit".
             const bool visit_near = !(ts < lower_slack(t0));
-            const bool visit_far = ts <= upper_slack(t1);
+            const bool visit_far = !(ts > upper_slack(t1));
             if (visit_near && visit_far) {
-                if (sp < kStackSize) stack[sp++] = {far_child, std::max(ts, t0), t1};
+                if (sp < kStackSize) stack[sp++] = {far_child, ts > t0 ? ts : t0, t1};
                 idx = near_child;
-                t1 = std::min(ts, t1);
+                t1 = ts < t1 ? ts : t1;
             } else {
                 idx = visit_near ? near_child : far_child;
             }
