@@ -460,6 +460,17 @@ std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
                                           std::move(indices), params, std::move(s));
 }
 
+void reseal_kdtree_cache_image(std::vector<unsigned char>& bytes) {
+    if (bytes.size() < sizeof(FileHeader)) throw Error("tree cache image shorter than a header");
+    FileHeader h;
+    std::memcpy(&h, bytes.data(), sizeof(h));
+    h.payload_checksum = checksum64(bytes.data() + sizeof(h), bytes.size() - sizeof(h));
+    h.header_checksum = checksum64(&h, offsetof(FileHeader, header_checksum));
+    std::memcpy(bytes.data(), &h, sizeof(h));
+}
+
+size_t kdtree_cache_payload_offset() { return sizeof(FileHeader); }
+
 std::string default_kdtree_cache_dir() {
     if (const char* env = std::getenv("KDT_CACHE_DIR"); env && *env) {
         return (fs::path(env) / "trees").string();

@@ -8,6 +8,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "renderer/accel/kdtree.h"
 
@@ -37,6 +38,14 @@ void save_kdtree(const std::string& path, const KdTree& tree);
 std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
                                           std::shared_ptr<const TriangleMesh> mesh,
                                           const KdTreeParams& params);
+
+/// Recomputes both checksums of a cache file held in memory, for tests and tools that forge
+/// or patch files (so that only the structural checks can catch what they changed).
+/// Throws kdt::Error when `bytes` is shorter than a header.
+void reseal_kdtree_cache_image(std::vector<unsigned char>& bytes);
+
+/// Byte offset of the first node in a cache file (nodes, then indices, follow the header).
+size_t kdtree_cache_payload_offset();
 
 /// Receives one-line messages ("loaded ...", "rebuilding: <reason>", "cannot write ...").
 using KdCacheLog = std::function<void(const std::string& line)>;

@@ -308,78 +308,106 @@ TEST_F(CacheTest, SaveToUnwritablePathThrowsNamingIt) {
     }
 }
 
-// Files whose checksums are right but whose structure is not: made by saving trees built
-// by hand, so only the structural checks can catch them.
+// Files whose checksums are right but whose structure is not: a valid file is patched and
+// resealed, so only the structural checks can catch the change.
 class CacheStructureTest : public CacheTest {
 protected:
-    std::string error_for(std::vector<KdNode> nodes, std::vector<uint32_t> indices) {
-        KdTreeStats stats;
-        stats.nodes = nodes.size();
-        stats.references = indices.size();
-        KdTree tree(mesh_, mesh_->bounds(), std::move(nodes), std::move(indices), params_, stats);
-        save_kdtree(file_.string(), tree);
+    void SetUp() override {
+        CacheTest::SetUp();
+        tree_ = build_kdtree(mesh_, params_);
+        save_kdtree(file_.string(), *tree_);
+        bytes_ = read_bytes(file_);
+        ASSERT_GT(tree_->nodes().size(), 8u);
+        ASSERT_FALSE(tree_->nodes()[0].is_leaf());
+    }
+    size_t node_offset(size_t i) const { return kdtree_cache_payload_offset() + 8 * i; }
+    size_t index_offset(size_t i) const { return node_offset(tree_->nodes().size()) + 4 * i; }
+    void set_node(size_t i, const KdNode& n) { std::memcpy(&bytes_[node_offset(i)], &n, 8); }
+    size_t first_inner_after(size_t i) const {
+        for (size_t k = i + 1; k < tree_->nodes().size(); ++k) {
+            if (!tree_->nodes()[k].is_leaf()) return k;
+        }
+        return 0;
+    }
+    size_t first_leaf() const {
+        for (size_t k = 0; k < tree_->nodes().size(); ++k) {
+            if (tree_->nodes()[k].is_leaf()) return k;
+        }
+        return 0;
+    }
+    std::string error() {
+        reseal_kdtree_cache_image(bytes_);
+        write_bytes(file_, bytes_);
         return load_error(file_, mesh_, params_);
     }
+
+    std::shared_ptr<const KdTree> tree_;
+    std::vector<unsigned char> bytes_;
 };
 
+TEST_F(CacheStructureTest, ResealedUnchangedFileLoads) { EXPECT_EQ(error(), ""); }
+
 TEST_F(CacheStructureTest, ChildIndexOutOfRange) {
-    std::string err = error_for(
-        {KdNode::make_inner(0, 0.0f, 5), KdNode::make_leaf(0, 0), KdNode::make_leaf(0, 0)}, {});
-    EXPECT_NE(err.find("node 0: child index 5 out of range"), std::string::npos) << err;
-    EXPECT_NE(err.find("byte 840"), std::string::npos) << err;
+    const uint32_t n = uint32_t(tree_->nodes().size());
+    set_node(0, KdNode::make_inner(0, 0.0f, n + 5));
+    const std::string err = error();
+    EXPECT_NE(err.find("node 0: child index " + std::to_string(n + 5) + " out of range"),
+              std::string::npos)
+        << err;
+    EXPECT_NE(err.find("byte " + std::to_string(node_offset(0))), std::string::npos) << err;
 }
 
 TEST_F(CacheStructureTest, ChildPointingBackwardsWouldLoop) {
-    std::string err = error_for(
-        {KdNode::make_inner(0, 0.0f, 1), KdNode::make_inner(1, 0.0f, 1), KdNode::make_leaf(0, 0)},
-        {});
-    EXPECT_NE(err.find("node 1: child index 1 out of range"), std::string::npos) << err;
+    const size_t j = first_inner_after(0);
+    ASSERT_GT(j, 0u);
+    set_node(j, KdNode::make_inner(1, 0.0f, uint32_t(j)));
+    const std::string err = error();
+    EXPECT_NE(err.find("node " + std::to_string(j) + ": child index " + std::to_string(j) +
+                       " out of range"),
+              std::string::npos)
+        << err;
 }
 
 TEST_F(CacheStructureTest, SharedChild) {
-    std::string err = error_for({KdNode::make_inner(0, 0.0f, 1), KdNode::make_inner(1, 0.0f, 2),
-                                 KdNode::make_leaf(0, 0), KdNode::make_leaf(0, 0)},
-                                {});
+    const size_t j = first_inner_after(0);
+    ASSERT_GT(j, 0u);
+    // The root adopts j's children: they now have two parents (and the root's old ones none).
+    set_node(0, KdNode::make_inner(0, 0.0f, tree_->nodes()[j].child()));
+    const std::string err = error();
     EXPECT_NE(err.find("child of two parents"), std::string::npos) << err;
 }
 
 TEST_F(CacheStructureTest, LeafRangeOutOfRange) {
-    std::string err = error_for({KdNode::make_leaf(3, 1)}, {0, 1, 2});
-    EXPECT_NE(err.find("leaf range [1, 4) outside the 3 indices"), std::string::npos) << err;
+    const size_t leaf = first_leaf();
+    const uint32_t n = uint32_t(tree_->indices().size());
+    set_node(leaf, KdNode::make_leaf(2, n - 1));
+    const std::string err = error();
+    EXPECT_NE(
+        err.find("node " + std::to_string(leaf) + ": leaf range [" + std::to_string(n - 1) + ", " +
+                 std::to_string(n + 1) + ") outside the " + std::to_string(n) + " indices"),
+        std::string::npos)
+        << err;
 }
 
 TEST_F(CacheStructureTest, TriangleIndexOutOfRange) {
     const uint32_t n = uint32_t(mesh_->triangle_count());
-    std::string err = error_for({KdNode::make_leaf(2, 0)}, {0, n});
-    EXPECT_NE(err.find("index 1: triangle index " + std::to_string(n) + " out of range"),
+    std::memcpy(&bytes_[index_offset(3)], &n, 4);
+    const std::string err = error();
+    EXPECT_NE(err.find("byte " + std::to_string(index_offset(3)) + ": index 3: triangle index " +
+                       std::to_string(n) + " out of range"),
               std::string::npos)
         << err;
 }
 
 TEST_F(CacheStructureTest, NonFiniteSplit) {
-    std::string err = error_for(
-        {KdNode::make_inner(2, std::nanf(""), 1), KdNode::make_leaf(0, 0), KdNode::make_leaf(0, 0)},
-        {});
+    set_node(0, KdNode::make_inner(2, std::nanf(""), tree_->nodes()[0].child()));
+    const std::string err = error();
     EXPECT_NE(err.find("split plane not finite"), std::string::npos) << err;
 }
 
-TEST_F(CacheStructureTest, TooDeep) {
-    // A chain of 70 inner levels laid out [inner, inner, leaf, inner, leaf, ...]: the inner
-    // node at position p has children p + 2 (inner) and p + 3 (leaf).
-    std::vector<KdNode> nodes;
-    nodes.push_back(KdNode::make_inner(0, 0.0f, 1));
-    for (uint32_t k = 1; k < 70; ++k) {
-        nodes.push_back(KdNode::make_inner(0, 0.0f, uint32_t(nodes.size()) + 2));
-        nodes.push_back(KdNode::make_leaf(0, 0));
-    }
-    nodes.push_back(KdNode::make_leaf(0, 0));
-    nodes.push_back(KdNode::make_leaf(0, 0));
-    std::string err = error_for(nodes, {});
-    EXPECT_NE(err.find("deeper than 64"), std::string::npos) << err;
-}
-
 TEST_F(CacheStructureTest, StructureErrorTriggersRebuild) {
-    error_for({KdNode::make_leaf(3, 1)}, {0, 1, 2});
+    set_node(first_leaf(), KdNode::make_leaf(5, uint32_t(tree_->indices().size())));
+    error();
     expect_rebuilt("leaf range");
 }
 
