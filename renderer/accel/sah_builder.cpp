@@ -821,6 +821,7 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
     out.nodes.emplace_back();
     emit(top, 0, out);
     KDT_CHECK(out.nodes.size() == node_count && out.indices.size() == index_count);
+    finalize_stats(out, tri_count);
     out.stats.sah_splits = splits;
     out.stats.peak_build_bytes = uint64_t(std::max<int64_t>(ctx.meter.peak(), 0));
     return out;
