@@ -1,7 +1,7 @@
 #include "tests/test_util.h"
 
-#include <cstdlib>
 #include <unistd.h>
+#include <cstdlib>
 
 namespace kdt::test {
 
@@ -10,7 +10,8 @@ std::filesystem::path source_dir() { return KDT_SOURCE_DIR; }
 std::filesystem::path shared_data_dir() {
     if (const char* env = std::getenv("KDT_SHARED_DATA")) return env;
     auto p = source_dir() / ".." / "shared" / "data";
-    return std::filesystem::is_directory(p) ? std::filesystem::canonical(p) : std::filesystem::path();
+    return std::filesystem::is_directory(p) ? std::filesystem::canonical(p)
+                                            : std::filesystem::path();
 }
 
 std::filesystem::path dragon_dir() {

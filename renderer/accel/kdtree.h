@@ -22,16 +22,16 @@ inline constexpr std::array<const char*, 2> kKdBuilderNames = {"thesis", "sah"};
 /// (f(n) = n for n <= n0, (n - n0)^(1 + log2 q) + n0 otherwise); q = 1 is the linear cost.
 struct KdTreeParams {
     KdBuilder builder = KdBuilder::sah;
-    float q = 0.98f;              ///< in (0, 1]
-    int n0 = 5;                   ///< >= 0
-    int max_depth = 0;            ///< 0..64; 0 = automatic (8 + 1.3 log2 N)
-    bool use_median_split = true; ///< thesis builder: candidate "median vertex"
-    bool use_center_split = true; ///< thesis builder: candidate "spatial middle"
-    bool use_cutoff_split = true; ///< thesis builder: candidates "cut off empty space"
-    float traversal_cost = 1.0f;  ///< SAH builder: cost of one inner node relative to ...
-    float intersect_cost = 1.5f;  ///< ... one ray-triangle test
-    float empty_bonus = 0.2f;     ///< SAH builder: cost reduction for cutting off empty space
-    int threads = 0;              ///< 0 = OpenMP default
+    float q = 0.98f;               ///< in (0, 1]
+    int n0 = 5;                    ///< >= 0
+    int max_depth = 0;             ///< 0..64; 0 = automatic (8 + 1.3 log2 N)
+    bool use_median_split = true;  ///< thesis builder: candidate "median vertex"
+    bool use_center_split = true;  ///< thesis builder: candidate "spatial middle"
+    bool use_cutoff_split = true;  ///< thesis builder: candidates "cut off empty space"
+    float traversal_cost = 1.0f;   ///< SAH builder: cost of one inner node relative to ...
+    float intersect_cost = 1.5f;   ///< ... one ray-triangle test
+    float empty_bonus = 0.2f;      ///< SAH builder: cost reduction for cutting off empty space
+    int threads = 0;               ///< 0 = OpenMP default
 };
 
 /// Closest hit of a query. prim == kNoHit on a miss.
@@ -87,17 +87,17 @@ static_assert(sizeof(KdNode) == 8, "kd-tree nodes are 8 bytes");
 /// What a build produced, as the thesis's tables report it.
 struct KdTreeStats {
     uint64_t nodes = 0, leaves = 0, empty_leaves = 0;
-    uint64_t references = 0;          ///< triangle indices stored in leaves
+    uint64_t references = 0;  ///< triangle indices stored in leaves
     double refs_per_triangle = 0.0;
-    double mean_leaf_size = 0.0;      ///< over non-empty leaves
+    double mean_leaf_size = 0.0;  ///< over non-empty leaves
     uint32_t max_leaf_size = 0;
     uint32_t max_depth_reached = 0;
     std::vector<uint64_t> depth_histogram;  ///< leaves per depth
     uint64_t median_splits = 0, center_splits = 0, cutoff_splits = 0, sah_splits = 0;
-    uint64_t bytes = 0;               ///< nodes + indices + any per-triangle data
+    uint64_t bytes = 0;  ///< nodes + indices + any per-triangle data
     double bytes_per_triangle = 0.0;
     double build_seconds = 0.0;
-    uint64_t peak_build_bytes = 0;    ///< estimate of builder scratch memory at its peak
+    uint64_t peak_build_bytes = 0;  ///< estimate of builder scratch memory at its peak
 };
 
 /// An immutable kd-tree over one mesh. Shares ownership of the mesh it was built on.

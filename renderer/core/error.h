@@ -10,11 +10,11 @@ namespace kdt {
 
 /// Where in a file an error was found; unset fields are left out of the message.
 struct ErrorLocation {
-    std::string path;       ///< file name as the user gave it; may be empty (flags)
-    std::string element;    ///< e.g. "face", "vertex", "header", a JSON pointer
-    int64_t index = -1;     ///< element index, -1 when not applicable
-    int64_t line = -1;      ///< 1-based line number for text input, -1 when unknown
-    int64_t offset = -1;    ///< byte offset for binary input, -1 when unknown
+    std::string path;     ///< file name as the user gave it; may be empty (flags)
+    std::string element;  ///< e.g. "face", "vertex", "header", a JSON pointer
+    int64_t index = -1;   ///< element index, -1 when not applicable
+    int64_t line = -1;    ///< 1-based line number for text input, -1 when unknown
+    int64_t offset = -1;  ///< byte offset for binary input, -1 when unknown
 };
 
 /// Thrown for expected bad input. what() is a complete sentence such as

@@ -18,13 +18,13 @@ struct MeshLoadOptions {
 
 /// What a load found, for `kdtrace info` and reports.
 struct MeshLoadInfo {
-    std::string format;       ///< "ply", "obj"
-    std::string encoding;     ///< "ascii", "binary_little_endian", "binary_big_endian", "text"
+    std::string format;    ///< "ply", "obj"
+    std::string encoding;  ///< "ascii", "binary_little_endian", "binary_big_endian", "text"
     bool gzip = false;
-    uint64_t file_bytes = 0;  ///< bytes of file data parsed (uncompressed)
-    uint64_t source_faces = 0;     ///< polygons in the file
-    uint64_t dropped_faces = 0;    ///< with drop_invalid: faces dropped for non-finite vertices
-    uint64_t degenerate_faces = 0; ///< faces with repeated indices (kept)
+    uint64_t file_bytes = 0;        ///< bytes of file data parsed (uncompressed)
+    uint64_t source_faces = 0;      ///< polygons in the file
+    uint64_t dropped_faces = 0;     ///< with drop_invalid: faces dropped for non-finite vertices
+    uint64_t degenerate_faces = 0;  ///< faces with repeated indices (kept)
     double seconds = 0.0;
 };
 

@@ -17,11 +17,11 @@ inline constexpr std::array<const char*, 2> kEnvMappingNames = {"latlong", "angu
 
 /// How a scene describes its environment. file empty = constant colour.
 struct EnvironmentDesc {
-    Vec3f color{1.0f};            ///< constant radiance when file is empty
-    std::string file;             ///< .hdr, .exr or .pfm
+    Vec3f color{1.0f};  ///< constant radiance when file is empty
+    std::string file;   ///< .hdr, .exr or .pfm
     EnvMapping mapping = EnvMapping::latlong;
     float rotation_degrees = 0.0f;  ///< about the world +y axis
-    float intensity = 1.0f;       ///< multiplies the map (or the colour)
+    float intensity = 1.0f;         ///< multiplies the map (or the colour)
 };
 
 /// A direction sampled from the environment with its radiance and solid-angle pdf.

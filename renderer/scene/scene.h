@@ -21,18 +21,18 @@ inline constexpr std::array<const char*, 5> kMaterialTypeNames = {"diffuse", "mi
 /// Every material is two-sided. Unused fields are ignored by the type.
 struct MaterialDesc {
     MaterialType type = MaterialType::diffuse;
-    Vec3f albedo{0.8f};       ///< diffuse reflectance; tint of mirror and conductor
-    float ior = 1.5f;         ///< dielectric index of refraction (outside is 1)
-    Vec3f emission{0.0f};     ///< emissive radiance
-    float roughness = 0.2f;   ///< conductor: GGX alpha
+    Vec3f albedo{0.8f};      ///< diffuse reflectance; tint of mirror and conductor
+    float ior = 1.5f;        ///< dielectric index of refraction (outside is 1)
+    Vec3f emission{0.0f};    ///< emissive radiance
+    float roughness = 0.2f;  ///< conductor: GGX alpha
 };
 
 /// One mesh placed in the world. The mesh itself is loaded by load_scene().
 struct MeshInstance {
-    std::string file;                       ///< empty for generated meshes
+    std::string file;  ///< empty for generated meshes
     Mat4f world_from_object{1.0f};
     MaterialDesc material;
-    bool smooth = true;                     ///< smooth shading (file normals, else computed)
+    bool smooth = true;  ///< smooth shading (file normals, else computed)
     std::shared_ptr<const TriangleMesh> mesh;
 };
 
@@ -70,6 +70,14 @@ Scene load_scene_or_model(const std::string& path, const SceneLoadOptions& optio
 /// The built-in default scene, generated in code (no download): a displaced, subdivided
 /// sphere of a few hundred thousand triangles on a ground plane under a sky.
 Scene make_default_scene();
+
+/// Generated meshes (also reachable from scene files as "builtin:<name>").
+TriangleMesh make_icosphere(int levels);         ///< unit sphere, 20 * 4^levels triangles
+TriangleMesh make_displaced_sphere(int levels);  ///< the default scene's object, radius ~1
+TriangleMesh make_ground_plane(float half_size, float height);  ///< two triangles facing +y
+
+/// Writes a scene as JSON that load_scene() reads back (generated meshes as "builtin:" names).
+std::string scene_to_json(const Scene& scene);
 
 /// A camera that frames `bounds` from the front-right, above.
 CameraDesc frame_bounds(const Bounds3f& bounds, float vfov_degrees = 40.0f);

@@ -1,0 +1,360 @@
+// Scene files (JSON) and scenes around a single model. Strict: unknown keys and wrong
+// types are errors naming the file and the key's path.
+#include "renderer/scene/scene.h"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <nlohmann/json.hpp>
+
+#include "renderer/core/error.h"
+#include "renderer/io/mesh_io.h"
+
+namespace kdt {
+namespace {
+
+using json = nlohmann::json;
+namespace fs = std::filesystem;
+
+/// Walks one JSON object, remembering its path for messages and rejecting unknown keys.
+class Reader {
+public:
+    Reader(const std::string& file, const json& j, std::string where)
+        : file_(file), j_(j), where_(std::move(where)) {
+        if (!j_.is_object()) fail("expected an object");
+    }
+
+    [[noreturn]] void fail(const std::string& msg) const {
+        throw Error(ErrorLocation{file_, where_.empty() ? "scene" : where_}, msg);
+    }
+
+    void allow(std::initializer_list<const char*> keys) const {
+        std::set<std::string> ok(keys.begin(), keys.end());
+        for (auto it = j_.begin(); it != j_.end(); ++it) {
+            if (!ok.count(it.key())) {
+                std::string list;
+                for (const auto& k : ok) list += (list.empty() ? "" : ", ") + k;
+                throw Error(ErrorLocation{file_, child_path(it.key())},
+                            "unknown key \"" + it.key() + "\" (expected one of: " + list + ")");
+            }
+        }
+    }
+
+    bool has(const char* key) const { return j_.contains(key); }
+    Reader object(const char* key) const { return Reader(file_, j_.at(key), child_path(key)); }
+    const json& raw(const char* key) const { return j_.at(key); }
+    std::string child_path(const std::string& key) const {
+        return where_.empty() ? key : where_ + "/" + key;
+    }
+
+    float number(const char* key, float fallback) const {
+        if (!has(key)) return fallback;
+        const json& v = j_.at(key);
+        if (!v.is_number()) fail_key(key, "expected a number");
+        double d = v.get<double>();
+        if (!std::isfinite(d) || std::fabs(d) > 3.0e38) fail_key(key, "number out of range");
+        return float(d);
+    }
+    bool boolean(const char* key, bool fallback) const {
+        if (!has(key)) return fallback;
+        if (!j_.at(key).is_boolean()) fail_key(key, "expected true or false");
+        return j_.at(key).get<bool>();
+    }
+    std::string string(const char* key, const std::string& fallback) const {
+        if (!has(key)) return fallback;
+        if (!j_.at(key).is_string()) fail_key(key, "expected a string");
+        return j_.at(key).get<std::string>();
+    }
+    /// A 3-vector; a single number n is accepted as (n, n, n) when allow_scalar.
+    Vec3f vec3(const char* key, Vec3f fallback, bool allow_scalar = false) const {
+        if (!has(key)) return fallback;
+        const json& v = j_.at(key);
+        if (allow_scalar && v.is_number()) return Vec3f(number(key, 0.0f));
+        if (!v.is_array() || v.size() != 3) fail_key(key, "expected an array of 3 numbers");
+        Vec3f r;
+        for (int i = 0; i < 3; ++i) {
+            if (!v[i].is_number()) fail_key(key, "expected an array of 3 numbers");
+            double d = v[i].get<double>();
+            if (!std::isfinite(d) || std::fabs(d) > 3.0e38) fail_key(key, "number out of range");
+            r[i] = float(d);
+        }
+        return r;
+    }
+    template <size_t N>
+    int choice(const char* key, const std::array<const char*, N>& names, int fallback) const {
+        if (!has(key)) return fallback;
+        std::string s = string(key, "");
+        std::string list;
+        for (size_t i = 0; i < N; ++i) {
+            if (s == names[i]) return int(i);
+            list += (i ? ", " : "") + std::string(names[i]);
+        }
+        fail_key(key, "unknown value \"" + s + "\" (expected one of: " + list + ")");
+    }
+    [[noreturn]] void fail_key(const char* key, const std::string& msg) const {
+        throw Error(ErrorLocation{file_, child_path(key)}, msg);
+    }
+
+private:
+    const std::string& file_;
+    const json& j_;
+    std::string where_;
+};
+
+Mat4f read_transform(const Reader& r) {
+    r.allow({"translate", "rotate", "scale", "matrix"});
+    if (r.has("matrix")) {
+        if (r.has("translate") || r.has("rotate") || r.has("scale"))
+            r.fail("\"matrix\" cannot be combined with translate/rotate/scale");
+        const json& m = r.raw("matrix");
+        if (!m.is_array() || m.size() != 16)
+            r.fail_key("matrix", "expected 16 numbers (row-major)");
+        Mat4f out(1.0f);
+        for (int row = 0; row < 4; ++row) {
+            for (int col = 0; col < 4; ++col) {
+                const json& v = m[size_t(row * 4 + col)];
+                if (!v.is_number() || !std::isfinite(v.get<double>()))
+                    r.fail_key("matrix", "expected 16 finite numbers (row-major)");
+                out[col][row] = v.get<float>();
+            }
+        }
+        if (std::fabs(glm::determinant(Mat3f(out))) < 1e-30f)
+            r.fail_key("matrix", "the matrix is singular");
+        return out;
+    }
+    Vec3f t = r.vec3("translate", Vec3f(0.0f));
+    Vec3f rot = r.vec3("rotate", Vec3f(0.0f));  // degrees about x, then y, then z
+    Vec3f s = r.vec3("scale", Vec3f(1.0f), true);
+    if (s.x == 0.0f || s.y == 0.0f || s.z == 0.0f) r.fail_key("scale", "scale must be non-zero");
+    Mat4f m = glm::translate(Mat4f(1.0f), t);
+    m = glm::rotate(m, glm::radians(rot.z), Vec3f(0, 0, 1));
+    m = glm::rotate(m, glm::radians(rot.y), Vec3f(0, 1, 0));
+    m = glm::rotate(m, glm::radians(rot.x), Vec3f(1, 0, 0));
+    return glm::scale(m, s);
+}
+
+MaterialDesc read_material(const Reader& r) {
+    r.allow({"type", "albedo", "ior", "emission", "roughness"});
+    MaterialDesc m;
+    m.type = MaterialType(r.choice("type", kMaterialTypeNames, int(m.type)));
+    m.albedo = r.vec3("albedo", m.albedo, true);
+    m.ior = r.number("ior", m.ior);
+    m.emission = r.vec3("emission", m.emission, true);
+    m.roughness = r.number("roughness", m.roughness);
+    if (glm::any(glm::lessThan(m.albedo, Vec3f(0.0f))) ||
+        glm::any(glm::greaterThan(m.albedo, Vec3f(1.0f))))
+        r.fail_key("albedo", "albedo must lie in [0, 1]");
+    if (!(m.ior > 0.0f)) r.fail_key("ior", "ior must be positive");
+    if (glm::any(glm::lessThan(m.emission, Vec3f(0.0f))))
+        r.fail_key("emission", "emission must be non-negative");
+    if (!(m.roughness > 0.0f && m.roughness <= 1.0f))
+        r.fail_key("roughness", "roughness must lie in (0, 1]");
+    return m;
+}
+
+CameraDesc read_camera(const Reader& r) {
+    r.allow({"eye", "target", "up", "vfov"});
+    CameraDesc c;
+    c.eye = r.vec3("eye", c.eye);
+    c.target = r.vec3("target", c.target);
+    c.up = r.vec3("up", c.up);
+    c.vfov_degrees = r.number("vfov", c.vfov_degrees);
+    if (!(c.vfov_degrees > 0.0f && c.vfov_degrees < 180.0f))
+        r.fail_key("vfov", "vertical field of view must lie in (0, 180) degrees");
+    Vec3f fwd = c.target - c.eye;
+    if (!(glm::length(fwd) > 0.0f)) r.fail("eye and target coincide");
+    if (!(glm::length(glm::cross(fwd, c.up)) > 0.0f))
+        r.fail("up is parallel to the view direction");
+    return c;
+}
+
+EnvironmentDesc read_environment(const Reader& r, const fs::path& base) {
+    r.allow({"color", "file", "mapping", "rotation", "intensity"});
+    EnvironmentDesc e;
+    e.color = r.vec3("color", e.color, true);
+    if (glm::any(glm::lessThan(e.color, Vec3f(0.0f))))
+        r.fail_key("color", "colour must be non-negative");
+    if (r.has("file")) {
+        fs::path f = r.string("file", "");
+        e.file = (f.is_relative() ? base / f : f).lexically_normal().string();
+    }
+    e.mapping = EnvMapping(r.choice("mapping", kEnvMappingNames, int(e.mapping)));
+    e.rotation_degrees = r.number("rotation", e.rotation_degrees);
+    e.intensity = r.number("intensity", e.intensity);
+    if (!(e.intensity >= 0.0f)) r.fail_key("intensity", "intensity must be non-negative");
+    return e;
+}
+
+std::shared_ptr<const TriangleMesh> builtin_mesh(const std::string& name) {
+    if (name == "displaced_sphere")
+        return std::make_shared<const TriangleMesh>(make_displaced_sphere(7));
+    if (name == "icosphere") return std::make_shared<const TriangleMesh>(make_icosphere(5));
+    if (name == "ground_plane")
+        return std::make_shared<const TriangleMesh>(make_ground_plane(20.0f, 0.0f));
+    return nullptr;
+}
+
+std::string read_text_file(const std::string& path) {
+    std::error_code ec;
+    if (fs::is_directory(path, ec))
+        throw Error(ErrorLocation{path}, "is a directory, not a scene file");
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw Error(ErrorLocation{path}, "cannot open file");
+    in.seekg(0, std::ios::end);
+    auto size = in.tellg();
+    if (size > (std::streamoff(64) << 20))
+        throw Error(ErrorLocation{path}, "scene file larger than 64 MiB");
+    in.seekg(0);
+    std::string text(size_t(size), '\0');
+    in.read(text.data(), size);
+    if (!in) throw Error(ErrorLocation{path}, "read error");
+    return text;
+}
+
+}  // namespace
+
+Scene load_scene(const std::string& path, const SceneLoadOptions& options) {
+    std::string text = read_text_file(path);
+    json root;
+    try {
+        root = json::parse(text);
+    } catch (const json::parse_error& e) {
+        // nlohmann's message already names the line and column.
+        ErrorLocation where{path};
+        where.offset = int64_t(e.byte);
+        throw Error(where, std::string("invalid JSON: ") + e.what());
+    }
+    Reader r(path, root, "");
+    r.allow({"name", "meshes", "camera", "environment"});
+    const fs::path base = fs::path(path).parent_path();
+
+    Scene scene;
+    scene.name = r.string("name", fs::path(path).stem().string());
+    if (r.has("environment")) scene.environment = read_environment(r.object("environment"), base);
+
+    std::map<std::string, std::shared_ptr<const TriangleMesh>> loaded;
+    Bounds3f world;
+    if (!r.has("meshes") || !r.raw("meshes").is_array() || r.raw("meshes").empty())
+        r.fail_key("meshes", "expected a non-empty array of meshes");
+    const json& meshes = r.raw("meshes");
+    for (size_t i = 0; i < meshes.size(); ++i) {
+        Reader m(path, meshes[i], "meshes/" + std::to_string(i));
+        m.allow({"file", "transform", "material", "smooth"});
+        MeshInstance inst;
+        if (!m.has("file")) m.fail("missing \"file\"");
+        std::string file = m.string("file", "");
+        if (file.rfind("builtin:", 0) == 0) {
+            inst.file = file;
+            inst.mesh = builtin_mesh(file.substr(8));
+            if (!inst.mesh)
+                m.fail_key("file", "unknown builtin mesh \"" + file +
+                                       "\" (expected builtin:displaced_sphere, builtin:icosphere "
+                                       "or builtin:ground_plane)");
+        } else {
+            fs::path f = file;
+            inst.file = (f.is_relative() ? base / f : f).lexically_normal().string();
+            auto& slot = loaded[inst.file];
+            if (!slot) {
+                MeshLoadOptions mo;
+                mo.drop_invalid = options.drop_invalid;
+                slot = std::make_shared<const TriangleMesh>(load_mesh(inst.file, mo));
+            }
+            inst.mesh = slot;
+        }
+        if (m.has("transform")) inst.world_from_object = read_transform(m.object("transform"));
+        if (m.has("material")) inst.material = read_material(m.object("material"));
+        inst.smooth = m.boolean("smooth", inst.smooth);
+        Bounds3f b = inst.mesh->bounds();
+        if (!b.empty()) {
+            for (int c = 0; c < 8; ++c) {
+                Vec3f p((c & 1) ? b.upper.x : b.lower.x, (c & 2) ? b.upper.y : b.lower.y,
+                        (c & 4) ? b.upper.z : b.lower.z);
+                world.extend(Vec3f(inst.world_from_object * Vec4f(p, 1.0f)));
+            }
+        }
+        scene.meshes.push_back(std::move(inst));
+    }
+    scene.camera = r.has("camera") ? read_camera(r.object("camera")) : frame_bounds(world);
+    return scene;
+}
+
+CameraDesc frame_bounds(const Bounds3f& bounds, float vfov_degrees) {
+    CameraDesc c;
+    c.vfov_degrees = vfov_degrees;
+    if (bounds.empty()) return c;
+    Vec3f center = bounds.center();
+    float radius = std::max(0.5f * glm::length(bounds.extent()), 1e-6f);
+    float dist = radius / std::sin(glm::radians(0.5f * vfov_degrees)) * 1.05f;
+    Vec3f dir = glm::normalize(Vec3f(0.35f, 0.3f, 1.0f));
+    c.eye = center + dist * dir;
+    c.target = center;
+    c.up = Vec3f(0.0f, 1.0f, 0.0f);
+    return c;
+}
+
+Scene scene_from_model(const std::string& path, const SceneLoadOptions& options) {
+    Scene scene;
+    scene.name = fs::path(path).filename().string();
+    MeshInstance inst;
+    inst.file = path;
+    MeshLoadOptions mo;
+    mo.drop_invalid = options.drop_invalid;
+    inst.mesh = std::make_shared<const TriangleMesh>(load_mesh(path, mo));
+    inst.material.albedo = Vec3f(0.8f);
+    scene.camera = frame_bounds(inst.mesh->bounds());
+    scene.meshes.push_back(std::move(inst));
+    scene.environment.color = Vec3f(1.0f);
+    return scene;
+}
+
+Scene load_scene_or_model(const std::string& path, const SceneLoadOptions& options) {
+    std::string ext = fs::path(path).extension().string();
+    for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+    if (ext == ".json") return load_scene(path, options);
+    return scene_from_model(path, options);
+}
+
+std::string scene_to_json(const Scene& scene) {
+    json root;
+    root["name"] = scene.name;
+    auto v3 = [](const Vec3f& v) { return json::array({v.x, v.y, v.z}); };
+    root["camera"] = {{"eye", v3(scene.camera.eye)},
+                      {"target", v3(scene.camera.target)},
+                      {"up", v3(scene.camera.up)},
+                      {"vfov", scene.camera.vfov_degrees}};
+    json env;
+    if (scene.environment.file.empty()) {
+        env["color"] = v3(scene.environment.color);
+    } else {
+        env["file"] = scene.environment.file;
+        env["mapping"] = kEnvMappingNames[size_t(scene.environment.mapping)];
+        env["rotation"] = scene.environment.rotation_degrees;
+    }
+    env["intensity"] = scene.environment.intensity;
+    root["environment"] = env;
+    json meshes = json::array();
+    for (const MeshInstance& m : scene.meshes) {
+        json jm;
+        jm["file"] = m.file;
+        json mat = json::array();
+        for (int row = 0; row < 4; ++row)
+            for (int col = 0; col < 4; ++col) mat.push_back(m.world_from_object[col][row]);
+        jm["transform"] = {{"matrix", mat}};
+        jm["material"] = {{"type", kMaterialTypeNames[size_t(m.material.type)]},
+                          {"albedo", v3(m.material.albedo)},
+                          {"ior", m.material.ior},
+                          {"emission", v3(m.material.emission)},
+                          {"roughness", m.material.roughness}};
+        jm["smooth"] = m.smooth;
+        meshes.push_back(jm);
+    }
+    root["meshes"] = meshes;
+    return root.dump(2) + "\n";
+}
+
+}  // namespace kdt

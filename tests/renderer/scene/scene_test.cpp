@@ -1,0 +1,155 @@
+#include <cmath>
+#include <fstream>
+#include <map>
+
+#include <gtest/gtest.h>
+
+#include "renderer/core/error.h"
+#include "renderer/scene/scene.h"
+#include "tests/test_util.h"
+
+namespace kdt {
+namespace {
+
+std::string write_file(const std::filesystem::path& dir, const std::string& name,
+                       const std::string& text) {
+    auto p = dir / name;
+    std::ofstream(p) << text;
+    return p.string();
+}
+
+const char* kCubePly =
+    "ply\nformat ascii 1.0\nelement vertex 8\nproperty float x\nproperty float y\n"
+    "property float z\nelement face 6\nproperty list uchar int vertex_indices\nend_header\n"
+    "-1 -1 -1\n1 -1 -1\n1 1 -1\n-1 1 -1\n-1 -1 1\n1 -1 1\n1 1 1\n-1 1 1\n"
+    "4 0 1 2 3\n4 5 4 7 6\n4 6 2 1 5\n4 3 7 4 0\n4 7 3 2 6\n4 5 1 0 4\n";
+
+std::string error_of(const std::string& path) {
+    try {
+        load_scene(path);
+    } catch (const Error& e) {
+        return e.what();
+    }
+    return "";
+}
+
+TEST(Scene, DefaultSceneIsLargeAndClosed) {
+    Scene s = make_default_scene();
+    ASSERT_EQ(s.meshes.size(), 2u);
+    EXPECT_EQ(s.meshes[0].mesh->triangle_count(), 327680u);
+    // Watertight: every edge is shared by exactly two triangles.
+    std::map<std::pair<uint32_t, uint32_t>, int> edges;
+    for (const Vec3u& t : s.meshes[0].mesh->triangles) {
+        for (int k = 0; k < 3; ++k) {
+            uint32_t a = t[k], b = t[(k + 1) % 3];
+            edges[{std::min(a, b), std::max(a, b)}]++;
+        }
+    }
+    for (const auto& [e, n] : edges) ASSERT_EQ(n, 2);
+    Bounds3f b = s.meshes[0].mesh->bounds();
+    EXPECT_GT(b.extent().x, 1.5f);
+    EXPECT_LT(b.extent().x, 2.6f);
+}
+
+TEST(Scene, LoadsFileWithTransformMaterialCameraEnvironment) {
+    auto dir = test::temp_dir("scene_load");
+    write_file(dir, "cube.ply", kCubePly);
+    auto path = write_file(dir, "s.json", R"({
+      "name": "t",
+      "meshes": [{"file": "cube.ply", "transform": {"translate": [1, 2, 3], "scale": 2},
+                  "material": {"type": "mirror", "albedo": [0.9, 0.8, 0.7]}, "smooth": false},
+                 {"file": "cube.ply"}],
+      "camera": {"eye": [0, 0, 10], "target": [0, 0, 0], "up": [0, 1, 0], "vfov": 30},
+      "environment": {"file": "sky.hdr", "mapping": "angular", "rotation": 90, "intensity": 2}
+    })");
+    Scene s = load_scene(path);
+    ASSERT_EQ(s.meshes.size(), 2u);
+    EXPECT_EQ(s.meshes[0].mesh.get(), s.meshes[1].mesh.get()) << "same file loaded once";
+    EXPECT_EQ(s.meshes[0].mesh->triangle_count(), 12u);
+    Vec4f p = s.meshes[0].world_from_object * Vec4f(1, 1, 1, 1);
+    EXPECT_FLOAT_EQ(p.x, 3.0f);
+    EXPECT_FLOAT_EQ(p.y, 4.0f);
+    EXPECT_FLOAT_EQ(p.z, 5.0f);
+    EXPECT_EQ(s.meshes[0].material.type, MaterialType::mirror);
+    EXPECT_FALSE(s.meshes[0].smooth);
+    EXPECT_TRUE(s.meshes[1].smooth);
+    EXPECT_FLOAT_EQ(s.camera.vfov_degrees, 30.0f);
+    EXPECT_EQ(s.environment.mapping, EnvMapping::angular);
+    EXPECT_EQ(std::filesystem::path(s.environment.file), (dir / "sky.hdr").lexically_normal());
+    EXPECT_FLOAT_EQ(s.environment.intensity, 2.0f);
+}
+
+TEST(Scene, RoundTripsThroughJson) {
+    auto dir = test::temp_dir("scene_json");
+    Scene a = make_default_scene();
+    auto path = write_file(dir, "default.json", scene_to_json(a));
+    Scene b = load_scene(path);
+    ASSERT_EQ(b.meshes.size(), a.meshes.size());
+    for (size_t i = 0; i < a.meshes.size(); ++i) {
+        EXPECT_EQ(b.meshes[i].mesh->triangles, a.meshes[i].mesh->triangles);
+        EXPECT_EQ(b.meshes[i].mesh->positions, a.meshes[i].mesh->positions);
+        EXPECT_EQ(b.meshes[i].material.type, a.meshes[i].material.type);
+        for (int c = 0; c < 4; ++c)
+            for (int r = 0; r < 4; ++r)
+                EXPECT_FLOAT_EQ(b.meshes[i].world_from_object[c][r],
+                                a.meshes[i].world_from_object[c][r]);
+    }
+    EXPECT_EQ(b.camera.eye, a.camera.eye);
+    EXPECT_EQ(b.environment.color, a.environment.color);
+}
+
+TEST(Scene, ErrorsNameFileAndKey) {
+    auto dir = test::temp_dir("scene_err");
+    write_file(dir, "cube.ply", kCubePly);
+    struct Case {
+        const char* json;
+        const char* expect;
+    } cases[] = {
+        {R"({"meshes": [{"file": "cube.ply", "colour": 1}]})",
+         "meshes/0/colour: unknown key \"colour\""},
+        {R"({"meshes": [{"file": "cube.ply"}], "camrea": {}})", "camrea: unknown key"},
+        {R"({"meshes": [{"file": "cube.ply", "material": {"type": "plastic"}}]})",
+         "meshes/0/material/type: unknown value \"plastic\""},
+        {R"({"meshes": [{"file": "cube.ply", "material": {"albedo": [1, 2]}}]})",
+         "meshes/0/material/albedo: expected an array of 3 numbers"},
+        {R"({"meshes": [{"file": "cube.ply", "material": {"albedo": 1.5}}]})",
+         "albedo must lie in [0, 1]"},
+        {R"({"meshes": [{"file": "missing.ply"}]})", "missing.ply"},
+        {R"({"meshes": []})", "meshes: expected a non-empty array"},
+        {R"({"meshes": [{"file": "cube.ply"}], "camera": {"vfov": 180}})", "camera/vfov"},
+        {R"({"meshes": [{"file": "cube.ply"}], "camera": {"eye": [0,0,0], "target": [0,0,0]}})",
+         "eye and target coincide"},
+        {R"({"meshes": [{"file": "cube.ply", "transform": {"scale": 0}}]})",
+         "scale must be non-zero"},
+        {R"({"meshes": [{"file": "builtin:teapot"}]})", "unknown builtin mesh"},
+        {R"({"meshes": [{"file": "cube.ply"}], "environment": {"intensity": -1}})",
+         "environment/intensity"},
+        {R"({"meshes": [{"file": "cube.ply"}] )", "invalid JSON"},
+        {R"([1, 2])", "expected an object"},
+    };
+    int i = 0;
+    for (const Case& c : cases) {
+        auto path = write_file(dir, "bad" + std::to_string(i++) + ".json", c.json);
+        std::string msg = error_of(path);
+        EXPECT_NE(msg.find(path), std::string::npos) << msg;
+        EXPECT_NE(msg.find(c.expect), std::string::npos)
+            << "got: " << msg << "\nwanted: " << c.expect;
+    }
+    EXPECT_NE(error_of((dir / "nope.json").string()).find("cannot open"), std::string::npos);
+    EXPECT_NE(error_of(dir.string()).find("is a directory"), std::string::npos);
+}
+
+TEST(Scene, ModelSceneFramesTheModel) {
+    auto dir = test::temp_dir("scene_model");
+    auto path = write_file(dir, "cube.ply", kCubePly);
+    Scene s = load_scene_or_model(path);
+    ASSERT_EQ(s.meshes.size(), 1u);
+    // The whole cube (bounding sphere radius sqrt 3) lies inside the vertical field of view.
+    Vec3f to_center = glm::normalize(s.camera.target - s.camera.eye);
+    float dist = glm::length(s.camera.target - s.camera.eye);
+    EXPECT_GT(dist * std::sin(glm::radians(s.camera.vfov_degrees / 2)), std::sqrt(3.0f));
+    EXPECT_NEAR(glm::length(to_center), 1.0f, 1e-6f);
+}
+
+}  // namespace
+}  // namespace kdt
