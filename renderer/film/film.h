@@ -19,9 +19,6 @@ struct FilmParams {
     float exposure = 0.0f;            ///< PNG tone mapping: scale by 2^exposure before sRGB
 };
 
-/// Rec. 709 / sRGB luminance of linear RGB.
-inline float luminance(const Vec3f& c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
-
 /// Linear -> sRGB-encoded 8-bit value (clamped to [0, 1] first).
 uint8_t linear_to_srgb8(float v);
 
@@ -42,7 +39,8 @@ public:
     /// Adds one finite sample to pixel (x, y). Never allocates.
     void add_sample(int x, int y, const Vec3f& rgb) {
         Pixel& p = pixels_[size_t(y) * size_t(width_) + size_t(x)];
-        const double l = luminance(rgb);
+        // Rec. 709 luminance drives the error estimate.
+        const double l = 0.2126 * rgb.x + 0.7152 * rgb.y + 0.0722 * rgb.z;
         p.r += rgb.x;
         p.g += rgb.y;
         p.b += rgb.z;
