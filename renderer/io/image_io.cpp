@@ -1,0 +1,744 @@
+#include "renderer/io/image_io.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <memory>
+
+#include <zlib.h>
+
+#include "renderer/core/error.h"
+
+// stb_image for .hdr and .png decoding, stb_image_write for .hdr encoding; the
+// implementations are compiled into this translation unit only.
+#define STB_IMAGE_IMPLEMENTATION
+#define STBI_NO_STDIO
+#define STBI_ONLY_HDR
+#define STBI_ONLY_PNG
+#include <stb/stb_image.h>
+#define STB_IMAGE_WRITE_IMPLEMENTATION
+#define STBI_WRITE_NO_STDIO
+#include <stb/stb_image_write.h>
+
+#if __has_include(<tinyexr.h>)
+#include <tinyexr.h>
+#define KDT_HAVE_TINYEXR 1
+#else
+#define KDT_HAVE_TINYEXR 0
+#endif
+
+namespace kdt {
+namespace {
+
+[[noreturn]] void fail(const std::string& path, const std::string& message, int64_t offset = -1) {
+    ErrorLocation where;
+    where.path = path;
+    where.offset = offset;
+    throw Error(where, message);
+}
+
+std::string lower_extension(const std::string& path) {
+    auto slash = path.find_last_of('/');
+    auto dot = path.find_last_of('.');
+    if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return "";
+    std::string ext = path.substr(dot);
+    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return ext;
+}
+
+std::vector<uint8_t> read_file(const std::string& path) {
+    std::ifstream in(path, std::ios::binary | std::ios::ate);
+    if (!in) fail(path, "cannot open file");
+    std::streamoff size = in.tellg();
+    if (size < 0) fail(path, "cannot determine the file size");
+    // Image files beyond 4 GiB would decode to more than kMaxImagePixels anyway.
+    if (uint64_t(size) > (uint64_t(1) << 32)) fail(path, "file is too large for an image");
+    std::vector<uint8_t> data(static_cast<size_t>(size));
+    in.seekg(0);
+    if (size > 0 && !in.read(reinterpret_cast<char*>(data.data()), size)) {
+        fail(path, "read error");
+    }
+    return data;
+}
+
+void check_dimensions(const std::string& path, int64_t width, int64_t height) {
+    if (width < 1 || height < 1) {
+        fail(path, "invalid image size " + std::to_string(width) + "x" + std::to_string(height));
+    }
+    if (width > kMaxImageDimension || height > kMaxImageDimension ||
+        uint64_t(width) * uint64_t(height) > kMaxImagePixels) {
+        fail(path, "image size " + std::to_string(width) + "x" + std::to_string(height) +
+                       " is too large (corrupt file?)");
+    }
+}
+
+/// Rejects NaN and infinite pixels, naming the first one.
+void check_finite(const std::string& path, const ImageRGB& image) {
+    static const char* kChannel[3] = {"R", "G", "B"};
+    for (size_t i = 0; i < image.rgb.size(); ++i) {
+        if (!std::isfinite(image.rgb[i])) {
+            size_t pixel = i / 3;
+            ErrorLocation where;
+            where.path = path;
+            where.element = "pixel";
+            where.index = int64_t(pixel);
+            throw Error(where, "(x " + std::to_string(pixel % size_t(image.width)) + ", y " +
+                                   std::to_string(pixel / size_t(image.width)) + ") channel " +
+                                   kChannel[i % 3] + " is " +
+                                   (std::isnan(image.rgb[i]) ? "NaN" : "infinite"));
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Radiance .hdr
+
+/// Parses the header (as stb_image does) and walks the scanline structure without
+/// decoding, so that truncated or inconsistent data is reported with its byte offset
+/// before stb_image sees it (stb_image reads zeros past the end and can then loop forever
+/// on a zero-length run, or silently restarts a mixed flat/RLE file).
+void validate_hdr(const std::string& path, const std::vector<uint8_t>& data) {
+    size_t pos = 0;
+    auto next_line = [&](std::string& line) {
+        if (pos >= data.size()) fail(path, "truncated header", int64_t(pos));
+        size_t end = pos;
+        while (end < data.size() && data[end] != '\n') ++end;
+        if (end == data.size()) fail(path, "truncated header", int64_t(pos));
+        if (end - pos > 4096) fail(path, "header line too long", int64_t(pos));
+        line.assign(reinterpret_cast<const char*>(&data[pos]), end - pos);
+        pos = end + 1;
+    };
+    std::string line;
+    next_line(line);
+    if (line != "#?RADIANCE" && line != "#?RGBE") fail(path, "not a Radiance HDR file", 0);
+    bool rgbe = false;
+    for (;;) {
+        next_line(line);
+        if (line.empty()) break;
+        if (line == "FORMAT=32-bit_rle_rgbe") rgbe = true;
+        if (line.rfind("FORMAT=", 0) == 0 && line != "FORMAT=32-bit_rle_rgbe") {
+            fail(path, "unsupported pixel format '" + line.substr(7) + "'", int64_t(pos));
+        }
+    }
+    if (!rgbe) fail(path, "header lacks FORMAT=32-bit_rle_rgbe", int64_t(pos));
+    size_t res_offset = pos;
+    next_line(line);
+    long long h = 0, w = 0;
+    char tail = 0;
+    if (std::sscanf(line.c_str(), "-Y %lld +X %lld%c", &h, &w, &tail) != 2) {
+        fail(path, "unsupported resolution line '" + line + "' (only -Y H +X W)",
+             int64_t(res_offset));
+    }
+    check_dimensions(path, w, h);
+    const size_t width = size_t(w), height = size_t(h);
+    auto truncated = [&](size_t at) {
+        fail(path,
+             "truncated pixel data (" + std::to_string(width) + "x" + std::to_string(height) +
+                 " image)",
+             int64_t(at));
+    };
+    if (width < 8 || width >= 32768) {
+        if (data.size() - pos < 4 * width * height) truncated(data.size());
+        return;
+    }
+    for (size_t y = 0; y < height; ++y) {
+        size_t line_start = pos;
+        if (data.size() - pos < 4) truncated(pos);
+        if (data[pos] != 2 || data[pos + 1] != 2 || (data[pos + 2] & 0x80)) {
+            if (y != 0) {
+                fail(path,
+                     "scanline " + std::to_string(y) +
+                         " is not run-length encoded although earlier ones are",
+                     int64_t(pos));
+            }
+            if (data.size() - pos < 4 * width * height) truncated(data.size());
+            return;
+        }
+        size_t len = (size_t(data[pos + 2]) << 8) | data[pos + 3];
+        if (len != width) {
+            fail(path,
+                 "scanline " + std::to_string(y) + " has length " + std::to_string(len) +
+                     ", expected " + std::to_string(width),
+                 int64_t(line_start));
+        }
+        pos += 4;
+        for (int channel = 0; channel < 4; ++channel) {
+            size_t x = 0;
+            while (x < width) {
+                if (pos >= data.size()) truncated(pos);
+                size_t count = data[pos++];
+                if (count > 128) {
+                    count -= 128;
+                    if (pos >= data.size()) truncated(pos);
+                    ++pos;
+                } else {
+                    if (data.size() - pos < count) truncated(data.size());
+                    pos += count;
+                }
+                if (count > width - x) {
+                    fail(path, "scanline " + std::to_string(y) + ": run overflows the line",
+                         int64_t(pos));
+                }
+                x += count;
+            }
+        }
+    }
+}
+
+ImageRGB load_hdr(const std::string& path, const std::vector<uint8_t>& data) {
+    validate_hdr(path, data);
+    if (data.size() > size_t(std::numeric_limits<int>::max())) fail(path, "file too large");
+    int w = 0, h = 0, comp = 0;
+    float* pixels = stbi_loadf_from_memory(data.data(), int(data.size()), &w, &h, &comp, 3);
+    if (!pixels) fail(path, std::string("cannot decode: ") + stbi_failure_reason());
+    std::unique_ptr<float, void (*)(void*)> owner(pixels, stbi_image_free);
+    ImageRGB image;
+    image.width = w;
+    image.height = h;
+    image.rgb.assign(pixels, pixels + size_t(w) * size_t(h) * 3);
+    return image;
+}
+
+// ---------------------------------------------------------------------------------------
+// PNG (reading via stb_image; metadata via our own chunk walker)
+
+constexpr uint8_t kPngSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+
+ImageRGB load_png(const std::string& path, const std::vector<uint8_t>& data) {
+    if (data.size() > size_t(std::numeric_limits<int>::max())) fail(path, "file too large");
+    int w = 0, h = 0, comp = 0;
+    if (!stbi_info_from_memory(data.data(), int(data.size()), &w, &h, &comp)) {
+        fail(path, std::string("cannot decode PNG: ") + stbi_failure_reason());
+    }
+    check_dimensions(path, w, h);
+    ImageRGB image(w, h);
+    if (stbi_is_16_bit_from_memory(data.data(), int(data.size()))) {
+        stbi_us* p = stbi_load_16_from_memory(data.data(), int(data.size()), &w, &h, &comp, 3);
+        if (!p) fail(path, std::string("cannot decode PNG: ") + stbi_failure_reason());
+        std::unique_ptr<stbi_us, void (*)(void*)> owner(p, stbi_image_free);
+        for (size_t i = 0; i < image.rgb.size(); ++i)
+            image.rgb[i] = srgb_to_linear(p[i] / 65535.0f);
+    } else {
+        stbi_uc* p = stbi_load_from_memory(data.data(), int(data.size()), &w, &h, &comp, 3);
+        if (!p) fail(path, std::string("cannot decode PNG: ") + stbi_failure_reason());
+        std::unique_ptr<stbi_uc, void (*)(void*)> owner(p, stbi_image_free);
+        float table[256];
+        for (int i = 0; i < 256; ++i) table[i] = srgb_to_linear(float(i) / 255.0f);
+        for (size_t i = 0; i < image.rgb.size(); ++i) image.rgb[i] = table[p[i]];
+    }
+    return image;
+}
+
+uint32_t read_be32(const uint8_t* p) {
+    return (uint32_t(p[0]) << 24) | (uint32_t(p[1]) << 16) | (uint32_t(p[2]) << 8) | p[3];
+}
+
+/// Inflates a zlib stream, refusing outputs above `limit` bytes.
+std::string inflate_text(const std::string& path, const uint8_t* src, size_t size, int64_t offset,
+                         size_t limit = size_t(64) << 20) {
+    z_stream zs{};
+    if (inflateInit(&zs) != Z_OK) fail(path, "zlib initialisation failed", offset);
+    zs.next_in = const_cast<Bytef*>(src);
+    zs.avail_in = uInt(size);
+    std::string out;
+    char buffer[16384];
+    int ret = Z_OK;
+    while (ret == Z_OK) {
+        zs.next_out = reinterpret_cast<Bytef*>(buffer);
+        zs.avail_out = sizeof(buffer);
+        ret = inflate(&zs, Z_NO_FLUSH);
+        out.append(buffer, sizeof(buffer) - zs.avail_out);
+        if (out.size() > limit) ret = Z_MEM_ERROR;
+        if (ret == Z_OK && zs.avail_in == 0 && zs.avail_out != 0) ret = Z_DATA_ERROR;
+    }
+    inflateEnd(&zs);
+    if (ret != Z_STREAM_END) fail(path, "corrupt compressed text chunk", offset);
+    return out;
+}
+
+ImageMetadata parse_png_metadata(const std::string& path, const std::vector<uint8_t>& data) {
+    if (data.size() < 8 || std::memcmp(data.data(), kPngSignature, 8) != 0) {
+        fail(path, "not a PNG file", 0);
+    }
+    ImageMetadata metadata;
+    size_t pos = 8;
+    for (;;) {
+        if (data.size() - pos < 12) fail(path, "truncated PNG: no IEND chunk", int64_t(pos));
+        uint32_t length = read_be32(&data[pos]);
+        if (length > 0x7fffffffu || data.size() - pos - 12 < length) {
+            fail(path, "truncated PNG chunk", int64_t(pos));
+        }
+        std::string type(reinterpret_cast<const char*>(&data[pos + 4]), 4);
+        const uint8_t* body = &data[pos + 8];
+        uint32_t crc = uint32_t(crc32(0L, &data[pos + 4], uInt(length + 4)));
+        if (crc != read_be32(body + length))
+            fail(path, "CRC mismatch in chunk " + type, int64_t(pos));
+        int64_t at = int64_t(pos);
+        if (type == "IEND") break;
+        const char* b = reinterpret_cast<const char*>(body);
+        const char* nul = static_cast<const char*>(std::memchr(b, 0, length));
+        if (type == "tEXt" || type == "zTXt" || type == "iTXt") {
+            if (!nul) fail(path, type + " chunk without keyword terminator", at);
+            std::string key(b, nul);
+            size_t rest = size_t(nul - b) + 1;
+            if (type == "tEXt") {
+                metadata.emplace_back(key, std::string(b + rest, length - rest));
+            } else if (type == "zTXt") {
+                if (rest + 1 > length || body[rest] != 0) fail(path, "bad zTXt chunk", at);
+                metadata.emplace_back(key,
+                                      inflate_text(path, body + rest + 1, length - rest - 1, at));
+            } else {
+                if (rest + 2 > length) fail(path, "bad iTXt chunk", at);
+                bool compressed = body[rest] != 0;
+                rest += 2;
+                for (int field = 0; field < 2; ++field) {  // language tag, translated keyword
+                    const void* end = std::memchr(b + rest, 0, length - rest);
+                    if (!end) fail(path, "bad iTXt chunk", at);
+                    rest = size_t(static_cast<const char*>(end) - b) + 1;
+                }
+                if (compressed) {
+                    metadata.emplace_back(key, inflate_text(path, body + rest, length - rest, at));
+                } else {
+                    metadata.emplace_back(key, std::string(b + rest, length - rest));
+                }
+            }
+        }
+        pos += 12 + size_t(length);
+    }
+    return metadata;
+}
+
+// ---------------------------------------------------------------------------------------
+// PFM
+
+ImageRGB load_pfm(const std::string& path, const std::vector<uint8_t>& data) {
+    size_t pos = 0;
+    auto is_space = [](uint8_t c) { return c == ' ' || c == '\n' || c == '\r' || c == '\t'; };
+    auto token = [&]() {
+        while (pos < data.size() && is_space(data[pos])) ++pos;
+        size_t start = pos;
+        while (pos < data.size() && !is_space(data[pos]) && pos - start < 64) ++pos;
+        if (pos == start || pos >= data.size()) fail(path, "truncated PFM header", int64_t(start));
+        if (!is_space(data[pos])) fail(path, "malformed PFM header", int64_t(start));
+        return std::make_pair(std::string(reinterpret_cast<const char*>(&data[start]), pos - start),
+                              int64_t(start));
+    };
+    auto [magic, magic_at] = token();
+    int channels = magic == "PF" ? 3 : (magic == "Pf" ? 1 : 0);
+    if (channels == 0) fail(path, "not a PFM file (magic '" + magic + "')", magic_at);
+    auto parse_int = [&](const std::pair<std::string, int64_t>& t, const char* what) {
+        char* end = nullptr;
+        long long v = std::strtoll(t.first.c_str(), &end, 10);
+        if (*end != 0)
+            fail(path, std::string("malformed ") + what + " '" + t.first + "'", t.second);
+        return v;
+    };
+    long long w = parse_int(token(), "width");
+    long long h = parse_int(token(), "height");
+    check_dimensions(path, w, h);
+    auto scale_token = token();
+    char* end = nullptr;
+    double scale = std::strtod(scale_token.first.c_str(), &end);
+    if (*end != 0 || !std::isfinite(scale) || scale == 0.0) {
+        fail(path, "malformed scale '" + scale_token.first + "'", scale_token.second);
+    }
+    ++pos;  // exactly one whitespace character separates the header from the data
+    const bool little = scale < 0.0;
+    const size_t count = size_t(w) * size_t(h) * size_t(channels);
+    if (data.size() - pos < count * 4) {
+        fail(path,
+             "truncated pixel data: " + std::to_string(count * 4) + " bytes expected, " +
+                 std::to_string(data.size() - pos) + " present",
+             int64_t(pos));
+    }
+    const float factor = float(std::abs(scale));
+    ImageRGB image(static_cast<int>(w), static_cast<int>(h));
+    const uint8_t* src = data.data() + pos;
+    for (size_t row = 0; row < size_t(h); ++row) {
+        // PFM stores rows bottom-to-top.
+        size_t y = size_t(h) - 1 - row;
+        for (size_t x = 0; x < size_t(w); ++x) {
+            for (int c = 0; c < channels; ++c) {
+                const uint8_t* p = src + ((row * size_t(w) + x) * size_t(channels) + size_t(c)) * 4;
+                uint32_t bits = little ? (uint32_t(p[0]) | uint32_t(p[1]) << 8 |
+                                          uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24)
+                                       : read_be32(p);
+                float v;
+                std::memcpy(&v, &bits, 4);
+                if (factor != 1.0f) v *= factor;
+                float* dst = &image.rgb[(y * size_t(w) + x) * 3];
+                if (channels == 1) {
+                    dst[0] = dst[1] = dst[2] = v;
+                } else {
+                    dst[c] = v;
+                }
+            }
+        }
+    }
+    return image;
+}
+
+// ---------------------------------------------------------------------------------------
+// OpenEXR
+
+#if KDT_HAVE_TINYEXR
+std::string exr_message(int code, const char* err) {
+    std::string s = err ? err : ("tinyexr error " + std::to_string(code));
+    if (err) FreeEXRErrorMessage(err);
+    while (!s.empty() && (s.back() == '\n' || s.back() == ' ')) s.pop_back();
+    return s;
+}
+
+/// Parses the header only; checks the size before any pixel allocation.
+ImageMetadata parse_exr_header(const std::string& path, const std::vector<uint8_t>& data) {
+    EXRVersion version;
+    int ret = ParseEXRVersionFromMemory(&version, data.data(), data.size());
+    if (ret != TINYEXR_SUCCESS) fail(path, "not an OpenEXR file", 0);
+    if (version.multipart || version.non_image) {
+        fail(path, "multi-part and deep OpenEXR files are not supported");
+    }
+    EXRHeader header;
+    InitEXRHeader(&header);
+    const char* err = nullptr;
+    ret = ParseEXRHeaderFromMemory(&header, &version, data.data(), data.size(), &err);
+    if (ret != TINYEXR_SUCCESS) fail(path, "bad OpenEXR header: " + exr_message(ret, err));
+    int64_t w = int64_t(header.data_window.max_x) - header.data_window.min_x + 1;
+    int64_t h = int64_t(header.data_window.max_y) - header.data_window.min_y + 1;
+    ImageMetadata metadata;
+    for (int i = 0; i < header.num_custom_attributes; ++i) {
+        const EXRAttribute& a = header.custom_attributes[i];
+        if (std::strcmp(a.type, "string") == 0 && a.value && a.size >= 0) {
+            metadata.emplace_back(
+                a.name, std::string(reinterpret_cast<const char*>(a.value), size_t(a.size)));
+        }
+    }
+    FreeEXRHeader(&header);
+    check_dimensions(path, w, h);
+    return metadata;
+}
+
+ImageRGB load_exr(const std::string& path, const std::vector<uint8_t>& data,
+                  ImageMetadata* metadata) {
+    ImageMetadata md = parse_exr_header(path, data);
+    if (metadata) *metadata = std::move(md);
+    float* rgba = nullptr;
+    int w = 0, h = 0;
+    const char* err = nullptr;
+    int ret = LoadEXRFromMemory(&rgba, &w, &h, data.data(), data.size(), &err);
+    if (ret != TINYEXR_SUCCESS) fail(path, "cannot decode: " + exr_message(ret, err));
+    std::unique_ptr<float, void (*)(void*)> owner(rgba, std::free);
+    check_dimensions(path, w, h);
+    ImageRGB image(w, h);
+    for (size_t i = 0; i < image.pixel_count(); ++i) {
+        for (int c = 0; c < 3; ++c) image.rgb[i * 3 + size_t(c)] = rgba[i * 4 + size_t(c)];
+    }
+    return image;
+}
+#endif
+
+// ---------------------------------------------------------------------------------------
+// Writing
+
+void write_bytes(const std::string& path, const void* data, size_t size) {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    if (!out) fail(path, "cannot open file for writing");
+    out.write(static_cast<const char*>(data), std::streamsize(size));
+    out.close();
+    if (!out) fail(path, "write error");
+}
+
+void check_image(const std::string& path, const ImageRGB& image) {
+    check_dimensions(path, image.width, image.height);
+    if (image.rgb.size() != image.pixel_count() * 3) {
+        fail(path, "image buffer holds " + std::to_string(image.rgb.size()) + " floats, expected " +
+                       std::to_string(image.pixel_count() * 3));
+    }
+}
+
+void put_be32(std::vector<uint8_t>& out, uint32_t v) {
+    out.push_back(uint8_t(v >> 24));
+    out.push_back(uint8_t(v >> 16));
+    out.push_back(uint8_t(v >> 8));
+    out.push_back(uint8_t(v));
+}
+
+void put_chunk(std::vector<uint8_t>& out, const char* type, const std::vector<uint8_t>& body) {
+    put_be32(out, uint32_t(body.size()));
+    size_t type_at = out.size();
+    out.insert(out.end(), type, type + 4);
+    out.insert(out.end(), body.begin(), body.end());
+    put_be32(out, uint32_t(crc32(0L, &out[type_at], uInt(body.size() + 4))));
+}
+
+uint8_t paeth(int a, int b, int c) {
+    int p = a + b - c;
+    int pa = std::abs(p - a), pb = std::abs(p - b), pc = std::abs(p - c);
+    return uint8_t(pa <= pb && pa <= pc ? a : (pb <= pc ? b : c));
+}
+
+/// PNG filter bytes per row, chosen by the usual minimum-sum-of-absolute-differences rule.
+std::vector<uint8_t> filter_rows(const std::vector<uint8_t>& pixels, int width, int height) {
+    const size_t stride = size_t(width) * 3;
+    std::vector<uint8_t> out;
+    out.reserve((stride + 1) * size_t(height));
+    std::vector<uint8_t> candidate[5];
+    for (auto& c : candidate) c.resize(stride);
+    std::vector<uint8_t> zero(stride, 0);
+    for (int y = 0; y < height; ++y) {
+        const uint8_t* row = &pixels[size_t(y) * stride];
+        const uint8_t* up = y > 0 ? &pixels[size_t(y - 1) * stride] : zero.data();
+        uint64_t best_cost = ~uint64_t(0);
+        int best = 0;
+        for (int f = 0; f < 5; ++f) {
+            uint64_t cost = 0;
+            for (size_t i = 0; i < stride; ++i) {
+                int a = i >= 3 ? row[i - 3] : 0, b = up[i], c = i >= 3 ? up[i - 3] : 0;
+                int pred = f == 0   ? 0
+                           : f == 1 ? a
+                           : f == 2 ? b
+                           : f == 3 ? (a + b) / 2
+                                    : paeth(a, b, c);
+                uint8_t v = uint8_t(row[i] - pred);
+                candidate[f][i] = v;
+                cost += uint64_t(std::abs(int(int8_t(v))));
+            }
+            if (cost < best_cost) {
+                best_cost = cost;
+                best = f;
+            }
+        }
+        out.push_back(uint8_t(best));
+        out.insert(out.end(), candidate[best].begin(), candidate[best].end());
+    }
+    return out;
+}
+
+void check_png_key(const std::string& path, const std::string& key) {
+    bool ok = !key.empty() && key.size() <= 79 && key.front() != ' ' && key.back() != ' ';
+    for (unsigned char c : key) ok = ok && ((c >= 32 && c <= 126) || c >= 161);
+    if (!ok)
+        fail(path, "invalid PNG metadata key '" + key + "' (1-79 printable Latin-1 characters)");
+}
+
+}  // namespace
+
+ImageRGB load_image(const std::string& path, ImageMetadata* metadata) {
+    std::vector<uint8_t> data = read_file(path);
+    if (metadata) metadata->clear();
+    ImageRGB image;
+    auto starts = [&](const char* magic, size_t n) {
+        return data.size() >= n && std::memcmp(data.data(), magic, n) == 0;
+    };
+    if (starts("#?", 2)) {
+        image = load_hdr(path, data);
+    } else if (starts("\x76\x2f\x31\x01", 4)) {
+#if KDT_HAVE_TINYEXR
+        image = load_exr(path, data, metadata);
+#else
+        fail(path, "OpenEXR support was not built (tinyexr not found)");
+#endif
+    } else if (starts("PF", 2) || starts("Pf", 2)) {
+        image = load_pfm(path, data);
+    } else if (starts(reinterpret_cast<const char*>(kPngSignature), 8)) {
+        ImageMetadata md = parse_png_metadata(path, data);
+        image = load_png(path, data);
+        if (metadata) *metadata = std::move(md);
+    } else if (data.empty()) {
+        fail(path, "empty file");
+    } else {
+        fail(path, "unrecognised image format (expected .hdr, .exr, .pfm or .png content)", 0);
+    }
+    check_finite(path, image);
+    return image;
+}
+
+void write_pfm(const std::string& path, const ImageRGB& image) {
+    check_image(path, image);
+    std::string header =
+        "PF\n" + std::to_string(image.width) + " " + std::to_string(image.height) + "\n-1\n";
+    std::vector<uint8_t> out(header.begin(), header.end());
+    const size_t stride = size_t(image.width) * 3;
+    out.reserve(out.size() + image.rgb.size() * 4);
+    for (int y = image.height - 1; y >= 0; --y) {
+        const float* row = &image.rgb[size_t(y) * stride];
+        for (size_t i = 0; i < stride; ++i) {
+            uint32_t bits;
+            std::memcpy(&bits, &row[i], 4);
+            for (int b = 0; b < 4; ++b) out.push_back(uint8_t(bits >> (8 * b)));
+        }
+    }
+    write_bytes(path, out.data(), out.size());
+}
+
+void write_exr(const std::string& path, const ImageRGB& image, const ImageMetadata& metadata) {
+    check_image(path, image);
+#if KDT_HAVE_TINYEXR
+    static const char* kReserved[] = {"channels",
+                                      "compression",
+                                      "dataWindow",
+                                      "displayWindow",
+                                      "lineOrder",
+                                      "pixelAspectRatio",
+                                      "screenWindowCenter",
+                                      "screenWindowWidth",
+                                      "tiles",
+                                      "type",
+                                      "name",
+                                      "chunkCount",
+                                      "version",
+                                      "view"};
+    if (metadata.size() > TINYEXR_MAX_CUSTOM_ATTRIBUTES) {
+        fail(path, "too many metadata entries for OpenEXR (" + std::to_string(metadata.size()) +
+                       ", at most " + std::to_string(TINYEXR_MAX_CUSTOM_ATTRIBUTES) + ")");
+    }
+    std::vector<EXRAttribute> attributes(metadata.size());
+    for (size_t i = 0; i < metadata.size(); ++i) {
+        const auto& [key, value] = metadata[i];
+        bool reserved = std::any_of(std::begin(kReserved), std::end(kReserved),
+                                    [&](const char* r) { return key == r; });
+        if (key.empty() || key.size() > 255 || key.find('\0') != std::string::npos || reserved) {
+            fail(path, "invalid OpenEXR metadata key '" + key + "'");
+        }
+        if (value.size() > size_t(std::numeric_limits<int>::max() / 2)) {
+            fail(path, "metadata value too long for key '" + key + "'");
+        }
+        EXRAttribute& a = attributes[i];
+        std::memset(&a, 0, sizeof(a));
+        std::memcpy(a.name, key.data(), key.size());
+        std::memcpy(a.type, "string", 6);
+        a.value = reinterpret_cast<unsigned char*>(const_cast<char*>(value.data()));
+        a.size = int(value.size());
+    }
+
+    // tinyexr wants planar channels; B, G, R is the alphabetical order readers expect.
+    const size_t n = image.pixel_count();
+    std::vector<float> planes[3];
+    for (int c = 0; c < 3; ++c) {
+        planes[c].resize(n);
+        for (size_t i = 0; i < n; ++i) planes[c][i] = image.rgb[i * 3 + size_t(2 - c)];
+    }
+    float* plane_ptrs[3] = {planes[0].data(), planes[1].data(), planes[2].data()};
+    EXRChannelInfo channels[3];
+    std::memset(channels, 0, sizeof(channels));
+    int pixel_types[3] = {TINYEXR_PIXELTYPE_FLOAT, TINYEXR_PIXELTYPE_FLOAT,
+                          TINYEXR_PIXELTYPE_FLOAT};
+    int requested[3] = {TINYEXR_PIXELTYPE_FLOAT, TINYEXR_PIXELTYPE_FLOAT, TINYEXR_PIXELTYPE_FLOAT};
+    channels[0].name[0] = 'B';
+    channels[1].name[0] = 'G';
+    channels[2].name[0] = 'R';
+
+    EXRImage exr_image;
+    InitEXRImage(&exr_image);
+    exr_image.num_channels = 3;
+    exr_image.images = reinterpret_cast<unsigned char**>(plane_ptrs);
+    exr_image.width = image.width;
+    exr_image.height = image.height;
+
+    EXRHeader header;
+    InitEXRHeader(&header);
+    header.num_channels = 3;
+    header.channels = channels;
+    header.pixel_types = pixel_types;
+    header.requested_pixel_types = requested;
+    header.compression_type = TINYEXR_COMPRESSIONTYPE_ZIP;
+    header.num_custom_attributes = int(attributes.size());
+    header.custom_attributes = attributes.empty() ? nullptr : attributes.data();
+
+    const char* err = nullptr;
+    int ret = SaveEXRImageToFile(&exr_image, &header, path.c_str(), &err);
+    if (ret != TINYEXR_SUCCESS) fail(path, "cannot write OpenEXR: " + exr_message(ret, err));
+#else
+    (void)metadata;
+    fail(path, "OpenEXR support was not built (tinyexr not found)");
+#endif
+}
+
+void write_png(const std::string& path, const ImageRGB& image, const ToneParams& tone,
+               const ImageMetadata& metadata) {
+    check_image(path, image);
+    std::vector<uint8_t> chunks;
+    std::vector<uint8_t> body;
+    for (const auto& [key, value] : metadata) {
+        check_png_key(path, key);
+        if (value.find('\0') != std::string::npos) {
+            fail(path, "metadata value for key '" + key + "' contains a NUL byte");
+        }
+        bool ascii = std::all_of(value.begin(), value.end(),
+                                 [](char c) { return static_cast<unsigned char>(c) < 0x80; });
+        body.assign(key.begin(), key.end());
+        body.push_back(0);
+        if (!ascii) body.insert(body.end(), {0, 0, 0, 0});  // iTXt: uncompressed, no language
+        body.insert(body.end(), value.begin(), value.end());
+        put_chunk(chunks, ascii ? "tEXt" : "iTXt", body);
+    }
+
+    std::vector<uint8_t> pixels(image.rgb.size());
+    // A 4096-entry table would be faster, but tone mapping is not on the hot path.
+    for (size_t i = 0; i < pixels.size(); ++i) pixels[i] = tonemap_to_srgb8(image.rgb[i], tone);
+    std::vector<uint8_t> raw = filter_rows(pixels, image.width, image.height);
+    uLongf packed_size = compressBound(uLong(raw.size()));
+    std::vector<uint8_t> packed(packed_size);
+    if (compress2(packed.data(), &packed_size, raw.data(), uLong(raw.size()), 6) != Z_OK) {
+        fail(path, "zlib compression failed");
+    }
+    packed.resize(packed_size);
+
+    std::vector<uint8_t> out(kPngSignature, kPngSignature + 8);
+    body.clear();
+    put_be32(body, uint32_t(image.width));
+    put_be32(body, uint32_t(image.height));
+    body.insert(body.end(), {8, 2, 0, 0, 0});  // 8-bit, RGB, deflate, adaptive filter, no interlace
+    put_chunk(out, "IHDR", body);
+    put_chunk(out, "sRGB", {0});  // perceptual rendering intent
+    out.insert(out.end(), chunks.begin(), chunks.end());
+    put_chunk(out, "IDAT", packed);
+    put_chunk(out, "IEND", {});
+    write_bytes(path, out.data(), out.size());
+}
+
+void write_hdr(const std::string& path, const ImageRGB& image) {
+    check_image(path, image);
+    std::vector<uint8_t> out;
+    auto sink = [](void* context, void* data, int size) {
+        auto* v = static_cast<std::vector<uint8_t>*>(context);
+        v->insert(v->end(), static_cast<uint8_t*>(data), static_cast<uint8_t*>(data) + size);
+    };
+    if (!stbi_write_hdr_to_func(sink, &out, image.width, image.height, 3, image.rgb.data())) {
+        fail(path, "cannot encode Radiance HDR");
+    }
+    write_bytes(path, out.data(), out.size());
+}
+
+void write_image(const std::string& path, const ImageRGB& image, const ToneParams& tone,
+                 const ImageMetadata& metadata) {
+    std::string ext = lower_extension(path);
+    if (ext == ".png") {
+        write_png(path, image, tone, metadata);
+    } else if (ext == ".exr") {
+        write_exr(path, image, metadata);
+    } else if (ext == ".pfm") {
+        write_pfm(path, image);
+    } else if (ext == ".hdr") {
+        write_hdr(path, image);
+    } else {
+        fail(path, "unknown image extension '" + ext + "' (use .png, .exr, .pfm or .hdr)");
+    }
+}
+
+ImageMetadata read_png_metadata(const std::string& path) {
+    return parse_png_metadata(path, read_file(path));
+}
+
+ImageMetadata read_exr_metadata(const std::string& path) {
+#if KDT_HAVE_TINYEXR
+    return parse_exr_header(path, read_file(path));
+#else
+    fail(path, "OpenEXR support was not built (tinyexr not found)");
+#endif
+}
+
+}  // namespace kdt

@@ -1,0 +1,82 @@
+// Loading and writing images: Radiance .hdr (stb_image), OpenEXR (tinyexr), PFM (our own),
+// 8-bit PNG (written with zlib, read with stb_image) with tEXt/iTXt metadata.
+// The only module that touches files. Depends on core.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "renderer/core/color.h"
+#include "renderer/core/math.h"
+
+namespace kdt {
+
+/// Linear float RGB, row-major, row 0 = top of the image, 3 floats per pixel.
+struct ImageRGB {
+    int width = 0;
+    int height = 0;
+    std::vector<float> rgb;
+
+    ImageRGB() = default;
+    ImageRGB(int w, int h) : width(w), height(h), rgb(size_t(w) * size_t(h) * 3, 0.0f) {}
+
+    size_t pixel_count() const { return size_t(width) * size_t(height); }
+    Vec3f at(int x, int y) const {
+        const float* p = &rgb[(size_t(y) * size_t(width) + size_t(x)) * 3];
+        return {p[0], p[1], p[2]};
+    }
+    void set(int x, int y, const Vec3f& c) {
+        float* p = &rgb[(size_t(y) * size_t(width) + size_t(x)) * 3];
+        p[0] = c.x;
+        p[1] = c.y;
+        p[2] = c.z;
+    }
+};
+
+/// Ordered key/value text pairs stored in PNG tEXt/iTXt chunks and EXR string attributes.
+using ImageMetadata = std::vector<std::pair<std::string, std::string>>;
+
+/// Images larger than this many pixels (or wider/taller than kMaxImageDimension) are rejected
+/// as corrupt before anything is allocated.
+inline constexpr uint64_t kMaxImagePixels = uint64_t(1) << 27;
+inline constexpr int kMaxImageDimension = 1 << 16;
+
+/// Loads .hdr (Radiance RGBE), .exr (OpenEXR: RGB(A) or Y channels, half/float/uint), .pfm
+/// (colour "PF" or grey "Pf") or .png (8/16-bit sRGB, decoded to linear). The format is
+/// chosen by the file's magic bytes, not its extension. Grey images are replicated to RGB;
+/// alpha is dropped. Throws kdt::Error naming the file for a missing, truncated or
+/// malformed file, absurd dimensions, and for NaN or infinite pixels (naming the pixel).
+/// If metadata is given, it receives the PNG text chunks or EXR string attributes.
+ImageRGB load_image(const std::string& path, ImageMetadata* metadata = nullptr);
+
+/// Writes linear float PFM ("PF", little-endian, rows bottom-to-top as the format wants).
+void write_pfm(const std::string& path, const ImageRGB& image);
+
+/// Writes OpenEXR with 32-bit float R, G, B channels (ZIP compression); metadata become
+/// custom attributes of type "string" (tinyexr supports up to 128; names up to 255 bytes).
+void write_exr(const std::string& path, const ImageRGB& image, const ImageMetadata& metadata = {});
+
+/// Writes an 8-bit sRGB PNG: radiance * 2^exposure, tone curve, sRGB encoding, rounding.
+/// Metadata become tEXt chunks (iTXt when a value is not 7-bit ASCII). Keys must be 1-79
+/// printable Latin-1 characters without NUL; a bad key throws kdt::Error.
+void write_png(const std::string& path, const ImageRGB& image, const ToneParams& tone = {},
+               const ImageMetadata& metadata = {});
+
+/// Writes a Radiance .hdr (RGBE, run-length encoded) via stb_image_write; no metadata.
+void write_hdr(const std::string& path, const ImageRGB& image);
+
+/// Chooses the writer by extension: .png, .exr, .pfm or .hdr (case-insensitive); an
+/// unknown extension throws kdt::Error. tone applies to .png only; metadata to .png/.exr.
+void write_image(const std::string& path, const ImageRGB& image, const ToneParams& tone = {},
+                 const ImageMetadata& metadata = {});
+
+/// Reads the tEXt, zTXt and iTXt chunks of a PNG file without decoding its pixels.
+/// Throws kdt::Error for a file that is not a well-formed PNG chunk stream.
+ImageMetadata read_png_metadata(const std::string& path);
+
+/// Reads the custom string attributes of an EXR file's header.
+ImageMetadata read_exr_metadata(const std::string& path);
+
+}  // namespace kdt

@@ -1,0 +1,234 @@
+#include "renderer/light/environment.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "renderer/core/color.h"
+#include "renderer/core/error.h"
+#include "renderer/io/image_io.h"
+#include "renderer/light/image_environment.h"
+#include "renderer/light/mapping.h"
+
+namespace kdt {
+namespace {
+
+/// SplitMix64 (Steele, Lea & Flood 2014): the rejection loop below needs a few extra
+/// random numbers and derives them from the bits of the caller's sample.
+uint64_t splitmix64(uint64_t& state) {
+    uint64_t z = (state += 0x9e3779b97f4a7c15ull);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    return z ^ (z >> 31);
+}
+
+float unit_float(uint64_t bits) { return float(bits >> 40) * 0x1p-24f; }
+
+uint32_t float_bits(float f) {
+    uint32_t b;
+    std::memcpy(&b, &f, 4);
+    return b;
+}
+
+/// Angular-map image coordinates -> disk coordinates (a right, b up).
+Vec2f disk_from_uv(const Vec2f& uv) { return {2.0f * uv.x - 1.0f, 1.0f - 2.0f * uv.y}; }
+
+std::string where(const std::string& name) { return name.empty() ? "environment map" : name; }
+
+}  // namespace
+
+EnvSample ConstantEnvironment::sample(const Vec2f& u) const {
+    float z = 1.0f - 2.0f * u.x;
+    float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
+    float phi = 2.0f * kPi * u.y;
+    EnvSample s;
+    s.dir = Vec3f(r * std::cos(phi), z, r * std::sin(phi));
+    s.radiance = radiance_;
+    s.pdf_solid_angle = 0.25f * kInvPi;
+    return s;
+}
+
+ImageEnvironment::ImageEnvironment(ImageRGB image, EnvMapping mapping, float rotation_degrees,
+                                   float intensity, const std::string& name)
+    : image_(std::move(image)), mapping_(mapping), intensity_(intensity) {
+    const int w = image_.width, h = image_.height;
+    if (w < 1 || h < 1 || image_.rgb.size() != image_.pixel_count() * 3) {
+        throw Error(ErrorLocation{where(name)}, "empty or inconsistent environment image");
+    }
+    if (!std::isfinite(rotation_degrees)) {
+        throw Error(ErrorLocation{where(name)}, "rotation is not finite");
+    }
+    if (!std::isfinite(intensity) || intensity < 0.0f) {
+        throw Error(ErrorLocation{where(name)}, "intensity must be finite and >= 0");
+    }
+    float radians = rotation_degrees * (kPi / 180.0f);
+    cos_rot_ = std::cos(radians);
+    sin_rot_ = std::sin(radians);
+
+    for (size_t i = 0; i < image_.pixel_count(); ++i) {
+        bool clamped = false;
+        for (int c = 0; c < 3; ++c) {
+            float& v = image_.rgb[i * 3 + size_t(c)];
+            if (!std::isfinite(v)) {
+                ErrorLocation loc{where(name), "pixel", int64_t(i)};
+                throw Error(loc, "(x " + std::to_string(i % size_t(w)) + ", y " +
+                                     std::to_string(i / size_t(w)) + ") is " +
+                                     (std::isnan(v) ? "NaN" : "infinite"));
+            }
+            if (v < 0.0f) {
+                v = 0.0f;
+                clamped = true;
+            }
+        }
+        clamped_pixels_ += clamped ? 1 : 0;
+    }
+
+    // Sampling weights: luminance times the pixel's solid angle per unit uv area, so that
+    // the solid-angle pdf is close to proportional to luminance.
+    std::vector<float> weights(image_.pixel_count(), 0.0f);
+    std::vector<float> coverage(image_.pixel_count(), 1.0f);
+    if (mapping_ == EnvMapping::latlong) {
+        for (int y = 0; y < h; ++y) {
+            // Mean of sin(theta) over the row: (cos theta0 - cos theta1) / (theta1 - theta0).
+            double t0 = M_PI * y / h, t1 = M_PI * (y + 1) / h;
+            float mean_sin = float((std::cos(t0) - std::cos(t1)) / (t1 - t0));
+            for (int x = 0; x < w; ++x) {
+                size_t i = size_t(y) * size_t(w) + size_t(x);
+                weights[i] = luminance(image_.at(x, y)) * mean_sin;
+            }
+        }
+    } else {
+        constexpr int kSub = 4;
+        for (int y = 0; y < h; ++y) {
+            for (int x = 0; x < w; ++x) {
+                size_t i = size_t(y) * size_t(w) + size_t(x);
+                // Disk coordinates of the pixel: a right, b up.
+                double a0 = 2.0 * x / w - 1.0, a1 = 2.0 * (x + 1) / w - 1.0;
+                double b0 = 1.0 - 2.0 * (y + 1) / h, b1 = 1.0 - 2.0 * y / h;
+                double cov = disk_rect_area(a0, a1, b0, b1) / ((a1 - a0) * (b1 - b0));
+                coverage[i] = float(cov);
+                float lum = luminance(image_.at(x, y));
+                if (!(cov > 0.0) || lum <= 0.0f) continue;
+                // Mean Jacobian over the pixel (zero outside the disk) by a kSub^2 grid; it
+                // only shapes the weights, the density below stays exact.
+                double jsum = 0.0;
+                for (int sy = 0; sy < kSub; ++sy) {
+                    for (int sx = 0; sx < kSub; ++sx) {
+                        Vec2f uv((float(x) + (float(sx) + 0.5f) / kSub) / float(w),
+                                 (float(y) + (float(sy) + 0.5f) / kSub) / float(h));
+                        if (auto d = angular_dir_from_uv(uv)) jsum += angular_jacobian(*d);
+                    }
+                }
+                // A floor keeps pixels cut by the rim with no grid point inside samplable,
+                // so that pdf > 0 wherever eval > 0.
+                double mean_j = jsum / (kSub * kSub);
+                weights[i] = float(double(lum) * std::max(mean_j, cov * 1e-3));
+            }
+        }
+    }
+    distribution_ = Distribution2D(weights, w, h);
+    density_.assign(image_.pixel_count(), 0.0f);
+    if (!distribution_.empty()) {
+        for (int y = 0; y < h; ++y) {
+            for (int x = 0; x < w; ++x) {
+                size_t i = size_t(y) * size_t(w) + size_t(x);
+                if (weights[i] > 0.0f) density_[i] = distribution_.pdf(x, y) / coverage[i];
+            }
+        }
+    }
+}
+
+float ImageEnvironment::coverage(int x, int y) const {
+    if (mapping_ == EnvMapping::latlong) return 1.0f;
+    const int w = image_.width, h = image_.height;
+    double a0 = 2.0 * x / w - 1.0, a1 = 2.0 * (x + 1) / w - 1.0;
+    double b0 = 1.0 - 2.0 * (y + 1) / h, b1 = 1.0 - 2.0 * y / h;
+    return float(disk_rect_area(a0, a1, b0, b1) / ((a1 - a0) * (b1 - b0)));
+}
+
+Vec2i ImageEnvironment::pixel_of(const Vec2f& uv) const {
+    int x = std::clamp(int(uv.x * float(image_.width)), 0, image_.width - 1);
+    int y = std::clamp(int(uv.y * float(image_.height)), 0, image_.height - 1);
+    return {x, y};
+}
+
+Vec2f ImageEnvironment::uv_from_dir(const Vec3f& world_dir) const {
+    // map = R_y(-alpha) world
+    Vec3f d = rotate_y(world_dir, cos_rot_, -sin_rot_);
+    float len2 = glm::dot(d, d);
+    if (len2 > 0.0f && std::abs(len2 - 1.0f) > 1e-4f) d *= 1.0f / std::sqrt(len2);
+    return env_uv_from_dir(mapping_, d);
+}
+
+std::optional<Vec3f> ImageEnvironment::dir_from_uv(const Vec2f& uv) const {
+    auto d = env_dir_from_uv(mapping_, uv);
+    if (!d) return std::nullopt;
+    return rotate_y(*d, cos_rot_, sin_rot_);
+}
+
+Vec3f ImageEnvironment::eval(const Vec3f& dir) const {
+    Vec2i p = pixel_of(uv_from_dir(dir));
+    return image_.at(p.x, p.y) * intensity_;
+}
+
+float ImageEnvironment::pdf(const Vec3f& dir) const {
+    Vec3f d = rotate_y(dir, cos_rot_, -sin_rot_);
+    float len2 = glm::dot(d, d);
+    if (!(len2 > 0.0f)) return 0.0f;
+    if (std::abs(len2 - 1.0f) > 1e-4f) d *= 1.0f / std::sqrt(len2);
+    Vec2i p = pixel_of(env_uv_from_dir(mapping_, d));
+    float density = density_uv(p.x, p.y);
+    if (density <= 0.0f) return 0.0f;
+    float jacobian = env_jacobian(mapping_, d);
+    return jacobian > 0.0f ? density / jacobian : 0.0f;
+}
+
+EnvSample ImageEnvironment::sample(const Vec2f& u) const {
+    EnvSample s;
+    if (distribution_.empty()) return s;
+    Vec2i cell;
+    Vec2f uv = distribution_.sample_continuous(u, &cell);
+    std::optional<Vec3f> map_dir = env_dir_from_uv(mapping_, uv);
+    if (!map_dir) {
+        // Angular map, a pixel cut by the rim: uniform within its part of the disk by
+        // rejection, with random numbers derived from u. The density stays
+        // pdf(pixel) / coverage; failing 256 times has negligible probability and yields
+        // a zero-pdf sample the integrator skips.
+        uint64_t state = (uint64_t(float_bits(u.x)) << 32) | float_bits(u.y);
+        const float w = float(image_.width), h = float(image_.height);
+        for (int attempt = 0; attempt < 256 && !map_dir; ++attempt) {
+            uint64_t r = splitmix64(state);
+            Vec2f p((float(cell.x) + unit_float(r)) / w, (float(cell.y) + unit_float(r << 24)) / h);
+            Vec2f ab = disk_from_uv(p);
+            if (ab.x * ab.x + ab.y * ab.y < 1.0f) map_dir = angular_dir_from_uv(p);
+        }
+        if (!map_dir) return s;
+    }
+    s.dir = rotate_y(*map_dir, cos_rot_, sin_rot_);
+    // Recomputed from the direction so that sample() agrees with eval() and pdf() exactly.
+    s.radiance = eval(s.dir);
+    s.pdf_solid_angle = pdf(s.dir);
+    return s;
+}
+
+std::shared_ptr<const EnvironmentLight> make_environment_light(const EnvironmentDesc& desc,
+                                                               ImageRGB image) {
+    return std::make_shared<ImageEnvironment>(std::move(image), desc.mapping, desc.rotation_degrees,
+                                              desc.intensity, desc.file);
+}
+
+std::shared_ptr<const EnvironmentLight> make_environment_light(const EnvironmentDesc& desc) {
+    if (desc.file.empty()) {
+        if (!is_finite(desc.color) || desc.color.x < 0.0f || desc.color.y < 0.0f ||
+            desc.color.z < 0.0f) {
+            throw Error("environment colour must be finite and >= 0");
+        }
+        if (!std::isfinite(desc.intensity) || desc.intensity < 0.0f) {
+            throw Error("environment intensity must be finite and >= 0");
+        }
+        return std::make_shared<ConstantEnvironment>(desc.color * desc.intensity);
+    }
+    return make_environment_light(desc, load_image(desc.file));
+}
+
+}  // namespace kdt

@@ -1,0 +1,80 @@
+// The concrete environment lights behind make_environment_light(): a constant colour and
+// an HDR map (lat-long or angular, see mapping.h) with its sampling distribution, exposed
+// for tests and tools. Depends on core, io.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "renderer/io/image_io.h"
+#include "renderer/light/distribution.h"
+#include "renderer/light/environment.h"
+
+namespace kdt {
+
+/// Constant radiance from every direction; samples the sphere uniformly (pdf 1/(4 pi)).
+class ConstantEnvironment final : public EnvironmentLight {
+public:
+    explicit ConstantEnvironment(const Vec3f& radiance) : radiance_(radiance) {}
+    Vec3f eval(const Vec3f&) const override { return radiance_; }
+    EnvSample sample(const Vec2f& u) const override;
+    float pdf(const Vec3f&) const override { return 0.25f * kInvPi; }
+    bool is_constant() const override { return true; }
+
+private:
+    Vec3f radiance_;
+};
+
+/// An HDR environment map. eval() is a nearest-pixel (piecewise-constant) lookup, so eval,
+/// sample and pdf agree exactly, as MIS wants. Sampling picks a pixel with probability
+/// proportional to luminance times the pixel's solid angle, then a point uniformly inside
+/// the pixel (for the angular map: inside the pixel's part of the unit disk), hence
+///   pdf_solid_angle(d) = density_uv(pixel(d)) / jacobian(d),
+/// jacobian = 2 pi^2 sin(theta) (lat-long) or 4 pi^2 sin(theta')/theta' (angular).
+class ImageEnvironment final : public EnvironmentLight {
+public:
+    /// `image` must hold finite values; negative values are clamped to 0 and counted.
+    /// `name` (usually the file) is used in error messages.
+    ImageEnvironment(ImageRGB image, EnvMapping mapping, float rotation_degrees, float intensity,
+                     const std::string& name = "");
+
+    Vec3f eval(const Vec3f& dir) const override;
+    EnvSample sample(const Vec2f& u) const override;
+    float pdf(const Vec3f& dir) const override;
+    bool is_constant() const override { return false; }
+
+    EnvMapping mapping() const { return mapping_; }
+    /// The map after clamping, not multiplied by intensity.
+    const ImageRGB& image() const { return image_; }
+    float intensity() const { return intensity_; }
+    /// Number of pixels that had a negative channel (clamped to 0 at load).
+    uint64_t clamped_pixels() const { return clamped_pixels_; }
+    /// Image coordinates (u, v) of a world direction (rotation applied).
+    Vec2f uv_from_dir(const Vec3f& world_dir) const;
+    /// World direction of image coordinates (u, v); nullopt outside the angular disk.
+    std::optional<Vec3f> dir_from_uv(const Vec2f& uv) const;
+    /// Sampling density w.r.t. image area (u, v) in [0,1]^2 inside pixel (x, y).
+    float density_uv(int x, int y) const { return density_[size_t(y) * size_t(image_.width) + size_t(x)]; }
+    /// Fraction of pixel (x, y) inside the angular map's disk (1 for lat-long).
+    float coverage(int x, int y) const;
+    const Distribution2D& distribution() const { return distribution_; }
+
+private:
+    Vec2i pixel_of(const Vec2f& uv) const;
+
+    ImageRGB image_;
+    EnvMapping mapping_;
+    float intensity_;
+    float cos_rot_, sin_rot_;
+    uint64_t clamped_pixels_ = 0;
+    Distribution2D distribution_;
+    std::vector<float> density_;  ///< per pixel, w.r.t. uv area
+};
+
+/// Builds the light from an image already in memory (same checks as for a file).
+std::shared_ptr<const EnvironmentLight> make_environment_light(const EnvironmentDesc& desc,
+                                                               ImageRGB image);
+
+}  // namespace kdt

@@ -1,0 +1,343 @@
+// Tests of renderer/light/environment.*: the constant light, pdfs that integrate to one,
+// sample() agreeing with pdf() and eval(), importance vs uniform sampling on the Grace
+// Cathedral probe (statistical, fixed seeds), and bad input.
+#include "renderer/light/environment.h"
+
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <fstream>
+
+#include <gtest/gtest.h>
+
+#include "renderer/core/error.h"
+#include "renderer/light/image_environment.h"
+#include "renderer/light/mapping.h"
+#include "tests/test_util.h"
+
+namespace kdt {
+namespace {
+
+struct HashRng {
+    uint64_t state;
+    explicit HashRng(uint64_t seed) : state(seed * 0x9e3779b97f4a7c15ull + 0x632be59bd9b4e019ull) {}
+    uint64_t next_u64() {
+        uint64_t z = (state += 0x9e3779b97f4a7c15ull);
+        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+        z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+        return z ^ (z >> 31);
+    }
+    float next() { return float(next_u64() >> 40) * 0x1p-24f; }
+    Vec2f next2() { return {next(), next()}; }
+};
+
+Vec3f uniform_sphere(const Vec2f& u) {
+    float z = 1.0f - 2.0f * u.x;
+    float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
+    float phi = 2.0f * kPi * u.y;
+    return {r * std::cos(phi), r * std::sin(phi), z};
+}
+
+/// Running mean and standard error.
+struct Stat {
+    double sum = 0.0, sum2 = 0.0;
+    uint64_t n = 0;
+    void add(double x) {
+        sum += x;
+        sum2 += x * x;
+        ++n;
+    }
+    double mean() const { return sum / double(n); }
+    double std_error() const {
+        double m = mean();
+        return std::sqrt(std::max(0.0, sum2 / double(n) - m * m) / double(n));
+    }
+};
+
+/// A test map: a smooth strictly positive sky plus a small bright "sun" and a black band.
+ImageRGB test_latlong(int w, int h, bool with_zeros) {
+    ImageRGB img(w, h);
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            Vec3f d = latlong_dir_from_uv({(x + 0.5f) / w, (y + 0.5f) / h});
+            Vec3f c(0.2f + 0.1f * d.y, 0.3f + 0.1f * d.x, 0.25f);
+            if (glm::dot(d, glm::normalize(Vec3f(0.3f, 0.8f, -0.5f))) > 0.97f)
+                c = Vec3f(300, 250, 200);
+            if (with_zeros && y > h * 5 / 8 && y < h * 6 / 8) c = Vec3f(0.0f);
+            img.set(x, y, c);
+        }
+    }
+    return img;
+}
+
+TEST(Environment, ConstantColour) {
+    EnvironmentDesc desc;
+    desc.color = Vec3f(0.5f, 1.0f, 2.0f);
+    desc.intensity = 2.0f;
+    auto env = make_environment_light(desc);
+    EXPECT_TRUE(env->is_constant());
+    EXPECT_EQ(env->eval(Vec3f(0, 1, 0)), Vec3f(1.0f, 2.0f, 4.0f));
+    EXPECT_FLOAT_EQ(env->pdf(Vec3f(1, 0, 0)), 1.0f / (4.0f * kPi));
+    HashRng rng(1);
+    Vec3d mean(0.0);
+    const int n = 100000;
+    for (int i = 0; i < n; ++i) {
+        EnvSample s = env->sample(rng.next2());
+        ASSERT_NEAR(glm::length(s.dir), 1.0f, 1e-5f);
+        ASSERT_FLOAT_EQ(s.pdf_solid_angle, 1.0f / (4.0f * kPi));
+        ASSERT_EQ(s.radiance, Vec3f(1.0f, 2.0f, 4.0f));
+        mean += Vec3d(s.dir);
+    }
+    mean /= double(n);
+    // Uniform on the sphere: each coordinate has mean 0 and variance 1/3.
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(mean[c], 0.0, 5.0 * std::sqrt(1.0 / 3.0 / n));
+}
+
+class MapTest : public ::testing::TestWithParam<EnvMapping> {
+protected:
+    ImageEnvironment make(bool with_zeros, float rotation = 30.0f) const {
+        ImageRGB ll = test_latlong(128, 64, with_zeros);
+        if (GetParam() == EnvMapping::latlong) {
+            return ImageEnvironment(ll, EnvMapping::latlong, rotation, 1.5f);
+        }
+        return ImageEnvironment(latlong_to_angular(ll, 96, 2), EnvMapping::angular, rotation, 1.5f);
+    }
+};
+
+TEST_P(MapTest, PdfIntegratesToOneOverTheSphere) {
+    ImageEnvironment env = make(true);
+    HashRng rng(2);
+    Stat s;
+    for (int i = 0; i < 400000; ++i) s.add(4.0 * M_PI * env.pdf(uniform_sphere(rng.next2())));
+    EXPECT_NEAR(s.mean(), 1.0, 4.0 * s.std_error() + 1e-3) << "se " << s.std_error();
+
+    // Exact: the density table integrates to one over the image (weighted by coverage).
+    double sum = 0.0;
+    const ImageRGB& img = env.image();
+    for (int y = 0; y < img.height; ++y) {
+        for (int x = 0; x < img.width; ++x) sum += env.density_uv(x, y) * env.coverage(x, y);
+    }
+    EXPECT_NEAR(sum / double(img.pixel_count()), 1.0, 1e-5);
+}
+
+TEST_P(MapTest, SampleAgreesWithPdfAndEval) {
+    ImageEnvironment env = make(true);
+    HashRng rng(3);
+    int zero_pdf = 0;
+    for (int i = 0; i < 50000; ++i) {
+        EnvSample s = env.sample(rng.next2());
+        if (s.pdf_solid_angle == 0.0f) {
+            ++zero_pdf;
+            continue;
+        }
+        ASSERT_NEAR(glm::length(s.dir), 1.0f, 1e-5f);
+        ASSERT_FLOAT_EQ(env.pdf(s.dir), s.pdf_solid_angle);
+        ASSERT_EQ(env.eval(s.dir), s.radiance);
+        ASSERT_GT(luminance(s.radiance), 0.0f) << "sampled a black pixel";
+    }
+    EXPECT_LE(zero_pdf, 2);  // only float rounding at a pixel edge next to a black pixel
+}
+
+TEST_P(MapTest, SamplesFollowThePdf) {
+    // With a strictly positive map the support is the whole sphere, so for any region R,
+    // E[1_R(d) / pdf(d)] over sampled d equals the solid angle of R. Regions: the octants.
+    ImageEnvironment env = make(false, -71.0f);
+    HashRng rng(4);
+    Stat octant[8];
+    const int n = 400000;
+    for (int i = 0; i < n; ++i) {
+        EnvSample s = env.sample(rng.next2());
+        ASSERT_GT(s.pdf_solid_angle, 0.0f);
+        int o = (s.dir.x > 0) + 2 * (s.dir.y > 0) + 4 * (s.dir.z > 0);
+        for (int k = 0; k < 8; ++k) octant[k].add(k == o ? 1.0 / s.pdf_solid_angle : 0.0);
+    }
+    for (int k = 0; k < 8; ++k) {
+        EXPECT_NEAR(octant[k].mean(), M_PI / 2, 4.0 * octant[k].std_error() + 2e-3)
+            << "octant " << k << " se " << octant[k].std_error();
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(Mappings, MapTest,
+                         ::testing::Values(EnvMapping::latlong, EnvMapping::angular),
+                         [](const ::testing::TestParamInfo<EnvMapping>& param_info) {
+                             return std::string(kEnvMappingNames[size_t(param_info.param)]);
+                         });
+
+TEST(Environment, AngularRimPixelsAreSampledExactly) {
+    // Only a ring near the rim (-z) is lit, so pixels cut by the unit circle carry much of
+    // the power: E[1/pdf] must equal the solid angle of the lit part of the disk.
+    const int size = 48;
+    ImageRGB img(size, size);
+    for (int y = 0; y < size; ++y) {
+        for (int x = 0; x < size; ++x) {
+            float a = 2.0f * (x + 0.5f) / size - 1.0f, b = 1.0f - 2.0f * (y + 0.5f) / size;
+            if (a * a + b * b > 0.8f * 0.8f) img.set(x, y, Vec3f(1.0f + 0.5f * a, 1.0f, 1.0f));
+        }
+    }
+    ImageEnvironment env(img, EnvMapping::angular, 0.0f, 1.0f);
+    // Reference: the lit pixels' solid angle by a fine midpoint rule with the Jacobian.
+    const int sub = 64;
+    double omega = 0.0;
+    for (int y = 0; y < size; ++y) {
+        for (int x = 0; x < size; ++x) {
+            if (img.at(x, y).y == 0.0f) continue;
+            for (int sy = 0; sy < sub; ++sy) {
+                for (int sx = 0; sx < sub; ++sx) {
+                    Vec2f uv((x + (sx + 0.5f) / sub) / size, (y + (sy + 0.5f) / sub) / size);
+                    if (auto d = angular_dir_from_uv(uv)) omega += angular_jacobian(*d);
+                }
+            }
+        }
+    }
+    omega /= double(size) * size * sub * sub;
+    HashRng rng(5);
+    Stat s;
+    for (int i = 0; i < 400000; ++i) {
+        EnvSample e = env.sample(rng.next2());
+        s.add(e.pdf_solid_angle > 0.0f ? 1.0 / e.pdf_solid_angle : 0.0);
+    }
+    EXPECT_NEAR(s.mean(), omega, 4.0 * s.std_error() + 2e-3 * omega)
+        << "se " << s.std_error() << " omega " << omega;
+}
+
+TEST(Environment, BlackMapHasZeroPdf) {
+    ImageEnvironment env(ImageRGB(16, 8), EnvMapping::latlong, 0.0f, 1.0f);
+    EnvSample s = env.sample({0.3f, 0.7f});
+    EXPECT_EQ(s.pdf_solid_angle, 0.0f);
+    EXPECT_EQ(s.radiance, Vec3f(0.0f));
+    EXPECT_EQ(env.pdf(Vec3f(0, 1, 0)), 0.0f);
+}
+
+// Estimates of the total power (integral of luminance over the sphere) and the irradiance
+// about a few normals, importance-sampled and uniformly sampled, against each other and a
+// deterministic quadrature; on the Grace Cathedral probe (tiny bright windows).
+struct Estimates {
+    std::vector<Stat> is, uni;
+};
+
+void compare_on_probe(const ImageEnvironment& env, const std::string& label, double ref_tol) {
+    const std::vector<Vec3f> normals = {Vec3f(0, 1, 0), Vec3f(0, -1, 0), Vec3f(1, 0, 0),
+                                        glm::normalize(Vec3f(1, 1, 1)), Vec3f(0, 0, -1)};
+    const size_t k = normals.size() + 1;  // [0] = power, then irradiance per normal
+    auto integrand = [&](const Vec3f& d, double l, size_t j) {
+        return j == 0 ? l : l * std::max(0.0f, glm::dot(normals[j - 1], d));
+    };
+    // Reference: midpoint rule on a sub-pixel grid of the image.
+    const ImageRGB& img = env.image();
+    const int sub = img.width >= 512 ? 2 : 6;
+    std::vector<double> ref(k, 0.0);
+    for (int y = 0; y < img.height * sub; ++y) {
+        for (int x = 0; x < img.width * sub; ++x) {
+            Vec2f uv((x + 0.5f) / (img.width * sub), (y + 0.5f) / (img.height * sub));
+            auto d = env.dir_from_uv(uv);
+            if (!d) continue;
+            Vec3f map_dir = *env_dir_from_uv(env.mapping(), uv);
+            double w =
+                env_jacobian(env.mapping(), map_dir) / (double(img.width) * img.height * sub * sub);
+            double l = luminance(env.eval(*d));
+            for (size_t j = 0; j < k; ++j) ref[j] += integrand(*d, l, j) * w;
+        }
+    }
+    std::vector<Stat> is(k), uni(k);
+    HashRng rng_is(42), rng_u(43);
+    for (int i = 0; i < (1 << 16); ++i) {
+        EnvSample s = env.sample(rng_is.next2());
+        double l = luminance(s.radiance);
+        for (size_t j = 0; j < k; ++j) {
+            is[j].add(s.pdf_solid_angle > 0.0f ? integrand(s.dir, l, j) / s.pdf_solid_angle : 0.0);
+        }
+    }
+    for (int i = 0; i < (1 << 20); ++i) {
+        Vec3f d = uniform_sphere(rng_u.next2());
+        double l = luminance(env.eval(d));
+        for (size_t j = 0; j < k; ++j) uni[j].add(4.0 * M_PI * integrand(d, l, j));
+    }
+    for (size_t j = 0; j < k; ++j) {
+        std::string what = j == 0 ? "power"
+                                  : "irradiance n=(" + std::to_string(normals[j - 1].x) + "," +
+                                        std::to_string(normals[j - 1].y) + "," +
+                                        std::to_string(normals[j - 1].z) + ")";
+        std::printf("[%s] %-42s ref %.5f | IS 2^16: %.5f +- %.5f | uniform 2^20: %.5f +- %.5f\n",
+                    label.c_str(), what.c_str(), ref[j], is[j].mean(), is[j].std_error(),
+                    uni[j].mean(), uni[j].std_error());
+        double se = std::sqrt(is[j].std_error() * is[j].std_error() +
+                              uni[j].std_error() * uni[j].std_error());
+        EXPECT_NEAR(is[j].mean(), uni[j].mean(), 4.0 * se) << label << " " << what;
+        EXPECT_NEAR(is[j].mean(), ref[j], 4.0 * is[j].std_error() + ref_tol * ref[j]) << what;
+        EXPECT_NEAR(uni[j].mean(), ref[j], 4.0 * uni[j].std_error() + ref_tol * ref[j]) << what;
+    }
+    // Importance sampling must pay off on this probe: per-sample variance of the power
+    // estimate far below uniform sampling's.
+    double var_is = is[0].std_error() * is[0].std_error() * double(is[0].n);
+    double var_u = uni[0].std_error() * uni[0].std_error() * double(uni[0].n);
+    EXPECT_LT(var_is, 0.01 * var_u) << label;
+}
+
+TEST(Environment, ImportanceAndUniformSamplingAgreeOnGrace) {
+    auto data = test::shared_data_dir();
+    if (data.empty() || !std::filesystem::exists(data / "probes" / "grace.hdr")) {
+        GTEST_SKIP() << "../shared/data/probes/grace.hdr not found (set KDT_SHARED_DATA)";
+    }
+    EnvironmentDesc desc;
+    desc.file = (data / "probes" / "grace.hdr").string();
+    desc.rotation_degrees = 123.0f;
+    auto light = make_environment_light(desc);
+    auto* env = dynamic_cast<const ImageEnvironment*>(light.get());
+    ASSERT_NE(env, nullptr);
+    EXPECT_EQ(env->image().width, 256);
+    EXPECT_EQ(env->image().height, 128);
+    compare_on_probe(*env, "grace latlong", 1e-3);
+
+    // The same probe converted to an angular map with our own conversion.
+    ImageEnvironment ang(latlong_to_angular(env->image(), 512, 2), EnvMapping::angular, 45.0f,
+                         1.0f);
+    compare_on_probe(ang, "grace angular", 3e-3);
+}
+
+TEST(Environment, BadInputThrows) {
+    EnvironmentDesc desc;
+    desc.file = "/nonexistent/probe.hdr";
+    try {
+        make_environment_light(desc);
+        FAIL() << "no exception";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("/nonexistent/probe.hdr"), std::string::npos);
+    }
+
+    auto dir = test::temp_dir("env_bad");
+    desc.file = (dir / "broken.hdr").string();
+    std::ofstream(desc.file, std::ios::binary)
+        << "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 4 +X 4\nabc";
+    EXPECT_THROW(make_environment_light(desc), Error);
+
+    ImageRGB nan_img(4, 2);
+    nan_img.set(3, 1, Vec3f(0.0f, std::nanf(""), 0.0f));
+    desc.file = "in-memory";
+    try {
+        make_environment_light(desc, nan_img);
+        FAIL() << "no exception";
+    } catch (const Error& e) {
+        EXPECT_EQ(e.where().element, "pixel");
+        EXPECT_EQ(e.where().index, 7);
+        EXPECT_NE(std::string(e.what()).find("NaN"), std::string::npos) << e.what();
+    }
+
+    ImageRGB neg(4, 2);
+    neg.set(0, 0, Vec3f(-1.0f, 1.0f, 1.0f));
+    neg.set(1, 0, Vec3f(-1.0f, -1.0f, 1.0f));
+    ImageEnvironment clamped(neg, EnvMapping::latlong, 0.0f, 1.0f);
+    EXPECT_EQ(clamped.clamped_pixels(), 2u);
+    EXPECT_EQ(clamped.image().at(1, 0), Vec3f(0.0f, 0.0f, 1.0f));
+
+    EXPECT_THROW(ImageEnvironment(neg, EnvMapping::latlong, 0.0f, -1.0f), Error);
+    EXPECT_THROW(ImageEnvironment(neg, EnvMapping::latlong, kInfinity, 1.0f), Error);
+    EnvironmentDesc bad_colour;
+    bad_colour.color = Vec3f(1.0f, std::nanf(""), 1.0f);
+    EXPECT_THROW(make_environment_light(bad_colour), Error);
+    bad_colour.color = Vec3f(-1.0f);
+    EXPECT_THROW(make_environment_light(bad_colour), Error);
+    std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace kdt
