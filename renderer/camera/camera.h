@@ -23,12 +23,12 @@ Vec2f sample_pixel_filter(PixelFilter filter, const Vec2f& u);
 /// A pinhole camera with a precomputed world-space frame.
 struct Camera {
     Vec3f eye{0.0f, 0.0f, 5.0f};
-    Vec3f right{1.0f, 0.0f, 0.0f};   ///< unit, world space
-    Vec3f up{0.0f, 1.0f, 0.0f};      ///< unit, world space, orthogonal to right and forward
-    Vec3f forward{0.0f, 0.0f, -1.0f};///< unit viewing direction
-    float vfov_degrees = 40.0f;      ///< full vertical field of view
-    int width = 640, height = 480;   ///< film size in pixels
-    float tan_half_vfov = 0.0f;      ///< derived by make_camera()
+    Vec3f right{1.0f, 0.0f, 0.0f};     ///< unit, world space
+    Vec3f up{0.0f, 1.0f, 0.0f};        ///< unit, world space, orthogonal to right and forward
+    Vec3f forward{0.0f, 0.0f, -1.0f};  ///< unit viewing direction
+    float vfov_degrees = 40.0f;        ///< full vertical field of view
+    int width = 640, height = 480;     ///< film size in pixels
+    float tan_half_vfov = 0.0f;        ///< derived by make_camera()
 
     /// Primary ray through film position `film` (pixels; x right, y down, (0,0) top-left).
     /// dir is unit length, tmin = 0, tmax = infinity.

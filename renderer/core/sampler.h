@@ -22,7 +22,9 @@ inline uint64_t mix64(uint64_t x) {
 
 /// Hashes a sequence of 64-bit words into one.
 inline uint64_t hash64(uint64_t a) { return mix64(a + 0x9e3779b97f4a7c15ull); }
-inline uint64_t hash64(uint64_t a, uint64_t b) { return mix64(hash64(a) ^ (b + 0x632be59bd9b4e019ull)); }
+inline uint64_t hash64(uint64_t a, uint64_t b) {
+    return mix64(hash64(a) ^ (b + 0x632be59bd9b4e019ull));
+}
 inline uint64_t hash64(uint64_t a, uint64_t b, uint64_t c) { return hash64(hash64(a, b), c); }
 
 /// 32 random bits -> float in [0, 1) (24-bit mantissa, never 1).

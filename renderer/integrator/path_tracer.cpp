@@ -40,14 +40,16 @@ float max_component(const Vec3f& v) { return std::max(v.x, std::max(v.y, v.z)); 
 
 struct Frame {
     Vec3f t, b, n;
-    Vec3f to_local(const Vec3f& v) const { return {glm::dot(v, t), glm::dot(v, b), glm::dot(v, n)}; }
+    Vec3f to_local(const Vec3f& v) const {
+        return {glm::dot(v, t), glm::dot(v, b), glm::dot(v, n)};
+    }
     Vec3f to_world(const Vec3f& v) const { return v.x * t + v.y * b + v.z * n; }
 };
 
 // Everything shading needs about a hit.
 struct SurfacePoint {
     Vec3f p;
-    Vec3f ng;  // unit geometric normal; two-sided materials: flipped towards wo
+    Vec3f ng;     // unit geometric normal; two-sided materials: flipped towards wo
     Frame frame;  // shading frame (n = shading normal, same side as ng)
     const Material* material;
 };
@@ -67,7 +69,8 @@ SurfacePoint make_surface(const TraceScene& scene, const Ray& ray, const Hit& hi
     s.material = &inst.material;
     Vec3f ns = ng;
     if (inst.smooth && !scene.normals.empty()) {
-        Vec3f n = w * scene.normals[tri.x] + hit.u * scene.normals[tri.y] + hit.v * scene.normals[tri.z];
+        Vec3f n =
+            w * scene.normals[tri.x] + hit.u * scene.normals[tri.y] + hit.v * scene.normals[tri.z];
         const float nl = glm::length(n);
         if (nl > 0.0f && std::isfinite(nl)) ns = n / nl;
         if (glm::dot(ns, ng) < 0.0f) ns = -ns;  // normals disagreeing with the winding
@@ -147,9 +150,10 @@ Vec3f trace_path(const TraceScene& scene, const TraceParams& params, const Ray& 
                     ++counters.shadow_rays;
                     if (!tree.occluded(shadow, tcp)) {
                         const float w =
-                            use_mis ? power_heuristic(ls.pdf_solid_angle,
-                                                      bsdf_pdf(mat, wo, wi, params.diffuse_sampling))
-                                    : 1.0f;
+                            use_mis
+                                ? power_heuristic(ls.pdf_solid_angle,
+                                                  bsdf_pdf(mat, wo, wi, params.diffuse_sampling))
+                                : 1.0f;
                         radiance += beta * f * ls.radiance * (w / ls.pdf_solid_angle);
                     }
                 }
@@ -187,8 +191,8 @@ Vec3f trace_path(const TraceScene& scene, const TraceParams& params, const Ray& 
     return radiance;
 }
 
-Vec3f render_sample(const TraceScene& scene, const Camera& camera, const TraceParams& params,
-                    int x, int y, uint32_t sample_index, PathCounters& counters) {
+Vec3f render_sample(const TraceScene& scene, const Camera& camera, const TraceParams& params, int x,
+                    int y, uint32_t sample_index, PathCounters& counters) {
     PixelSampler sampler(params.seed, uint32_t(x), uint32_t(y), sample_index);
     const Vec2f offset = sample_pixel_filter(params.filter, sampler.next_2d());
     const Ray ray = camera.generate_ray(Vec2f(float(x), float(y)) + offset);

@@ -27,16 +27,16 @@ struct TraceParams {
     /// environment (by NEE or by a BSDF ray) depth 1. 0 renders only directly visible
     /// environment and emission (pbrt's maxdepth; Mitsuba's max_depth is this + 1).
     int max_depth = 16;
-    bool russian_roulette = true;   ///< after rr_min_depth bounces (thesis: adaptive depth)
-    int rr_min_depth = 3;           ///< bounces before roulette may end a path
+    bool russian_roulette = true;  ///< after rr_min_depth bounces (thesis: adaptive depth)
+    int rr_min_depth = 3;          ///< bounces before roulette may end a path
     LightSampling light_sampling = LightSampling::mis;
-    bool env_importance = true;     ///< NEE samples the env map's distribution, else uniform sphere
+    bool env_importance = true;  ///< NEE samples the env map's distribution, else uniform sphere
     DiffuseSampling diffuse_sampling = DiffuseSampling::cosine;
     PixelFilter filter = PixelFilter::box;
-    int samples_per_pass = 1;       ///< per active pixel and pass
-    uint64_t seed = 0;              ///< keys all randomness with the pixel and sample index
-    int threads = 0;                ///< OpenMP threads; 0 = default
-    bool count_traversal = true;    ///< count nodes visited and triangles tested
+    int samples_per_pass = 1;     ///< per active pixel and pass
+    uint64_t seed = 0;            ///< keys all randomness with the pixel and sample index
+    int threads = 0;              ///< OpenMP threads; 0 = default
+    bool count_traversal = true;  ///< count nodes visited and triangles tested
 };
 
 /// Per-thread counters, summed at the end of a pass.
@@ -69,7 +69,7 @@ Vec3f trace_path(const TraceScene& scene, const TraceParams& params, const Ray& 
 
 /// One sample of pixel (x, y) with index sample_index: filter-sampled camera ray, then
 /// trace_path. Non-finite results are returned as-is (see Film / render_tiles).
-Vec3f render_sample(const TraceScene& scene, const Camera& camera, const TraceParams& params,
-                    int x, int y, uint32_t sample_index, PathCounters& counters);
+Vec3f render_sample(const TraceScene& scene, const Camera& camera, const TraceParams& params, int x,
+                    int y, uint32_t sample_index, PathCounters& counters);
 
 }  // namespace kdt

@@ -21,10 +21,10 @@ struct ShadingInstance {
 
 struct TraceScene {
     std::shared_ptr<const TriangleMesh> mesh;  ///< world space, all instances merged
-    std::vector<Vec3f> normals;                ///< per vertex (unit); meaningful for smooth instances
-    std::vector<uint32_t> triangle_instance;   ///< instance index of each triangle
+    std::vector<Vec3f> normals;  ///< per vertex (unit); meaningful for smooth instances
+    std::vector<uint32_t> triangle_instance;  ///< instance index of each triangle
     std::vector<ShadingInstance> instances;
-    std::shared_ptr<const KdTree> tree;        ///< built over *mesh
+    std::shared_ptr<const KdTree> tree;  ///< built over *mesh
     std::shared_ptr<const EnvironmentLight> env;
 };
 

@@ -9,7 +9,9 @@ namespace kdt {
 
 namespace {
 
-bool valid_color(const Vec3f& c) { return is_finite(c) && c.x >= 0.0f && c.y >= 0.0f && c.z >= 0.0f; }
+bool valid_color(const Vec3f& c) {
+    return is_finite(c) && c.x >= 0.0f && c.y >= 0.0f && c.z >= 0.0f;
+}
 
 // GGX (Trowbridge-Reitz) normal distribution, isotropic (Walter et al. 2007, eq. 33).
 float ggx_d(float cos_m, float alpha) {

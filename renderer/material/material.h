@@ -41,7 +41,7 @@ inline bool is_black(const Material& m) { return m.type == MaterialType::emissiv
 struct BsdfSample {
     Vec3f wi{0.0f, 0.0f, 1.0f};  ///< local frame, unit
     Vec3f weight{0.0f};
-    float pdf_solid_angle = 0.0f; ///< for deltas: the discrete probability of the lobe
+    float pdf_solid_angle = 0.0f;  ///< for deltas: the discrete probability of the lobe
     bool delta = false;
 };
 

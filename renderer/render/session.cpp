@@ -45,7 +45,8 @@ void RenderSession::apply_pending() {
         pending_.reset();
     }
     if (reset_requested_.exchange(false)) {
-        if (film_.width() != snapshot_->camera.width || film_.height() != snapshot_->camera.height) {
+        if (film_.width() != snapshot_->camera.width ||
+            film_.height() != snapshot_->camera.height) {
             film_.resize(snapshot_->camera.width, snapshot_->camera.height);
         } else {
             film_.clear();
@@ -102,8 +103,10 @@ PassStats RenderSession::render_pass(const std::vector<int>& tiles, int max_spp)
                 for (int s = 0; s < spp; ++s) {
                     const uint32_t index = film_.next_sample_index(x, y);
                     if (index >= cap) break;
-                    const uint64_t nodes0 = counters.nodes_visited, tris0 = counters.triangles_tested;
-                    const Vec3f L = render_sample(snap.scene, snap.camera, trace_, x, y, index, counters);
+                    const uint64_t nodes0 = counters.nodes_visited,
+                                   tris0 = counters.triangles_tested;
+                    const Vec3f L =
+                        render_sample(snap.scene, snap.camera, trace_, x, y, index, counters);
                     const size_t pi = size_t(y) * size_t(width) + size_t(x);
                     heat_nodes_[pi] += counters.nodes_visited - nodes0;
                     heat_tris_[pi] += counters.triangles_tested - tris0;
@@ -154,7 +157,8 @@ RenderProgress run_render(RenderSession& session, const StopConditions& stop,
         if (stop.seconds > 0.0) frac = std::max(frac, p.seconds / stop.seconds);
         if (stop.error > 0.0f && p.mean_relative_error > 0.0) {
             // Error falls as 1/sqrt(samples): fraction of the way in log terms is a fair ETA.
-            frac = std::max(frac, std::min(1.0, std::pow(double(stop.error) / p.mean_relative_error, 2.0)));
+            frac = std::max(
+                frac, std::min(1.0, std::pow(double(stop.error) / p.mean_relative_error, 2.0)));
         }
         p.fraction = std::min(frac, 1.0);
         bool done = ps.cancelled || ps.active_pixels == 0;

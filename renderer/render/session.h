@@ -23,7 +23,7 @@ struct PassStats {
     double seconds = 0.0;
     size_t active_pixels = 0;  ///< pixels that took samples in this pass
     PathCounters counters;
-    bool cancelled = false;    ///< cancel() stopped the pass early (finished tiles are kept)
+    bool cancelled = false;  ///< cancel() stopped the pass early (finished tiles are kept)
 };
 
 class RenderSession {
@@ -80,10 +80,10 @@ private:
 
 /// When run_render() stops; any non-zero condition that is met stops it.
 struct StopConditions {
-    int spp = 0;          ///< samples per pixel (adaptive: a budget of spp * pixels in total)
-    double seconds = 0.0; ///< wall time
-    float error = 0.0f;   ///< target mean relative error (adaptive: every pixel below it)
-    int max_spp = 65536;  ///< safety cap per pixel
+    int spp = 0;           ///< samples per pixel (adaptive: a budget of spp * pixels in total)
+    double seconds = 0.0;  ///< wall time
+    float error = 0.0f;    ///< target mean relative error (adaptive: every pixel below it)
+    int max_spp = 65536;   ///< safety cap per pixel
 };
 
 struct RenderProgress {

@@ -58,27 +58,46 @@ void params_from_json(const std::string& text, TraceParams& t, FilmParams& f, Kd
         for (auto it = j.begin(); it != j.end(); ++it) {
             const std::string& key = it.key();
             const json& v = it.value();
-            if (key == "max_depth") t.max_depth = v.get<int>();
-            else if (key == "russian_roulette") t.russian_roulette = v.get<bool>();
-            else if (key == "rr_min_depth") t.rr_min_depth = v.get<int>();
+            if (key == "max_depth")
+                t.max_depth = v.get<int>();
+            else if (key == "russian_roulette")
+                t.russian_roulette = v.get<bool>();
+            else if (key == "rr_min_depth")
+                t.rr_min_depth = v.get<int>();
             else if (key == "light_sampling")
-                t.light_sampling = LightSampling(parse_name(kLightSamplingNames, v.get<std::string>(), key));
-            else if (key == "env_importance") t.env_importance = v.get<bool>();
+                t.light_sampling =
+                    LightSampling(parse_name(kLightSamplingNames, v.get<std::string>(), key));
+            else if (key == "env_importance")
+                t.env_importance = v.get<bool>();
             else if (key == "diffuse_sampling")
-                t.diffuse_sampling = DiffuseSampling(parse_name(kDiffuseSamplingNames, v.get<std::string>(), key));
-            else if (key == "filter") t.filter = PixelFilter(parse_name(kPixelFilterNames, v.get<std::string>(), key));
-            else if (key == "samples_per_pass") t.samples_per_pass = v.get<int>();
-            else if (key == "seed") t.seed = v.get<uint64_t>();
-            else if (key == "adaptive") f.adaptive = v.get<bool>();
-            else if (key == "adaptive_threshold") f.adaptive_threshold = v.get<float>();
-            else if (key == "adaptive_min_spp") f.adaptive_min_spp = v.get<int>();
-            else if (key == "adaptive_max_spp") f.adaptive_max_spp = v.get<int>();
-            else if (key == "exposure") f.exposure = v.get<float>();
-            else if (key == "builder") k.builder = KdBuilder(parse_name(kKdBuilderNames, v.get<std::string>(), key));
-            else if (key == "q") k.q = v.get<float>();
-            else if (key == "n0") k.n0 = v.get<int>();
-            else if (key == "tree_max_depth") k.max_depth = v.get<int>();
-            else throw Error(ErrorLocation{"kdtrace:params", key}, "unknown key");
+                t.diffuse_sampling =
+                    DiffuseSampling(parse_name(kDiffuseSamplingNames, v.get<std::string>(), key));
+            else if (key == "filter")
+                t.filter = PixelFilter(parse_name(kPixelFilterNames, v.get<std::string>(), key));
+            else if (key == "samples_per_pass")
+                t.samples_per_pass = v.get<int>();
+            else if (key == "seed")
+                t.seed = v.get<uint64_t>();
+            else if (key == "adaptive")
+                f.adaptive = v.get<bool>();
+            else if (key == "adaptive_threshold")
+                f.adaptive_threshold = v.get<float>();
+            else if (key == "adaptive_min_spp")
+                f.adaptive_min_spp = v.get<int>();
+            else if (key == "adaptive_max_spp")
+                f.adaptive_max_spp = v.get<int>();
+            else if (key == "exposure")
+                f.exposure = v.get<float>();
+            else if (key == "builder")
+                k.builder = KdBuilder(parse_name(kKdBuilderNames, v.get<std::string>(), key));
+            else if (key == "q")
+                k.q = v.get<float>();
+            else if (key == "n0")
+                k.n0 = v.get<int>();
+            else if (key == "tree_max_depth")
+                k.max_depth = v.get<int>();
+            else
+                throw Error(ErrorLocation{"kdtrace:params", key}, "unknown key");
         }
     } catch (const json::exception& e) {
         throw Error(ErrorLocation{"kdtrace:params"}, std::string("wrong type: ") + e.what());

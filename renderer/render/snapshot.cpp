@@ -66,7 +66,8 @@ std::shared_ptr<const RenderSnapshot> compile_snapshot(const Scene& scene,
     auto snap = std::make_shared<RenderSnapshot>();
     snap->scene = std::move(ts);
     const CameraDesc& c = scene.camera;
-    snap->camera = make_camera(c.eye, c.target, c.up, c.vfov_degrees, options.width, options.height);
+    snap->camera =
+        make_camera(c.eye, c.target, c.up, c.vfov_degrees, options.width, options.height);
     snap->camera_desc = c;
     snap->environment = scene.environment;
     snap->scene_name = scene.name;

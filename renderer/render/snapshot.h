@@ -16,8 +16,8 @@
 namespace kdt {
 
 /// Builds (or fetches from a cache) the kd-tree over the merged world-space mesh.
-using TreeBuildFn = std::function<std::shared_ptr<const KdTree>(
-    std::shared_ptr<const TriangleMesh>, const KdTreeParams&)>;
+using TreeBuildFn = std::function<std::shared_ptr<const KdTree>(std::shared_ptr<const TriangleMesh>,
+                                                                const KdTreeParams&)>;
 
 struct SnapshotOptions {
     int width = 640, height = 480;  ///< film size in pixels

@@ -21,7 +21,7 @@ TEST(Camera, CentreRayLooksAtTarget) {
 TEST(Camera, VerticalFieldOfViewSpansTheImageHeight) {
     const float vfov = 50.0f;
     const Camera c = make_camera({0, 0, 0}, {0, 0, -1}, {0, 1, 0}, vfov, 200, 100);
-    const Ray top = c.generate_ray({100.0f, 0.0f});     // top edge, centre column
+    const Ray top = c.generate_ray({100.0f, 0.0f});  // top edge, centre column
     const Ray bottom = c.generate_ray({100.0f, 100.0f});
     const float angle = std::acos(glm::dot(top.dir, bottom.dir)) * 180.0f / kPi;
     EXPECT_NEAR(angle, vfov, 1e-3f);

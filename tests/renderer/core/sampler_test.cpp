@@ -42,7 +42,8 @@ TEST(Sampler, SobolFirstPointsAreA02Net) {
                     const int cx = int(p.x * float(nx)), cy = int(p.y * float(ny));
                     ++cells[size_t(cy * nx + cx)];
                 }
-                for (int c : cells) ASSERT_EQ(c, 1) << "seed " << seed << " k " << k << " xbits " << xbits;
+                for (int c : cells)
+                    ASSERT_EQ(c, 1) << "seed " << seed << " k " << k << " xbits " << xbits;
             }
         }
     }

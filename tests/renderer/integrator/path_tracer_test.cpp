@@ -66,8 +66,9 @@ auto all_pixels = [](int, int) { return true; };
 
 std::string describe(const TraceParams& tp) {
     return std::string(kLightSamplingNames[size_t(tp.light_sampling)]) +
-           (tp.env_importance ? " env-is" : " env-uniform") + (tp.russian_roulette ? " rr" : " no-rr") +
-           " " + kDiffuseSamplingNames[size_t(tp.diffuse_sampling)];
+           (tp.env_importance ? " env-is" : " env-uniform") +
+           (tp.russian_roulette ? " rr" : " no-rr") + " " +
+           kDiffuseSamplingNames[size_t(tp.diffuse_sampling)];
 }
 
 std::vector<TraceParams> all_strategies() {
@@ -95,8 +96,9 @@ std::vector<TraceParams> all_strategies() {
 TEST(PathTracer, ConvexObjectInConstantEnvironmentReturnsAlbedoTimesRadiance) {
     const Camera cam = make_camera({0, 0, 4}, {0, 0, 0}, {0, 1, 0}, 30.0f, 24, 24);
     for (float rho : {1.0f, 0.5f}) {
-        const TraceScene scene = make_scene({{make_icosphere({0, 0, 0}, 1.0f, 2), flat(diffuse(rho))}},
-                                            std::make_shared<ConstantEnv>(Vec3f(1.0f)));
+        const TraceScene scene =
+            make_scene({{make_icosphere({0, 0, 0}, 1.0f, 2), flat(diffuse(rho))}},
+                       std::make_shared<ConstantEnv>(Vec3f(1.0f)));
         for (const TraceParams& tp : all_strategies()) {
             const Image img = render(scene, cam, tp, 32);
             // The sphere covers the central pixels (its silhouette is about 0.5 rad wide).
@@ -114,9 +116,10 @@ TEST(PathTracer, ConvexObjectInConstantEnvironmentReturnsAlbedoTimesRadiance) {
 // White furnace with interreflection: two albedo-1 objects that see each other (a sphere
 // resting on a box) still render 1 everywhere; with RR off up to the depth cut-off.
 TEST(PathTracer, WhiteFurnaceWithInterreflections) {
-    const TraceScene scene = make_scene({{make_icosphere({0, 0.5f, 0}, 0.5f, 2), flat(diffuse(1.0f))},
-                                         {make_box({-1, -1, -1}, {1, 0, 1}), flat(diffuse(1.0f))}},
-                                        std::make_shared<ConstantEnv>(Vec3f(1.0f)));
+    const TraceScene scene =
+        make_scene({{make_icosphere({0, 0.5f, 0}, 0.5f, 2), flat(diffuse(1.0f))},
+                    {make_box({-1, -1, -1}, {1, 0, 1}), flat(diffuse(1.0f))}},
+                   std::make_shared<ConstantEnv>(Vec3f(1.0f)));
     const Camera cam = make_camera({2, 2, 3}, {0, 0, 0}, {0, 1, 0}, 40.0f, 24, 24);
     for (LightSampling ls : {LightSampling::bsdf, LightSampling::mis}) {
         for (bool rr : {false, true}) {
@@ -139,8 +142,9 @@ TEST(PathTracer, WhiteFurnaceWithInterreflections) {
 // must not leak in through shadow rays.
 TEST(PathTracer, EmissiveEnclosureGivesTheGeometricSeries) {
     const float rho = 0.5f;
-    const TraceScene scene = make_scene({{make_box({-1, -1, -1}, {1, 1, 1}), flat(diffuse(rho, Vec3f(1.0f)))}},
-                                        std::make_shared<ConstantEnv>(Vec3f(10.0f)));
+    const TraceScene scene =
+        make_scene({{make_box({-1, -1, -1}, {1, 1, 1}), flat(diffuse(rho, Vec3f(1.0f)))}},
+                   std::make_shared<ConstantEnv>(Vec3f(10.0f)));
     const Camera cam = make_camera({0.1f, 0.2f, 0.3f}, {0.5f, -0.3f, -1}, {0, 1, 0}, 90.0f, 16, 16);
     for (int depth : {0, 1, 2, 3, 5}) {
         TraceParams tp;
@@ -173,8 +177,9 @@ TEST(PathTracer, EmissiveEnclosureGivesTheGeometricSeries) {
 TEST(PathTracer, DiffusePlaneUnderConstantSky) {
     const Vec3f sky(0.2f, 0.4f, 0.8f);
     const float rho = 0.6f;
-    const TraceScene scene = make_scene({{make_quad({-50, 0, -50}, {0, 0, 100}, {100, 0, 0}), flat(diffuse(rho))}},
-                                        std::make_shared<ConstantEnv>(sky));
+    const TraceScene scene =
+        make_scene({{make_quad({-50, 0, -50}, {0, 0, 100}, {100, 0, 0}), flat(diffuse(rho))}},
+                   std::make_shared<ConstantEnv>(sky));
     for (float side : {1.0f, -1.0f}) {
         const Camera cam = make_camera({0, 2 * side, 0}, {0.3f, 0, 0.2f}, {0, 0, 1}, 60.0f, 16, 16);
         const Image img = render(scene, cam, TraceParams{}, 32);
@@ -190,13 +195,15 @@ TEST(PathTracer, DiffusePlaneUnderConstantSky) {
 TEST(PathTracer, MirrorReflectsTheEnvironmentExactly) {
     auto env = std::make_shared<test::GradientEnv>();
     const Vec3f tint(0.9f, 0.8f, 0.7f);
-    const TraceScene scene = make_scene({{make_icosphere({0, 0, 0}, 1.0f, 3), flat(test::of_type(MaterialType::mirror, tint))}}, env);
+    const TraceScene scene = make_scene(
+        {{make_icosphere({0, 0, 0}, 1.0f, 3), flat(test::of_type(MaterialType::mirror, tint))}},
+        env);
     Pcg32 rng(4);
     int hits = 0;
     for (int i = 0; i < 500; ++i) {
         Ray ray;
         ray.origin = Vec3f(0, 0, 5);
-        ray.dir = glm::normalize(Vec3f(rng.next_float() - 0.5f, rng.next_float() - 0.5f, -5.0f) );
+        ray.dir = glm::normalize(Vec3f(rng.next_float() - 0.5f, rng.next_float() - 0.5f, -5.0f));
         Hit hit;
         if (!scene.tree->intersect(ray, hit)) continue;
         ++hits;
@@ -231,7 +238,8 @@ TEST(PathTracer, DepthZeroSeesOnlyTheEnvironment) {
 // Glass: a dielectric sphere in a constant environment conserves energy (no absorption),
 // up to the 1/eta^2 radiance scaling that cancels on the way out.
 TEST(PathTracer, DielectricSphereInFurnaceIsInvisible) {
-    const TraceScene scene = make_scene({{make_icosphere({0, 0, 0}, 1.0f, 3), test::smooth(test::of_type(MaterialType::dielectric))}},
+    const TraceScene scene = make_scene({{make_icosphere({0, 0, 0}, 1.0f, 3),
+                                          test::smooth(test::of_type(MaterialType::dielectric))}},
                                         std::make_shared<ConstantEnv>(Vec3f(1.0f)));
     const Camera cam = make_camera({0, 0, 4}, {0, 0, 0}, {0, 1, 0}, 30.0f, 16, 16);
     TraceParams tp;
@@ -251,13 +259,16 @@ TEST(PathTracer, HardScenesStayFinite) {
     MaterialDesc lamp;
     lamp.type = MaterialType::emissive;
     lamp.emission = Vec3f(1e6f);
-    const TraceScene scene = make_scene(
-        {{junk, test::smooth(diffuse(0.7f))},
-         {make_quad({-5, 0, -5}, {0, 0, 10}, {10, 0, 0}), test::smooth(diffuse(0.9f))},
-         {make_quad({0.3f, 0.5f, 0.3f}, {0.001f, 0, 0}, {0, 0, 0.001f}), flat(compile_material(lamp))},
-         {make_icosphere({1, 0.3f, 0}, 0.3f, 1), test::smooth(test::of_type(MaterialType::dielectric))},
-         {make_icosphere({-1, 0.3f, 0}, 0.3f, 1), test::smooth(test::of_type(MaterialType::conductor))}},
-        std::make_shared<ConstantEnv>(Vec3f(1.0f)));
+    const TraceScene scene =
+        make_scene({{junk, test::smooth(diffuse(0.7f))},
+                    {make_quad({-5, 0, -5}, {0, 0, 10}, {10, 0, 0}), test::smooth(diffuse(0.9f))},
+                    {make_quad({0.3f, 0.5f, 0.3f}, {0.001f, 0, 0}, {0, 0, 0.001f}),
+                     flat(compile_material(lamp))},
+                    {make_icosphere({1, 0.3f, 0}, 0.3f, 1),
+                     test::smooth(test::of_type(MaterialType::dielectric))},
+                    {make_icosphere({-1, 0.3f, 0}, 0.3f, 1),
+                     test::smooth(test::of_type(MaterialType::conductor))}},
+                   std::make_shared<ConstantEnv>(Vec3f(1.0f)));
     // Camera almost in the plane: grazing primary rays.
     const Camera cam = make_camera({0, 1e-4f, 4}, {0, 0, 0}, {0, 1, 0}, 60.0f, 24, 16);
     for (LightSampling ls : {LightSampling::bsdf, LightSampling::mis}) {
@@ -274,14 +285,17 @@ TEST(PathTracer, HardScenesStayFinite) {
 TEST(PathTracer, OffsetOriginsDoNotSelfIntersect) {
     for (float scale : {1.0f, 1e3f, 1e5f}) {
         const Vec3f c(scale, -0.5f * scale, 0.25f * scale);
-        const TraceScene scene = make_scene({{make_icosphere(c, 0.01f * scale, 2), flat(diffuse(0.5f))}},
-                                            std::make_shared<ConstantEnv>(Vec3f(1.0f)));
+        const TraceScene scene =
+            make_scene({{make_icosphere(c, 0.01f * scale, 2), flat(diffuse(0.5f))}},
+                       std::make_shared<ConstantEnv>(Vec3f(1.0f)));
         Pcg32 rng(8);
         int tested = 0;
         for (int i = 0; i < 300; ++i) {
             Ray ray;
             ray.origin = c + Vec3f(0, 0, 0.05f * scale);
-            ray.dir = glm::normalize(Vec3f(rng.next_float() - 0.5f, rng.next_float() - 0.5f, -1.0f) * Vec3f(0.2f, 0.2f, 1.0f));
+            ray.dir =
+                glm::normalize(Vec3f(rng.next_float() - 0.5f, rng.next_float() - 0.5f, -1.0f) *
+                               Vec3f(0.2f, 0.2f, 1.0f));
             Hit hit;
             if (!scene.tree->intersect(ray, hit)) continue;
             const Vec3u t = scene.mesh->triangles[hit.prim];

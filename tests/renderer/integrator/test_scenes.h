@@ -44,12 +44,13 @@ public:
 /// Icosphere: subdivided icosahedron projected to the sphere, counter-clockwise outside.
 inline TriangleMesh make_icosphere(Vec3f centre, float radius, int levels) {
     const float t = (1.0f + std::sqrt(5.0f)) / 2.0f;
-    std::vector<Vec3f> v = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
-                            {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
-    std::vector<Vec3u> f = {{0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11},
-                            {1, 5, 9}, {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
-                            {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8}, {3, 8, 9},
-                            {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1}};
+    std::vector<Vec3f> v = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0},
+                            {0, -1, t}, {0, 1, t}, {0, -1, -t}, {0, 1, -t},
+                            {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
+    std::vector<Vec3u> f = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
+                            {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
+                            {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
+                            {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
     TriangleMesh m;
     m.positions = v;
     m.triangles = f;
@@ -62,7 +63,8 @@ inline TriangleMesh make_icosphere(Vec3f centre, float radius, int levels) {
 inline TriangleMesh make_box(Vec3f lo, Vec3f hi) {
     TriangleMesh m;
     for (int i = 0; i < 8; ++i) {
-        m.positions.push_back({(i & 1) ? hi.x : lo.x, (i & 2) ? hi.y : lo.y, (i & 4) ? hi.z : lo.z});
+        m.positions.push_back(
+            {(i & 1) ? hi.x : lo.x, (i & 2) ? hi.y : lo.y, (i & 4) ? hi.z : lo.z});
     }
     const uint32_t q[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
                               {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
@@ -106,8 +108,8 @@ inline TraceScene make_scene(const std::vector<std::pair<TriangleMesh, ShadingIn
         s.instances.push_back(parts[i].second);
         const auto base = uint32_t(merged->positions.size());
         merged->positions.insert(merged->positions.end(), m.positions.begin(), m.positions.end());
-        std::vector<Vec3f> n = m.normals.size() == m.positions.size() ? m.normals
-                                                                       : compute_vertex_normals(m);
+        std::vector<Vec3f> n =
+            m.normals.size() == m.positions.size() ? m.normals : compute_vertex_normals(m);
         s.normals.insert(s.normals.end(), n.begin(), n.end());
         for (const Vec3u& t : m.triangles) merged->triangles.push_back(t + Vec3u(base));
         s.triangle_instance.insert(s.triangle_instance.end(), m.triangles.size(), uint32_t(i));

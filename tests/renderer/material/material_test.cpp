@@ -37,7 +37,8 @@ double integrate_pdf(const Material& m, const Vec3f& wo, DiffuseSampling ds) {
 TEST(Material, PdfsIntegrateToOne) {
     const Vec3f wo = dir_from_angles(0.6f, 0.3f);
     EXPECT_NEAR(integrate_pdf(make(MaterialType::diffuse), wo, DiffuseSampling::cosine), 1.0, 0.01);
-    EXPECT_NEAR(integrate_pdf(make(MaterialType::diffuse), wo, DiffuseSampling::uniform), 1.0, 0.01);
+    EXPECT_NEAR(integrate_pdf(make(MaterialType::diffuse), wo, DiffuseSampling::uniform), 1.0,
+                0.01);
     // The GGX pdf loses the mass of reflections below the horizon; rough alpha, near normal.
     const double g = integrate_pdf(make(MaterialType::conductor, Vec3f(1.0f), 0.3f), wo,
                                    DiffuseSampling::cosine);
@@ -53,7 +54,8 @@ TEST(Material, SampleWeightsMatchEvalOverPdf) {
             Pcg32 rng(9);
             for (int i = 0; i < 1000; ++i) {
                 BsdfSample s;
-                if (!bsdf_sample(m, wo, {rng.next_float(), rng.next_float()}, rng.next_float(), s, ds))
+                if (!bsdf_sample(m, wo, {rng.next_float(), rng.next_float()}, rng.next_float(), s,
+                                 ds))
                     continue;
                 const float pdf = bsdf_pdf(m, wo, s.wi, ds);
                 ASSERT_GT(pdf, 0.0f);

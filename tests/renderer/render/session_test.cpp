@@ -18,11 +18,12 @@ using test::diffuse;
 using test::flat;
 
 std::shared_ptr<const RenderSnapshot> small_snapshot(int w = 40, int h = 24, float rho = 0.7f) {
-    const TraceScene scene = test::make_scene(
-        {{test::make_icosphere({0, 0.5f, 0}, 0.5f, 2), test::smooth(diffuse(rho))},
-         {test::make_box({-1, -1, -1}, {1, 0, 1}), flat(diffuse(0.5f))},
-         {test::make_icosphere({0.7f, 0.3f, 0.4f}, 0.25f, 1), test::smooth(test::of_type(MaterialType::dielectric))}},
-        std::make_shared<test::GradientEnv>());
+    const TraceScene scene =
+        test::make_scene({{test::make_icosphere({0, 0.5f, 0}, 0.5f, 2), test::smooth(diffuse(rho))},
+                          {test::make_box({-1, -1, -1}, {1, 0, 1}), flat(diffuse(0.5f))},
+                          {test::make_icosphere({0.7f, 0.3f, 0.4f}, 0.25f, 1),
+                           test::smooth(test::of_type(MaterialType::dielectric))}},
+                         std::make_shared<test::GradientEnv>());
     return compile_snapshot(scene, make_camera({2, 2, 3}, {0, 0, 0}, {0, 1, 0}, 40.0f, w, h));
 }
 
@@ -134,10 +135,11 @@ TEST(RenderSession, CancelStopsAPassAndKeepsFinishedTiles) {
 TEST(RenderSession, AdaptiveSamplingSpendsSamplesWhereTheNoiseIs) {
     // A constant-environment furnace with one noisy object: background pixels converge at
     // once (zero variance) and stop; the object keeps sampling.
-    const TraceScene scene = test::make_scene(
-        {{test::make_icosphere({0, 0, 0}, 0.5f, 2), flat(diffuse(0.8f))}},
-        std::make_shared<ConstantEnv>(Vec3f(1.0f)));
-    auto snap = compile_snapshot(scene, make_camera({0, 0, 3}, {0, 0, 0}, {0, 1, 0}, 40.0f, 32, 32));
+    const TraceScene scene =
+        test::make_scene({{test::make_icosphere({0, 0, 0}, 0.5f, 2), flat(diffuse(0.8f))}},
+                         std::make_shared<ConstantEnv>(Vec3f(1.0f)));
+    auto snap =
+        compile_snapshot(scene, make_camera({0, 0, 3}, {0, 0, 0}, {0, 1, 0}, 40.0f, 32, 32));
     TraceParams tp;
     tp.light_sampling = LightSampling::bsdf;
     tp.diffuse_sampling = DiffuseSampling::uniform;
@@ -151,8 +153,8 @@ TEST(RenderSession, AdaptiveSamplingSpendsSamplesWhereTheNoiseIs) {
     stop.spp = 32;
     const RenderProgress p = run_render(s, stop);
     EXPECT_GE(p.samples, 32u * 32u * 32u);
-    EXPECT_EQ(s.film().count(0, 0), 8u);      // background stopped at the minimum
-    EXPECT_GT(s.film().count(16, 16), 32u);   // the object got the rest
+    EXPECT_EQ(s.film().count(0, 0), 8u);     // background stopped at the minimum
+    EXPECT_GT(s.film().count(16, 16), 32u);  // the object got the rest
     EXPECT_NEAR(s.film().mean(16, 16).x, 0.8f, 0.1f);
 }
 
