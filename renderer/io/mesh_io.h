@@ -28,6 +28,12 @@ struct MeshLoadInfo {
     double seconds = 0.0;
 };
 
+enum class MeshFormat : uint8_t { unknown, ply, obj };
+
+/// Format of a mesh file by content (a stream starting with "ply", gzip or not), else by
+/// extension (.obj, .ply, .ply.gz). Throws kdt::Error when the file cannot be opened.
+MeshFormat detect_mesh_format(const std::string& path);
+
 /// Loads any supported mesh file. Throws kdt::Error with file name, element, index and
 /// line or byte offset on any malformed input; never crashes on hostile files.
 TriangleMesh load_mesh(const std::string& path, const MeshLoadOptions& options = {},

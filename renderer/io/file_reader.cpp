@@ -1,0 +1,150 @@
+#include "renderer/io/file_reader.h"
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <zlib.h>
+
+#include "renderer/core/error.h"
+
+namespace kdt {
+namespace {
+
+// deflate cannot expand data by more than 1032:1 (zlib FAQ); a little slack covers headers.
+constexpr uint64_t kMaxDeflateRatio = 1032;
+
+[[noreturn]] void fail(const std::string& path, const std::string& message) {
+    ErrorLocation where;
+    where.path = path;
+    throw Error(where, message);
+}
+
+}  // namespace
+
+FileReader FileReader::open(const std::string& path) {
+    FileReader r;
+    r.path_ = path;
+    r.fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (r.fd_ < 0) fail(path, std::string("cannot open file: ") + std::strerror(errno));
+    struct stat st {};
+    if (::fstat(r.fd_, &st) != 0) fail(path, std::string("cannot stat file: ") + std::strerror(errno));
+    if (S_ISDIR(st.st_mode)) fail(path, "is a directory, not a file");
+    r.file_bytes_ = static_cast<uint64_t>(st.st_size);
+    r.size_bound_ = r.file_bytes_;
+    ::posix_fadvise(r.fd_, 0, 0, POSIX_FADV_SEQUENTIAL);
+    unsigned char magic[2] = {0, 0};
+    ssize_t got = ::pread(r.fd_, magic, 2, 0);
+    if (got == 2 && magic[0] == 0x1f && magic[1] == 0x8b) {
+        int fd2 = ::dup(r.fd_);
+        if (fd2 < 0) fail(path, std::string("cannot dup file: ") + std::strerror(errno));
+        gzFile gz = ::gzdopen(fd2, "rb");
+        if (!gz) {
+            ::close(fd2);
+            fail(path, "cannot open gzip stream");
+        }
+        ::gzbuffer(gz, 1u << 20);
+        r.gz_ = gz;
+        r.gzip_ = true;
+        r.size_bound_ = r.file_bytes_ * kMaxDeflateRatio + 4096;
+    }
+    return r;
+}
+
+FileReader FileReader::from_memory(const void* data, size_t size, const std::string& name) {
+    FileReader r;
+    r.path_ = name;
+    r.mem_ = static_cast<const char*>(data);
+    r.mem_size_ = size;
+    r.file_bytes_ = size;
+    r.size_bound_ = size;
+    return r;
+}
+
+FileReader::FileReader(FileReader&& o) noexcept { *this = std::move(o); }
+
+FileReader& FileReader::operator=(FileReader&& o) noexcept {
+    if (this != &o) {
+        close();
+        path_ = std::move(o.path_);
+        fd_ = o.fd_;
+        gz_ = o.gz_;
+        mem_ = o.mem_;
+        mem_size_ = o.mem_size_;
+        mem_pos_ = o.mem_pos_;
+        gzip_ = o.gzip_;
+        file_bytes_ = o.file_bytes_;
+        size_bound_ = o.size_bound_;
+        o.fd_ = -1;
+        o.gz_ = nullptr;
+        o.mem_ = nullptr;
+    }
+    return *this;
+}
+
+FileReader::~FileReader() { close(); }
+
+void FileReader::close() {
+    if (gz_) ::gzclose(static_cast<gzFile>(gz_));
+    if (fd_ >= 0) ::close(fd_);
+    gz_ = nullptr;
+    fd_ = -1;
+}
+
+size_t FileReader::read(char* dst, size_t n) {
+    if (mem_) {
+        size_t k = std::min(n, mem_size_ - mem_pos_);
+        std::memcpy(dst, mem_ + mem_pos_, k);
+        mem_pos_ += k;
+        return k;
+    }
+    if (gz_) {
+        auto gz = static_cast<gzFile>(gz_);
+        size_t total = 0;
+        while (total < n) {
+            // gzread takes an unsigned count; stay well below its limit.
+            unsigned chunk = static_cast<unsigned>(std::min<size_t>(n - total, 1u << 30));
+            int got = ::gzread(gz, dst + total, chunk);
+            if (got < 0) {
+                int code = 0;
+                const char* msg = ::gzerror(gz, &code);
+                fail(path_, std::string("corrupt gzip data: ") + (msg ? msg : "unknown error"));
+            }
+            if (got == 0) {
+                // gzread reports a stream cut short only through gzerror.
+                int code = 0;
+                const char* msg = ::gzerror(gz, &code);
+                if (code != Z_OK && code != Z_STREAM_END)
+                    fail(path_, std::string("corrupt gzip data: ") + (msg ? msg : "unknown error"));
+                break;
+            }
+            total += static_cast<size_t>(got);
+        }
+        return total;
+    }
+    if (fd_ < 0) return 0;
+    size_t total = 0;
+    while (total < n) {
+        ssize_t got = ::read(fd_, dst + total, n - total);
+        if (got < 0) {
+            if (errno == EINTR) continue;
+            fail(path_, std::string("read error: ") + std::strerror(errno));
+        }
+        if (got == 0) break;
+        total += static_cast<size_t>(got);
+    }
+    return total;
+}
+
+bool is_gzip_file(const std::string& path) {
+    int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return false;
+    unsigned char magic[2] = {0, 0};
+    ssize_t got = ::read(fd, magic, 2);
+    ::close(fd);
+    return got == 2 && magic[0] == 0x1f && magic[1] == 0x8b;
+}
+
+}  // namespace kdt

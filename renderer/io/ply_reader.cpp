@@ -1,0 +1,1144 @@
+#include "renderer/io/ply_reader.h"
+
+#include <algorithm>
+#include <bit>
+#include <charconv>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <limits>
+#include <string_view>
+#include <vector>
+
+#include "renderer/core/error.h"
+#include "renderer/core/timer.h"
+
+namespace kdt {
+namespace {
+
+// ---------------------------------------------------------------------------------------
+// Types and header structures
+
+enum class PlyType : uint8_t { none, i8, u8, i16, u16, i32, u32, f32, f64 };
+
+struct TypeName {
+    std::string_view name;
+    PlyType type;
+};
+constexpr TypeName kTypeNames[] = {
+    {"char", PlyType::i8},     {"int8", PlyType::i8},      {"uchar", PlyType::u8},
+    {"uint8", PlyType::u8},    {"short", PlyType::i16},    {"int16", PlyType::i16},
+    {"ushort", PlyType::u16},  {"uint16", PlyType::u16},   {"int", PlyType::i32},
+    {"int32", PlyType::i32},   {"uint", PlyType::u32},     {"uint32", PlyType::u32},
+    {"float", PlyType::f32},   {"float32", PlyType::f32},  {"double", PlyType::f64},
+    {"float64", PlyType::f64},
+};
+
+PlyType parse_type(std::string_view s) {
+    for (const TypeName& t : kTypeNames)
+        if (t.name == s) return t.type;
+    return PlyType::none;
+}
+
+constexpr size_t type_size(PlyType t) {
+    switch (t) {
+        case PlyType::i8:
+        case PlyType::u8: return 1;
+        case PlyType::i16:
+        case PlyType::u16: return 2;
+        case PlyType::i32:
+        case PlyType::u32:
+        case PlyType::f32: return 4;
+        case PlyType::f64: return 8;
+        default: return 0;
+    }
+}
+
+constexpr bool is_integer(PlyType t) { return t != PlyType::none && t != PlyType::f32 && t != PlyType::f64; }
+
+constexpr int64_t type_min(PlyType t) {
+    switch (t) {
+        case PlyType::i8: return INT8_MIN;
+        case PlyType::i16: return INT16_MIN;
+        case PlyType::i32: return INT32_MIN;
+        default: return 0;
+    }
+}
+
+constexpr int64_t type_max(PlyType t) {
+    switch (t) {
+        case PlyType::i8: return INT8_MAX;
+        case PlyType::u8: return UINT8_MAX;
+        case PlyType::i16: return INT16_MAX;
+        case PlyType::u16: return UINT16_MAX;
+        case PlyType::i32: return INT32_MAX;
+        case PlyType::u32: return UINT32_MAX;
+        default: return 0;
+    }
+}
+
+// Destination of a vertex value: position, normal, colour component, or the face's index list.
+enum Slot : int8_t {
+    kSkip = -1,
+    kPosX = 0, kPosY, kPosZ,
+    kNormX, kNormY, kNormZ,
+    kColR, kColG, kColB,
+    kIndices,
+};
+
+struct Property {
+    std::string name;
+    PlyType type = PlyType::none;        // scalar type, or the list's item type
+    PlyType count_type = PlyType::none;  // list count type; none for scalars
+    int slot = kSkip;
+    float scale = 1.0f;                  // colour normalisation for integer types
+    bool is_list() const { return count_type != PlyType::none; }
+};
+
+struct Element {
+    std::string name;
+    uint64_t count = 0;
+    int64_t line = 0;  // header line declaring it
+    std::vector<Property> props;
+    bool has_lists = false;
+    size_t scalar_bytes = 0;  // bytes of the scalar properties of one record (binary)
+};
+
+constexpr size_t kBlockBytes = size_t(4) << 20;      // read() block; reused buffer
+constexpr size_t kMaxHeaderBytes = size_t(4) << 20;  // "missing end_header" beyond this
+constexpr size_t kMaxLineBytes = size_t(256) << 20;  // one ascii element per line
+
+inline bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
+inline bool is_digit(char c) { return unsigned(c - '0') < 10u; }
+
+// ---------------------------------------------------------------------------------------
+// Block input: a reused buffer refilled from the reader; never reads past its data.
+
+class Input {
+public:
+    // kPad zero bytes after the usable capacity let the digit parser load 8 bytes at once
+    // near the end of the data without leaving the allocation.
+    static constexpr size_t kPad = 16;
+
+    explicit Input(FileReader& reader) : reader_(reader), buf_(kBlockBytes + kPad) {
+        pos_ = end_ = buf_.data();
+    }
+
+    const char* pos() const { return pos_; }
+    const char* end() const { return end_; }
+    size_t avail() const { return size_t(end_ - pos_); }
+    void advance(size_t n) { pos_ += n; }
+    /// Stream offset of pos().
+    uint64_t offset() const { return base_ + uint64_t(pos_ - buf_.data()); }
+
+    /// Makes at least n bytes available at pos(); false when the data ends first.
+    bool fill(size_t n) {
+        if (avail() >= n) return true;
+        size_t have = avail();
+        if (pos_ != buf_.data()) {
+            base_ += uint64_t(pos_ - buf_.data());
+            std::memmove(buf_.data(), pos_, have);
+            pos_ = buf_.data();
+            end_ = pos_ + have;
+        }
+        if (n > buf_.size() - kPad) {
+            std::vector<char> bigger(std::max(n, 2 * (buf_.size() - kPad)) + kPad);
+            std::memcpy(bigger.data(), buf_.data(), have);
+            buf_.swap(bigger);
+            pos_ = buf_.data();
+            end_ = pos_ + have;
+        }
+        while (avail() < n && !eof_) {
+            size_t room = buf_.size() - kPad - size_t(end_ - buf_.data());
+            size_t got = reader_.read(const_cast<char*>(end_), room);
+            if (got == 0) eof_ = true;
+            end_ += got;
+        }
+        return avail() >= n;
+    }
+
+    /// Skips n bytes; false when the data ends first.
+    bool skip(uint64_t n) {
+        while (n > 0) {
+            if (pos_ == end_ && !fill(1)) return false;
+            size_t k = size_t(std::min<uint64_t>(n, avail()));
+            pos_ += k;
+            n -= k;
+        }
+        return true;
+    }
+
+    /// The next line [b, e) without its '\n'; false at the end of the data. Throws through
+    /// `too_long` when a line exceeds kMaxLineBytes.
+    template <typename TooLong>
+    bool next_line(const char*& b, const char*& e, TooLong&& too_long) {
+        size_t scanned = 0;
+        for (;;) {
+            const void* nl = std::memchr(pos_ + scanned, '\n', avail() - scanned);
+            if (nl) {
+                b = pos_;
+                e = static_cast<const char*>(nl);
+                pos_ = e + 1;
+                return true;
+            }
+            scanned = avail();
+            if (eof_) {
+                if (scanned == 0) return false;
+                b = pos_;
+                e = end_;
+                pos_ = end_;
+                return true;
+            }
+            if (scanned >= kMaxLineBytes) too_long();
+            fill(scanned + 1);
+        }
+    }
+
+private:
+    FileReader& reader_;
+    std::vector<char> buf_;
+    const char* pos_;
+    const char* end_;
+    uint64_t base_ = 0;
+    bool eof_ = false;
+};
+
+// ---------------------------------------------------------------------------------------
+// Binary value loads; Swap selects big-endian input on our little-endian hosts.
+
+template <typename T>
+inline T load_raw(const char* p) {
+    T v;
+    std::memcpy(&v, p, sizeof(T));
+    return v;
+}
+
+template <bool Swap, typename U>
+inline U load_uint(const char* p) {
+    U v = load_raw<U>(p);
+    if constexpr (Swap) {
+        if constexpr (sizeof(U) == 2) v = __builtin_bswap16(v);
+        if constexpr (sizeof(U) == 4) v = __builtin_bswap32(v);
+        if constexpr (sizeof(U) == 8) v = __builtin_bswap64(v);
+    }
+    return v;
+}
+
+template <bool Swap>
+inline double load_double(const char* p, PlyType t) {
+    switch (t) {
+        case PlyType::i8: return double(int8_t(*p));
+        case PlyType::u8: return double(uint8_t(*p));
+        case PlyType::i16: return double(int16_t(load_uint<Swap, uint16_t>(p)));
+        case PlyType::u16: return double(load_uint<Swap, uint16_t>(p));
+        case PlyType::i32: return double(int32_t(load_uint<Swap, uint32_t>(p)));
+        case PlyType::u32: return double(load_uint<Swap, uint32_t>(p));
+        case PlyType::f32: return double(std::bit_cast<float>(load_uint<Swap, uint32_t>(p)));
+        case PlyType::f64: return std::bit_cast<double>(load_uint<Swap, uint64_t>(p));
+        default: return 0.0;
+    }
+}
+
+template <bool Swap>
+inline float load_float(const char* p, PlyType t) {
+    if (t == PlyType::f32) return std::bit_cast<float>(load_uint<Swap, uint32_t>(p));
+    return float(load_double<Swap>(p, t));
+}
+
+// Integer types only (checked in the header).
+template <bool Swap>
+inline int64_t load_int(const char* p, PlyType t) {
+    switch (t) {
+        case PlyType::i8: return int8_t(*p);
+        case PlyType::u8: return uint8_t(*p);
+        case PlyType::i16: return int16_t(load_uint<Swap, uint16_t>(p));
+        case PlyType::u16: return load_uint<Swap, uint16_t>(p);
+        case PlyType::i32: return int32_t(load_uint<Swap, uint32_t>(p));
+        case PlyType::u32: return load_uint<Swap, uint32_t>(p);
+        default: return 0;
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// ASCII token parsing, bounded by the line end.
+
+inline const char* skip_blanks(const char* p, const char* e) {
+    while (p < e && is_blank(*p)) ++p;
+    return p;
+}
+
+inline const char* skip_token(const char* p, const char* e) {
+    while (p < e && !is_blank(*p)) ++p;
+    return p;
+}
+
+enum class IntResult { ok, invalid, overflow };
+
+constexpr uint64_t kPow10Int[] = {1, 10, 100, 1000, 10000, 100000, 1000000, 10000000, 100000000};
+
+// Reads the run of up to 8 decimal digits at q with one 8-byte load (SWAR): returns how
+// many there are before e and stores their value. May load up to 8 bytes past e, which
+// the Input padding keeps inside the buffer; those bytes never count.
+[[gnu::always_inline]] inline int digits8(const char* q, const char* e, uint64_t& value) {
+    uint64_t x;
+    std::memcpy(&x, q, 8);
+    // Bytes outside '0'..'9' get a non-zero high nibble in t or t + 6 (borrows only move
+    // towards later bytes, past the first non-digit, so they do not matter).
+    uint64_t t = x - 0x3030303030303030ull;
+    uint64_t bad = (t | (t + 0x0606060606060606ull)) & 0xf0f0f0f0f0f0f0f0ull;
+    int n = bad ? __builtin_ctzll(bad) >> 3 : 8;
+    if (n > e - q) n = int(e - q);
+    if (n == 0) {
+        value = 0;
+        return 0;
+    }
+    // Keep the first n digits as the low-order end of an 8-digit number, then combine
+    // pairs, quads and octets by multiply-shift.
+    uint64_t d = (x & 0x0f0f0f0f0f0f0f0full) << (8 * (8 - n));
+    d = (d * 10 + (d >> 8)) & 0x00ff00ff00ff00ffull;
+    d = (d * 100 + (d >> 16)) & 0x0000ffff0000ffffull;
+    d = (d * 10000 + (d >> 32)) & 0xffffffffull;
+    value = d;
+    return n;
+}
+
+// Parses an integer token starting at p; on success p is moved past it. Overflow is
+// detected by the digit count (18 significant digits always fit).
+[[gnu::always_inline]] inline IntResult parse_int(const char*& p, const char* e, int64_t& out) {
+    const char* q = p;
+    bool neg = false;
+    if (q < e && (*q == '-' || *q == '+')) neg = *q++ == '-';
+    const char* d0 = q;
+    uint64_t v = 0, chunk;
+    for (;;) {
+        int n = digits8(q, e, chunk);
+        v = v * kPow10Int[n] + chunk;
+        q += n;
+        if (n < 8) break;
+    }
+    if (q == d0 || (q < e && !is_blank(*q))) return IntResult::invalid;
+    if (q - d0 > 18) {
+        while (d0 < q - 1 && *d0 == '0') ++d0;
+        if (q - d0 > 18) return IntResult::overflow;
+    }
+    out = neg ? -int64_t(v) : int64_t(v);
+    p = q;
+    return IntResult::ok;
+}
+
+constexpr double kPow10[] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,  1e10, 1e11,
+                             1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
+
+// Clinger's fast path: a decimal with a mantissa below 2^53 and a power of ten up to 22 is
+// m * 10^e or m / 10^e in one correctly rounded double operation (Clinger 1990). Splits
+// the token into m (exact as a double) and e; returns false for anything else (the
+// caller then uses from_chars).
+[[gnu::always_inline]] inline bool fast_decimal(const char*& p, const char* e, double& mant, int& exp10_out,
+                                                bool& negative) {
+    const char* q = p;
+    bool neg = false;
+    if (q < e && (*q == '-' || *q == '+')) neg = *q++ == '-';
+    uint64_t m = 0, chunk;
+    int digits = 0, exp10 = 0;
+    for (;;) {
+        int n = digits8(q, e, chunk);
+        m = m * kPow10Int[n] + chunk;
+        q += n;
+        digits += n;
+        if (n < 8 || digits > 19) break;
+    }
+    if (q < e && *q == '.') {
+        ++q;
+        for (;;) {
+            int n = digits8(q, e, chunk);
+            m = m * kPow10Int[n] + chunk;
+            q += n;
+            digits += n;
+            exp10 -= n;
+            if (n < 8 || digits > 19) break;
+        }
+    }
+    if (digits == 0 || digits > 19) return false;
+    if (q < e && (*q == 'e' || *q == 'E')) {
+        ++q;
+        bool eneg = false;
+        if (q < e && (*q == '-' || *q == '+')) eneg = *q++ == '-';
+        if (q == e || !is_digit(*q)) return false;
+        int x = 0;
+        while (q < e && is_digit(*q)) {
+            if (x < 10000) x = x * 10 + (*q - '0');
+            ++q;
+        }
+        exp10 += eneg ? -x : x;
+    }
+    if (q < e && !is_blank(*q)) return false;
+    if (m > (uint64_t(1) << 53) || exp10 < -22 || exp10 > 22) return false;
+    mant = double(m);
+    exp10_out = exp10;
+    negative = neg;
+    p = q;
+    return true;
+}
+
+constexpr double kInvPow10[] = {1e0,   1e-1,  1e-2,  1e-3,  1e-4,  1e-5,  1e-6,  1e-7,
+                                1e-8,  1e-9,  1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15,
+                                1e-16, 1e-17, 1e-18, 1e-19, 1e-20, 1e-21, 1e-22};
+
+template <typename T>
+inline bool parse_real(const char*& p, const char* e, T& out) {
+    double m;
+    int exp10;
+    bool neg;
+    const char* fp = p;
+    if (fast_decimal(fp, e, m, exp10, neg)) {
+        if constexpr (sizeof(T) == 8) {
+            double d = exp10 < 0 ? m / kPow10[-exp10] : m * kPow10[exp10];
+            out = neg ? -d : d;
+            p = fp;
+            return true;
+        } else {
+            // For a float result, multiplying by a rounded 10^-k (no division latency) is
+            // within 2 double ulps of m / 10^k. Rounding that to float gives the correctly
+            // rounded float unless a float midpoint lies within those ulps; such rare
+            // values take the exact division, and a result exactly on a midpoint (where
+            // rounding twice could differ) goes to from_chars.
+            double d;
+            if (exp10 >= 0) {
+                d = m * kPow10[exp10];
+            } else {
+                d = m * kInvPow10[-exp10];
+                uint64_t low = std::bit_cast<uint64_t>(d) & 0x1fffffffu;
+                if (low - 0x10000000u + 4u <= 8u) d = m / kPow10[-exp10];
+            }
+            if ((std::bit_cast<uint64_t>(d) & 0x1fffffffu) != 0x10000000u) {
+                out = float(neg ? -d : d);
+                p = fp;
+                return true;
+            }
+        }
+    }
+    const char* q = p;
+    if (q < e && *q == '+') ++q;
+    auto r = std::from_chars(q, e, out);
+    if (r.ec == std::errc::invalid_argument) return false;
+    if (r.ptr < e && !is_blank(*r.ptr)) return false;
+    if (r.ec == std::errc::result_out_of_range) {
+        char tmp[128];
+        size_t n = size_t(r.ptr - q);
+        if (n >= sizeof(tmp)) return false;
+        std::memcpy(tmp, q, n);
+        tmp[n] = 0;
+        out = T(std::strtod(tmp, nullptr));
+    }
+    p = r.ptr;
+    return true;
+}
+
+std::string token_text(const char* p, const char* e) {
+    const char* t = skip_token(p, e);
+    std::string s(p, size_t(t - p));
+    if (s.size() > 40) s = s.substr(0, 40) + "...";
+    return s;
+}
+
+// ---------------------------------------------------------------------------------------
+// The parser
+
+class PlyParser {
+public:
+    PlyParser(FileReader& reader, const MeshLoadOptions& options)
+        : reader_(reader), in_(reader), options_(options) {}
+
+    TriangleMesh parse(MeshLoadInfo* info);
+
+private:
+    // Errors
+    [[noreturn]] void fail_header(const std::string& message) const {
+        ErrorLocation w;
+        w.path = reader_.path();
+        w.element = "header";
+        w.line = line_;
+        throw Error(w, message);
+    }
+    [[noreturn]] void fail_data(const Element& el, uint64_t index, int64_t line, int64_t offset,
+                                const std::string& message) const {
+        ErrorLocation w;
+        w.path = reader_.path();
+        w.element = el.name;
+        w.index = int64_t(index);
+        w.line = line;
+        w.offset = offset;
+        throw Error(w, message);
+    }
+    // Location of the record being read: its line for ascii, its first byte for binary.
+    [[noreturn]] void fail_at(const Element& el, uint64_t index, const std::string& message) const {
+        if (ascii_) fail_data(el, index, line_, -1, message);
+        fail_data(el, index, -1, int64_t(record_offset_), message);
+    }
+
+    void parse_header();
+    void plan_elements();
+    void check_counts();
+
+    // Binary
+    template <bool Swap>
+    void read_binary_element(Element& el);
+    template <bool Swap>
+    void read_binary_vertices_fixed(Element& el);
+    template <bool Swap>
+    void read_binary_record(Element& el, uint64_t i);
+    template <bool Swap>
+    void read_binary_faces_fast(Element& el);
+    void need(const Element& el, uint64_t i, size_t n) {
+        if (!in_.fill(n))
+            fail_data(el, i, -1, int64_t(in_.offset()),
+                      "unexpected end of data (file truncated?)");
+    }
+
+    // ASCII
+    void read_ascii_element(Element& el);
+    bool next_data_line(const char*& b, const char*& e);
+
+    // Shared
+    void store_vertex(const Element& el, uint64_t i, const float* v);
+    void emit_face(const Element& el, uint64_t i, const int64_t* idx, size_t n);
+    void finish(TriangleMesh& mesh);
+
+    FileReader& reader_;
+    Input in_;
+    MeshLoadOptions options_;
+    bool ascii_ = false, swap_ = false;
+    PlyEncoding encoding_ = PlyEncoding::ascii;
+    int64_t line_ = 0;
+    int64_t header_lines_ = 0;
+    uint64_t record_offset_ = 0;
+    uint64_t data_offset_ = 0;
+    std::vector<Element> elements_;
+    int vertex_el_ = -1, face_el_ = -1;
+    bool has_normals_ = false, has_colors_ = false;
+    bool vertices_read_ = false;
+    uint64_t vertex_count_ = 0;
+
+    TriangleMesh mesh_;
+    std::vector<uint8_t> bad_vertex_;  // only allocated once a non-finite vertex is seen
+    uint64_t bad_vertices_ = 0;
+    uint64_t dropped_faces_ = 0, degenerate_faces_ = 0, source_faces_ = 0;
+    std::vector<int64_t> poly_;  // indices of the face being read
+};
+
+void PlyParser::parse_header() {
+    auto too_long = [&] { fail_header("header line longer than 256 MiB"); };
+    const char* b;
+    const char* e;
+    auto split = [](const char* p, const char* end, std::vector<std::string_view>& out) {
+        out.clear();
+        for (;;) {
+            p = skip_blanks(p, end);
+            if (p == end) break;
+            const char* t = skip_token(p, end);
+            out.emplace_back(p, size_t(t - p));
+            p = t;
+        }
+    };
+    std::vector<std::string_view> tok;
+
+    if (!in_.next_line(b, e, too_long)) {
+        line_ = 1;
+        fail_header("empty file (not a PLY file)");
+    }
+    ++line_;
+    split(b, e, tok);
+    if (tok.size() != 1 || tok[0] != "ply") fail_header("not a PLY file (the first line must be 'ply')");
+
+    bool have_format = false, have_end = false;
+    while (!have_end) {
+        if (in_.offset() > kMaxHeaderBytes)
+            fail_header("no end_header in the first 4 MiB (missing end_header?)");
+        if (!in_.next_line(b, e, too_long)) {
+            fail_header("missing end_header (the file ends inside the header)");
+        }
+        ++line_;
+        split(b, e, tok);
+        if (tok.empty()) continue;
+        std::string_view kw = tok[0];
+        if (kw == "format") {
+            if (have_format) fail_header("second format line");
+            if (tok.size() != 3 || (tok[2] != "1.0" && tok[2] != "1"))
+                fail_header("unknown format line '" + std::string(b, size_t(e - b)) +
+                            "' (expected 'format ascii|binary_little_endian|binary_big_endian 1.0')");
+            if (tok[1] == "ascii") encoding_ = PlyEncoding::ascii;
+            else if (tok[1] == "binary_little_endian") encoding_ = PlyEncoding::binary_little_endian;
+            else if (tok[1] == "binary_big_endian") encoding_ = PlyEncoding::binary_big_endian;
+            else fail_header("unknown format '" + std::string(tok[1]) + "'");
+            have_format = true;
+        } else if (kw == "element") {
+            if (tok.size() != 3) fail_header("malformed element line (expected 'element NAME COUNT')");
+            Element el;
+            el.name = std::string(tok[1]);
+            el.line = line_;
+            const char* p = tok[2].data();
+            int64_t count = 0;
+            IntResult r = parse_int(p, tok[2].data() + tok[2].size(), count);
+            if (r == IntResult::invalid)
+                fail_header("element " + el.name + ": count '" + std::string(tok[2]) + "' is not an integer");
+            if (r == IntResult::overflow || count > int64_t(1) << 48)
+                fail_header("element " + el.name + ": count " + std::string(tok[2]) + " is too large");
+            if (count < 0) fail_header("element " + el.name + ": negative count " + std::to_string(count));
+            el.count = uint64_t(count);
+            for (const Element& other : elements_)
+                if (other.name == el.name) fail_header("second element named '" + el.name + "'");
+            elements_.push_back(std::move(el));
+        } else if (kw == "property") {
+            if (elements_.empty()) fail_header("property before any element");
+            Element& el = elements_.back();
+            Property prop;
+            if (tok.size() >= 2 && tok[1] == "list") {
+                if (tok.size() != 5)
+                    fail_header("malformed list property (expected 'property list COUNT_TYPE ITEM_TYPE NAME')");
+                prop.count_type = parse_type(tok[2]);
+                prop.type = parse_type(tok[3]);
+                if (prop.count_type == PlyType::none) fail_header("unknown property type '" + std::string(tok[2]) + "'");
+                if (prop.type == PlyType::none) fail_header("unknown property type '" + std::string(tok[3]) + "'");
+                if (!is_integer(prop.count_type))
+                    fail_header("list count type '" + std::string(tok[2]) + "' is not an integer type");
+                prop.name = std::string(tok[4]);
+                el.has_lists = true;
+            } else {
+                if (tok.size() != 3) fail_header("malformed property line (expected 'property TYPE NAME')");
+                prop.type = parse_type(tok[1]);
+                if (prop.type == PlyType::none) fail_header("unknown property type '" + std::string(tok[1]) + "'");
+                prop.name = std::string(tok[2]);
+                el.scalar_bytes += type_size(prop.type);
+            }
+            for (const Property& other : el.props)
+                if (other.name == prop.name)
+                    fail_header("element " + el.name + ": second property named '" + prop.name + "'");
+            el.props.push_back(std::move(prop));
+        } else if (kw == "end_header") {
+            have_end = true;
+        }
+        // comment, obj_info and unknown keywords: ignored (see ply_reader.h).
+    }
+    if (!have_format) fail_header("missing format line");
+    ascii_ = encoding_ == PlyEncoding::ascii;
+    swap_ = encoding_ == PlyEncoding::binary_big_endian;
+    data_offset_ = in_.offset();
+    header_lines_ = line_;
+}
+
+void PlyParser::plan_elements() {
+    for (size_t k = 0; k < elements_.size(); ++k) {
+        if (elements_[k].name == "vertex") vertex_el_ = int(k);
+        if (elements_[k].name == "face") face_el_ = int(k);
+    }
+    if (vertex_el_ < 0) {
+        line_ = -1;
+        fail_header("no 'element vertex' in the header");
+    }
+    Element& v = elements_[size_t(vertex_el_)];
+    line_ = v.line;
+    struct Name {
+        std::string_view name;
+        int slot;
+    };
+    static constexpr Name kNames[] = {
+        {"x", kPosX}, {"y", kPosY}, {"z", kPosZ},
+        {"nx", kNormX}, {"ny", kNormY}, {"nz", kNormZ},
+        {"normal_x", kNormX}, {"normal_y", kNormY}, {"normal_z", kNormZ},
+        {"red", kColR}, {"green", kColG}, {"blue", kColB},
+        {"r", kColR}, {"g", kColG}, {"b", kColB},
+        {"diffuse_red", kColR}, {"diffuse_green", kColG}, {"diffuse_blue", kColB},
+    };
+    int found[9] = {};
+    for (Property& p : v.props) {
+        if (p.is_list()) continue;
+        for (const Name& n : kNames) {
+            if (n.name == p.name && found[n.slot] == 0) {
+                p.slot = n.slot;
+                found[n.slot] = 1;
+                break;
+            }
+        }
+    }
+    for (int s = kPosX; s <= kPosZ; ++s)
+        if (!found[s]) fail_header(std::string("element vertex has no property ") + "xyz"[s]);
+    for (const Property& p : v.props)
+        if (p.is_list() && (p.name == "x" || p.name == "y" || p.name == "z"))
+            fail_header("vertex property " + p.name + " is a list");
+    has_normals_ = options_.keep_normals && found[kNormX] && found[kNormY] && found[kNormZ];
+    has_colors_ = options_.keep_colors && found[kColR] && found[kColG] && found[kColB];
+    for (Property& p : v.props) {
+        if ((p.slot >= kNormX && p.slot <= kNormZ && !has_normals_) ||
+            (p.slot >= kColR && p.slot <= kColB && !has_colors_))
+            p.slot = kSkip;
+        if (p.slot >= kColR && p.slot <= kColB && is_integer(p.type))
+            p.scale = float(1.0 / double(type_max(p.type)));
+    }
+    if (v.count > uint64_t(UINT32_MAX))
+        fail_header("element vertex: " + std::to_string(v.count) +
+                    " vertices exceed the 32-bit index limit");
+    vertex_count_ = v.count;
+
+    if (face_el_ >= 0) {
+        Element& f = elements_[size_t(face_el_)];
+        line_ = f.line;
+        for (Property& p : f.props) {
+            if (p.is_list() && (p.name == "vertex_indices" || p.name == "vertex_index")) {
+                if (!is_integer(p.type))
+                    fail_header("face list " + p.name + " has non-integer item type");
+                p.slot = kIndices;
+                break;
+            }
+        }
+        bool have = false;
+        for (const Property& p : f.props) have |= p.slot == kIndices;
+        if (!have) fail_header("element face has no list property vertex_indices");
+    }
+}
+
+// Rejects counts the file cannot hold before anything is allocated for them: binary
+// records need at least their scalar bytes plus list counts (a face at least three
+// indices); ascii needs at least two bytes (digit and separator) per value.
+void PlyParser::check_counts() {
+    const uint64_t bound = reader_.size_bound();
+    const uint64_t remaining = bound > data_offset_ ? bound - data_offset_ : 0;
+    unsigned __int128 total = 0;
+    for (const Element& el : elements_) {
+        uint64_t min_bytes = 0;
+        for (const Property& p : el.props) {
+            if (ascii_) {
+                min_bytes += p.slot == kIndices ? 8 : 2;
+            } else if (p.is_list()) {
+                min_bytes += type_size(p.count_type) + (p.slot == kIndices ? 3 * type_size(p.type) : 0);
+            } else {
+                min_bytes += type_size(p.type);
+            }
+        }
+        unsigned __int128 need = (unsigned __int128)el.count * min_bytes;
+        total += need;
+        if (total > remaining) {
+            line_ = el.line;
+            fail_header("element " + el.name + ": count " + std::to_string(el.count) + " needs at least " +
+                        (need > UINT64_MAX ? std::string("2^64") : std::to_string(uint64_t(need))) +
+                        " bytes, more than the " + std::to_string(remaining) +
+                        (reader_.gzip() ? " bytes the compressed file can hold" : " bytes of data in the file"));
+        }
+    }
+}
+
+void PlyParser::store_vertex(const Element& el, uint64_t i, const float* v) {
+    Vec3f p(v[kPosX], v[kPosY], v[kPosZ]);
+    mesh_.positions[i] = p;
+    if (has_normals_) mesh_.normals[i] = Vec3f(v[kNormX], v[kNormY], v[kNormZ]);
+    if (has_colors_) mesh_.colors[i] = Vec3f(v[kColR], v[kColG], v[kColB]);
+    if (!is_finite(p)) [[unlikely]] {
+        if (!options_.drop_invalid)
+            fail_at(el, i, "non-finite coordinate (" + std::to_string(p.x) + ", " + std::to_string(p.y) +
+                               ", " + std::to_string(p.z) + "); --drop-invalid drops the faces using it");
+        if (bad_vertex_.empty()) bad_vertex_.assign(vertex_count_, 0);
+        bad_vertex_[i] = 1;
+        ++bad_vertices_;
+    }
+}
+
+void PlyParser::emit_face(const Element& el, uint64_t i, const int64_t* idx, size_t n) {
+    ++source_faces_;
+    bool bad = false;
+    for (size_t k = 0; k < n; ++k) {
+        if (idx[k] < 0 || uint64_t(idx[k]) >= vertex_count_) [[unlikely]]
+            fail_at(el, i, "vertex index " + std::to_string(idx[k]) + " out of range (" +
+                               std::to_string(vertex_count_) + " vertices)");
+        if (!bad_vertex_.empty() && vertices_read_) bad |= bad_vertex_[size_t(idx[k])] != 0;
+    }
+    if (bad) {
+        ++dropped_faces_;
+        return;
+    }
+    bool degenerate = false;
+    if (n == 3) {
+        degenerate = idx[0] == idx[1] || idx[1] == idx[2] || idx[0] == idx[2];
+    } else {
+        for (size_t a = 0; a < n && !degenerate; ++a)
+            for (size_t c = a + 1; c < n; ++c)
+                if (idx[a] == idx[c]) {
+                    degenerate = true;
+                    break;
+                }
+    }
+    degenerate_faces_ += degenerate;
+    for (size_t k = 1; k + 1 < n; ++k)
+        mesh_.triangles.emplace_back(uint32_t(idx[0]), uint32_t(idx[k]), uint32_t(idx[k + 1]));
+}
+
+// ---- binary -------------------------------------------------------------------------------
+
+// Vertex element of scalars only: fixed-size records, decoded in whole-buffer batches.
+template <bool Swap>
+void PlyParser::read_binary_vertices_fixed(Element& el) {
+    struct Plan {
+        size_t offset;
+        PlyType type;
+        int slot;
+        float scale;
+    };
+    std::vector<Plan> plan;
+    size_t off = 0;
+    for (const Property& p : el.props) {
+        if (p.slot != kSkip) plan.push_back({off, p.type, p.slot, p.scale});
+        off += type_size(p.type);
+    }
+    const size_t rec = el.scalar_bytes;
+    // Common case: x, y, z as consecutive floats first in the record and nothing else kept.
+    const bool xyz_only = plan.size() == 3 && plan[0].slot == kPosX && plan[1].slot == kPosY &&
+                          plan[2].slot == kPosZ && plan[0].offset + 4 == plan[1].offset &&
+                          plan[1].offset + 4 == plan[2].offset && plan[0].type == PlyType::f32 &&
+                          plan[1].type == PlyType::f32 && plan[2].type == PlyType::f32;
+    uint64_t i = 0;
+    float v[9] = {};
+    while (i < el.count) {
+        record_offset_ = in_.offset();
+        need(el, i, rec);
+        uint64_t n = std::min<uint64_t>(el.count - i, in_.avail() / rec);
+        const char* base = in_.pos();
+        if (xyz_only && bad_vertex_.empty()) {
+            const size_t o = plan[0].offset;
+            for (uint64_t k = 0; k < n; ++k) {
+                const char* r = base + k * rec + o;
+                Vec3f p(std::bit_cast<float>(load_uint<Swap, uint32_t>(r)),
+                        std::bit_cast<float>(load_uint<Swap, uint32_t>(r + 4)),
+                        std::bit_cast<float>(load_uint<Swap, uint32_t>(r + 8)));
+                if (!is_finite(p)) [[unlikely]] {
+                    record_offset_ = in_.offset() + k * rec;
+                    v[0] = p.x, v[1] = p.y, v[2] = p.z;
+                    store_vertex(el, i + k, v);
+                    continue;
+                }
+                mesh_.positions[i + k] = p;
+            }
+        } else {
+            for (uint64_t k = 0; k < n; ++k) {
+                const char* r = base + k * rec;
+                for (const Plan& pl : plan) v[pl.slot] = load_float<Swap>(r + pl.offset, pl.type) * pl.scale;
+                record_offset_ = in_.offset() + k * rec;
+                store_vertex(el, i + k, v);
+            }
+        }
+        in_.advance(size_t(n * rec));
+        i += n;
+    }
+}
+
+// One record of any element, property by property (lists included).
+template <bool Swap>
+void PlyParser::read_binary_record(Element& el, uint64_t i) {
+    const bool is_vertex = &el == &elements_[size_t(vertex_el_)];
+    float v[9] = {};
+    record_offset_ = in_.offset();
+    bool have_face = false;
+    for (const Property& p : el.props) {
+        if (!p.is_list()) {
+            size_t sz = type_size(p.type);
+            need(el, i, sz);
+            if (p.slot >= 0) v[p.slot] = load_float<Swap>(in_.pos(), p.type) * p.scale;
+            in_.advance(sz);
+            continue;
+        }
+        size_t csz = type_size(p.count_type), isz = type_size(p.type);
+        need(el, i, csz);
+        int64_t count = load_int<Swap>(in_.pos(), p.count_type);
+        in_.advance(csz);
+        if (count < 0) fail_at(el, i, "negative list count " + std::to_string(count) + " in " + p.name);
+        if (p.slot != kIndices) {
+            if (!in_.skip(uint64_t(count) * isz))
+                fail_data(el, i, -1, int64_t(in_.offset()), "unexpected end of data (file truncated?)");
+            continue;
+        }
+        if (count < 3)
+            fail_at(el, i, "face has " + std::to_string(count) + " vertices (at least 3 needed)");
+        poly_.clear();
+        if (uint64_t(count) * isz <= kBlockBytes) {
+            need(el, i, size_t(count) * isz);
+            const char* q = in_.pos();
+            for (int64_t k = 0; k < count; ++k) poly_.push_back(load_int<Swap>(q + k * isz, p.type));
+            in_.advance(size_t(count) * isz);
+        } else {
+            // A huge polygon: stream it; poly_ grows only as real data arrives.
+            for (int64_t k = 0; k < count; ++k) {
+                need(el, i, isz);
+                poly_.push_back(load_int<Swap>(in_.pos(), p.type));
+                in_.advance(isz);
+            }
+        }
+        have_face = true;
+    }
+    if (is_vertex) store_vertex(el, i, v);
+    if (have_face) emit_face(el, i, poly_.data(), poly_.size());
+}
+
+// Face element holding only the index list with uchar count: the layout of nearly every
+// scanned mesh. Decoded straight from the buffer.
+template <bool Swap>
+void PlyParser::read_binary_faces_fast(Element& el) {
+    const Property& p = el.props[0];
+    const size_t isz = type_size(p.type);
+    int64_t idx[3];
+    for (uint64_t i = 0; i < el.count; ++i) {
+        record_offset_ = in_.offset();
+        if (in_.avail() < 1 + 3 * isz) need(el, i, 1 + 3 * isz);
+        const char* r = in_.pos();
+        unsigned count = uint8_t(*r);
+        if (count == 3) [[likely]] {
+            if (isz == 4) {
+                for (int k = 0; k < 3; ++k)
+                    idx[k] = p.type == PlyType::i32 ? int64_t(int32_t(load_uint<Swap, uint32_t>(r + 1 + 4 * k)))
+                                                    : int64_t(load_uint<Swap, uint32_t>(r + 1 + 4 * k));
+            } else {
+                for (int k = 0; k < 3; ++k) idx[k] = load_int<Swap>(r + 1 + isz * k, p.type);
+            }
+            in_.advance(1 + 3 * isz);
+            // Inline the common path of emit_face: valid, finite, non-degenerate triangle.
+            if (uint64_t(idx[0]) < vertex_count_ && uint64_t(idx[1]) < vertex_count_ &&
+                uint64_t(idx[2]) < vertex_count_ && bad_vertex_.empty() && idx[0] != idx[1] &&
+                idx[1] != idx[2] && idx[0] != idx[2]) {
+                ++source_faces_;
+                mesh_.triangles.emplace_back(uint32_t(idx[0]), uint32_t(idx[1]), uint32_t(idx[2]));
+            } else {
+                emit_face(el, i, idx, 3);
+            }
+            continue;
+        }
+        read_binary_record<Swap>(el, i);
+    }
+}
+
+template <bool Swap>
+void PlyParser::read_binary_element(Element& el) {
+    const bool is_vertex = &el == &elements_[size_t(vertex_el_)];
+    const bool is_face = face_el_ >= 0 && &el == &elements_[size_t(face_el_)];
+    if (is_vertex && !el.has_lists) {
+        read_binary_vertices_fixed<Swap>(el);
+    } else if (is_face && el.props.size() == 1 && el.props[0].count_type == PlyType::u8) {
+        read_binary_faces_fast<Swap>(el);
+    } else if (!is_vertex && !is_face && !el.has_lists) {
+        record_offset_ = in_.offset();
+        if (!in_.skip(el.count * el.scalar_bytes))
+            fail_data(el, (in_.offset() - record_offset_) / std::max<size_t>(el.scalar_bytes, 1), -1,
+                      int64_t(in_.offset()), "unexpected end of data (file truncated?)");
+    } else {
+        for (uint64_t i = 0; i < el.count; ++i) read_binary_record<Swap>(el, i);
+    }
+}
+
+// ---- ascii --------------------------------------------------------------------------------
+
+// The next non-blank line; false at the end of the data.
+bool PlyParser::next_data_line(const char*& b, const char*& e) {
+    auto too_long = [&] {
+        ErrorLocation w;
+        w.path = reader_.path();
+        w.line = line_ + 1;
+        throw Error(w, "line longer than 256 MiB");
+    };
+    while (in_.next_line(b, e, too_long)) {
+        ++line_;
+        if (skip_blanks(b, e) != e) return true;
+    }
+    return false;
+}
+
+void PlyParser::read_ascii_element(Element& el) {
+    const bool is_vertex = &el == &elements_[size_t(vertex_el_)];
+    const bool is_face = face_el_ >= 0 && &el == &elements_[size_t(face_el_)];
+    const bool face_fast = is_face && el.props.size() == 1;
+    const char* b;
+    const char* e;
+    float v[9] = {};
+    for (uint64_t i = 0; i < el.count; ++i) {
+        if (!next_data_line(b, e))
+            fail_data(el, i, line_ + 1, -1,
+                      "unexpected end of data (file truncated? the header declares " +
+                          std::to_string(el.count) + " " + el.name + " elements)");
+        const char* p = b;
+        if (face_fast) {
+            // "3 a b c": the triangle lines of nearly every ascii mesh.
+            p = skip_blanks(p, e);
+            int64_t idx[3];
+            const char* q = p;
+            if (e - q > 2 && q[0] == '3' && is_blank(q[1])) {
+                q = skip_blanks(q + 1, e);
+                bool ok = q < e && parse_int(q, e, idx[0]) == IntResult::ok;
+                if (ok) q = skip_blanks(q, e), ok = q < e && parse_int(q, e, idx[1]) == IntResult::ok;
+                if (ok) q = skip_blanks(q, e), ok = q < e && parse_int(q, e, idx[2]) == IntResult::ok;
+                if (ok && skip_blanks(q, e) == e && uint64_t(idx[0]) < vertex_count_ &&
+                    uint64_t(idx[1]) < vertex_count_ && uint64_t(idx[2]) < vertex_count_ &&
+                    bad_vertex_.empty() && idx[0] != idx[1] && idx[1] != idx[2] && idx[0] != idx[2]) {
+                    ++source_faces_;
+                    mesh_.triangles.emplace_back(uint32_t(idx[0]), uint32_t(idx[1]), uint32_t(idx[2]));
+                    continue;
+                }
+            }
+            // Anything else takes the general path below, which reports errors.
+        }
+        bool have_face = false;
+        for (const Property& prop : el.props) {
+            p = skip_blanks(p, e);
+            if (p == e) fail_at(el, i, "missing value for property " + prop.name + " (line too short)");
+            if (!prop.is_list()) {
+                if (prop.slot < 0) {
+                    p = skip_token(p, e);
+                    continue;
+                }
+                bool ok = true;
+                if (prop.type == PlyType::f32) {
+                    ok = parse_real(p, e, v[prop.slot]);
+                } else if (prop.type == PlyType::f64) {
+                    double d = 0;
+                    ok = parse_real(p, e, d);
+                    v[prop.slot] = float(d);
+                } else {
+                    int64_t x = 0;
+                    const char* start = p;
+                    IntResult r = parse_int(p, e, x);
+                    ok = r == IntResult::ok;
+                    if (ok && (x < type_min(prop.type) || x > type_max(prop.type)))
+                        fail_at(el, i, "value " + token_text(start, e) + " of property " + prop.name +
+                                           " out of range for its type");
+                    v[prop.slot] = float(x) * prop.scale;
+                }
+                if (!ok)
+                    fail_at(el, i, "invalid number '" + token_text(p, e) + "' for property " + prop.name);
+                continue;
+            }
+            int64_t count = 0;
+            const char* start = p;
+            IntResult r = parse_int(p, e, count);
+            if (r != IntResult::ok || count > type_max(prop.count_type) || count < type_min(prop.count_type))
+                fail_at(el, i, "invalid list count '" + token_text(start, e) + "' for " + prop.name);
+            if (count < 0) fail_at(el, i, "negative list count " + std::to_string(count) + " in " + prop.name);
+            if (prop.slot != kIndices) {
+                for (int64_t k = 0; k < count; ++k) {
+                    p = skip_blanks(p, e);
+                    if (p == e)
+                        fail_at(el, i, "list " + prop.name + " has " + std::to_string(k) + " of " +
+                                           std::to_string(count) + " values");
+                    p = skip_token(p, e);
+                }
+                continue;
+            }
+            if (count < 3) fail_at(el, i, "face has " + std::to_string(count) + " vertices (at least 3 needed)");
+            poly_.clear();
+            for (int64_t k = 0; k < count; ++k) {
+                p = skip_blanks(p, e);
+                if (p == e)
+                    fail_at(el, i, "face lists " + std::to_string(k) + " of " + std::to_string(count) +
+                                       " vertex indices");
+                int64_t x = 0;
+                const char* s = p;
+                if (parse_int(p, e, x) != IntResult::ok)
+                    fail_at(el, i, "invalid vertex index '" + token_text(s, e) + "'");
+                poly_.push_back(x);
+            }
+            have_face = true;
+        }
+        if (skip_blanks(p, e) != e)
+            fail_at(el, i, "more values on the line than the header declares ('" + token_text(skip_blanks(p, e), e) +
+                               "' after the last property)");
+        if (is_vertex) store_vertex(el, i, v);
+        if (have_face) emit_face(el, i, poly_.data(), poly_.size());
+    }
+}
+
+// ---- driver ---------------------------------------------------------------------------------
+
+void PlyParser::finish(TriangleMesh& mesh) {
+    if (bad_vertices_ == 0) return;
+    // Faces read before the vertices could not see the flags: drop their triangles now.
+    std::vector<Vec3u> kept;
+    kept.reserve(mesh.triangles.size());
+    for (const Vec3u& t : mesh.triangles) {
+        if (bad_vertex_[t.x] || bad_vertex_[t.y] || bad_vertex_[t.z]) {
+            ++dropped_faces_;
+            continue;
+        }
+        kept.push_back(t);
+    }
+    mesh.triangles.swap(kept);
+    // Remove the non-finite vertices so bounds and builders never see them.
+    std::vector<uint32_t> remap(mesh.positions.size());
+    uint32_t n = 0;
+    for (size_t k = 0; k < mesh.positions.size(); ++k) {
+        remap[k] = n;
+        if (bad_vertex_[k]) continue;
+        mesh.positions[n] = mesh.positions[k];
+        if (!mesh.normals.empty()) mesh.normals[n] = mesh.normals[k];
+        if (!mesh.colors.empty()) mesh.colors[n] = mesh.colors[k];
+        ++n;
+    }
+    mesh.positions.resize(n);
+    if (!mesh.normals.empty()) mesh.normals.resize(n);
+    if (!mesh.colors.empty()) mesh.colors.resize(n);
+    for (Vec3u& t : mesh.triangles) t = Vec3u(remap[t.x], remap[t.y], remap[t.z]);
+}
+
+TriangleMesh PlyParser::parse(MeshLoadInfo* info) {
+    Timer timer;
+    parse_header();
+    plan_elements();
+    check_counts();
+
+    mesh_.positions.resize(vertex_count_);
+    if (has_normals_) mesh_.normals.resize(vertex_count_);
+    if (has_colors_) mesh_.colors.resize(vertex_count_);
+    if (face_el_ >= 0) mesh_.triangles.reserve(elements_[size_t(face_el_)].count);
+
+    line_ = header_lines_;
+    for (Element& el : elements_) {
+        if (ascii_) read_ascii_element(el);
+        else if (swap_) read_binary_element<true>(el);
+        else read_binary_element<false>(el);
+        if (&el == &elements_[size_t(vertex_el_)]) vertices_read_ = true;
+    }
+    if (ascii_) {
+        const char* b;
+        const char* e;
+        if (next_data_line(b, e)) {
+            ErrorLocation w;
+            w.path = reader_.path();
+            w.line = line_;
+            throw Error(w, "data after the last element ('" + token_text(skip_blanks(b, e), e) +
+                               "'): the header's element counts do not match the data");
+        }
+    }
+    finish(mesh_);
+    if (info) {
+        info->format = "ply";
+        info->encoding = kPlyEncodingNames[size_t(encoding_)];
+        info->gzip = reader_.gzip();
+        info->file_bytes = in_.offset();
+        info->source_faces = source_faces_;
+        info->dropped_faces = dropped_faces_;
+        info->degenerate_faces = degenerate_faces_;
+        info->seconds = timer.seconds();
+    }
+    return std::move(mesh_);
+}
+
+}  // namespace
+
+TriangleMesh read_ply(FileReader& reader, const MeshLoadOptions& options, MeshLoadInfo* info) {
+    PlyParser parser(reader, options);
+    return parser.parse(info);
+}
+
+TriangleMesh read_ply(const std::string& path, const MeshLoadOptions& options, MeshLoadInfo* info) {
+    FileReader reader = FileReader::open(path);
+    return read_ply(reader, options, info);
+}
+
+TriangleMesh read_ply_memory(const void* data, size_t size, const std::string& name,
+                             const MeshLoadOptions& options, MeshLoadInfo* info) {
+    FileReader reader = FileReader::from_memory(data, size, name);
+    return read_ply(reader, options, info);
+}
+
+}  // namespace kdt

@@ -1,0 +1,49 @@
+// Our own PLY reader: ascii, binary_little_endian and binary_big_endian, every scalar type
+// and alias, any property order, unknown elements and properties skipped, polygons
+// triangulated as fans, gzip read transparently. One pass over large blocks; bad input
+// throws kdt::Error with file, element, index and line or byte offset. Depends on core,
+// geometry and io/file_reader.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include "renderer/geometry/mesh.h"
+#include "renderer/io/file_reader.h"
+#include "renderer/io/mesh_io.h"
+
+namespace kdt {
+
+enum class PlyEncoding : uint8_t { ascii, binary_little_endian, binary_big_endian };
+inline constexpr std::array<const char*, 3> kPlyEncodingNames = {"ascii", "binary_little_endian",
+                                                                 "binary_big_endian"};
+
+/// Reads a PLY file (plain or gzip-compressed).
+///
+/// Vertex element "vertex": x, y, z required (any scalar type); nx, ny, nz kept as normals
+/// and red, green, blue (also r/g/b, diffuse_red/...) kept as colours when all three are
+/// present. Integer colours are divided by their type's maximum (uchar by 255), float
+/// colours kept as given (linear, no sRGB conversion). Face element "face": the list
+/// "vertex_indices" (or "vertex_index"); polygons become fans (v0, vi, vi+1). Faces with
+/// repeated indices are kept and counted in info->degenerate_faces. Other elements and
+/// properties, lists included, are skipped. Header lines with an unknown keyword are ignored
+/// like comments (old Blender exporters write a bare "Created by ..." line).
+/// Extra data after the last element: trailing bytes of binary files are ignored (some
+/// writers pad); non-blank text after the last ascii element is an error, since it means
+/// the header's counts do not match the data.
+/// Non-finite vertex coordinates are an error unless options.drop_invalid, which drops the
+/// faces using them and the vertices themselves (indices are remapped).
+TriangleMesh read_ply(const std::string& path, const MeshLoadOptions& options = {},
+                      MeshLoadInfo* info = nullptr);
+
+/// Same, from an open reader (file, gzip or memory).
+TriangleMesh read_ply(FileReader& reader, const MeshLoadOptions& options = {},
+                      MeshLoadInfo* info = nullptr);
+
+/// Same, from `size` bytes in memory; `name` appears in error messages (tests, fuzzing).
+TriangleMesh read_ply_memory(const void* data, size_t size, const std::string& name,
+                             const MeshLoadOptions& options = {}, MeshLoadInfo* info = nullptr);
+
+}  // namespace kdt
