@@ -2,6 +2,7 @@
 // writes PNG (tone-mapped), EXR or PFM (linear) with the render settings as metadata.
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -174,10 +175,13 @@ void run(const RenderArgs& a) {
     const double mrays = p.seconds > 0.0 ? double(c.rays()) / p.seconds * 1e-6 : 0.0;
     std::printf(
         "render: %s: %dx%d, %.2f s, %.1f spp, %.2f Mrays/s (%llu rays: %llu camera, %llu bounce, "
-        "%llu shadow), est. rel. error %.4f, %llu non-finite dropped, tree %.2f s%s -> %s\n",
+        "%llu shadow; %.1f nodes, %.1f triangles per ray), est. rel. error %.4f, %llu non-finite "
+        "dropped, tree %.2f s%s -> %s\n",
         a.scene.empty() ? "default scene" : a.scene.c_str(), film.width(), film.height(), p.seconds,
         spp, mrays, (unsigned long long)c.rays(), (unsigned long long)c.camera_rays,
-        (unsigned long long)c.bounce_rays, (unsigned long long)c.shadow_rays, p.mean_relative_error,
+        (unsigned long long)c.bounce_rays, (unsigned long long)c.shadow_rays,
+        double(c.nodes_visited) / double(std::max<uint64_t>(c.rays(), 1)),
+        double(c.triangles_tested) / double(std::max<uint64_t>(c.rays(), 1)), p.mean_relative_error,
         (unsigned long long)c.nonfinite_dropped, prep.tree_seconds,
         prep.tree_from_cache ? " (cached)" : "", a.output.c_str());
 }

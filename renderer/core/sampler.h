@@ -61,7 +61,7 @@ Vec2f sobol_2d(uint32_t index, uint64_t seed);
 /// Pure function of (seed, pixel, sample index, draw order): no state shared across samples.
 class PixelSampler {
 public:
-    static constexpr uint32_t kSobolPairs = 12;
+    static constexpr uint32_t kSobolPairs = 7;  ///< camera + 2 bounces of 3 pairs
 
     PixelSampler(uint64_t seed, uint32_t x, uint32_t y, uint32_t sample_index)
         : pixel_key_(hash64(seed, (uint64_t(y) << 32) | x)), index_(sample_index) {}
