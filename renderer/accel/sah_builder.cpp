@@ -10,6 +10,8 @@
 
 #include <algorithm>
 #include <atomic>
+#include <bit>
+#include <limits>
 #include <cmath>
 #include <deque>
 #include <memory>
@@ -86,15 +88,20 @@ struct Ref {
 /// A sweep event (Wald & Havran 2006, section 4.1): position on one axis and
 /// (local reference index << 2 | type). Sorted by position, then end < planar < start.
 struct Event {
+    Event() {}  // left uninitialised: event buffers are resized before being written
+    Event(float p, uint32_t c) : pos(p), code(c) {}
     float pos;
     uint32_t code;
 };
 constexpr uint32_t kEnd = 0, kPlanar = 1, kStart = 2;
 constexpr uint32_t kMaxRefs = 1u << 30;  // local indices and leaf counts have 30 bits
 
-inline bool event_less(const Event& a, const Event& b) {
-    return a.pos < b.pos || (a.pos == b.pos && (a.code & 3u) < (b.code & 3u));
-}
+struct EventLess {
+    bool operator()(const Event& a, const Event& b) const {
+        return a.pos < b.pos || (a.pos == b.pos && (a.code & 3u) < (b.code & 3u));
+    }
+};
+constexpr EventLess event_less{};
 
 template <class Vec>
 void add_events(const Bounds3f& box, uint32_t index, Vec* events) {
@@ -203,6 +210,9 @@ struct Workspace {
         : meter(m),
           side(MeteredAllocator<uint8_t>(m)),
           remap(MeteredAllocator<uint32_t>(m)),
+          both(MeteredAllocator<uint32_t>(m)),
+          tmp{MeteredVector<Event>(MeteredAllocator<Event>(m)),
+              MeteredVector<Event>(MeteredAllocator<Event>(m))},
           fresh{SweepNode(m), SweepNode(m)} {}
     SweepNode& slot(int level, int which) {
         while (levels.size() <= size_t(2 * level + 1)) {
@@ -215,6 +225,8 @@ struct Workspace {
     std::deque<SweepNode> levels;  // deque: slots keep their address as levels are added
     MeteredVector<uint8_t> side;
     MeteredVector<uint32_t> remap;
+    MeteredVector<uint32_t> both;    // straddling references of the node being split
+    MeteredVector<Event> tmp[2];     // spliced one-sided events before the merge
     SweepNode fresh[2];  // events of clipped straddlers for the left and right child
 };
 
@@ -257,28 +269,34 @@ private:
             const float cross = d1 * d2, sum = d1 + d2;
             const auto& ev = node.events[k];
             const size_t m = ev.size();
-            size_t n_left = 0, n_right = n;
-            size_t i = 0;
-            while (i < m) {
+            // Counters of the events seen so far (branch-free), and their values at the
+            // start of the current group of equal positions.
+            size_t ends = 0, planars = 0, starts = 0;
+            size_t group_planars = 0, group_starts = 0;
+            for (size_t i = 0; i < m; ++i) {
+                const uint32_t type = ev[i].code & 3u;
+                ends += type == kEnd;
+                planars += type == kPlanar;
+                starts += type == kStart;
                 const float p = ev[i].pos;
-                size_t ends = 0, planars = 0, starts = 0;
-                while (i < m && ev[i].pos == p && (ev[i].code & 3u) == kEnd) ++ends, ++i;
-                while (i < m && ev[i].pos == p && (ev[i].code & 3u) == kPlanar) ++planars, ++i;
-                while (i < m && ev[i].pos == p && (ev[i].code & 3u) == kStart) ++starts, ++i;
-                n_right -= planars + ends;
+                if (i + 1 < m && ev[i + 1].pos == p) continue;
+                // All events at p seen: N_L counts what starts before p, N_R what ends after.
+                const size_t in_plane = planars - group_planars;
+                const size_t n_left = group_starts + group_planars;
+                const size_t n_right = n - ends - planars;
+                group_planars = planars;
+                group_starts = starts;
                 // No split on the cell boundary: it would not separate anything.
-                if (p > lo && p < hi) {
-                    const float p_left = 2.0f * (cross + (p - lo) * sum) * inv_area;
-                    const float p_right = 2.0f * (cross + (hi - p) * sum) * inv_area;
-                    const float c_left = ctx_.split_cost(p_left, p_right, n_left + planars, n_right);
-                    if (c_left < best.cost) best = {c_left, k, p, kLeft};
-                    if (planars > 0) {
-                        const float c_right =
-                            ctx_.split_cost(p_left, p_right, n_left, n_right + planars);
-                        if (c_right < best.cost) best = {c_right, k, p, kRight};
-                    }
+                if (!(p > lo && p < hi)) continue;
+                const float p_left = 2.0f * (cross + (p - lo) * sum) * inv_area;
+                const float p_right = 2.0f * (cross + (hi - p) * sum) * inv_area;
+                const float c_left = ctx_.split_cost(p_left, p_right, n_left + in_plane, n_right);
+                if (c_left < best.cost) best = {c_left, k, p, kLeft};
+                if (in_plane > 0) {
+                    const float c_right =
+                        ctx_.split_cost(p_left, p_right, n_left, n_right + in_plane);
+                    if (c_right < best.cost) best = {c_right, k, p, kRight};
                 }
-                n_left += starts + planars;
             }
         }
         return best;
@@ -319,74 +337,121 @@ private:
 
     /// Wald & Havran 2006, section 4.4: classify by the events of the split axis, splice the
     /// sorted event lists of one-sided references, clip straddlers and merge their events.
-    void split(const SweepNode& node, const SweepSplit& s, const Bounds3f& left_box,
+    void split(SweepNode& node, const SweepSplit& s, const Bounds3f& left_box,
                const Bounds3f& right_box, SweepNode& left, SweepNode& right) {
         const size_t n = node.refs.size();
         auto& side = ws_.side;
         auto& remap = ws_.remap;
         side.assign(n, kBoth);
         remap.resize(n);
-        for (const Event& e : node.events[s.axis]) {
-            const uint32_t r = e.code >> 2, type = e.code & 3u;
-            if (type == kEnd) {
-                if (e.pos <= s.pos) side[r] = kLeft;
-            } else if (type == kStart) {
-                if (e.pos >= s.pos) side[r] = kRight;
-            } else {
-                side[r] = e.pos < s.pos ? kLeft : (e.pos > s.pos ? kRight : s.planar_side);
+        {
+            // The split axis's events are sorted: before the plane only ends and planars
+            // decide (left), in it every type has a fixed side, after it starts and planars
+            // decide (right). Written branch-free; a reference's later events win.
+            const auto& ev = node.events[s.axis];
+            const Event* first = ev.data();
+            const Event* last = first + ev.size();
+            const Event* in_plane =
+                std::partition_point(first, last, [&](const Event& e) { return e.pos < s.pos; });
+            const Event* after = std::partition_point(
+                in_plane, last, [&](const Event& e) { return e.pos == s.pos; });
+            for (const Event* e = first; e != in_plane; ++e) {
+                const uint32_t r = e->code >> 2;
+                side[r] = (e->code & 3u) == kStart ? side[r] : uint8_t(kLeft);
+            }
+            const uint8_t at_plane[3] = {kLeft, uint8_t(s.planar_side), kRight};  // by type
+            for (const Event* e = in_plane; e != after; ++e) {
+                side[e->code >> 2] = at_plane[e->code & 3u];
+            }
+            for (const Event* e = after; e != last; ++e) {
+                const uint32_t r = e->code >> 2;
+                side[r] = (e->code & 3u) == kEnd ? side[r] : uint8_t(kRight);
             }
         }
-        left.clear();
-        right.clear();
+        // An empty-space cut-off leaves every reference on one side: the child inherits
+        // the node's sorted lists unchanged (most splits of a perfect-split tree are these).
+        size_t n_left = 0, n_right = 0;
+        for (size_t i = 0; i < n; ++i) {
+            n_left += side[i] == kLeft;
+            n_right += side[i] == kRight;
+        }
+        if (n_left == n || n_right == n) {
+            SweepNode& full = n_left == n ? left : right;
+            SweepNode& empty = n_left == n ? right : left;
+            full.refs.swap(node.refs);
+            for (int k = 0; k < 3; ++k) full.events[k].swap(node.events[k]);
+            empty.clear();
+            return;
+        }
+        // One-sided references keep their order; straddlers are appended after them.
+        auto& both = ws_.both;
+        left.refs.resize(n);
+        right.refs.resize(n);
+        both.clear();
+        {
+            Ref* pl = left.refs.data();
+            Ref* pr = right.refs.data();
+            for (size_t i = 0; i < n; ++i) {
+                const Ref& r = node.refs[i];
+                const uint8_t sd = side[i];
+                remap[i] = sd == kLeft ? uint32_t(pl - left.refs.data())
+                                       : uint32_t(pr - right.refs.data());
+                *pl = r;
+                *pr = r;
+                pl += sd == kLeft;
+                pr += sd == kRight;
+                if (sd == kBoth) both.push_back(uint32_t(i));
+            }
+            left.refs.resize(size_t(pl - left.refs.data()));
+            right.refs.resize(size_t(pr - right.refs.data()));
+        }
         SweepNode* child[2] = {&left, &right};
         const Bounds3f* child_box[2] = {&left_box, &right_box};
         for (auto& f : ws_.fresh) f.clear();
-        for (size_t i = 0; i < n; ++i) {
-            const Ref& r = node.refs[i];
-            if (side[i] == kLeft) {
-                remap[i] = uint32_t(left.refs.size());
-                left.refs.push_back(r);
-            } else if (side[i] == kRight) {
-                remap[i] = uint32_t(right.refs.size());
-                right.refs.push_back(r);
-            } else {
-                for (int c = 0; c < 2; ++c) {
-                    Ref clipped;
-                    if (!ctx_.clip(r, *child_box[c], clipped)) continue;
-                    const auto index = uint32_t(child[c]->refs.size());
-                    child[c]->refs.push_back(clipped);
-                    add_events(clipped.box, index, ws_.fresh[c].events);
-                }
+        for (uint32_t i : both) {
+            for (int c = 0; c < 2; ++c) {
+                Ref clipped;
+                if (!ctx_.clip(node.refs[i], *child_box[c], clipped)) continue;
+                const auto index = uint32_t(child[c]->refs.size());
+                child[c]->refs.push_back(clipped);
+                add_events(clipped.box, index, ws_.fresh[c].events);
             }
         }
         for (int k = 0; k < 3; ++k) {
-            auto& fresh_left = ws_.fresh[0].events[k];
-            auto& fresh_right = ws_.fresh[1].events[k];
-            std::sort(fresh_left.begin(), fresh_left.end(), event_less);
-            std::sort(fresh_right.begin(), fresh_right.end(), event_less);
-            auto& out_left = left.events[k];
-            auto& out_right = right.events[k];
-            size_t jl = 0, jr = 0;
-            for (const Event& e : node.events[k]) {
-                const uint32_t r = e.code >> 2;
+            // Splice: the events of one-sided references, renumbered, in their sorted order.
+            const auto& ev = node.events[k];
+            const size_t m = ev.size();
+            auto& tmp_left = ws_.tmp[0];
+            auto& tmp_right = ws_.tmp[1];
+            tmp_left.resize(m);
+            tmp_right.resize(m);
+            Event* pl = tmp_left.data();
+            Event* pr = tmp_right.data();
+            for (size_t i = 0; i < m; ++i) {
+                const uint32_t r = ev[i].code >> 2;
                 const uint8_t sd = side[r];
-                if (sd == kBoth) continue;
-                const Event moved{e.pos, (remap[r] << 2) | (e.code & 3u)};
-                if (sd == kLeft) {
-                    while (jl < fresh_left.size() && event_less(fresh_left[jl], moved)) {
-                        out_left.push_back(fresh_left[jl++]);
-                    }
-                    out_left.push_back(moved);
-                } else {
-                    while (jr < fresh_right.size() && event_less(fresh_right[jr], moved)) {
-                        out_right.push_back(fresh_right[jr++]);
-                    }
-                    out_right.push_back(moved);
-                }
+                const Event moved(ev[i].pos, (remap[r] << 2) | (ev[i].code & 3u));
+                *pl = moved;
+                *pr = moved;
+                pl += sd == kLeft;
+                pr += sd == kRight;
             }
-            out_left.insert(out_left.end(), fresh_left.begin() + ptrdiff_t(jl), fresh_left.end());
-            out_right.insert(out_right.end(), fresh_right.begin() + ptrdiff_t(jr),
-                             fresh_right.end());
+            tmp_left.resize(size_t(pl - tmp_left.data()));
+            tmp_right.resize(size_t(pr - tmp_right.data()));
+            // Merge in the sorted events of the clipped straddlers.
+            for (int c = 0; c < 2; ++c) {
+                auto& fresh = ws_.fresh[c].events[k];
+                auto& tmp = ws_.tmp[c];
+                auto& out = child[c]->events[k];
+                if (fresh.empty()) {
+                    out.swap(tmp);
+                    continue;
+                }
+                std::sort(fresh.begin(), fresh.end(), event_less);
+                out.resize(tmp.size() + fresh.size());
+                std::merge(tmp.begin(), tmp.end(), fresh.begin(), fresh.end(), out.begin(),
+                           event_less);
+            }
         }
     }
 
@@ -586,6 +651,15 @@ void emit(TopNode& t, uint32_t slot, KdBuildOutput& out) {
     release(t.sub.indices);
 }
 
+/// The next float towards -infinity / +infinity (finite, non-NaN input).
+inline float next_float_down(float x) {
+    if (x == 0.0f) return -std::numeric_limits<float>::denorm_min();
+    uint32_t bits = std::bit_cast<uint32_t>(x);
+    bits = x > 0.0f ? bits - 1 : bits + 1;
+    return std::bit_cast<float>(bits);
+}
+inline float next_float_up(float x) { return -next_float_down(-x); }
+
 }  // namespace
 
 bool clip_triangle_to_box(const Vec3f& a, const Vec3f& b, const Vec3f& c, const Bounds3f& box,
@@ -660,8 +734,8 @@ bool clip_triangle_to_box(const Vec3f& a, const Vec3f& b, const Vec3f& c, const 
         }
         // Round outward so the float box contains the exact clipped triangle.
         float l = float(lo), h = float(hi);
-        if (double(l) > lo) l = std::nextafter(l, -kInfinity);
-        if (double(h) < hi) h = std::nextafter(h, kInfinity);
+        if (double(l) > lo) l = next_float_down(l);
+        if (double(h) < hi) h = next_float_up(h);
         clipped.lower[k] = std::max(l, box.lower[k]);
         clipped.upper[k] = std::min(h, box.upper[k]);
     }
@@ -747,6 +821,7 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
     out.nodes.emplace_back();
     emit(top, 0, out);
     KDT_CHECK(out.nodes.size() == node_count && out.indices.size() == index_count);
+    finalize_stats(out, tri_count);
     out.stats.sah_splits = splits;
     out.stats.peak_build_bytes = uint64_t(std::max<int64_t>(ctx.meter.peak(), 0));
     return out;
