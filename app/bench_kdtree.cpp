@@ -35,7 +35,9 @@ struct Options {
     int repeat = 5;
     int threads = 0;
     int subdivide = 0;
-    int spp = 0;  // 0 = the views file's
+    int spp = 0;    // 0 = the views file's
+    int depth = 0;  // 0 = the thesis's 20
+    int n0 = -1;    // -1 = the thesis's 5
     bool embree = true;
     bool embree_robust = false;
     bool use_cache = false;
@@ -404,6 +406,11 @@ void run(const Options& opt) {
         r.config = cfg;
         KdTreeParams params = cfg.params;
         params.threads = threads;
+        if (params.builder == KdBuilder::thesis) {
+            if (opt.depth > 0) params.max_depth = opt.depth;
+            if (opt.n0 >= 0) params.n0 = opt.n0;
+        }
+        r.config.params = params;
         std::vector<double> builds;
         if (opt.use_cache) {
             r.tree = get_or_build_kdtree(model_key, mesh, params);
@@ -727,6 +734,12 @@ void add_bench_kdtree_command(CLI::App& bench) {
         ->check(CLI::Range(0, 3));
     cmd->add_option("--rows", opt.rows, "Rows of table 6.1 to run (1-7, sah), comma-separated")
         ->capture_default_str();
+    cmd->add_option("--depth", opt.depth,
+                    "Thesis rows: maximum depth instead of 20 (the thesis's 10M-triangle table "
+                    "uses 24)")
+        ->check(CLI::Range(1, 64));
+    cmd->add_option("--n0", opt.n0, "Thesis rows: n0 instead of 5 (the 10M table uses 4)")
+        ->check(CLI::Range(0, 1000));
     cmd->add_option("--spp", opt.spp, "Primary rays per pixel (default: the views file's)");
     cmd->add_option("--csv", opt.csv, "Also write all tables as CSV");
     cmd->add_option("--md", opt.md, "Write the Markdown here instead of stdout");
