@@ -115,6 +115,15 @@ void add_events(const Bounds3f& box, uint32_t index, Vec* events) {
     }
 }
 
+/// Float bits mapped so that unsigned order is float order (-0 is folded into +0).
+inline uint32_t ordered_bits(float x) {
+    const uint32_t bits = std::bit_cast<uint32_t>(x + 0.0f);
+    return bits & 0x80000000u ? ~bits : bits | 0x80000000u;
+}
+inline float from_ordered_bits(uint32_t o) {
+    return std::bit_cast<float>(o & 0x80000000u ? o & 0x7fffffffu : ~o);
+}
+
 enum Side : uint8_t { kBoth = 0, kLeft = 1, kRight = 2 };
 
 /// Which side of the plane `split` on `axis` a reference goes to; planar references lying
@@ -211,6 +220,7 @@ struct Workspace {
           side(MeteredAllocator<uint8_t>(m)),
           remap(MeteredAllocator<uint32_t>(m)),
           both(MeteredAllocator<uint32_t>(m)),
+          keys(MeteredAllocator<uint64_t>(m)),
           tmp{MeteredVector<Event>(MeteredAllocator<Event>(m)),
               MeteredVector<Event>(MeteredAllocator<Event>(m))},
           fresh{SweepNode(m), SweepNode(m)} {}
@@ -226,6 +236,7 @@ struct Workspace {
     MeteredVector<uint8_t> side;
     MeteredVector<uint32_t> remap;
     MeteredVector<uint32_t> both;    // straddling references of the node being split
+    MeteredVector<uint64_t> keys;    // sort keys of a subtree's first events
     MeteredVector<Event> tmp[2];     // spliced one-sided events before the merge
     SweepNode fresh[2];  // events of clipped straddlers for the left and right child
 };
@@ -242,14 +253,36 @@ public:
     SweepBuilder(const Context& ctx, Workspace& ws, Subtree& out)
         : ctx_(ctx), ws_(ws), out_(out) {}
 
-    void build(const MeteredVector<Ref>& refs, const Bounds3f& box, int depth) {
+    /// Sweeps the subtree over `refs` (taken over: the vector is left empty).
+    void build(MeteredVector<Ref>& refs, const Bounds3f& box, int depth) {
         SweepNode& root = ws_.slot(0, 0);
         root.clear();
-        root.refs.assign(refs.begin(), refs.end());
-        for (size_t i = 0; i < root.refs.size(); ++i) {
-            add_events(root.refs[i].box, uint32_t(i), root.events);
+        root.refs.swap(refs);
+        // Wald & Havran sort once per subtree; sorting 64-bit keys (position, type, index)
+        // is much faster than comparing events.
+        auto& keys = ws_.keys;
+        const size_t n = root.refs.size();
+        for (int k = 0; k < 3; ++k) {
+            keys.clear();
+            for (size_t i = 0; i < n; ++i) {
+                const float lo = root.refs[i].box.lower[k], hi = root.refs[i].box.upper[k];
+                const uint64_t index = i;
+                if (lo == hi) {
+                    keys.push_back(uint64_t(ordered_bits(lo)) << 32 | uint64_t(kPlanar) << 30 | index);
+                } else {
+                    keys.push_back(uint64_t(ordered_bits(lo)) << 32 | uint64_t(kStart) << 30 | index);
+                    keys.push_back(uint64_t(ordered_bits(hi)) << 32 | uint64_t(kEnd) << 30 | index);
+                }
+            }
+            std::sort(keys.begin(), keys.end());
+            auto& ev = root.events[k];
+            ev.resize(keys.size());
+            for (size_t i = 0; i < keys.size(); ++i) {
+                const uint64_t key = keys[i];
+                const auto low = uint32_t(key);
+                ev[i] = Event(from_ordered_bits(uint32_t(key >> 32)), (low & 0x3fffffffu) << 2 | low >> 30);
+            }
         }
-        for (auto& e : root.events) std::sort(e.begin(), e.end(), event_less);
         out_.nodes.push_back(KdNode{});
         recurse(root, box, depth, 0, 0);
     }
@@ -599,7 +632,7 @@ private:
             auto& ws = workspaces_[size_t(omp_get_thread_num())];
             if (!ws) ws = std::make_unique<Workspace>(&own->ctx.meter);
             SweepBuilder sweep(own->ctx, *ws, own->node.sub);
-            sweep.build(own->refs, own->box, own->depth);
+            sweep.build(own->refs, own->box, own->depth);  // takes the references over
         }
     }
 
