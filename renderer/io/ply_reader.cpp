@@ -120,7 +120,10 @@ public:
     // near the end of the data without leaving the allocation.
     static constexpr size_t kPad = 16;
 
-    explicit Input(FileReader& reader) : reader_(reader), buf_(kBlockBytes + kPad) {
+    // Small inputs get a buffer of their own size instead of a whole block.
+    explicit Input(FileReader& reader)
+        : reader_(reader),
+          buf_(size_t(std::min<uint64_t>(kBlockBytes, std::max<uint64_t>(reader.size_bound(), 4096))) + kPad) {
         pos_ = end_ = buf_.data();
     }
 
