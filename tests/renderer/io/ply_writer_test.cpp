@@ -46,7 +46,8 @@ TriangleMesh random_mesh(uint32_t seed, size_t vertices, size_t triangles, bool 
 
 template <typename T>
 bool same_bits(const std::vector<T>& a, const std::vector<T>& b) {
-    return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0;
+    if (a.size() != b.size()) return false;
+    return a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0;
 }
 
 TEST(PlyWriter, RoundTripInEveryEncodingIsBitExact) {
