@@ -33,8 +33,7 @@ void clip_plane(const Polygon& in, Polygon& out, int axis, double pos, double si
 
 }  // namespace
 
-Bounds3f clip_triangle_bounds(const Vec3f& a, const Vec3f& b, const Vec3f& c,
-                              const Bounds3f& box) {
+Bounds3f clip_triangle_bounds(const Vec3f& a, const Vec3f& b, const Vec3f& c, const Bounds3f& box) {
     Bounds3f result;
     if (box.empty()) return result;
     Polygon p0, p1;

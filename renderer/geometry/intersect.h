@@ -70,8 +70,8 @@ inline bool intersect_triangle(const WatertightRay& r, const Vec3f& a, const Vec
     if ((U < 0.0 || V < 0.0 || W < 0.0) && (U > 0.0 || V > 0.0 || W > 0.0)) return false;
     const double det = U + V + W;
     if (det == 0.0) return false;
-    const double T = U * double(r.sz * A[r.kz]) + V * double(r.sz * B[r.kz]) +
-                     W * double(r.sz * C[r.kz]);
+    const double T =
+        U * double(r.sz * A[r.kz]) + V * double(r.sz * B[r.kz]) + W * double(r.sz * C[r.kz]);
     const double inv_det = 1.0 / det;
     const float tt = float(T * inv_det);
     if (!(tt >= tmin && tt <= tmax)) return false;
@@ -86,8 +86,8 @@ inline bool intersect_triangle(const WatertightRay& r, const Vec3f& a, const Vec
 inline bool intersect_triangle(const Ray& ray, const Vec3f& a, const Vec3f& b, const Vec3f& c,
                                float& t, float& u, float& v) {
     if (!is_finite(ray.dir) || !is_finite(ray.origin) || ray.dir == Vec3f(0.0f)) return false;
-    return intersect_triangle(WatertightRay(ray.origin, ray.dir), a, b, c, ray.tmin, ray.tmax, t,
-                              u, v);
+    return intersect_triangle(WatertightRay(ray.origin, ray.dir), a, b, c, ray.tmin, ray.tmax, t, u,
+                              v);
 }
 
 /// Relative slack of the conservative interval tests: a few ulps of the computed distances
@@ -128,8 +128,7 @@ inline bool intersect_box(const Ray& ray, const Bounds3f& box, float& t0, float&
 /// clipping against the six planes, in double). Empty when they do not overlap. The result
 /// is widened outward by one float ulp so it always contains the exact clipped triangle;
 /// it never exceeds the box itself. For "perfect split" builders (Wald & Havran 2006).
-Bounds3f clip_triangle_bounds(const Vec3f& a, const Vec3f& b, const Vec3f& c,
-                              const Bounds3f& box);
+Bounds3f clip_triangle_bounds(const Vec3f& a, const Vec3f& b, const Vec3f& c, const Bounds3f& box);
 
 /// True if the closed triangle and the closed box overlap, decided by clip_triangle_bounds():
 /// may say true for a near miss (within an ulp), never false for an overlap.

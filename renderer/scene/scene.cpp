@@ -262,7 +262,13 @@ Scene load_scene(const std::string& path, const SceneLoadOptions& options) {
             if (!slot) {
                 MeshLoadOptions mo;
                 mo.drop_invalid = options.drop_invalid;
-                slot = std::make_shared<const TriangleMesh>(load_mesh(inst.file, mo));
+                try {
+                    slot = std::make_shared<const TriangleMesh>(load_mesh(inst.file, mo));
+                } catch (const Error& e) {
+                    // Name the scene file and the key too, then the mesh file's own message.
+                    throw Error(ErrorLocation{path, "meshes/" + std::to_string(i) + "/file"},
+                                e.what());
+                }
             }
             inst.mesh = slot;
         }

@@ -139,10 +139,10 @@ TEST(ClipTriangle, BoundsOfClippedPart) {
     // Touching a corner with one vertex.
     EXPECT_TRUE(triangle_overlaps_box({1, 1, 1}, {3, 2, 2}, {2, 3, 2}, box));
     // Passing outside a corner: bounds overlap, the triangle does not.
-    EXPECT_TRUE(triangle_overlaps_box({1.5f, 0.0f, 0.5f}, {0.0f, 1.5f, 0.5f},
-                                      {3.0f, 3.0f, 0.5f}, box));
-    EXPECT_FALSE(triangle_overlaps_box({2.5f, 0.0f, 0.5f}, {0.0f, 2.5f, 0.5f},
-                                       {3.0f, 3.0f, 0.5f}, box));
+    EXPECT_TRUE(
+        triangle_overlaps_box({1.5f, 0.0f, 0.5f}, {0.0f, 1.5f, 0.5f}, {3.0f, 3.0f, 0.5f}, box));
+    EXPECT_FALSE(
+        triangle_overlaps_box({2.5f, 0.0f, 0.5f}, {0.0f, 2.5f, 0.5f}, {3.0f, 3.0f, 0.5f}, box));
 }
 
 }  // namespace

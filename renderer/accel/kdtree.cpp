@@ -1,0 +1,149 @@
+// KdTree construction and checking, build_kdtree() dispatch, parameter validation and the
+// statistics the thesis's tables report. Traversal lives in traversal.cpp.
+#include "renderer/accel/kdtree.h"
+
+#include <cmath>
+#include <sstream>
+
+#include "renderer/accel/builder.h"
+#include "renderer/core/error.h"
+#include "renderer/core/timer.h"
+
+namespace kdt {
+namespace {
+
+constexpr int kMaxTreeDepth = 64;  // the traversal stack holds one entry per level
+
+[[noreturn]] void bad_param(const std::string& name, const std::string& value,
+                            const std::string& range) {
+    throw Error(ErrorLocation{"", "kd-tree parameter " + name},
+                "value " + value + " is outside " + range);
+}
+
+std::string num(double v) {
+    std::ostringstream s;
+    s << v;
+    return s.str();
+}
+
+}  // namespace
+
+void validate(const KdTreeParams& p) {
+    if (size_t(p.builder) >= kKdBuilderNames.size())
+        bad_param("builder", std::to_string(int(p.builder)), "{thesis, sah}");
+    if (!std::isfinite(p.q) || !(p.q > 0.0f) || !(p.q <= 1.0f)) bad_param("q", num(p.q), "(0, 1]");
+    if (p.n0 < 0 || p.n0 > 1000000) bad_param("n0", std::to_string(p.n0), "[0, 1000000]");
+    if (p.max_depth < 0 || p.max_depth > kMaxTreeDepth)
+        bad_param("max_depth", std::to_string(p.max_depth), "[0, 64] (0 = automatic)");
+    if (!std::isfinite(p.traversal_cost) || !(p.traversal_cost > 0.0f))
+        bad_param("traversal_cost", num(p.traversal_cost), "(0, inf)");
+    if (!std::isfinite(p.intersect_cost) || !(p.intersect_cost > 0.0f))
+        bad_param("intersect_cost", num(p.intersect_cost), "(0, inf)");
+    if (!std::isfinite(p.empty_bonus) || p.empty_bonus < 0.0f || p.empty_bonus > 1.0f)
+        bad_param("empty_bonus", num(p.empty_bonus), "[0, 1]");
+    if (p.threads < 0) bad_param("threads", std::to_string(p.threads), "[0, inf) (0 = default)");
+}
+
+KdTree::KdTree(std::shared_ptr<const TriangleMesh> mesh, Bounds3f bounds, std::vector<KdNode> nodes,
+               std::vector<uint32_t> indices, KdTreeParams params, KdTreeStats stats)
+    : mesh_(std::move(mesh)),
+      bounds_(bounds),
+      nodes_(std::move(nodes)),
+      indices_(std::move(indices)),
+      params_(params),
+      stats_(std::move(stats)) {
+    // The queries trust this structure, and it may come from a cache file: check it all
+    // once here (O(nodes + references)) so a corrupt tree is an error, never a crash.
+    if (!mesh_) throw Error("kd-tree: no mesh");
+    auto corrupt = [](const std::string& what, size_t index) {
+        throw Error(ErrorLocation{"", "kd-tree node", int64_t(index)}, what);
+    };
+    if (nodes_.empty()) throw Error("kd-tree: no nodes");
+    if (!bounds_.empty() && (!is_finite(bounds_.lower) || !is_finite(bounds_.upper)))
+        throw Error("kd-tree: non-finite bounds");
+    const size_t ntri = mesh_->triangles.size(), nvert = mesh_->positions.size();
+    for (uint32_t id : indices_) {
+        if (id >= ntri)
+            throw Error("kd-tree: triangle index " + std::to_string(id) + " out of range (" +
+                        std::to_string(ntri) + " triangles)");
+        const Vec3u& t = mesh_->triangles[id];
+        if (t.x >= nvert || t.y >= nvert || t.z >= nvert)
+            throw Error(ErrorLocation{"", "triangle", int64_t(id)},
+                        "vertex index out of range (" + std::to_string(nvert) + " vertices)");
+    }
+    // Children must follow their parent (so the structure is acyclic) and depth is bounded.
+    std::vector<uint8_t> depth(nodes_.size(), 0);
+    std::vector<uint8_t> seen(nodes_.size(), 0);
+    seen[0] = 1;
+    for (size_t i = 0; i < nodes_.size(); ++i) {
+        const KdNode& n = nodes_[i];
+        if (!seen[i]) corrupt("unreachable node", i);
+        if (n.is_leaf()) {
+            if (uint64_t(n.first) + n.count() > indices_.size())
+                corrupt("leaf references past the index array", i);
+            continue;
+        }
+        const size_t c = n.child();
+        if (c <= i || c + 1 >= nodes_.size()) corrupt("child offset out of order or range", i);
+        if (seen[c] || seen[c + 1]) corrupt("node has two parents", i);
+        if (!std::isfinite(n.split)) corrupt("non-finite split position", i);
+        if (depth[i] + 1 > kMaxTreeDepth) corrupt("tree deeper than 64 levels", i);
+        seen[c] = seen[c + 1] = 1;
+        depth[c] = depth[c + 1] = uint8_t(depth[i] + 1);
+    }
+}
+
+void finalize_stats(KdBuildOutput& out, size_t triangle_count) {
+    KdTreeStats& s = out.stats;
+    s.nodes = out.nodes.size();
+    s.leaves = s.empty_leaves = s.references = 0;
+    s.max_leaf_size = 0;
+    s.max_depth_reached = 0;
+    s.depth_histogram.assign(1, 0);
+    struct Item {
+        uint32_t node, depth;
+    };
+    std::vector<Item> stack;
+    if (!out.nodes.empty()) stack.push_back({0, 0});
+    uint64_t nonempty = 0;
+    while (!stack.empty()) {
+        Item it = stack.back();
+        stack.pop_back();
+        const KdNode& n = out.nodes[it.node];
+        if (!n.is_leaf()) {
+            stack.push_back({n.child() + 1, it.depth + 1});
+            stack.push_back({n.child(), it.depth + 1});
+            continue;
+        }
+        ++s.leaves;
+        if (n.count() == 0)
+            ++s.empty_leaves;
+        else
+            ++nonempty;
+        s.references += n.count();
+        s.max_leaf_size = std::max(s.max_leaf_size, n.count());
+        s.max_depth_reached = std::max(s.max_depth_reached, it.depth);
+        if (s.depth_histogram.size() <= it.depth) s.depth_histogram.resize(it.depth + 1, 0);
+        ++s.depth_histogram[it.depth];
+    }
+    s.refs_per_triangle = triangle_count ? double(s.references) / double(triangle_count) : 0.0;
+    s.mean_leaf_size = nonempty ? double(s.references) / double(nonempty) : 0.0;
+    s.bytes = out.nodes.size() * sizeof(KdNode) + out.indices.size() * sizeof(uint32_t);
+    s.bytes_per_triangle = triangle_count ? double(s.bytes) / double(triangle_count) : 0.0;
+}
+
+std::shared_ptr<const KdTree> build_kdtree(std::shared_ptr<const TriangleMesh> mesh,
+                                           const KdTreeParams& params) {
+    validate(params);
+    if (!mesh) throw Error("build_kdtree: no mesh");
+    Timer timer;
+    KdBuildOutput out = params.builder == KdBuilder::thesis ? build_thesis_tree(*mesh, params)
+                                                            : build_sah_tree(*mesh, params);
+    out.stats.build_seconds = timer.seconds();
+    // Idempotent; makes the counts consistent whichever builder ran.
+    finalize_stats(out, mesh->triangles.size());
+    return std::make_shared<const KdTree>(std::move(mesh), out.bounds, std::move(out.nodes),
+                                          std::move(out.indices), params, std::move(out.stats));
+}
+
+}  // namespace kdt

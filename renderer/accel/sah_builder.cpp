@@ -1,0 +1,830 @@
+// The SAH kd-tree builder of Wald & Havran 2006 ("On building fast kd-trees for ray tracing,
+// and on doing that in O(N log N)"): perfect splits (references clipped to the node box),
+// planar triangles sent to the cheaper side, an empty-space bonus and the thesis's f(n).
+// Large nodes are split by binned SAH over the clipped references; below
+// SahTuning::sweep_threshold references each subtree runs the exact O(N log N) event sweep
+// on its own OpenMP task. Depends on core, geometry and the builder interface.
+#include "renderer/accel/sah_builder.h"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <atomic>
+#include <bit>
+#include <limits>
+#include <cmath>
+#include <deque>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "renderer/core/check.h"
+#include "renderer/core/error.h"
+
+namespace kdt {
+namespace {
+
+// ---------------------------------------------------------------------------------------
+// Scratch memory accounting: every builder buffer goes through MeteredAllocator, so the
+// peak reported in KdTreeStats::peak_build_bytes is measured, not guessed.
+
+class ScratchMeter {
+public:
+    void add(int64_t bytes) {
+        const int64_t now = current_.fetch_add(bytes, std::memory_order_relaxed) + bytes;
+        int64_t peak = peak_.load(std::memory_order_relaxed);
+        while (now > peak &&
+               !peak_.compare_exchange_weak(peak, now, std::memory_order_relaxed)) {
+        }
+    }
+    int64_t peak() const { return peak_.load(std::memory_order_relaxed); }
+
+private:
+    std::atomic<int64_t> current_{0};
+    std::atomic<int64_t> peak_{0};
+};
+
+template <class T>
+struct MeteredAllocator {
+    using value_type = T;
+    ScratchMeter* meter = nullptr;
+
+    explicit MeteredAllocator(ScratchMeter* m) : meter(m) {}
+    template <class U>
+    MeteredAllocator(const MeteredAllocator<U>& other) : meter(other.meter) {}  // NOLINT
+
+    T* allocate(size_t n) {
+        meter->add(int64_t(n * sizeof(T)));
+        return std::allocator<T>{}.allocate(n);
+    }
+    void deallocate(T* p, size_t n) {
+        meter->add(-int64_t(n * sizeof(T)));
+        std::allocator<T>{}.deallocate(p, n);
+    }
+    template <class U>
+    bool operator==(const MeteredAllocator<U>& other) const {
+        return meter == other.meter;
+    }
+};
+
+template <class T>
+using MeteredVector = std::vector<T, MeteredAllocator<T>>;
+
+template <class T>
+void release(MeteredVector<T>& v) {
+    MeteredVector<T>(v.get_allocator()).swap(v);
+}
+
+// ---------------------------------------------------------------------------------------
+// References and events.
+
+/// A triangle reference: its conservative box inside the current node, and the triangle.
+struct Ref {
+    Bounds3f box;
+    uint32_t tri;
+};
+
+/// A sweep event (Wald & Havran 2006, section 4.1): position on one axis and
+/// (local reference index << 2 | type). Sorted by position, then end < planar < start.
+struct Event {
+    Event() {}  // left uninitialised: event buffers are resized before being written
+    Event(float p, uint32_t c) : pos(p), code(c) {}
+    float pos;
+    uint32_t code;
+};
+constexpr uint32_t kEnd = 0, kPlanar = 1, kStart = 2;
+constexpr uint32_t kMaxRefs = 1u << 30;  // local indices and leaf counts have 30 bits
+
+struct EventLess {
+    bool operator()(const Event& a, const Event& b) const {
+        return a.pos < b.pos || (a.pos == b.pos && (a.code & 3u) < (b.code & 3u));
+    }
+};
+constexpr EventLess event_less{};
+
+template <class Vec>
+void add_events(const Bounds3f& box, uint32_t index, Vec* events) {
+    for (int k = 0; k < 3; ++k) {
+        if (box.lower[k] == box.upper[k]) {
+            events[k].push_back({box.lower[k], (index << 2) | kPlanar});
+        } else {
+            events[k].push_back({box.lower[k], (index << 2) | kStart});
+            events[k].push_back({box.upper[k], (index << 2) | kEnd});
+        }
+    }
+}
+
+enum Side : uint8_t { kBoth = 0, kLeft = 1, kRight = 2 };
+
+/// Which side of the plane `split` on `axis` a reference goes to; planar references lying
+/// in the plane go to `planar_side`. Compares against exactly the float stored in the node.
+inline Side classify(const Bounds3f& box, int axis, float split, Side planar_side) {
+    const float lo = box.lower[axis], hi = box.upper[axis];
+    if (hi <= split && lo < split) return kLeft;
+    if (lo >= split && hi > split) return kRight;
+    if (lo == split && hi == split) return planar_side;
+    return kBoth;
+}
+
+// ---------------------------------------------------------------------------------------
+// Build context shared by all tasks.
+
+struct Context {
+    const TriangleMesh* mesh = nullptr;
+    KdTreeParams params;
+    SahTuning tuning;
+    int max_depth = 0;
+    std::vector<float> f_table;  // thesis_f(n) for small n
+    ScratchMeter meter;
+
+    float f(size_t n) const {
+        return n < f_table.size() ? f_table[n] : thesis_f(float(n), params.q, params.n0);
+    }
+    float leaf_cost(size_t n) const { return params.intersect_cost * f(n); }
+    /// SAH cost of a split (Wald & Havran 2006, eq. 2 with the empty-space bonus lambda),
+    /// with the thesis's f(n) in place of n.
+    float split_cost(float p_left, float p_right, size_t n_left, size_t n_right) const {
+        float c = params.intersect_cost * (p_left * f(n_left) + p_right * f(n_right));
+        if (n_left == 0 || n_right == 0) c *= 1.0f - params.empty_bonus;
+        return params.traversal_cost + c;
+    }
+    /// Clips reference r to `child`; false when nothing of the triangle is left in it.
+    bool clip(const Ref& r, const Bounds3f& child, Ref& out) const {
+        const Vec3u& t = mesh->triangles[r.tri];
+        Bounds3f b;
+        if (!clip_triangle_to_box(mesh->positions[t.x], mesh->positions[t.y],
+                                  mesh->positions[t.z], child, b)) {
+            return false;
+        }
+        // Both boxes are conservative, so is their intersection.
+        b.lower = glm::max(b.lower, r.box.lower);
+        b.upper = glm::min(b.upper, r.box.upper);
+        if (b.empty()) return false;
+        out.box = b;
+        out.tri = r.tri;
+        return true;
+    }
+};
+
+/// A finished subtree in local depth-first order: node 0 is its root, child indices and
+/// leaf offsets are local.
+struct Subtree {
+    explicit Subtree(ScratchMeter* m) : nodes(MeteredAllocator<KdNode>(m)),
+                                        indices(MeteredAllocator<uint32_t>(m)) {}
+    MeteredVector<KdNode> nodes;
+    MeteredVector<uint32_t> indices;
+    uint64_t splits = 0;
+};
+
+/// The binned top of the tree: inner nodes, each ending in a swept subtree.
+struct TopNode {
+    explicit TopNode(ScratchMeter* m) : sub(m) {}
+    int axis = -1;  // -1: `sub` holds the subtree
+    float split = 0.0f;
+    std::unique_ptr<TopNode> child[2];
+    Subtree sub;
+};
+
+// ---------------------------------------------------------------------------------------
+// The exact event sweep (Wald & Havran 2006, section 4.3), one subtree per task.
+
+struct SweepNode {
+    explicit SweepNode(ScratchMeter* m)
+        : refs(MeteredAllocator<Ref>(m)),
+          events{MeteredVector<Event>(MeteredAllocator<Event>(m)),
+                 MeteredVector<Event>(MeteredAllocator<Event>(m)),
+                 MeteredVector<Event>(MeteredAllocator<Event>(m))} {}
+    void clear() {
+        refs.clear();
+        for (auto& e : events) e.clear();
+    }
+    MeteredVector<Ref> refs;
+    MeteredVector<Event> events[3];
+};
+
+/// Per-thread buffers, reused by every subtree the thread sweeps: two node slots per level
+/// (the left child is processed while the right one waits), plus split scratch.
+struct Workspace {
+    explicit Workspace(ScratchMeter* m)
+        : meter(m),
+          side(MeteredAllocator<uint8_t>(m)),
+          remap(MeteredAllocator<uint32_t>(m)),
+          both(MeteredAllocator<uint32_t>(m)),
+          tmp{MeteredVector<Event>(MeteredAllocator<Event>(m)),
+              MeteredVector<Event>(MeteredAllocator<Event>(m))},
+          fresh{SweepNode(m), SweepNode(m)} {}
+    SweepNode& slot(int level, int which) {
+        while (levels.size() <= size_t(2 * level + 1)) {
+            levels.emplace_back(meter);
+            levels.emplace_back(meter);
+        }
+        return levels[size_t(2 * level + which)];
+    }
+    ScratchMeter* meter;
+    std::deque<SweepNode> levels;  // deque: slots keep their address as levels are added
+    MeteredVector<uint8_t> side;
+    MeteredVector<uint32_t> remap;
+    MeteredVector<uint32_t> both;    // straddling references of the node being split
+    MeteredVector<Event> tmp[2];     // spliced one-sided events before the merge
+    SweepNode fresh[2];  // events of clipped straddlers for the left and right child
+};
+
+struct SweepSplit {
+    float cost = kInfinity;
+    int axis = -1;
+    float pos = 0.0f;
+    Side planar_side = kLeft;
+};
+
+class SweepBuilder {
+public:
+    SweepBuilder(const Context& ctx, Workspace& ws, Subtree& out)
+        : ctx_(ctx), ws_(ws), out_(out) {}
+
+    void build(const MeteredVector<Ref>& refs, const Bounds3f& box, int depth) {
+        SweepNode& root = ws_.slot(0, 0);
+        root.clear();
+        root.refs.assign(refs.begin(), refs.end());
+        for (size_t i = 0; i < root.refs.size(); ++i) {
+            add_events(root.refs[i].box, uint32_t(i), root.events);
+        }
+        for (auto& e : root.events) std::sort(e.begin(), e.end(), event_less);
+        out_.nodes.push_back(KdNode{});
+        recurse(root, box, depth, 0, 0);
+    }
+
+private:
+    SweepSplit find_split(const SweepNode& node, const Bounds3f& box) const {
+        SweepSplit best;
+        const float area = box.surface_area();
+        if (!(area > 0.0f) || !std::isfinite(area)) return best;
+        const float inv_area = 1.0f / area;
+        const size_t n = node.refs.size();
+        const Vec3f ext = box.extent();
+        for (int k = 0; k < 3; ++k) {
+            const float lo = box.lower[k], hi = box.upper[k];
+            if (!(hi > lo)) continue;
+            const float d1 = ext[(k + 1) % 3], d2 = ext[(k + 2) % 3];
+            const float cross = d1 * d2, sum = d1 + d2;
+            const auto& ev = node.events[k];
+            const size_t m = ev.size();
+            // Counters of the events seen so far (branch-free), and their values at the
+            // start of the current group of equal positions.
+            size_t ends = 0, planars = 0, starts = 0;
+            size_t group_planars = 0, group_starts = 0;
+            for (size_t i = 0; i < m; ++i) {
+                const uint32_t type = ev[i].code & 3u;
+                ends += type == kEnd;
+                planars += type == kPlanar;
+                starts += type == kStart;
+                const float p = ev[i].pos;
+                if (i + 1 < m && ev[i + 1].pos == p) continue;
+                // All events at p seen: N_L counts what starts before p, N_R what ends after.
+                const size_t in_plane = planars - group_planars;
+                const size_t n_left = group_starts + group_planars;
+                const size_t n_right = n - ends - planars;
+                group_planars = planars;
+                group_starts = starts;
+                // No split on the cell boundary: it would not separate anything.
+                if (!(p > lo && p < hi)) continue;
+                const float p_left = 2.0f * (cross + (p - lo) * sum) * inv_area;
+                const float p_right = 2.0f * (cross + (hi - p) * sum) * inv_area;
+                const float c_left = ctx_.split_cost(p_left, p_right, n_left + in_plane, n_right);
+                if (c_left < best.cost) best = {c_left, k, p, kLeft};
+                if (in_plane > 0) {
+                    const float c_right =
+                        ctx_.split_cost(p_left, p_right, n_left, n_right + in_plane);
+                    if (c_right < best.cost) best = {c_right, k, p, kRight};
+                }
+            }
+        }
+        return best;
+    }
+
+    void make_leaf(const SweepNode& node, uint32_t slot) {
+        const size_t n = node.refs.size();
+        KDT_CHECK(n < kMaxRefs && out_.indices.size() + n <= 0xffffffffull);
+        out_.nodes[slot] = KdNode::make_leaf(uint32_t(n), uint32_t(out_.indices.size()));
+        for (const Ref& r : node.refs) out_.indices.push_back(r.tri);
+    }
+
+    void recurse(SweepNode& node, const Bounds3f& box, int depth, int level, uint32_t slot) {
+        const size_t n = node.refs.size();
+        SweepSplit best;
+        if (n > 0 && depth < ctx_.max_depth) best = find_split(node, box);
+        if (best.axis < 0 || !(best.cost < ctx_.leaf_cost(n))) {
+            make_leaf(node, slot);
+            node.clear();
+            return;
+        }
+        const auto first_child = uint32_t(out_.nodes.size());
+        KDT_CHECK(first_child < kMaxRefs);
+        out_.nodes.resize(first_child + 2);
+        out_.nodes[slot] = KdNode::make_inner(best.axis, best.pos, first_child);
+        ++out_.splits;
+
+        Bounds3f left_box = box, right_box = box;
+        left_box.upper[best.axis] = best.pos;
+        right_box.lower[best.axis] = best.pos;
+        SweepNode& left = ws_.slot(level + 1, 0);
+        SweepNode& right = ws_.slot(level + 1, 1);
+        split(node, best, left_box, right_box, left, right);
+        node.clear();
+        recurse(left, left_box, depth + 1, level + 1, first_child);
+        recurse(right, right_box, depth + 1, level + 1, first_child + 1);
+    }
+
+    /// Wald & Havran 2006, section 4.4: classify by the events of the split axis, splice the
+    /// sorted event lists of one-sided references, clip straddlers and merge their events.
+    void split(SweepNode& node, const SweepSplit& s, const Bounds3f& left_box,
+               const Bounds3f& right_box, SweepNode& left, SweepNode& right) {
+        const size_t n = node.refs.size();
+        auto& side = ws_.side;
+        auto& remap = ws_.remap;
+        side.assign(n, kBoth);
+        remap.resize(n);
+        {
+            // The split axis's events are sorted: before the plane only ends and planars
+            // decide (left), in it every type has a fixed side, after it starts and planars
+            // decide (right). Written branch-free; a reference's later events win.
+            const auto& ev = node.events[s.axis];
+            const Event* first = ev.data();
+            const Event* last = first + ev.size();
+            const Event* in_plane =
+                std::partition_point(first, last, [&](const Event& e) { return e.pos < s.pos; });
+            const Event* after = std::partition_point(
+                in_plane, last, [&](const Event& e) { return e.pos == s.pos; });
+            for (const Event* e = first; e != in_plane; ++e) {
+                const uint32_t r = e->code >> 2;
+                side[r] = (e->code & 3u) == kStart ? side[r] : uint8_t(kLeft);
+            }
+            const uint8_t at_plane[3] = {kLeft, uint8_t(s.planar_side), kRight};  // by type
+            for (const Event* e = in_plane; e != after; ++e) {
+                side[e->code >> 2] = at_plane[e->code & 3u];
+            }
+            for (const Event* e = after; e != last; ++e) {
+                const uint32_t r = e->code >> 2;
+                side[r] = (e->code & 3u) == kEnd ? side[r] : uint8_t(kRight);
+            }
+        }
+        // An empty-space cut-off leaves every reference on one side: the child inherits
+        // the node's sorted lists unchanged (most splits of a perfect-split tree are these).
+        size_t n_left = 0, n_right = 0;
+        for (size_t i = 0; i < n; ++i) {
+            n_left += side[i] == kLeft;
+            n_right += side[i] == kRight;
+        }
+        if (n_left == n || n_right == n) {
+            SweepNode& full = n_left == n ? left : right;
+            SweepNode& empty = n_left == n ? right : left;
+            full.refs.swap(node.refs);
+            for (int k = 0; k < 3; ++k) full.events[k].swap(node.events[k]);
+            empty.clear();
+            return;
+        }
+        // One-sided references keep their order; straddlers are appended after them.
+        auto& both = ws_.both;
+        left.refs.resize(n);
+        right.refs.resize(n);
+        both.clear();
+        {
+            Ref* pl = left.refs.data();
+            Ref* pr = right.refs.data();
+            for (size_t i = 0; i < n; ++i) {
+                const Ref& r = node.refs[i];
+                const uint8_t sd = side[i];
+                remap[i] = sd == kLeft ? uint32_t(pl - left.refs.data())
+                                       : uint32_t(pr - right.refs.data());
+                *pl = r;
+                *pr = r;
+                pl += sd == kLeft;
+                pr += sd == kRight;
+                if (sd == kBoth) both.push_back(uint32_t(i));
+            }
+            left.refs.resize(size_t(pl - left.refs.data()));
+            right.refs.resize(size_t(pr - right.refs.data()));
+        }
+        SweepNode* child[2] = {&left, &right};
+        const Bounds3f* child_box[2] = {&left_box, &right_box};
+        for (auto& f : ws_.fresh) f.clear();
+        for (uint32_t i : both) {
+            for (int c = 0; c < 2; ++c) {
+                Ref clipped;
+                if (!ctx_.clip(node.refs[i], *child_box[c], clipped)) continue;
+                const auto index = uint32_t(child[c]->refs.size());
+                child[c]->refs.push_back(clipped);
+                add_events(clipped.box, index, ws_.fresh[c].events);
+            }
+        }
+        for (int k = 0; k < 3; ++k) {
+            // Splice: the events of one-sided references, renumbered, in their sorted order.
+            const auto& ev = node.events[k];
+            const size_t m = ev.size();
+            auto& tmp_left = ws_.tmp[0];
+            auto& tmp_right = ws_.tmp[1];
+            tmp_left.resize(m);
+            tmp_right.resize(m);
+            Event* pl = tmp_left.data();
+            Event* pr = tmp_right.data();
+            for (size_t i = 0; i < m; ++i) {
+                const uint32_t r = ev[i].code >> 2;
+                const uint8_t sd = side[r];
+                const Event moved(ev[i].pos, (remap[r] << 2) | (ev[i].code & 3u));
+                *pl = moved;
+                *pr = moved;
+                pl += sd == kLeft;
+                pr += sd == kRight;
+            }
+            tmp_left.resize(size_t(pl - tmp_left.data()));
+            tmp_right.resize(size_t(pr - tmp_right.data()));
+            // Merge in the sorted events of the clipped straddlers.
+            for (int c = 0; c < 2; ++c) {
+                auto& fresh = ws_.fresh[c].events[k];
+                auto& tmp = ws_.tmp[c];
+                auto& out = child[c]->events[k];
+                if (fresh.empty()) {
+                    out.swap(tmp);
+                    continue;
+                }
+                std::sort(fresh.begin(), fresh.end(), event_less);
+                out.resize(tmp.size() + fresh.size());
+                std::merge(tmp.begin(), tmp.end(), fresh.begin(), fresh.end(), out.begin(),
+                           event_less);
+            }
+        }
+    }
+
+    const Context& ctx_;
+    Workspace& ws_;
+    Subtree& out_;
+};
+
+// ---------------------------------------------------------------------------------------
+// The binned top levels: min/max bins over clipped references (no sorting), same cost.
+
+struct BinnedSplit {
+    float cost = kInfinity;
+    int axis = -1;
+    float pos = 0.0f;
+};
+
+BinnedSplit find_binned_split(const Context& ctx, const MeteredVector<Ref>& refs,
+                              const Bounds3f& box) {
+    BinnedSplit best;
+    const float area = box.surface_area();
+    if (!(area > 0.0f) || !std::isfinite(area)) return best;
+    const int bins = std::max(2, ctx.tuning.bins);
+    std::vector<uint32_t> starts(size_t(3 * bins), 0), ends(size_t(3 * bins), 0);
+    const Vec3f ext = box.extent();
+    float scale[3];
+    for (int k = 0; k < 3; ++k) scale[k] = ext[k] > 0.0f ? float(bins) / ext[k] : 0.0f;
+    auto bin = [&](float x, int k) {
+        const float t = (x - box.lower[k]) * scale[k];
+        return t >= float(bins) ? bins - 1 : (t > 0.0f ? int(t) : 0);  // NaN -> 0
+    };
+    for (const Ref& r : refs) {
+        for (int k = 0; k < 3; ++k) {
+            ++starts[size_t(k * bins + bin(r.box.lower[k], k))];
+            ++ends[size_t(k * bins + bin(r.box.upper[k], k))];
+        }
+    }
+    const float inv_area = 1.0f / area;
+    const size_t n = refs.size();
+    for (int k = 0; k < 3; ++k) {
+        const float lo = box.lower[k], hi = box.upper[k];
+        if (!(hi > lo)) continue;
+        const float d1 = ext[(k + 1) % 3], d2 = ext[(k + 2) % 3];
+        const float cross = d1 * d2, sum = d1 + d2;
+        size_t n_left = 0, n_right = n;
+        for (int j = 1; j < bins; ++j) {
+            n_left += starts[size_t(k * bins + j - 1)];
+            n_right -= ends[size_t(k * bins + j - 1)];
+            const float p = lo + ext[k] * (float(j) / float(bins));
+            if (!(p > lo && p < hi)) continue;
+            const float p_left = 2.0f * (cross + (p - lo) * sum) * inv_area;
+            const float p_right = 2.0f * (cross + (hi - p) * sum) * inv_area;
+            const float c = ctx.split_cost(p_left, p_right, n_left, n_right);
+            if (c < best.cost) best = {c, k, p};
+        }
+    }
+    return best;
+}
+
+struct TopJob {
+    TopJob(Context& c, TopNode& t, MeteredVector<Ref> r, const Bounds3f& b, int d)
+        : ctx(c), node(t), refs(std::move(r)), box(b), depth(d) {}
+    Context& ctx;
+    TopNode& node;
+    MeteredVector<Ref> refs;
+    Bounds3f box;
+    int depth;
+};
+
+class TopBuilder {
+public:
+    TopBuilder(Context& ctx, std::vector<std::unique_ptr<Workspace>>& workspaces)
+        : ctx_(ctx), workspaces_(workspaces) {}
+
+    void build(std::unique_ptr<TopJob> job) {
+        Context& ctx = ctx_;
+        const size_t n = job->refs.size();
+        if (n <= ctx.tuning.sweep_threshold || job->depth >= ctx.max_depth) {
+            sweep_task(std::move(job));
+            return;
+        }
+        const BinnedSplit s = find_binned_split(ctx, job->refs, job->box);
+        if (s.axis < 0 || !(s.cost < ctx.leaf_cost(n))) {
+            // The bins see no gain; the exact sweep decides.
+            sweep_task(std::move(job));
+            return;
+        }
+        Bounds3f child_box[2] = {job->box, job->box};
+        child_box[0].upper[s.axis] = s.pos;
+        child_box[1].lower[s.axis] = s.pos;
+
+        // Two passes: count, then fill exactly sized child arrays.
+        MeteredVector<uint8_t> side(job->refs.size(), kBoth, MeteredAllocator<uint8_t>(&ctx.meter));
+        size_t count[3] = {0, 0, 0};
+        for (size_t i = 0; i < n; ++i) {
+            side[i] = classify(job->refs[i].box, s.axis, s.pos, kLeft);
+            ++count[side[i]];
+        }
+        MeteredVector<Ref> child_refs[2] = {MeteredVector<Ref>(MeteredAllocator<Ref>(&ctx.meter)),
+                                            MeteredVector<Ref>(MeteredAllocator<Ref>(&ctx.meter))};
+        child_refs[0].reserve(count[kLeft] + count[kBoth]);
+        child_refs[1].reserve(count[kRight] + count[kBoth]);
+        for (size_t i = 0; i < n; ++i) {
+            const Ref& r = job->refs[i];
+            if (side[i] == kLeft) {
+                child_refs[0].push_back(r);
+            } else if (side[i] == kRight) {
+                child_refs[1].push_back(r);
+            } else {
+                for (int c = 0; c < 2; ++c) {
+                    Ref clipped;
+                    if (ctx.clip(r, child_box[c], clipped)) child_refs[c].push_back(clipped);
+                }
+            }
+        }
+        release(side);
+        release(job->refs);
+
+        TopNode& node = job->node;
+        node.axis = s.axis;
+        node.split = s.pos;
+        std::unique_ptr<TopJob> child_job[2];
+        for (int c = 0; c < 2; ++c) {
+            node.child[c] = std::make_unique<TopNode>(&ctx.meter);
+            child_job[c] = std::make_unique<TopJob>(ctx, *node.child[c], std::move(child_refs[c]),
+                                                    child_box[c], job->depth + 1);
+        }
+        job.reset();
+        if (n > ctx.tuning.task_threshold) {
+            TopJob* left = child_job[0].release();
+#pragma omp task firstprivate(left)
+            build(std::unique_ptr<TopJob>(left));
+        } else {
+            build(std::move(child_job[0]));
+        }
+        build(std::move(child_job[1]));
+    }
+
+private:
+    void sweep_task(std::unique_ptr<TopJob> job) {
+        TopJob* raw = job.release();
+#pragma omp task firstprivate(raw)
+        {
+            std::unique_ptr<TopJob> own(raw);
+            auto& ws = workspaces_[size_t(omp_get_thread_num())];
+            if (!ws) ws = std::make_unique<Workspace>(&own->ctx.meter);
+            SweepBuilder sweep(own->ctx, *ws, own->node.sub);
+            sweep.build(own->refs, own->box, own->depth);
+        }
+    }
+
+    Context& ctx_;
+    std::vector<std::unique_ptr<Workspace>>& workspaces_;
+};
+
+// ---------------------------------------------------------------------------------------
+// Assembly: one depth-first pass copies every subtree into the final arrays.
+
+void count_output(const TopNode& t, size_t& nodes, size_t& indices, uint64_t& splits) {
+    if (t.axis >= 0) {
+        nodes += 2;
+        ++splits;
+        count_output(*t.child[0], nodes, indices, splits);
+        count_output(*t.child[1], nodes, indices, splits);
+    } else {
+        nodes += t.sub.nodes.size() - 1;
+        indices += t.sub.indices.size();
+        splits += t.sub.splits;
+    }
+}
+
+void emit(TopNode& t, uint32_t slot, KdBuildOutput& out) {
+    if (t.axis >= 0) {
+        const auto first_child = uint32_t(out.nodes.size());
+        out.nodes.resize(first_child + 2);
+        out.nodes[slot] = KdNode::make_inner(t.axis, t.split, first_child);
+        emit(*t.child[0], first_child, out);
+        t.child[0].reset();
+        emit(*t.child[1], first_child + 1, out);
+        t.child[1].reset();
+        return;
+    }
+    const auto index_base = uint32_t(out.indices.size());
+    out.indices.insert(out.indices.end(), t.sub.indices.begin(), t.sub.indices.end());
+    const auto base = uint32_t(out.nodes.size());  // local node i >= 1 goes to base + i - 1
+    for (size_t i = 0; i < t.sub.nodes.size(); ++i) {
+        KdNode nd = t.sub.nodes[i];
+        nd = nd.is_leaf() ? KdNode::make_leaf(nd.count(), nd.first + index_base)
+                          : KdNode::make_inner(nd.axis(), nd.split, base + nd.child() - 1);
+        if (i == 0) {
+            out.nodes[slot] = nd;
+        } else {
+            out.nodes.push_back(nd);
+        }
+    }
+    release(t.sub.nodes);
+    release(t.sub.indices);
+}
+
+/// The next float towards -infinity / +infinity (finite, non-NaN input).
+inline float next_float_down(float x) {
+    if (x == 0.0f) return -std::numeric_limits<float>::denorm_min();
+    uint32_t bits = std::bit_cast<uint32_t>(x);
+    bits = x > 0.0f ? bits - 1 : bits + 1;
+    return std::bit_cast<float>(bits);
+}
+inline float next_float_up(float x) { return -next_float_down(-x); }
+
+}  // namespace
+
+bool clip_triangle_to_box(const Vec3f& a, const Vec3f& b, const Vec3f& c, const Bounds3f& box,
+                          Bounds3f& clipped) {
+    // Sutherland-Hodgman against the planes that cut the triangle's bounds; a triangle has at
+    // most 3 + 6 vertices after six planes. Each vertex remembers on which axes its
+    // coordinate is exact (an input vertex, the clipping plane itself, or an edge parallel
+    // to that axis); only interpolated coordinates get a safety margin.
+    struct V {
+        Vec3d p;
+        unsigned exact;  // bit k: coordinate k is exact
+    };
+    V poly[2][9];
+    int count = 3;
+    int cur = 0;
+    poly[0][0] = {Vec3d(a), 7u};
+    poly[0][1] = {Vec3d(b), 7u};
+    poly[0][2] = {Vec3d(c), 7u};
+    for (int k = 0; k < 3; ++k) {
+        for (int upper = 0; upper < 2; ++upper) {
+            const double plane = upper ? double(box.upper[k]) : double(box.lower[k]);
+            auto inside = [&](const V& v) { return upper ? v.p[k] <= plane : v.p[k] >= plane; };
+            int n_inside = 0;
+            for (int i = 0; i < count; ++i) n_inside += inside(poly[cur][i]) ? 1 : 0;
+            if (n_inside == 0) return false;
+            if (n_inside == count) continue;
+            const V* in = poly[cur];
+            V* out = poly[1 - cur];
+            int m = 0;
+            for (int i = 0; i < count; ++i) {
+                const V& p = in[i];
+                const V& q = in[(i + 1) % count];
+                const bool p_in = inside(p), q_in = inside(q);
+                if (p_in) out[m++] = p;
+                if (p_in != q_in) {
+                    const double t = (plane - p.p[k]) / (q.p[k] - p.p[k]);
+                    if (t <= 0.0 || t >= 1.0) {  // the edge meets the plane in a vertex
+                        out[m++] = t <= 0.0 ? p : q;
+                        continue;
+                    }
+                    V x{p.p + t * (q.p - p.p), 1u << k};
+                    x.p[k] = plane;  // exactly on the plane
+                    for (int j = 0; j < 3; ++j) {
+                        if (j != k && p.p[j] == q.p[j] && (p.exact & q.exact & (1u << j))) {
+                            x.p[j] = p.p[j];
+                            x.exact |= 1u << j;
+                        }
+                    }
+                    out[m++] = x;
+                }
+            }
+            count = m;
+            cur = 1 - cur;
+        }
+    }
+    double magnitude = 0.0;
+    for (int k = 0; k < 3; ++k) {
+        magnitude = std::max({magnitude, std::abs(double(box.lower[k])),
+                              std::abs(double(box.upper[k])), std::abs(double(a[k])),
+                              std::abs(double(b[k])), std::abs(double(c[k]))});
+    }
+    // Interpolated coordinates carry a few double ulps of error relative to the largest
+    // coordinate involved; widen them by far more than that before rounding to float.
+    const double margin = magnitude * 1e-13;
+    for (int k = 0; k < 3; ++k) {
+        double lo = kInfinity, hi = -kInfinity;
+        for (int i = 0; i < count; ++i) {
+            const V& v = poly[cur][i];
+            const double e = (v.exact >> k) & 1u ? 0.0 : margin;
+            lo = std::min(lo, v.p[k] - e);
+            hi = std::max(hi, v.p[k] + e);
+        }
+        // Round outward so the float box contains the exact clipped triangle.
+        float l = float(lo), h = float(hi);
+        if (double(l) > lo) l = next_float_down(l);
+        if (double(h) < hi) h = next_float_up(h);
+        clipped.lower[k] = std::max(l, box.lower[k]);
+        clipped.upper[k] = std::min(h, box.upper[k]);
+    }
+    return !clipped.empty();
+}
+
+KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& params) {
+    return build_sah_tree(mesh, params, SahTuning{});
+}
+
+KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& params,
+                             const SahTuning& tuning) {
+    const size_t tri_count = mesh.triangle_count();
+    if (tri_count >= kMaxRefs) {
+        throw Error(ErrorLocation{"", "mesh", -1, -1, -1},
+                    std::to_string(tri_count) + " triangles is more than the kd-tree supports (" +
+                        std::to_string(kMaxRefs - 1) + ")");
+    }
+    Context ctx;
+    ctx.mesh = &mesh;
+    ctx.params = params;
+    ctx.tuning = tuning;
+    if (params.max_depth > 0) {
+        ctx.max_depth = std::min(params.max_depth, 64);
+    } else {
+        const double auto_depth = 8.0 + 1.3 * std::log2(double(std::max<size_t>(tri_count, 1)));
+        ctx.max_depth = std::min(64, int(auto_depth));
+    }
+    // f(n) tabulated for the node sizes that dominate the build (pow() is slow).
+    const size_t table = std::min<size_t>(tri_count, 1u << 16) + 1;
+    ctx.f_table.resize(table);
+    for (size_t i = 0; i < table; ++i) ctx.f_table[i] = thesis_f(float(i), params.q, params.n0);
+
+    // References of every triangle with finite vertices; the others are never referenced.
+    MeteredVector<Ref> refs{MeteredAllocator<Ref>(&ctx.meter)};
+    refs.reserve(tri_count);
+    Bounds3f valid_bounds;
+    const size_t vertex_count = mesh.vertex_count();
+    for (size_t i = 0; i < tri_count; ++i) {
+        const Vec3u& t = mesh.triangles[i];
+        for (int j = 0; j < 3; ++j) {
+            if (t[j] >= vertex_count) {
+                throw Error(ErrorLocation{"", "triangle", int64_t(i), -1, -1},
+                            "vertex index " + std::to_string(t[j]) + " out of range (" +
+                                std::to_string(vertex_count) + " vertices)");
+            }
+        }
+        const Bounds3f b = mesh.triangle_bounds(i);
+        if (!is_finite(b.lower) || !is_finite(b.upper)) continue;
+        // triangle_bounds() silently drops NaN coordinates; check the vertices themselves.
+        if (!is_finite(mesh.positions[t.x]) || !is_finite(mesh.positions[t.y]) ||
+            !is_finite(mesh.positions[t.z])) {
+            continue;
+        }
+        refs.push_back({b, uint32_t(i)});
+        valid_bounds.extend(b);
+    }
+
+    KdBuildOutput out;
+    Bounds3f mesh_bounds = mesh.bounds();
+    out.bounds = (is_finite(mesh_bounds.lower) && is_finite(mesh_bounds.upper)) ? mesh_bounds
+                                                                               : valid_bounds;
+    // The root box must hold every reference; valid_bounds is inside mesh_bounds anyway.
+    Bounds3f root_box = out.bounds;
+    root_box.extend(valid_bounds);
+
+    TopNode top(&ctx.meter);
+    {
+        int threads = params.threads > 0 ? params.threads : omp_get_max_threads();
+        std::vector<std::unique_ptr<Workspace>> workspaces(size_t(std::max(threads, 1)));
+        TopBuilder builder(ctx, workspaces);
+        auto job = std::make_unique<TopJob>(ctx, top, std::move(refs), root_box, 0);
+#pragma omp parallel num_threads(threads)
+#pragma omp single
+        builder.build(std::move(job));
+    }
+
+    size_t node_count = 1, index_count = 0;
+    uint64_t splits = 0;
+    count_output(top, node_count, index_count, splits);
+    out.nodes.reserve(node_count);
+    out.indices.reserve(index_count);
+    out.nodes.emplace_back();
+    emit(top, 0, out);
+    KDT_CHECK(out.nodes.size() == node_count && out.indices.size() == index_count);
+    finalize_stats(out, tri_count);
+    out.stats.sah_splits = splits;
+    out.stats.peak_build_bytes = uint64_t(std::max<int64_t>(ctx.meter.peak(), 0));
+    return out;
+}
+
+}  // namespace kdt

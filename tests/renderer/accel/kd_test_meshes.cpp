@@ -1,0 +1,100 @@
+#include "tests/renderer/accel/kd_test_meshes.h"
+
+#include <random>
+#include <string>
+
+#include "renderer/core/error.h"
+#include "renderer/geometry/intersect.h"
+
+namespace kdt::test {
+
+TriangleMesh make_blob(int levels, float radius, uint32_t seed) {
+    TriangleMesh octa;
+    octa.positions = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+    octa.triangles = {{0, 2, 4}, {2, 1, 4}, {1, 3, 4}, {3, 0, 4},
+                      {2, 0, 5}, {1, 2, 5}, {3, 1, 5}, {0, 3, 5}};
+    TriangleMesh m = subdivide_mesh(octa, levels);
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> r(0.7f, 1.3f);
+    for (Vec3f& p : m.positions) p = glm::normalize(p) * (r(rng) * radius);
+    return m;
+}
+
+TriangleMesh make_soup(size_t n, float size, uint32_t seed) {
+    TriangleMesh m;
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> c(-1.0f, 1.0f), e(-0.5f, 0.5f);
+    for (size_t i = 0; i < n; ++i) {
+        Vec3f p(c(rng), c(rng), c(rng));
+        const auto base = uint32_t(m.positions.size());
+        m.positions.push_back(p);
+        m.positions.push_back(p + size * Vec3f(e(rng), e(rng), e(rng)));
+        m.positions.push_back(p + size * Vec3f(e(rng), e(rng), e(rng)));
+        m.triangles.push_back({base, base + 1, base + 2});
+    }
+    return m;
+}
+
+TriangleMesh make_planar_grid(int n, uint32_t seed) {
+    TriangleMesh m;
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> j(-0.25f, 0.25f);
+    for (int layer = 0; layer < 2; ++layer) {
+        const auto base = uint32_t(m.positions.size());
+        for (int y = 0; y <= n; ++y)
+            for (int x = 0; x <= n; ++x)
+                m.positions.push_back(layer == 0 ? Vec3f(float(x), float(y), 0.0f)
+                                                 : Vec3f(float(x), float(y), 2.0f + j(rng)));
+        auto id = [&](int x, int y) { return base + uint32_t(y * (n + 1) + x); };
+        for (int y = 0; y < n; ++y)
+            for (int x = 0; x < n; ++x) {
+                m.triangles.push_back({id(x, y), id(x + 1, y), id(x + 1, y + 1)});
+                m.triangles.push_back({id(x, y), id(x + 1, y + 1), id(x, y + 1)});
+            }
+    }
+    return m;
+}
+
+Hit brute_force_hit(const TriangleMesh& mesh, const Ray& ray) {
+    Hit hit;
+    if (!is_finite(ray.origin) || !is_finite(ray.dir) || ray.dir == Vec3f(0.0f)) return hit;
+    WatertightRay wr(ray.origin, ray.dir);
+    float best = ray.tmax;
+    for (size_t i = 0; i < mesh.triangles.size(); ++i) {
+        const Vec3u& t = mesh.triangles[i];
+        float tt, u, v;
+        if (intersect_triangle(wr, mesh.positions[t.x], mesh.positions[t.y], mesh.positions[t.z],
+                               ray.tmin, best, tt, u, v)) {
+            best = tt;
+            hit.t = tt;
+            hit.u = u;
+            hit.v = v;
+            hit.prim = uint32_t(i);
+        }
+    }
+    return hit;
+}
+
+bool brute_force_occluded(const TriangleMesh& mesh, const Ray& ray) {
+    if (!is_finite(ray.origin) || !is_finite(ray.dir) || ray.dir == Vec3f(0.0f)) return false;
+    WatertightRay wr(ray.origin, ray.dir);
+    for (const Vec3u& t : mesh.triangles) {
+        float tt, u, v;
+        if (intersect_triangle(wr, mesh.positions[t.x], mesh.positions[t.y], mesh.positions[t.z],
+                               ray.tmin, ray.tmax, tt, u, v))
+            return true;
+    }
+    return false;
+}
+
+std::shared_ptr<const KdTree> try_build(std::shared_ptr<const TriangleMesh> mesh,
+                                        const KdTreeParams& params) {
+    try {
+        return build_kdtree(std::move(mesh), params);
+    } catch (const Error& e) {
+        if (std::string(e.what()).find("not built yet") != std::string::npos) return nullptr;
+        throw;
+    }
+}
+
+}  // namespace kdt::test

@@ -1,0 +1,33 @@
+// Generated test meshes and a brute-force oracle shared by the kd-tree tests.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "renderer/accel/kdtree.h"
+#include "renderer/geometry/mesh.h"
+
+namespace kdt::test {
+
+/// Closed, star-shaped mesh around the origin: an octahedron subdivided `levels` times
+/// (8 * 4^levels triangles) with vertex radii jittered in [0.7, 1.3] * radius.
+TriangleMesh make_blob(int levels, float radius, uint32_t seed);
+/// n random triangles with edge lengths up to `size` inside [-1, 1]^3.
+TriangleMesh make_soup(size_t n, float size, uint32_t seed);
+/// A regular grid of 2 n^2 triangles in the plane z = 0 over [0, n]^2 (vertices on
+/// integers, so many split planes pass through vertices and edges), plus a jittered copy
+/// folded above it.
+TriangleMesh make_planar_grid(int n, uint32_t seed);
+
+/// Closest hit over all triangles with the same watertight test the tree uses.
+Hit brute_force_hit(const TriangleMesh& mesh, const Ray& ray);
+/// Any hit over all triangles.
+bool brute_force_occluded(const TriangleMesh& mesh, const Ray& ray);
+
+/// Builds with `params`, returning nullptr when the builder reports it is not built yet
+/// (the SAH builder before its branch lands); other errors propagate.
+std::shared_ptr<const KdTree> try_build(std::shared_ptr<const TriangleMesh> mesh,
+                                        const KdTreeParams& params);
+
+}  // namespace kdt::test

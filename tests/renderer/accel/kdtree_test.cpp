@@ -1,0 +1,308 @@
+// Cross-check of both builders' trees against brute force on seeded random rays, plus
+// parameter validation, statistics and the node layout.
+#include "renderer/accel/kdtree.h"
+
+#include <cmath>
+#include <random>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "renderer/accel/builder.h"
+#include "renderer/core/error.h"
+#include "renderer/geometry/intersect.h"
+#include "tests/renderer/accel/kd_test_meshes.h"
+
+namespace kdt {
+namespace {
+
+struct ParamCase {
+    const char* name;
+    KdTreeParams params;
+};
+
+KdTreeParams make_params(float q, int n0, int depth, bool all_axes = false) {
+    KdTreeParams p;
+    p.q = q;
+    p.n0 = n0;
+    p.max_depth = depth;
+    p.thesis_all_axes = all_axes;
+    return p;
+}
+
+const ParamCase kParamCases[] = {
+    {"default", make_params(0.98f, 5, 0)},
+    {"q1_n0_0_depth64_allaxes", make_params(1.0f, 0, 64, true)},
+    {"q0.5_n0_2_depth12", make_params(0.5f, 2, 12)},
+};
+
+// Random rays of several kinds over a mesh: free, aimed at triangles, axis-aligned from
+// vertex coordinates (origins on split planes), and with clipped intervals.
+std::vector<Ray> make_rays(const TriangleMesh& mesh, size_t n, uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u01(0.0f, 1.0f);
+    const Bounds3f b = mesh.bounds();
+    const Vec3f c = b.center(), e = b.extent() * 0.75f + Vec3f(0.1f);
+    auto point = [&] {
+        return c + e * Vec3f(2 * u01(rng) - 1, 2 * u01(rng) - 1, 2 * u01(rng) - 1);
+    };
+    auto sphere = [&] {
+        float z = 2 * u01(rng) - 1, phi = 2 * kPi * u01(rng), r = std::sqrt(1 - z * z);
+        return Vec3f(r * std::cos(phi), r * std::sin(phi), z);
+    };
+    std::vector<Ray> rays(n);
+    for (size_t i = 0; i < n; ++i) {
+        Ray& r = rays[i];
+        r.origin = point();
+        switch (i % 5) {
+            case 0:
+                r.dir = sphere();
+                break;
+            case 1:
+            case 2: {  // aimed at a random point of a random triangle
+                const Vec3u& t = mesh.triangles[rng() % mesh.triangles.size()];
+                float a = u01(rng), bb = u01(rng);
+                if (a + bb > 1) a = 1 - a, bb = 1 - bb;
+                Vec3f target = mesh.positions[t.x] +
+                               a * (mesh.positions[t.y] - mesh.positions[t.x]) +
+                               bb * (mesh.positions[t.z] - mesh.positions[t.x]);
+                r.dir = (target - r.origin) * (0.5f + u01(rng));
+                break;
+            }
+            case 3: {  // axis-aligned, origin coordinates taken from vertices
+                const Vec3f& v = mesh.positions[rng() % mesh.positions.size()];
+                const int axis = int(rng() % 3);
+                for (int k = 0; k < 3; ++k)
+                    if (k != axis && (rng() & 1)) r.origin[k] = v[k];
+                r.dir = Vec3f(0.0f);
+                r.dir[axis] = (rng() & 1) ? 1.0f : -1.0f;
+                break;
+            }
+            case 4:  // clipped interval
+                r.dir = sphere() * (0.1f + 3 * u01(rng));
+                r.tmin = 0.3f * u01(rng);
+                r.tmax = r.tmin + 2 * u01(rng);
+                break;
+        }
+    }
+    return rays;
+}
+
+class KdTreeBruteForce : public ::testing::TestWithParam<std::tuple<KdBuilder, int>> {};
+
+TEST_P(KdTreeBruteForce, ClosestAndAnyHitMatchBruteForce) {
+    const KdBuilder builder = std::get<0>(GetParam());
+    const ParamCase& pc = kParamCases[std::get<1>(GetParam())];
+    KdTreeParams params = pc.params;
+    params.builder = builder;
+    // Small meshes keep the brute force affordable under the sanitizers.
+    const TriangleMesh meshes[] = {test::make_blob(3, 1.0f, 11), test::make_soup(800, 0.3f, 12),
+                                   test::make_planar_grid(14, 13)};
+    size_t rays_checked = 0, hits = 0;
+    for (size_t mi = 0; mi < std::size(meshes); ++mi) {
+        auto mesh = std::make_shared<TriangleMesh>(meshes[mi]);
+        auto tree = test::try_build(mesh, params);
+        if (!tree) GTEST_SKIP() << "SAH builder not built yet (build_sah_tree throws)";
+        const std::vector<Ray> rays = make_rays(*mesh, 12000, uint32_t(100 + mi));
+        int failures = 0;
+        for (size_t i = 0; i < rays.size() && failures < 5; ++i) {
+            const Ray& r = rays[i];
+            const Hit ref = test::brute_force_hit(*mesh, r);
+            Hit hit;
+            const bool got = tree->intersect(r, hit);
+            ++rays_checked;
+            hits += ref.valid();
+            bool ok = got == ref.valid() && hit.valid() == got;
+            if (ok && got) {
+                ok = std::fabs(hit.t - ref.t) <= 1e-6f * std::fabs(ref.t);
+                if (ok && hit.prim != ref.prim) {
+                    // Allowed only for an exact tie: the tree's triangle at the same t.
+                    Ray tie = r;
+                    tie.tmax = ref.t;
+                    float t, u, v;
+                    const Vec3u& tri = mesh->triangles[hit.prim];
+                    ok = intersect_triangle(tie, mesh->positions[tri.x], mesh->positions[tri.y],
+                                            mesh->positions[tri.z], t, u, v) &&
+                         t == ref.t;
+                }
+            }
+            const bool occ = tree->occluded(r);
+            ok = ok && occ == (i % 4 ? got : test::brute_force_occluded(*mesh, r));
+            if (!ok) {
+                ++failures;
+                ADD_FAILURE() << pc.name << " mesh " << mi << " ray " << i << ": tree "
+                              << (got ? std::to_string(hit.t) + " prim " + std::to_string(hit.prim)
+                                      : "miss")
+                              << ", brute force "
+                              << (ref.valid()
+                                      ? std::to_string(ref.t) + " prim " + std::to_string(ref.prim)
+                                      : "miss")
+                              << ", occluded " << occ;
+            }
+        }
+    }
+    EXPECT_EQ(rays_checked, 36000u);
+    EXPECT_GT(hits, rays_checked / 4);  // the comparison is not vacuous
+}
+
+INSTANTIATE_TEST_SUITE_P(Builders, KdTreeBruteForce,
+                         ::testing::Combine(::testing::Values(KdBuilder::thesis, KdBuilder::sah),
+                                            ::testing::Range(0, int(std::size(kParamCases)))),
+                         [](const ::testing::TestParamInfo<std::tuple<KdBuilder, int>>& pi) {
+                             std::string name =
+                                 std::string(kKdBuilderNames[size_t(std::get<0>(pi.param))]) + "_" +
+                                 kParamCases[std::get<1>(pi.param)].name;
+                             for (char& ch : name)
+                                 if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+                             return name;
+                         });
+
+TEST(KdTreeParams, ValidateNamesTheBadParameter) {
+    auto expect_error = [](KdTreeParams p, const std::string& name) {
+        try {
+            validate(p);
+            ADD_FAILURE() << "no error for " << name;
+        } catch (const Error& e) {
+            EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+        }
+    };
+    KdTreeParams p;
+    EXPECT_NO_THROW(validate(p));
+    p.q = 0.0f;
+    expect_error(p, "q");
+    p.q = 1.0001f;
+    expect_error(p, "q");
+    p.q = std::numeric_limits<float>::quiet_NaN();
+    expect_error(p, "q");
+    p = {};
+    p.n0 = -1;
+    expect_error(p, "n0");
+    p.n0 = 1000001;
+    expect_error(p, "n0");
+    p = {};
+    p.max_depth = 65;
+    expect_error(p, "max_depth");
+    p.max_depth = -1;
+    expect_error(p, "max_depth");
+    p = {};
+    p.q = 1.0f;
+    p.n0 = 1000000;
+    p.max_depth = 64;
+    EXPECT_NO_THROW(validate(p));
+    p.q = 1e-30f;
+    p.n0 = 0;
+    EXPECT_NO_THROW(validate(p));
+    // build_kdtree validates too.
+    KdTreeParams bad;
+    bad.q = 2.0f;
+    EXPECT_THROW(build_kdtree(std::make_shared<TriangleMesh>(), bad), Error);
+}
+
+TEST(ThesisF, MatchesTheFormula) {
+    EXPECT_FLOAT_EQ(thesis_f(3.0f, 0.9f, 5), 3.0f);
+    EXPECT_FLOAT_EQ(thesis_f(5.0f, 0.9f, 5), 5.0f);
+    EXPECT_NEAR(thesis_f(21.0f, 0.9f, 5), std::pow(16.0f, 1.0f + std::log2(0.9f)) + 5.0f, 1e-4);
+    EXPECT_FLOAT_EQ(thesis_f(21.0f, 1.0f, 5), 21.0f);
+    EXPECT_LT(thesis_f(1000.0f, 0.98f, 5), 1000.0f);
+}
+
+TEST(ThesisBuilder, StatisticsAreConsistent) {
+    auto mesh = std::make_shared<TriangleMesh>(test::make_blob(5, 1.0f, 3));
+    KdTreeParams p;
+    p.builder = KdBuilder::thesis;
+    auto tree = build_kdtree(mesh, p);
+    const KdTreeStats& s = tree->stats();
+    EXPECT_EQ(s.nodes, tree->nodes().size());
+    EXPECT_EQ(s.nodes, 2 * s.leaves - 1);
+    EXPECT_EQ(s.references, tree->indices().size());
+    EXPECT_EQ(s.nodes - s.leaves, s.median_splits + s.center_splits + s.cutoff_splits);
+    EXPECT_EQ(s.sah_splits, 0u);
+    EXPECT_GT(s.median_splits, 0u);
+    EXPECT_GT(s.center_splits, 0u);
+    EXPECT_GT(s.cutoff_splits, 0u);
+    EXPECT_GE(s.refs_per_triangle, 1.0);
+    EXPECT_EQ(s.bytes, s.nodes * 8 + s.references * 4);
+    EXPECT_NEAR(s.bytes_per_triangle, double(s.bytes) / double(mesh->triangle_count()), 1e-9);
+    uint64_t leaves = 0;
+    for (uint64_t c : s.depth_histogram) leaves += c;
+    EXPECT_EQ(leaves, s.leaves);
+    EXPECT_EQ(s.depth_histogram.size(), s.max_depth_reached + 1u);
+    // Automatic depth: 8 + 1.3 log2(N).
+    EXPECT_LE(s.max_depth_reached, uint32_t(8 + 1.3 * std::log2(double(mesh->triangle_count()))));
+    EXPECT_GT(s.build_seconds, 0.0);
+    EXPECT_GT(s.peak_build_bytes, 0u);
+    EXPECT_LE(s.max_leaf_size, 1000u);
+    EXPECT_GT(s.mean_leaf_size, 0.0);
+
+    // Layout: children adjacent and after their parent, every triangle referenced.
+    std::vector<int> referenced(mesh->triangle_count(), 0);
+    for (size_t i = 0; i < tree->nodes().size(); ++i) {
+        const KdNode& n = tree->nodes()[i];
+        if (n.is_leaf()) {
+            for (uint32_t k = 0; k < n.count(); ++k) referenced[tree->indices()[n.first + k]] = 1;
+        } else {
+            EXPECT_GT(n.child(), i);
+            EXPECT_LT(n.child() + 1, tree->nodes().size());
+        }
+    }
+    for (int r : referenced) ASSERT_EQ(r, 1);
+}
+
+TEST(ThesisBuilder, CandidateSwitchesAreHonoured) {
+    auto mesh = std::make_shared<TriangleMesh>(test::make_blob(4, 1.0f, 5));
+    KdTreeParams p;
+    p.builder = KdBuilder::thesis;
+    p.use_median_split = false;
+    auto t1 = build_kdtree(mesh, p);
+    EXPECT_EQ(t1->stats().median_splits, 0u);
+    EXPECT_GT(t1->stats().center_splits, 0u);
+    p.use_median_split = true;
+    p.use_center_split = false;
+    auto t2 = build_kdtree(mesh, p);
+    EXPECT_EQ(t2->stats().center_splits, 0u);
+    EXPECT_GT(t2->stats().median_splits, 0u);
+    p.use_center_split = p.use_median_split = p.use_cutoff_split = false;
+    auto t3 = build_kdtree(mesh, p);  // only "terminate" is left
+    EXPECT_EQ(t3->stats().nodes, 1u);
+}
+
+TEST(ThesisBuilder, ThreadCountDoesNotChangeTheTree) {
+    auto mesh = std::make_shared<TriangleMesh>(test::make_blob(6, 1.0f, 9));  // 32k triangles
+    KdTreeParams p;
+    p.builder = KdBuilder::thesis;
+    p.threads = 1;
+    auto a = build_kdtree(mesh, p);
+    p.threads = 2;
+    auto b = build_kdtree(mesh, p);
+    ASSERT_EQ(a->nodes().size(), b->nodes().size());
+    ASSERT_EQ(a->indices(), b->indices());
+    for (size_t i = 0; i < a->nodes().size(); ++i) {
+        ASSERT_EQ(a->nodes()[i].word, b->nodes()[i].word) << i;
+        ASSERT_EQ(a->nodes()[i].first, b->nodes()[i].first) << i;
+    }
+}
+
+TEST(KdTree, ConstructorRejectsCorruptTrees) {
+    auto mesh = std::make_shared<TriangleMesh>(test::make_soup(10, 0.3f, 1));
+    auto make = [&](std::vector<KdNode> nodes, std::vector<uint32_t> indices) {
+        return KdTree(mesh, mesh->bounds(), std::move(nodes), std::move(indices), {}, {});
+    };
+    EXPECT_NO_THROW(make({KdNode::make_leaf(2, 0)}, {0, 9}));
+    EXPECT_THROW(make({KdNode::make_leaf(3, 0)}, {0, 9}), Error);     // past indices
+    EXPECT_THROW(make({KdNode::make_leaf(2, 0)}, {0, 10}), Error);    // bad triangle
+    EXPECT_THROW(make({KdNode::make_inner(0, 0.0f, 0)}, {}), Error);  // self loop
+    EXPECT_THROW(make({KdNode::make_inner(0, 0.0f, 1), KdNode::make_leaf(0, 0)}, {}), Error);
+    EXPECT_THROW(make({}, {}), Error);
+    // A chain deeper than 64 levels.
+    std::vector<KdNode> deep;
+    for (uint32_t i = 0; i < 70; ++i) {
+        deep.push_back(KdNode::make_inner(0, 0.0f, 2 * i + 1));
+        deep.push_back(KdNode::make_leaf(0, 0));
+    }
+    deep.back() = KdNode::make_leaf(0, 0);
+    deep.push_back(KdNode::make_leaf(0, 0));
+    EXPECT_THROW(make(deep, {}), Error);
+}
+
+}  // namespace
+}  // namespace kdt
