@@ -140,6 +140,8 @@ std::shared_ptr<const KdTree> build_kdtree(std::shared_ptr<const TriangleMesh> m
     KdBuildOutput out = params.builder == KdBuilder::thesis ? build_thesis_tree(*mesh, params)
                                                             : build_sah_tree(*mesh, params);
     out.stats.build_seconds = timer.seconds();
+    // Idempotent; makes the counts consistent whichever builder ran.
+    finalize_stats(out, mesh->triangles.size());
     return std::make_shared<const KdTree>(std::move(mesh), out.bounds, std::move(out.nodes),
                                           std::move(out.indices), params, std::move(out.stats));
 }

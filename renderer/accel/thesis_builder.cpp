@@ -8,6 +8,7 @@
 // only, one touching it from the left goes to both (the contract in kdtree.h allows either).
 #include <algorithm>
 #include <atomic>
+#include <bit>
 #include <cmath>
 #include <memory>
 #include <utility>
@@ -72,10 +73,41 @@ struct Context {
 // the build does not fault in fresh pages at every level.
 struct Scratch {
     std::vector<float> coords;  // 3 vertex coordinates per triangle, for the median
-    std::vector<float> lo, hi;  // per-triangle extent along the axis
-    size_t counted = 0;         // bytes reported to Context for these buffers
+    std::vector<float> lo, hi;  // per-triangle extent along `axis`
+    int axis = -1;              // axis of lo/hi
+    std::vector<uint32_t> histogram;
+    std::vector<float> bucket;
+    size_t counted = 0;  // bytes reported to Context for these buffers
 };
 thread_local Scratch tls_scratch;
+
+// The k-th smallest of v (all in [lo, hi]), exactly: one histogram pass over about n / 4
+// bins of the range, then nth_element on the one bin holding rank k. Binning is monotone,
+// so the k-th value lies in the bin where the cumulative count passes k. Faster than
+// nth_element on all 3N coordinates, whose partition loop mispredicts branches.
+float select_kth(std::vector<float>& v, size_t k, float lo, float hi, Scratch& s) {
+    const int kBins =
+        int(std::min<size_t>(4096, std::bit_floor(std::max<size_t>(v.size() / 4, 1))));
+    const float scale = float(kBins) / (hi - lo);
+    if (v.size() < 64 || !std::isfinite(scale) || !(scale > 0.0f)) {
+        std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(k), v.end());
+        return v[k];
+    }
+    auto bin = [&](float x) {
+        return int(std::min(std::max((x - lo) * scale, 0.0f), float(kBins - 1)));
+    };
+    s.histogram.assign(kBins, 0);
+    for (float x : v) ++s.histogram[size_t(bin(x))];
+    size_t before = 0;
+    int b = 0;
+    while (before + s.histogram[size_t(b)] <= k) before += s.histogram[size_t(b++)];
+    s.bucket.clear();
+    for (float x : v)
+        if (bin(x) == b) s.bucket.push_back(x);
+    const size_t r = k - before;
+    std::nth_element(s.bucket.begin(), s.bucket.begin() + std::ptrdiff_t(r), s.bucket.end());
+    return s.bucket[r];
+}
 
 struct Choice {
     SplitKind kind = SplitKind::none;
@@ -98,6 +130,7 @@ void evaluate_axis(Context& ctx, const Work& w, int axis, Scratch& s, Choice& be
     const bool want_median = ctx.params.use_median_split;
     s.lo.resize(n);
     s.hi.resize(n);
+    s.axis = axis;
     if (want_median) s.coords.resize(3 * n);
     float tmin = kInfinity, tmax = -kInfinity;
     for (size_t i = 0; i < n; ++i) {
@@ -114,7 +147,7 @@ void evaluate_axis(Context& ctx, const Work& w, int axis, Scratch& s, Choice& be
             s.coords[3 * i + 2] = c;
         }
     }
-    size_t bytes = s.lo.capacity() * 8 + s.coords.capacity() * 4;
+    size_t bytes = s.lo.capacity() * 8 + s.coords.capacity() * 4 + s.bucket.capacity() * 4;
     if (bytes > s.counted) {
         ctx.add_bytes(int64_t(bytes - s.counted));
         s.counted = bytes;
@@ -137,15 +170,6 @@ void evaluate_axis(Context& ctx, const Work& w, int axis, Scratch& s, Choice& be
             best = {kind, axis, p, cost, left_only + both, right_only + both};
         }
     };
-    auto count = [&](SplitKind kind, float p) {
-        if (!(p > box_lo && p < box_hi)) return;
-        size_t left_only = 0, right_only = 0;
-        for (size_t i = 0; i < n; ++i) {
-            left_only += s.hi[i] < p;
-            right_only += s.lo[i] >= p;
-        }
-        consider(kind, p, left_only, right_only, n - left_only - right_only);
-    };
 
     if (ctx.params.use_cutoff_split) {
         // At the lowest vertex every triangle is right of the plane; one float above the
@@ -153,12 +177,25 @@ void evaluate_axis(Context& ctx, const Work& w, int axis, Scratch& s, Choice& be
         consider(SplitKind::cutoff, tmin, 0, n, 0);
         consider(SplitKind::cutoff, std::nextafter(tmax, kInfinity), n, 0, 0);
     }
-    if (ctx.params.use_center_split) count(SplitKind::center, 0.5f * (box_lo + box_hi));
+    // Spatial middle and median vertex, counted in one pass.
+    const float center = 0.5f * (box_lo + box_hi);
+    const bool use_center = ctx.params.use_center_split && center > box_lo && center < box_hi;
+    float median = 0.0f;
+    bool use_median = false;
     if (want_median) {
-        auto mid = s.coords.begin() + std::ptrdiff_t(s.coords.size() / 2);
-        std::nth_element(s.coords.begin(), mid, s.coords.end());
-        count(SplitKind::median, *mid);
+        median = select_kth(s.coords, s.coords.size() / 2, tmin, tmax, s);
+        use_median = median > box_lo && median < box_hi;
     }
+    if (!use_center && !use_median) return;
+    size_t c_left = 0, c_right = 0, m_left = 0, m_right = 0;
+    for (size_t i = 0; i < n; ++i) {
+        c_left += s.hi[i] < center;
+        c_right += s.lo[i] >= center;
+        m_left += s.hi[i] < median;
+        m_right += s.lo[i] >= median;
+    }
+    if (use_center) consider(SplitKind::center, center, c_left, c_right, n - c_left - c_right);
+    if (use_median) consider(SplitKind::median, median, m_left, m_right, n - m_left - m_right);
 }
 
 void build_node(Context& ctx, Subtree& st, uint32_t slot, Work w);
@@ -217,11 +254,18 @@ void build_node(Context& ctx, Subtree& st, uint32_t slot, Work w) {
     right->tris.reserve(best.n_right);
     const Vec3f* pos = ctx.mesh.positions.data();
     const Vec3u* tri = ctx.mesh.triangles.data();
-    for (uint32_t id : w.tris) {
-        const Vec3u& t = tri[id];
-        const float a = pos[t.x][axis], b = pos[t.y][axis], c = pos[t.z][axis];
-        if (std::min(a, std::min(b, c)) < p) left->tris.push_back(id);
-        if (std::max(a, std::max(b, c)) >= p) right->tris.push_back(id);
+    if (s.axis == axis) {  // the extents along this axis are still in the scratch
+        for (size_t i = 0; i < n; ++i) {
+            if (s.lo[i] < p) left->tris.push_back(w.tris[i]);
+            if (s.hi[i] >= p) right->tris.push_back(w.tris[i]);
+        }
+    } else {
+        for (uint32_t id : w.tris) {
+            const Vec3u& t = tri[id];
+            const float a = pos[t.x][axis], b = pos[t.y][axis], c = pos[t.z][axis];
+            if (std::min(a, std::min(b, c)) < p) left->tris.push_back(id);
+            if (std::max(a, std::max(b, c)) >= p) right->tris.push_back(id);
+        }
     }
     const int64_t child_bytes = int64_t(left->tris.size() + right->tris.size()) * 4;
     ctx.add_bytes(child_bytes - int64_t(n) * 4);
