@@ -264,6 +264,15 @@ TEST_F(ImageIoTest, ToneCurves) {
 TEST_F(ImageIoTest, HdrRoundTripWithinRgbePrecision) {
     ImageRGB img = random_image(40, 12, 4, 50.0f);
     write_hdr(path("a.hdr"), img);
+    {  // trailing blanks on the resolution line are accepted (as stb_image does)
+        auto bytes = read_bytes(path("a.hdr"));
+        std::string text(bytes.begin(), bytes.end());
+        auto at = text.find("+X 40\n");
+        ASSERT_NE(at, std::string::npos);
+        text.replace(at, 6, "+X 40  \n");
+        write_text(dir_ / "blank.hdr", text);
+        EXPECT_EQ(load_image(path("blank.hdr")).width, 40);
+    }
     ImageRGB back = load_image(path("a.hdr"));
     ASSERT_EQ(back.width, 40);
     ASSERT_EQ(back.height, 12);
@@ -319,6 +328,7 @@ TEST_F(ImageIoTest, BrokenHdrHeaders) {
         {head + "-Y 60000 +X 60000\n", "too large"},
         {head + "-Y 0 +X 16\n", "invalid image size"},
         {head + "+Y 4 +X 4\n", "resolution"},
+        {head + "-Y 4 +X 4 junk\n", "resolution"},
         {"#?RADIANCE\nFORMAT=32-bit_rle_xyze\n\n-Y 1 +X 1\nabcd", "unsupported pixel format"},
         {"#?RADIANCE\n\n-Y 1 +X 1\nabcd", "FORMAT"},
         {"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n", "truncated header"},
