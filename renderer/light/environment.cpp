@@ -107,24 +107,34 @@ ImageEnvironment::ImageEnvironment(ImageRGB image, EnvMapping mapping, float rot
                 // Disk coordinates of the pixel: a right, b up.
                 double a0 = 2.0 * x / w - 1.0, a1 = 2.0 * (x + 1) / w - 1.0;
                 double b0 = 1.0 - 2.0 * (y + 1) / h, b1 = 1.0 - 2.0 * y / h;
-                double cov = disk_rect_area(a0, a1, b0, b1) / ((a1 - a0) * (b1 - b0));
+                double far_a = std::max(std::abs(a0), std::abs(a1));
+                double far_b = std::max(std::abs(b0), std::abs(b1));
+                bool inside = far_a * far_a + far_b * far_b <= 1.0;
+                double cov =
+                    inside ? 1.0 : disk_rect_area(a0, a1, b0, b1) / ((a1 - a0) * (b1 - b0));
                 coverage[i] = float(cov);
                 Vec3f c = image_.at(x, y);
                 double lum = 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
                 if (!(cov > 0.0) || lum <= 0.0) continue;
-                // Mean Jacobian over the pixel (zero outside the disk) by a kSub^2 grid; it
-                // only shapes the weights, the density below stays exact.
-                double jsum = 0.0;
-                for (int sy = 0; sy < kSub; ++sy) {
-                    for (int sx = 0; sx < kSub; ++sx) {
-                        Vec2f uv((float(x) + (float(sx) + 0.5f) / kSub) / float(w),
-                                 (float(y) + (float(sy) + 0.5f) / kSub) / float(h));
-                        if (auto d = angular_dir_from_uv(uv)) jsum += angular_jacobian(*d);
+                // Mean Jacobian over the pixel (zero outside the disk): the centre value for
+                // pixels inside the disk, a kSub^2 grid for pixels cut by the rim. It only
+                // shapes the weights; the density below stays exact.
+                double mean_j = 0.0;
+                if (inside) {
+                    mean_j = angular_jacobian(*angular_dir_from_uv(
+                        {(float(x) + 0.5f) / float(w), (float(y) + 0.5f) / float(h)}));
+                } else {
+                    for (int sy = 0; sy < kSub; ++sy) {
+                        for (int sx = 0; sx < kSub; ++sx) {
+                            Vec2f uv((float(x) + (float(sx) + 0.5f) / kSub) / float(w),
+                                     (float(y) + (float(sy) + 0.5f) / kSub) / float(h));
+                            if (auto d = angular_dir_from_uv(uv)) mean_j += angular_jacobian(*d);
+                        }
                     }
+                    mean_j /= kSub * kSub;
                 }
                 // A floor keeps pixels cut by the rim with no grid point inside samplable,
                 // so that pdf > 0 wherever eval > 0.
-                double mean_j = jsum / (kSub * kSub);
                 weights[i] = lum * std::max(mean_j, cov * 1e-3);
             }
         }
