@@ -543,7 +543,8 @@ private:
     std::vector<uint8_t> bad_vertex_;  // only allocated once a non-finite vertex is seen
     uint64_t bad_vertices_ = 0;
     uint64_t dropped_faces_ = 0, degenerate_faces_ = 0, source_faces_ = 0;
-    std::vector<int64_t> poly_;  // indices of the face being read
+    std::vector<int64_t> poly_;    // indices of the face being read
+    std::vector<int64_t> sorted_;  // scratch for the degenerate test of big polygons
     int threads_ = 1;
 };
 
@@ -778,13 +779,19 @@ void PlyParser::emit_face(const Element& el, uint64_t i, const int64_t* idx, siz
     bool degenerate = false;
     if (n == 3) {
         degenerate = idx[0] == idx[1] || idx[1] == idx[2] || idx[0] == idx[2];
-    } else {
+    } else if (n <= 32) {
         for (size_t a = 0; a < n && !degenerate; ++a)
             for (size_t c = a + 1; c < n; ++c)
                 if (idx[a] == idx[c]) {
                     degenerate = true;
                     break;
                 }
+    } else {
+        // Big polygons: sort a copy instead of comparing all pairs (a hostile file could
+        // hold a face with millions of corners).
+        sorted_.assign(idx, idx + n);
+        std::sort(sorted_.begin(), sorted_.end());
+        degenerate = std::adjacent_find(sorted_.begin(), sorted_.end()) != sorted_.end();
     }
     degenerate_faces_ += degenerate;
     for (size_t k = 1; k + 1 < n; ++k)
