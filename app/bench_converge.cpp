@@ -1,8 +1,307 @@
-// Placeholder until its issue lands; replaced by the real command.
+// `kdtrace bench converge`: error against time. Makes (or takes) a high-spp reference, then
+// renders progressively with several sampling strategies, recording wall time, rays, RMSE
+// and relative MSE at 1, 2, 4, ... N spp; writes CSV, a log-log plot, and checks that the
+// error falls as time^(-1/2).
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
 #include "app/commands.h"
+#include "renderer/core/error.h"
+#include "renderer/core/timer.h"
+#include "renderer/io/image_io.h"
+#include "renderer/render/prepare.h"
+#include "renderer/render/session.h"
+#include "renderer/render/settings.h"
 
 namespace kdt::app {
 
-void add_bench_converge_command(CLI::App& parent) { (void)parent; }
+namespace {
+
+struct ConvergeArgs {
+    std::string scene, env, reference, out_dir = "converge";
+    int width = 256, height = 192, reference_spp = 4096, max_spp = 256, threads = 0;
+    uint64_t seed = 0;
+    std::string configs = "uniform,bsdf,mis,mis+adaptive";
+    float adaptive_threshold = 0.02f;
+    int path_depth = 16;
+    bool no_plot = false;
+};
+
+struct Config {
+    std::string name;
+    TraceParams trace;
+    FilmParams film;
+};
+
+Config make_config(const std::string& name, const ConvergeArgs& a) {
+    Config c;
+    c.name = name;
+    c.trace.seed = a.seed;
+    c.trace.threads = a.threads;
+    c.trace.max_depth = a.path_depth;
+    if (name == "uniform") {
+        // The naive baseline: uniform hemisphere sampling, no light sampling, no adaptivity.
+        c.trace.light_sampling = LightSampling::bsdf;
+        c.trace.diffuse_sampling = DiffuseSampling::uniform;
+        c.trace.env_importance = false;
+    } else if (name == "bsdf") {
+        c.trace.light_sampling = LightSampling::bsdf;
+    } else if (name == "nee") {
+        c.trace.light_sampling = LightSampling::nee;
+    } else if (name == "mis-uniform-env") {
+        c.trace.env_importance = false;
+    } else if (name == "mis") {
+    } else if (name == "mis+adaptive") {
+        c.film.adaptive = true;
+        c.film.adaptive_threshold = a.adaptive_threshold;
+        c.film.adaptive_min_spp = 4;
+    } else {
+        throw Error("--configs: unknown configuration '" + name +
+                    "' (uniform, bsdf, nee, mis-uniform-env, mis, mis+adaptive)");
+    }
+    return c;
+}
+
+struct Point {
+    std::string config;
+    double spp = 0.0, seconds = 0.0;
+    uint64_t rays = 0;
+    double rmse = 0.0, relmse = 0.0;
+};
+
+// RMSE over all channels, and relative MSE (squared error over reference^2 + 0.01,
+// averaged; Rousselle et al. 2011).
+void errors(const std::vector<float>& img, const std::vector<float>& ref, double& rmse,
+            double& relmse) {
+    double se = 0.0, rel = 0.0;
+    for (size_t i = 0; i < img.size(); ++i) {
+        const double d = double(img[i]) - double(ref[i]);
+        se += d * d;
+        rel += d * d / (double(ref[i]) * double(ref[i]) + 0.01);
+    }
+    rmse = std::sqrt(se / double(img.size()));
+    relmse = rel / double(img.size());
+}
+
+// Least-squares slope of log(y) against log(x).
+double loglog_slope(const std::vector<double>& x, const std::vector<double>& y) {
+    double sx = 0, sy = 0, sxx = 0, sxy = 0;
+    const double n = double(x.size());
+    for (size_t i = 0; i < x.size(); ++i) {
+        const double lx = std::log(x[i]), ly = std::log(y[i]);
+        sx += lx;
+        sy += ly;
+        sxx += lx * lx;
+        sxy += lx * ly;
+    }
+    return (n * sxy - sx * sy) / (n * sxx - sx * sx);
+}
+
+// RMSE at time t by log-log interpolation between the recorded points; NaN outside.
+double rmse_at(const std::vector<Point>& pts, double t) {
+    for (size_t i = 1; i < pts.size(); ++i) {
+        if (pts[i - 1].seconds <= t && t <= pts[i].seconds) {
+            const double f = (std::log(t) - std::log(pts[i - 1].seconds)) /
+                             (std::log(pts[i].seconds) - std::log(pts[i - 1].seconds));
+            return std::exp(std::log(pts[i - 1].rmse) +
+                            f * (std::log(pts[i].rmse) - std::log(pts[i - 1].rmse)));
+        }
+    }
+    return std::nan("");
+}
+
+// scripts/plot_converge.py of the source tree: searched upwards from the executable
+// (build/<preset>/bin/kdtrace), then from the working directory.
+std::filesystem::path find_plot_script() {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    for (fs::path dir :
+         {fs::read_symlink("/proc/self/exe", ec).parent_path(), fs::current_path(ec)}) {
+        for (int up = 0; up < 5 && !dir.empty(); ++up, dir = dir.parent_path()) {
+            const fs::path p = dir / "scripts" / "plot_converge.py";
+            if (fs::exists(p, ec)) return p;
+        }
+    }
+    return "scripts/plot_converge.py";
+}
+
+void run(const ConvergeArgs& a) {
+    namespace fs = std::filesystem;
+    if (a.max_spp < 1 || a.reference_spp < 1)
+        throw Error("--max-spp and --reference-spp must be >= 1");
+    fs::create_directories(a.out_dir);
+    PrepareOptions po;
+    po.scene_path = a.scene;
+    po.env_file = a.env;
+    po.width = a.width;
+    po.height = a.height;
+    po.tree.threads = a.threads;
+    const Prepared prep = prepare_render(po);
+    std::printf("bench converge: %s%s%s, %dx%d, tree %.2f s\n",
+                a.scene.empty() ? "default scene" : a.scene.c_str(), a.env.empty() ? "" : " under ",
+                a.env.c_str(), a.width, a.height, prep.tree_seconds);
+
+    // Reference: given, or rendered with MIS at reference_spp under an independent seed.
+    ImageRGB ref;
+    if (!a.reference.empty() && fs::exists(a.reference)) {
+        ref = load_image(a.reference);
+        if (ref.width != a.width || ref.height != a.height) {
+            throw Error(ErrorLocation{a.reference}, "reference is " + std::to_string(ref.width) +
+                                                        "x" + std::to_string(ref.height) +
+                                                        ", expected " + std::to_string(a.width) +
+                                                        "x" + std::to_string(a.height));
+        }
+        std::printf("reference: %s\n", a.reference.c_str());
+    } else {
+        TraceParams tp;
+        tp.seed = a.seed ^ 0x5eed5eed5eedull;
+        tp.threads = a.threads;
+        tp.max_depth = a.path_depth;
+        tp.samples_per_pass = 16;
+        RenderSession rs(prep.snapshot, tp, FilmParams{});
+        StopConditions stop;
+        stop.spp = a.reference_spp;
+        const RenderProgress p = run_render(rs, stop);
+        ref = ImageRGB(a.width, a.height);
+        ref.rgb = rs.film().linear_rgb();
+        const std::string path =
+            a.reference.empty() ? (fs::path(a.out_dir) / "reference.exr").string() : a.reference;
+        write_image(path, ref, {},
+                    {{"kdtrace:params", params_to_json(tp, FilmParams{}, po.tree)},
+                     {"kdtrace:spp", std::to_string(a.reference_spp)}});
+        std::printf("reference: %d spp in %.1f s -> %s\n", a.reference_spp, p.seconds,
+                    path.c_str());
+    }
+
+    std::vector<Point> points;
+    std::vector<std::vector<Point>> curves;
+    std::string list = a.configs + ",";
+    for (size_t start = 0, comma; (comma = list.find(',', start)) != std::string::npos;
+         start = comma + 1) {
+        if (comma == start) continue;
+        const Config cfg = make_config(list.substr(start, comma - start), a);
+        RenderSession s(prep.snapshot, cfg.trace, cfg.film);
+        const double pixels = double(s.film().pixel_count());
+        std::vector<Point> curve;
+        double seconds = 0.0;
+        uint64_t rays = 0;
+        for (int target = 1; target <= a.max_spp; target *= 2) {
+            // Passes until the film holds target x pixels samples (exactly target per pixel
+            // without adaptivity); only rendering is timed.
+            for (;;) {
+                const double done = double(s.film().total_samples() + s.totals().nonfinite_dropped);
+                if (done >= double(target) * pixels) break;
+                const PassStats ps = s.render_pass(cfg.film.adaptive ? 0 : target);
+                seconds += ps.seconds;
+                rays += ps.counters.rays();
+                if (ps.active_pixels == 0) break;
+            }
+            Point pt;
+            pt.config = cfg.name;
+            pt.spp = double(s.film().total_samples()) / pixels;
+            pt.seconds = seconds;
+            pt.rays = rays;
+            errors(s.film().linear_rgb(), ref.rgb, pt.rmse, pt.relmse);
+            curve.push_back(pt);
+            points.push_back(pt);
+            std::printf("  %-16s %7.1f spp %9.3f s %12llu rays  RMSE %.5f  relMSE %.6f\n",
+                        cfg.name.c_str(), pt.spp, pt.seconds, (unsigned long long)pt.rays, pt.rmse,
+                        pt.relmse);
+        }
+        curves.push_back(curve);
+    }
+
+    const std::string csv = (fs::path(a.out_dir) / "converge.csv").string();
+    {
+        std::ofstream out(csv);
+        if (!out) throw Error(ErrorLocation{csv}, "cannot open for writing");
+        out << "config,spp,seconds,rays,rmse,relmse\n";
+        for (const Point& p : points) {
+            out << p.config << ',' << p.spp << ',' << p.seconds << ',' << p.rays << ',' << p.rmse
+                << ',' << p.relmse << '\n';
+        }
+    }
+    std::printf("wrote %s\n", csv.c_str());
+
+    // Slopes of log RMSE against log time, from 4 spp on (the first passes carry fixed costs).
+    std::printf(
+        "\n| config | slope of log RMSE vs log time | RMSE at %d spp | seconds "
+        "|\n|---|---|---|---|\n",
+        a.max_spp);
+    double common_t = kInfinity;
+    for (const auto& c : curves) {
+        std::vector<double> t, e;
+        for (const Point& p : c) {
+            if (p.spp >= 4.0 && p.seconds > 0.0 && p.rmse > 0.0) {
+                t.push_back(p.seconds);
+                e.push_back(p.rmse);
+            }
+        }
+        const double slope = t.size() >= 2 ? loglog_slope(t, e) : std::nan("");
+        const bool ok = std::abs(slope + 0.5) <= 0.15;
+        std::printf("| %s | %.3f %s | %.5f | %.3f |\n", c.front().config.c_str(), slope,
+                    ok ? "(close to -1/2)" : "(NOT close to -1/2: reference noise or bias?)",
+                    c.back().rmse, c.back().seconds);
+        common_t = std::min(common_t, c.back().seconds);
+    }
+    // Equal-time comparison against the first configuration (the baseline).
+    if (curves.size() >= 2) {
+        std::printf("\nequal time %.3f s: RMSE ratio against %s:\n", common_t,
+                    curves.front().front().config.c_str());
+        const double base = rmse_at(curves.front(), common_t);
+        for (size_t i = 1; i < curves.size(); ++i) {
+            const double e = rmse_at(curves[i], common_t);
+            std::printf("  %-16s %.3f\n", curves[i].front().config.c_str(), e / base);
+        }
+    }
+    if (!a.no_plot) {
+        const std::string png = (fs::path(a.out_dir) / "converge.png").string();
+        const fs::path script = find_plot_script();
+        const std::string cmd = "python3 '" + script.string() + "' '" + csv + "' '" + png + "'";
+        if (fs::exists(script) && std::system(cmd.c_str()) == 0) {
+            std::printf("wrote %s\n", png.c_str());
+        } else {
+            std::printf("plot skipped: needs python3-matplotlib and %s\n", script.string().c_str());
+        }
+    }
+}
+
+}  // namespace
+
+void add_bench_converge_command(CLI::App& parent) {
+    static ConvergeArgs a;
+    auto* cmd =
+        parent.add_subcommand("converge", "Error against time for several sampling strategies");
+    cmd->add_option("SCENE", a.scene, "Scene or model; omitted = built-in default scene");
+    cmd->add_option("--env", a.env, "Environment map replacing the scene's");
+    cmd->add_option("--reference", a.reference,
+                    "Reference image (.exr/.pfm); rendered and written there when missing");
+    cmd->add_option("--reference-spp", a.reference_spp, "Samples per pixel of a new reference")
+        ->capture_default_str();
+    cmd->add_option("--max-spp", a.max_spp, "Largest N of the 1, 2, 4 ... N spp series")
+        ->capture_default_str();
+    cmd->add_option("--width", a.width, "Image width")->capture_default_str();
+    cmd->add_option("--height", a.height, "Image height")->capture_default_str();
+    cmd->add_option("--threads", a.threads, "OpenMP threads (0 = all)")->capture_default_str();
+    cmd->add_option("--seed", a.seed, "Seed")->capture_default_str();
+    cmd->add_option("--path-depth", a.path_depth, "Maximum bounces")->capture_default_str();
+    cmd->add_option(
+           "--configs", a.configs,
+           "Comma-separated: uniform, bsdf, nee, mis-uniform-env, mis, mis+adaptive; the first "
+           "is the equal-time baseline")
+        ->capture_default_str();
+    cmd->add_option("--adaptive-threshold", a.adaptive_threshold,
+                    "mis+adaptive: relative error to stop at")
+        ->capture_default_str();
+    cmd->add_option("-o,--out-dir", a.out_dir, "Directory for reference, CSV and plot")
+        ->capture_default_str();
+    cmd->add_flag("--no-plot", a.no_plot, "Do not run scripts/plot_converge.py");
+    cmd->callback([] { run(a); });
+}
 
 }  // namespace kdt::app

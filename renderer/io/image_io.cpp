@@ -14,14 +14,17 @@
 #include "renderer/core/error.h"
 
 // stb_image for .hdr and .png decoding, stb_image_write for .hdr encoding; the
-// implementations are compiled into this translation unit only.
+// implementations are compiled into this translation unit only, with internal linkage
+// (STB_*_STATIC) so they never clash with copies inside other libraries (Assimp exports
+// its own). Debian's stb_image_write compiles the HDR writer only with stdio enabled.
 #define STB_IMAGE_IMPLEMENTATION
+#define STB_IMAGE_STATIC
 #define STBI_NO_STDIO
 #define STBI_ONLY_HDR
 #define STBI_ONLY_PNG
 #include <stb/stb_image.h>
 #define STB_IMAGE_WRITE_IMPLEMENTATION
-#define STBI_WRITE_NO_STDIO
+#define STB_IMAGE_WRITE_STATIC
 #include <stb/stb_image_write.h>
 
 #if __has_include(<tinyexr.h>)

@@ -146,18 +146,29 @@ float ImageEnvironment::coverage(int x, int y) const {
     return float(disk_rect_area(a0, a1, b0, b1) / ((a1 - a0) * (b1 - b0)));
 }
 
-Vec2i ImageEnvironment::pixel_of(const Vec2f& uv) const {
+Vec3f ImageEnvironment::to_map(const Vec3f& world_dir) const {
+    Vec3f d = rotate_y(world_dir, cos_rot_, -sin_rot_);  // map = R_y(-alpha) world
+    float len2 = glm::dot(d, d);
+    if (len2 > 0.0f && std::abs(len2 - 1.0f) > 1e-4f) d *= 1.0f / std::sqrt(len2);
+    return d;
+}
+
+size_t ImageEnvironment::pixel_index(const Vec3f& map_dir) const {
+    Vec2f uv = env_uv_from_dir(mapping_, map_dir);
     int x = std::clamp(int(uv.x * float(image_.width)), 0, image_.width - 1);
     int y = std::clamp(int(uv.y * float(image_.height)), 0, image_.height - 1);
-    return {x, y};
+    return size_t(y) * size_t(image_.width) + size_t(x);
+}
+
+float ImageEnvironment::pdf_map(const Vec3f& map_dir, size_t pixel) const {
+    float density = density_[pixel];
+    if (density <= 0.0f) return 0.0f;
+    float jacobian = env_jacobian(mapping_, map_dir);
+    return jacobian > 0.0f ? density / jacobian : 0.0f;
 }
 
 Vec2f ImageEnvironment::uv_from_dir(const Vec3f& world_dir) const {
-    // map = R_y(-alpha) world
-    Vec3f d = rotate_y(world_dir, cos_rot_, -sin_rot_);
-    float len2 = glm::dot(d, d);
-    if (len2 > 0.0f && std::abs(len2 - 1.0f) > 1e-4f) d *= 1.0f / std::sqrt(len2);
-    return env_uv_from_dir(mapping_, d);
+    return env_uv_from_dir(mapping_, to_map(world_dir));
 }
 
 std::optional<Vec3f> ImageEnvironment::dir_from_uv(const Vec2f& uv) const {
@@ -167,20 +178,14 @@ std::optional<Vec3f> ImageEnvironment::dir_from_uv(const Vec2f& uv) const {
 }
 
 Vec3f ImageEnvironment::eval(const Vec3f& dir) const {
-    Vec2i p = pixel_of(uv_from_dir(dir));
-    return image_.at(p.x, p.y) * intensity_;
+    const float* p = &image_.rgb[pixel_index(to_map(dir)) * 3];
+    return Vec3f(p[0], p[1], p[2]) * intensity_;
 }
 
 float ImageEnvironment::pdf(const Vec3f& dir) const {
-    Vec3f d = rotate_y(dir, cos_rot_, -sin_rot_);
-    float len2 = glm::dot(d, d);
-    if (!(len2 > 0.0f)) return 0.0f;
-    if (std::abs(len2 - 1.0f) > 1e-4f) d *= 1.0f / std::sqrt(len2);
-    Vec2i p = pixel_of(env_uv_from_dir(mapping_, d));
-    float density = density_uv(p.x, p.y);
-    if (density <= 0.0f) return 0.0f;
-    float jacobian = env_jacobian(mapping_, d);
-    return jacobian > 0.0f ? density / jacobian : 0.0f;
+    Vec3f d = to_map(dir);
+    if (!(glm::dot(d, d) > 0.0f)) return 0.0f;
+    return pdf_map(d, pixel_index(d));
 }
 
 EnvSample ImageEnvironment::sample(const Vec2f& u) const {
@@ -205,9 +210,14 @@ EnvSample ImageEnvironment::sample(const Vec2f& u) const {
         if (!map_dir) return s;
     }
     s.dir = rotate_y(*map_dir, cos_rot_, sin_rot_);
-    // Recomputed from the direction so that sample() agrees with eval() and pdf() exactly.
-    s.radiance = eval(s.dir);
-    s.pdf_solid_angle = pdf(s.dir);
+    // Radiance and pdf are looked up again from the final direction, exactly as eval() and
+    // pdf() do, so that they agree bit for bit (a sample on a pixel edge may round into the
+    // neighbouring pixel; it is then that pixel's radiance and density that count).
+    Vec3f d = to_map(s.dir);
+    size_t pixel = pixel_index(d);
+    const float* p = &image_.rgb[pixel * 3];
+    s.radiance = Vec3f(p[0], p[1], p[2]) * intensity_;
+    s.pdf_solid_angle = pdf_map(d, pixel);
     return s;
 }
 

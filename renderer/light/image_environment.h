@@ -64,7 +64,10 @@ public:
     const Distribution2D& distribution() const { return distribution_; }
 
 private:
-    Vec2i pixel_of(const Vec2f& uv) const;
+    /// World direction -> unit map direction (rotation undone); zero stays zero.
+    Vec3f to_map(const Vec3f& world_dir) const;
+    size_t pixel_index(const Vec3f& map_dir) const;
+    float pdf_map(const Vec3f& map_dir, size_t pixel) const;
 
     ImageRGB image_;
     EnvMapping mapping_;

@@ -15,6 +15,10 @@
 #include "renderer/core/error.h"
 #include "tests/test_util.h"
 
+#if __has_include(<tinyexr.h>)
+#include <tinyexr.h>
+#endif
+
 namespace kdt {
 namespace {
 
@@ -121,6 +125,29 @@ TEST_F(ImageIoTest, ExrRoundTripIsExactWithMetadata) {
     EXPECT_EQ(read_exr_metadata(path("a.exr")), md);
     EXPECT_THROW(write_exr(path("b.exr"), img, {{"channels", "x"}}), Error);
 }
+
+#if __has_include(<tinyexr.h>)
+TEST_F(ImageIoTest, ExrHalfRgbaAndSingleChannelFilesFromTinyexr) {
+    // Files written by tinyexr's own SaveEXR: half-float RGBA (alpha dropped) and one channel.
+    ImageRGB img = random_image(9, 5, 6, 4.0f);
+    std::vector<float> rgba(img.pixel_count() * 4, 0.25f);
+    for (size_t i = 0; i < img.pixel_count(); ++i) {
+        for (int c = 0; c < 3; ++c) rgba[i * 4 + size_t(c)] = img.rgb[i * 3 + size_t(c)];
+    }
+    const char* err = nullptr;
+    ASSERT_EQ(SaveEXR(rgba.data(), 9, 5, 4, 1, path("half.exr").c_str(), &err), TINYEXR_SUCCESS);
+    ImageRGB back = load_image(path("half.exr"));
+    ASSERT_EQ(back.width, 9);
+    for (size_t i = 0; i < img.rgb.size(); ++i) {
+        ASSERT_NEAR(back.rgb[i], img.rgb[i], img.rgb[i] / 1024.0f + 1e-6f) << "half precision";
+    }
+    std::vector<float> grey(img.pixel_count());
+    for (size_t i = 0; i < grey.size(); ++i) grey[i] = float(i);
+    ASSERT_EQ(SaveEXR(grey.data(), 9, 5, 1, 0, path("grey.exr").c_str(), &err), TINYEXR_SUCCESS);
+    back = load_image(path("grey.exr"));
+    EXPECT_EQ(back.at(4, 2), Vec3f(22.0f));
+}
+#endif
 
 TEST_F(ImageIoTest, PngRoundTripWithinQuantisationAndMetadata) {
     ImageRGB img = random_image(31, 9, 3, 1.0f);

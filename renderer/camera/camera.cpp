@@ -1,0 +1,56 @@
+#include "renderer/camera/camera.h"
+
+#include <cmath>
+#include <string>
+
+#include "renderer/core/error.h"
+
+namespace kdt {
+
+namespace {
+
+// Inverse CDF of the tent on [-1, 1] for u in [0, 1).
+float sample_tent(float u) {
+    if (u < 0.5f) return std::sqrt(2.0f * u) - 1.0f;
+    return 1.0f - std::sqrt(2.0f - 2.0f * u);
+}
+
+}  // namespace
+
+Vec2f sample_pixel_filter(PixelFilter filter, const Vec2f& u) {
+    if (filter == PixelFilter::tent) return {0.5f + sample_tent(u.x), 0.5f + sample_tent(u.y)};
+    return u;
+}
+
+Camera make_camera(const Vec3f& eye, const Vec3f& target, const Vec3f& up, float vfov_degrees,
+                   int width, int height) {
+    if (width <= 0 || height <= 0) {
+        throw Error("camera: image size must be positive (got " + std::to_string(width) + "x" +
+                    std::to_string(height) + ")");
+    }
+    if (!(vfov_degrees > 0.0f && vfov_degrees < 180.0f)) {
+        throw Error("camera: vertical field of view must be in (0, 180) degrees (got " +
+                    std::to_string(vfov_degrees) + ")");
+    }
+    if (!is_finite(eye) || !is_finite(target) || !is_finite(up)) {
+        throw Error("camera: eye, target and up must be finite");
+    }
+    const Vec3f view = target - eye;
+    if (!(glm::length(view) > 0.0f)) throw Error("camera: eye and target coincide");
+    Camera c;
+    c.eye = eye;
+    c.forward = glm::normalize(view);
+    const Vec3f r = glm::cross(c.forward, up);
+    if (!(glm::length(r) > 1e-6f * glm::length(up))) {
+        throw Error("camera: up vector is parallel to the viewing direction");
+    }
+    c.right = glm::normalize(r);
+    c.up = glm::cross(c.right, c.forward);
+    c.vfov_degrees = vfov_degrees;
+    c.width = width;
+    c.height = height;
+    c.tan_half_vfov = std::tan(0.5f * vfov_degrees * kPi / 180.0f);
+    return c;
+}
+
+}  // namespace kdt

@@ -1,0 +1,51 @@
+// The pinhole camera: film position in pixels -> world-space primary ray.
+// Depends on core only. Conventions (docs/conventions.md): vfov is the full vertical field
+// of view; pixel (0, 0) is the top-left pixel and covers [0,1)x[0,1) in film coordinates;
+// the camera looks along -z of its own frame with +y up (right-handed, as in OpenGL/pbrt's
+// LookAt with a flip to keep +x right).
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include "renderer/core/math.h"
+
+namespace kdt {
+
+/// Pixel reconstruction filter, sampled by importance (every sample has weight 1).
+enum class PixelFilter : uint8_t { box, tent };
+inline constexpr std::array<const char*, 2> kPixelFilterNames = {"box", "tent"};
+
+/// Maps [0,1)^2 to an offset from the pixel's lower corner: box -> uniform over the pixel,
+/// tent -> tent of radius 1 pixel around the pixel centre.
+Vec2f sample_pixel_filter(PixelFilter filter, const Vec2f& u);
+
+/// A pinhole camera with a precomputed world-space frame.
+struct Camera {
+    Vec3f eye{0.0f, 0.0f, 5.0f};
+    Vec3f right{1.0f, 0.0f, 0.0f};     ///< unit, world space
+    Vec3f up{0.0f, 1.0f, 0.0f};        ///< unit, world space, orthogonal to right and forward
+    Vec3f forward{0.0f, 0.0f, -1.0f};  ///< unit viewing direction
+    float vfov_degrees = 40.0f;        ///< full vertical field of view
+    int width = 640, height = 480;     ///< film size in pixels
+    float tan_half_vfov = 0.0f;        ///< derived by make_camera()
+
+    /// Primary ray through film position `film` (pixels; x right, y down, (0,0) top-left).
+    /// dir is unit length, tmin = 0, tmax = infinity.
+    Ray generate_ray(const Vec2f& film) const {
+        const float aspect = float(width) / float(height);
+        const float sx = (2.0f * film.x / float(width) - 1.0f) * tan_half_vfov * aspect;
+        const float sy = (1.0f - 2.0f * film.y / float(height)) * tan_half_vfov;
+        Ray r;
+        r.origin = eye;
+        r.dir = glm::normalize(forward + sx * right + sy * up);
+        return r;
+    }
+};
+
+/// Builds a camera looking from eye at target. Throws kdt::Error when eye == target, up is
+/// parallel to the view direction, vfov is outside (0, 180) or the size is not positive.
+Camera make_camera(const Vec3f& eye, const Vec3f& target, const Vec3f& up, float vfov_degrees,
+                   int width, int height);
+
+}  // namespace kdt

@@ -1,0 +1,134 @@
+#include "renderer/film/film.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace kdt {
+
+uint8_t linear_to_srgb8(float v) {
+    if (!(v > 0.0f)) return 0;
+    if (v >= 1.0f) return 255;
+    const float s = v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
+    return uint8_t(std::lround(std::clamp(s, 0.0f, 1.0f) * 255.0f));
+}
+
+void Film::resize(int width, int height) {
+    width_ = std::max(width, 0);
+    height_ = std::max(height, 0);
+    pixels_.assign(pixel_count(), Pixel{});
+    active_.assign(pixel_count(), 1);
+    error_scratch_.assign(pixel_count(), 0.0f);
+}
+
+void Film::clear() {
+    std::fill(pixels_.begin(), pixels_.end(), Pixel{});
+    std::fill(active_.begin(), active_.end(), uint8_t(1));
+}
+
+Vec3f Film::mean(int x, int y) const {
+    const Pixel& p = pixels_[index(x, y)];
+    if (p.count == 0) return Vec3f(0.0f);
+    const double inv = 1.0 / double(p.count);
+    return {float(p.r * inv), float(p.g * inv), float(p.b * inv)};
+}
+
+float Film::relative_error(int x, int y) const {
+    const Pixel& p = pixels_[index(x, y)];
+    if (p.count < 2) return kInfinity;
+    const double n = double(p.count);
+    const double m = p.lum / n;
+    const double var = std::max(0.0, (p.lum2 - p.lum * m) / (n - 1.0));
+    return float(std::sqrt(var / n) / std::max(m, 1e-4));
+}
+
+double Film::mean_relative_error() const {
+    double sum = 0.0;
+    size_t n = 0;
+    for (int y = 0; y < height_; ++y) {
+        for (int x = 0; x < width_; ++x) {
+            if (pixels_[index(x, y)].count < 2) continue;
+            sum += relative_error(x, y);
+            ++n;
+        }
+    }
+    return n ? sum / double(n) : 0.0;
+}
+
+uint64_t Film::total_samples() const {
+    uint64_t n = 0;
+    for (const Pixel& p : pixels_) n += p.count;
+    return n;
+}
+
+size_t Film::update_active(const FilmParams& params) {
+    if (!params.adaptive) {
+        std::fill(active_.begin(), active_.end(), uint8_t(1));
+        return pixel_count();
+    }
+    for (int y = 0; y < height_; ++y) {
+        for (int x = 0; x < width_; ++x) error_scratch_[index(x, y)] = relative_error(x, y);
+    }
+    const auto min_spp = uint32_t(std::max(params.adaptive_min_spp, 2));
+    size_t n = 0;
+    for (int y = 0; y < height_; ++y) {
+        for (int x = 0; x < width_; ++x) {
+            const uint32_t count = pixels_[index(x, y)].count;
+            bool on;
+            if (params.adaptive_max_spp > 0 && count >= uint32_t(params.adaptive_max_spp)) {
+                on = false;
+            } else if (count < min_spp) {
+                on = true;
+            } else {
+                // The 3x3 maximum guards against a pixel whose few samples happened to agree
+                // (e.g. all missed a small bright light) stopping while its neighbours are noisy.
+                float e = 0.0f;
+                for (int dy = -1; dy <= 1; ++dy) {
+                    for (int dx = -1; dx <= 1; ++dx) {
+                        const int xx = x + dx, yy = y + dy;
+                        if (xx < 0 || yy < 0 || xx >= width_ || yy >= height_) continue;
+                        e = std::max(e, error_scratch_[index(xx, yy)]);
+                    }
+                }
+                on = !(e < params.adaptive_threshold);
+            }
+            active_[index(x, y)] = on ? 1 : 0;
+            n += on;
+        }
+    }
+    return n;
+}
+
+size_t Film::active_count() const {
+    return size_t(std::count(active_.begin(), active_.end(), uint8_t(1)));
+}
+
+std::vector<float> Film::linear_rgb() const {
+    std::vector<float> out(pixel_count() * 3);
+    for (int y = 0; y < height_; ++y) {
+        for (int x = 0; x < width_; ++x) {
+            const Vec3f m = mean(x, y);
+            const size_t i = index(x, y) * 3;
+            out[i] = m.x;
+            out[i + 1] = m.y;
+            out[i + 2] = m.z;
+        }
+    }
+    return out;
+}
+
+std::vector<uint8_t> Film::srgb8(float exposure) const {
+    const float scale = std::exp2(exposure);
+    std::vector<uint8_t> out(pixel_count() * 3);
+    for (int y = 0; y < height_; ++y) {
+        for (int x = 0; x < width_; ++x) {
+            const Vec3f m = mean(x, y) * scale;
+            const size_t i = index(x, y) * 3;
+            out[i] = linear_to_srgb8(m.x);
+            out[i + 1] = linear_to_srgb8(m.y);
+            out[i + 2] = linear_to_srgb8(m.z);
+        }
+    }
+    return out;
+}
+
+}  // namespace kdt

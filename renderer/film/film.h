@@ -1,0 +1,98 @@
+// The progressive film: per-pixel RGB sums, luminance moments and sample counts, the
+// variance-based relative error estimate, adaptive-sampling masks and tone mapping.
+// Depends on core only. One pixel is only ever written by one thread at a time.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "renderer/core/math.h"
+
+namespace kdt {
+
+/// Film and adaptive-sampling settings (documented defaults; CLI and UI share them).
+struct FilmParams {
+    bool adaptive = false;             ///< stop converged pixels and spend samples elsewhere
+    float adaptive_threshold = 0.02f;  ///< relative error (stderr / mean luminance) to stop at
+    int adaptive_min_spp = 16;         ///< no pixel stops before this many samples
+    int adaptive_max_spp = 0;          ///< per-pixel cap while adaptive; 0 = no cap
+    float exposure = 0.0f;             ///< PNG tone mapping: scale by 2^exposure before sRGB
+};
+
+/// Linear -> sRGB-encoded 8-bit value (clamped to [0, 1] first).
+uint8_t linear_to_srgb8(float v);
+
+class Film {
+public:
+    Film() = default;
+    Film(int width, int height) { resize(width, height); }
+
+    /// Resizes and clears; every pixel becomes active.
+    void resize(int width, int height);
+    /// Forgets all samples; every pixel becomes active.
+    void clear();
+
+    int width() const { return width_; }
+    int height() const { return height_; }
+    size_t pixel_count() const { return size_t(width_) * size_t(height_); }
+
+    /// Adds one finite sample to pixel (x, y). Never allocates.
+    void add_sample(int x, int y, const Vec3f& rgb) {
+        Pixel& p = pixels_[size_t(y) * size_t(width_) + size_t(x)];
+        // Rec. 709 luminance drives the error estimate.
+        const double l = 0.2126 * rgb.x + 0.7152 * rgb.y + 0.0722 * rgb.z;
+        p.r += rgb.x;
+        p.g += rgb.y;
+        p.b += rgb.z;
+        p.lum += l;
+        p.lum2 += l * l;
+        ++p.count;
+        ++p.drawn;
+    }
+    /// Records a drawn sample that was dropped (non-finite): the sample index advances so
+    /// the pixel does not redraw it, but nothing is accumulated.
+    void skip_sample(int x, int y) { ++pixels_[index(x, y)].drawn; }
+    /// Index of the next sample of pixel (x, y): samples drawn so far, kept or dropped.
+    uint32_t next_sample_index(int x, int y) const { return pixels_[index(x, y)].drawn; }
+    /// Finite samples accumulated so far at pixel (x, y).
+    uint32_t count(int x, int y) const { return pixels_[index(x, y)].count; }
+    /// Mean radiance at (x, y); 0 before any sample.
+    Vec3f mean(int x, int y) const;
+    /// Standard error of the mean luminance divided by max(mean luminance, 1e-4);
+    /// infinity with fewer than 2 samples.
+    float relative_error(int x, int y) const;
+    /// Mean of relative_error() over pixels with at least 2 samples (0 when none).
+    double mean_relative_error() const;
+    /// Total samples over all pixels.
+    uint64_t total_samples() const;
+
+    /// Recomputes which pixels still take samples; returns how many are active. Without
+    /// adaptivity all pixels are active. With it a pixel stops when it has at least
+    /// adaptive_min_spp samples and the largest relative error in its 3x3 neighbourhood is
+    /// below the threshold (or when it reached adaptive_max_spp).
+    size_t update_active(const FilmParams& params);
+    bool active(int x, int y) const { return active_[index(x, y)] != 0; }
+    void set_active(int x, int y, bool on) { active_[index(x, y)] = on ? 1 : 0; }
+    size_t active_count() const;
+
+    /// Linear RGB means, row-major from the top row, 3 floats per pixel.
+    std::vector<float> linear_rgb() const;
+    /// sRGB 8-bit, scaled by 2^exposure, 3 bytes per pixel.
+    std::vector<uint8_t> srgb8(float exposure) const;
+
+private:
+    struct Pixel {
+        double r = 0.0, g = 0.0, b = 0.0;
+        double lum = 0.0, lum2 = 0.0;
+        uint32_t count = 0;  // samples accumulated
+        uint32_t drawn = 0;  // samples drawn, including dropped ones
+    };
+    size_t index(int x, int y) const { return size_t(y) * size_t(width_) + size_t(x); }
+
+    int width_ = 0, height_ = 0;
+    std::vector<Pixel> pixels_;
+    std::vector<uint8_t> active_;
+    std::vector<float> error_scratch_;
+};
+
+}  // namespace kdt

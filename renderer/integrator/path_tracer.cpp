@@ -1,0 +1,204 @@
+#include "renderer/integrator/path_tracer.h"
+
+#include <bit>
+#include <cmath>
+
+namespace kdt {
+
+PathCounters& PathCounters::operator+=(const PathCounters& o) {
+    samples += o.samples;
+    camera_rays += o.camera_rays;
+    bounce_rays += o.bounce_rays;
+    shadow_rays += o.shadow_rays;
+    nodes_visited += o.nodes_visited;
+    triangles_tested += o.triangles_tested;
+    nonfinite_dropped += o.nonfinite_dropped;
+    return *this;
+}
+
+Vec3f offset_ray_origin(const Vec3f& p, const Vec3f& n) {
+    // Offsets proportional to the magnitude of p: move the integer representation by
+    // 256 * n ULPs; near the origin, where ULPs get tiny, add an absolute 2^-16 * n instead.
+    constexpr float kOrigin = 1.0f / 32.0f;
+    constexpr float kFloatScale = 1.0f / 65536.0f;
+    constexpr float kIntScale = 256.0f;
+    Vec3f out;
+    for (int i = 0; i < 3; ++i) {
+        const auto of = int32_t(kIntScale * n[i]);
+        const auto bits = std::bit_cast<int32_t>(p[i]);
+        const float pi = std::bit_cast<float>(bits + (p[i] < 0.0f ? -of : of));
+        out[i] = std::abs(p[i]) < kOrigin ? p[i] + kFloatScale * n[i] : pi;
+    }
+    return out;
+}
+
+namespace {
+
+constexpr float kInv4Pi = 0.25f * kInvPi;
+
+float max_component(const Vec3f& v) { return std::max(v.x, std::max(v.y, v.z)); }
+
+struct Frame {
+    Vec3f t, b, n;
+    Vec3f to_local(const Vec3f& v) const {
+        return {glm::dot(v, t), glm::dot(v, b), glm::dot(v, n)};
+    }
+    Vec3f to_world(const Vec3f& v) const { return v.x * t + v.y * b + v.z * n; }
+};
+
+// Everything shading needs about a hit.
+struct SurfacePoint {
+    Vec3f p;
+    Vec3f ng;     // unit geometric normal; two-sided materials: flipped towards wo
+    Frame frame;  // shading frame (n = shading normal, same side as ng)
+    const Material* material;
+};
+
+SurfacePoint make_surface(const TraceScene& scene, const Ray& ray, const Hit& hit) {
+    const TriangleMesh& mesh = *scene.mesh;
+    const Vec3u tri = mesh.triangles[hit.prim];
+    const Vec3f p0 = mesh.positions[tri.x], p1 = mesh.positions[tri.y], p2 = mesh.positions[tri.z];
+    const float w = 1.0f - hit.u - hit.v;
+    SurfacePoint s;
+    // Barycentric interpolation is more accurate than origin + t * dir far from the origin.
+    s.p = w * p0 + hit.u * p1 + hit.v * p2;
+    Vec3f ng = glm::cross(p1 - p0, p2 - p0);
+    const float len = glm::length(ng);
+    ng = len > 0.0f && std::isfinite(len) ? ng / len : -ray.dir;
+    const ShadingInstance& inst = scene.instances[scene.triangle_instance[hit.prim]];
+    s.material = &inst.material;
+    Vec3f ns = ng;
+    if (inst.smooth && !scene.normals.empty()) {
+        Vec3f n =
+            w * scene.normals[tri.x] + hit.u * scene.normals[tri.y] + hit.v * scene.normals[tri.z];
+        const float nl = glm::length(n);
+        if (nl > 0.0f && std::isfinite(nl)) ns = n / nl;
+        if (glm::dot(ns, ng) < 0.0f) ns = -ns;  // normals disagreeing with the winding
+    }
+    const Vec3f wo = -ray.dir;
+    if (inst.material.type != MaterialType::dielectric && glm::dot(wo, ng) < 0.0f) {
+        ng = -ng;  // two-sided: shade the side the ray came from
+        ns = -ns;
+    }
+    // A shading normal facing away from the viewer (silhouettes of smooth meshes) would
+    // make the BSDF black; fall back to the geometric normal there.
+    if (glm::dot(wo, ns) * glm::dot(wo, ng) <= 0.0f) ns = ng;
+    s.ng = ng;
+    s.frame.n = ns;
+    make_basis(ns, s.frame.t, s.frame.b);
+    return s;
+}
+
+}  // namespace
+
+Vec3f trace_path(const TraceScene& scene, const TraceParams& params, const Ray& camera_ray,
+                 PixelSampler& sampler, PathCounters& counters) {
+    const KdTree& tree = *scene.tree;
+    const EnvironmentLight& env = *scene.env;
+    TraversalCounters tc;
+    TraversalCounters* tcp = params.count_traversal ? &tc : nullptr;
+    const bool use_nee = params.light_sampling != LightSampling::bsdf;
+    const bool use_mis = params.light_sampling == LightSampling::mis;
+
+    Vec3f radiance(0.0f), beta(1.0f);
+    Ray ray = camera_ray;
+    bool specular_bounce = true;  // camera rays and delta bounces see the env unweighted
+    float prev_bsdf_pdf = 0.0f;
+    for (int depth = 0;; ++depth) {
+        Hit hit;
+        if (!tree.intersect(ray, hit, tcp)) {
+            if (specular_bounce || !use_nee) {
+                radiance += beta * env.eval(ray.dir);
+            } else if (use_mis) {
+                const float light_pdf = params.env_importance ? env.pdf(ray.dir) : kInv4Pi;
+                radiance += beta * env.eval(ray.dir) * power_heuristic(prev_bsdf_pdf, light_pdf);
+            }
+            break;
+        }
+        // Surface hit after `depth` scattering events; scattering here makes depth + 1.
+        const SurfacePoint sp = make_surface(scene, ray, hit);
+        const Material& mat = *sp.material;
+        // Emitters are not sampled by NEE (only the environment is), so emission found by
+        // any ray counts fully.
+        if (mat.emission != Vec3f(0.0f)) radiance += beta * mat.emission;
+        if (depth + 1 > params.max_depth || is_black(mat)) break;
+
+        const Vec2f u_light = sampler.next_2d();
+        const Vec2f u_bsdf = sampler.next_2d();
+        const Vec2f u_lobe_rr = sampler.next_2d();
+        const Vec3f wo_world = -ray.dir;
+        const Vec3f wo = sp.frame.to_local(wo_world);
+
+        // Next-event estimation of the environment.
+        if (use_nee && !is_delta(mat)) {
+            EnvSample ls;
+            if (params.env_importance) {
+                ls = env.sample(u_light);
+            } else {
+                ls.dir = sample_uniform_sphere(u_light);
+                ls.radiance = env.eval(ls.dir);
+                ls.pdf_solid_angle = kInv4Pi;
+            }
+            if (ls.pdf_solid_angle > 0.0f && max_component(ls.radiance) > 0.0f &&
+                glm::dot(ls.dir, sp.ng) > 0.0f) {
+                const Vec3f wi = sp.frame.to_local(ls.dir);
+                const Vec3f f = bsdf_eval(mat, wo, wi, params.diffuse_sampling);
+                if (max_component(f) > 0.0f) {
+                    Ray shadow;
+                    shadow.origin = offset_ray_origin(sp.p, sp.ng);
+                    shadow.dir = ls.dir;
+                    ++counters.shadow_rays;
+                    if (!tree.occluded(shadow, tcp)) {
+                        const float w =
+                            use_mis
+                                ? power_heuristic(ls.pdf_solid_angle,
+                                                  bsdf_pdf(mat, wo, wi, params.diffuse_sampling))
+                                : 1.0f;
+                        radiance += beta * f * ls.radiance * (w / ls.pdf_solid_angle);
+                    }
+                }
+            }
+        }
+
+        // Continue the path by sampling the BSDF.
+        BsdfSample bs;
+        if (!bsdf_sample(mat, wo, u_bsdf, u_lobe_rr.x, bs, params.diffuse_sampling)) break;
+        const Vec3f wi_world = glm::normalize(sp.frame.to_world(bs.wi));
+        const float cos_g_in = glm::dot(wi_world, sp.ng);
+        // Reject directions on the wrong side of the geometric surface (light leaks from
+        // shading normals): reflection must leave on wo's side, transmission on the other.
+        const bool transmit = bs.wi.z * wo.z < 0.0f;
+        const float cos_g_out = glm::dot(wo_world, sp.ng);
+        if (transmit ? cos_g_in * cos_g_out >= 0.0f : cos_g_in * cos_g_out <= 0.0f) break;
+        beta *= bs.weight;
+        specular_bounce = bs.delta;
+        prev_bsdf_pdf = bs.pdf_solid_angle;
+        if (!(max_component(beta) > 0.0f)) break;
+
+        // Russian roulette: survive with probability min(1, max throughput) and reweight.
+        if (params.russian_roulette && depth + 1 >= params.rr_min_depth) {
+            const float survive = std::min(1.0f, max_component(beta));
+            if (u_lobe_rr.y >= survive) break;
+            beta /= survive;
+        }
+        ray = Ray{};
+        ray.origin = offset_ray_origin(sp.p, cos_g_in > 0.0f ? sp.ng : -sp.ng);
+        ray.dir = wi_world;
+        ++counters.bounce_rays;
+    }
+    counters.nodes_visited += tc.nodes_visited;
+    counters.triangles_tested += tc.triangles_tested;
+    return radiance;
+}
+
+Vec3f render_sample(const TraceScene& scene, const Camera& camera, const TraceParams& params, int x,
+                    int y, uint32_t sample_index, PathCounters& counters) {
+    PixelSampler sampler(params.seed, uint32_t(x), uint32_t(y), sample_index);
+    const Vec2f offset = sample_pixel_filter(params.filter, sampler.next_2d());
+    const Ray ray = camera.generate_ray(Vec2f(float(x), float(y)) + offset);
+    ++counters.camera_rays;
+    ++counters.samples;
+    return trace_path(scene, params, ray, sampler, counters);
+}
+
+}  // namespace kdt

@@ -1,0 +1,75 @@
+// Unidirectional path tracing with next-event estimation of the environment light and
+// multiple importance sampling (power heuristic), Russian roulette after a minimum depth.
+// One sample is a pure function of (scene, camera, params, pixel, sample index); the hot
+// path never allocates or throws. Depends on accel, light, material, camera, core.
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include "renderer/camera/camera.h"
+#include "renderer/core/sampler.h"
+#include "renderer/integrator/trace_scene.h"
+
+namespace kdt {
+
+/// How direct light from the environment is estimated.
+/// bsdf: BSDF sampling only (paths count the environment when they escape);
+/// nee: next-event estimation only at non-delta vertices (escaping rays after them add nothing);
+/// mis: both, combined with the power heuristic (Veach 1997).
+enum class LightSampling : uint8_t { bsdf, nee, mis };
+inline constexpr std::array<const char*, 3> kLightSamplingNames = {"bsdf", "nee", "mis"};
+
+/// Path tracing parameters; defaults documented in docs/conventions.md.
+struct TraceParams {
+    /// Maximum path depth, counted as scattering events (bounces): a camera ray that hits
+    /// the environment or an emitter directly has depth 0, one diffuse bounce to the
+    /// environment (by NEE or by a BSDF ray) depth 1. 0 renders only directly visible
+    /// environment and emission (pbrt's maxdepth; Mitsuba's max_depth is this + 1).
+    int max_depth = 16;
+    bool russian_roulette = true;  ///< after rr_min_depth bounces (thesis: adaptive depth)
+    int rr_min_depth = 3;          ///< bounces before roulette may end a path
+    LightSampling light_sampling = LightSampling::mis;
+    bool env_importance = true;  ///< NEE samples the env map's distribution, else uniform sphere
+    DiffuseSampling diffuse_sampling = DiffuseSampling::cosine;
+    PixelFilter filter = PixelFilter::box;
+    int samples_per_pass = 1;     ///< per active pixel and pass
+    uint64_t seed = 0;            ///< keys all randomness with the pixel and sample index
+    int threads = 0;              ///< OpenMP threads; 0 = default
+    bool count_traversal = true;  ///< count nodes visited and triangles tested
+};
+
+/// Per-thread counters, summed at the end of a pass.
+struct PathCounters {
+    uint64_t samples = 0;
+    uint64_t camera_rays = 0, bounce_rays = 0, shadow_rays = 0;
+    uint64_t nodes_visited = 0, triangles_tested = 0;
+    uint64_t nonfinite_dropped = 0;
+
+    uint64_t rays() const { return camera_rays + bounce_rays + shadow_rays; }
+    PathCounters& operator+=(const PathCounters& o);
+};
+
+/// Moves a ray origin p off the surface along the geometric normal n (unit, pointing to
+/// the side the ray leaves to) by a few float ULPs, with a small absolute offset near the
+/// origin (Waechter & Binder 2019, "A Fast and Robust Method for Avoiding
+/// Self-Intersection"). No scene-scale epsilon.
+Vec3f offset_ray_origin(const Vec3f& p, const Vec3f& n);
+
+/// Power heuristic with exponent 2 for one sample of each strategy.
+inline float power_heuristic(float pdf_a, float pdf_b) {
+    const float a = pdf_a * pdf_a, b = pdf_b * pdf_b;
+    return a + b > 0.0f ? a / (a + b) : 0.0f;
+}
+
+/// Radiance along `ray` (unit direction). Returns a non-finite value only if the scene
+/// produced one; the caller drops and counts those. Counts rays and traversal work.
+Vec3f trace_path(const TraceScene& scene, const TraceParams& params, const Ray& ray,
+                 PixelSampler& sampler, PathCounters& counters);
+
+/// One sample of pixel (x, y) with index sample_index: filter-sampled camera ray, then
+/// trace_path. Non-finite results are returned as-is (see Film / render_tiles).
+Vec3f render_sample(const TraceScene& scene, const Camera& camera, const TraceParams& params, int x,
+                    int y, uint32_t sample_index, PathCounters& counters);
+
+}  // namespace kdt

@@ -1,0 +1,100 @@
+#include "renderer/render/snapshot.h"
+
+#include <string>
+
+#include "renderer/core/error.h"
+#include "renderer/core/timer.h"
+
+namespace kdt {
+
+namespace {
+
+std::shared_ptr<const KdTree> build_tree(const SnapshotOptions& options,
+                                         std::shared_ptr<const TriangleMesh> mesh) {
+    if (options.build_tree) return options.build_tree(std::move(mesh), options.tree);
+    return build_kdtree(std::move(mesh), options.tree);
+}
+
+}  // namespace
+
+std::shared_ptr<const RenderSnapshot> compile_snapshot(const Scene& scene,
+                                                       const SnapshotOptions& options) {
+    Timer timer;
+    TraceScene ts;
+    auto merged = std::make_shared<TriangleMesh>();
+    bool any_smooth = false;
+    for (size_t i = 0; i < scene.meshes.size(); ++i) {
+        const MeshInstance& inst = scene.meshes[i];
+        if (!inst.mesh) {
+            throw Error(ErrorLocation{inst.file, "mesh", int64_t(i)},
+                        "mesh instance has no loaded mesh");
+        }
+        ShadingInstance si;
+        si.material = compile_material(inst.material);
+        si.smooth = inst.smooth;
+        any_smooth |= inst.smooth;
+        ts.instances.push_back(si);
+    }
+    for (size_t i = 0; i < scene.meshes.size(); ++i) {
+        const MeshInstance& inst = scene.meshes[i];
+        TriangleMesh m = *inst.mesh;
+        m.colors.clear();
+        const size_t nv = m.positions.size();
+        if (m.normals.size() != nv) m.normals.clear();
+        transform_mesh(m, inst.world_from_object);
+        const auto base = uint32_t(merged->positions.size());
+        merged->positions.insert(merged->positions.end(), m.positions.begin(), m.positions.end());
+        if (any_smooth) {
+            if (inst.smooth && m.normals.empty()) m.normals = compute_vertex_normals(m);
+            if (!inst.smooth) m.normals.assign(nv, Vec3f(0.0f, 0.0f, 1.0f));
+            ts.normals.insert(ts.normals.end(), m.normals.begin(), m.normals.end());
+        }
+        merged->triangles.reserve(merged->triangles.size() + m.triangles.size());
+        for (const Vec3u& t : m.triangles) {
+            if (t.x >= nv || t.y >= nv || t.z >= nv) {
+                throw Error(ErrorLocation{inst.file, "face", int64_t(&t - m.triangles.data())},
+                            "vertex index out of range (" + std::to_string(nv) + " vertices)");
+            }
+            merged->triangles.push_back(t + Vec3u(base));
+        }
+        ts.triangle_instance.insert(ts.triangle_instance.end(), m.triangles.size(), uint32_t(i));
+    }
+    ts.mesh = merged;
+    ts.env = options.env ? options.env : make_environment_light(scene.environment);
+    ts.tree = build_tree(options, merged);
+
+    auto snap = std::make_shared<RenderSnapshot>();
+    snap->scene = std::move(ts);
+    const CameraDesc& c = scene.camera;
+    snap->camera =
+        make_camera(c.eye, c.target, c.up, c.vfov_degrees, options.width, options.height);
+    snap->camera_desc = c;
+    snap->environment = scene.environment;
+    snap->scene_name = scene.name;
+    snap->tree_params = options.tree;
+    snap->build_seconds = timer.seconds();
+    return snap;
+}
+
+std::shared_ptr<const RenderSnapshot> compile_snapshot(TraceScene scene, const Camera& camera,
+                                                       const SnapshotOptions& options) {
+    Timer timer;
+    if (!scene.mesh) throw Error("snapshot: scene has no mesh");
+    if (scene.triangle_instance.size() != scene.mesh->triangle_count()) {
+        throw Error("snapshot: triangle_instance must have one entry per triangle");
+    }
+    if (!scene.env) scene.env = options.env ? options.env : make_environment_light({});
+    if (!scene.tree) scene.tree = build_tree(options, scene.mesh);
+    auto snap = std::make_shared<RenderSnapshot>();
+    snap->scene = std::move(scene);
+    snap->camera = camera;
+    snap->camera_desc.eye = camera.eye;
+    snap->camera_desc.target = camera.eye + camera.forward;
+    snap->camera_desc.up = camera.up;
+    snap->camera_desc.vfov_degrees = camera.vfov_degrees;
+    snap->tree_params = options.tree;
+    snap->build_seconds = timer.seconds();
+    return snap;
+}
+
+}  // namespace kdt

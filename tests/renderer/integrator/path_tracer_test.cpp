@@ -1,0 +1,406 @@
+// Analytic renders: white furnace, convex objects and enclosures with closed-form radiance,
+// a diffuse plane under a constant sky, mirrors, depth counting, hard scenes.
+#include "renderer/integrator/path_tracer.h"
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "renderer/render/session.h"
+#include "tests/renderer/integrator/test_scenes.h"
+#include "tests/test_util.h"
+
+namespace kdt {
+namespace {
+
+using test::ConstantEnv;
+using test::diffuse;
+using test::flat;
+using test::make_box;
+using test::make_icosphere;
+using test::make_quad;
+using test::make_scene;
+
+struct Image {
+    int width = 0, height = 0;
+    std::vector<float> rgb;
+    PathCounters counters;
+    Vec3f at(int x, int y) const {
+        const size_t i = (size_t(y) * size_t(width) + size_t(x)) * 3;
+        return {rgb[i], rgb[i + 1], rgb[i + 2]};
+    }
+};
+
+Image render(const TraceScene& scene, const Camera& camera, TraceParams tp, int spp) {
+    tp.samples_per_pass = spp;
+    RenderSession session(compile_snapshot(scene, camera), tp, FilmParams{});
+    Image img;
+    img.counters = session.render_pass().counters;
+    img.width = camera.width;
+    img.height = camera.height;
+    img.rgb = session.film().linear_rgb();
+    return img;
+}
+
+// Mean and standard error of channel c over the pixels where mask() holds.
+template <class Mask>
+std::pair<double, double> mean_stderr(const Image& img, int c, Mask mask) {
+    double s = 0.0, s2 = 0.0;
+    int n = 0;
+    for (int y = 0; y < img.height; ++y) {
+        for (int x = 0; x < img.width; ++x) {
+            if (!mask(x, y)) continue;
+            const double v = img.at(x, y)[c];
+            s += v;
+            s2 += v * v;
+            ++n;
+        }
+    }
+    const double m = s / n;
+    const double var = std::max(0.0, (s2 - s * m) / (n - 1));
+    return {m, std::sqrt(var / n)};
+}
+
+auto all_pixels = [](int, int) { return true; };
+
+std::string describe(const TraceParams& tp) {
+    return std::string(kLightSamplingNames[size_t(tp.light_sampling)]) +
+           (tp.env_importance ? " env-is" : " env-uniform") +
+           (tp.russian_roulette ? " rr" : " no-rr") + " " +
+           kDiffuseSamplingNames[size_t(tp.diffuse_sampling)];
+}
+
+std::vector<TraceParams> all_strategies() {
+    std::vector<TraceParams> out;
+    for (LightSampling ls : {LightSampling::bsdf, LightSampling::nee, LightSampling::mis}) {
+        for (bool rr : {false, true}) {
+            for (DiffuseSampling ds : {DiffuseSampling::cosine, DiffuseSampling::uniform}) {
+                TraceParams tp;
+                tp.light_sampling = ls;
+                tp.russian_roulette = rr;
+                tp.diffuse_sampling = ds;
+                tp.env_importance = ds == DiffuseSampling::cosine;
+                tp.max_depth = 64;
+                tp.seed = 11;
+                out.push_back(tp);
+            }
+        }
+    }
+    return out;
+}
+
+// A convex object of albedo rho seen from outside under a constant environment L: every
+// scattered ray escapes, so the surface radiance is rho * L exactly (rho = 1: the white
+// furnace, the object vanishes).
+TEST(PathTracer, ConvexObjectInConstantEnvironmentReturnsAlbedoTimesRadiance) {
+    const Camera cam = make_camera({0, 0, 4}, {0, 0, 0}, {0, 1, 0}, 30.0f, 16, 16);
+    for (float rho : {1.0f, 0.5f}) {
+        const TraceScene scene =
+            make_scene({{make_icosphere({0, 0, 0}, 1.0f, 2), flat(diffuse(rho))}},
+                       std::make_shared<ConstantEnv>(Vec3f(1.0f)));
+        for (const TraceParams& tp : all_strategies()) {
+            const Image img = render(scene, cam, tp, 32);
+            // The sphere covers the central pixels (its silhouette is about 0.5 rad wide).
+            auto centre = [](int x, int y) { return std::abs(x - 8) < 4 && std::abs(y - 8) < 4; };
+            auto [m, se] = mean_stderr(img, 1, centre);
+            EXPECT_NEAR(m, rho, 4.0 * se + 1e-4) << describe(tp) << " rho " << rho;
+            EXPECT_EQ(img.at(0, 0), Vec3f(1.0f));  // background: the environment
+            for (int y = 0; y < 16; ++y) {
+                for (int x = 0; x < 16; ++x) ASSERT_TRUE(is_finite(img.at(x, y)));
+            }
+        }
+    }
+}
+
+// White furnace with interreflection: two albedo-1 objects that see each other (a sphere
+// resting on a box) still render 1 everywhere; with RR off up to the depth cut-off.
+TEST(PathTracer, WhiteFurnaceWithInterreflections) {
+    const TraceScene scene =
+        make_scene({{make_icosphere({0, 0.5f, 0}, 0.5f, 2), flat(diffuse(1.0f))},
+                    {make_box({-1, -1, -1}, {1, 0, 1}), flat(diffuse(1.0f))}},
+                   std::make_shared<ConstantEnv>(Vec3f(1.0f)));
+    const Camera cam = make_camera({2, 2, 3}, {0, 0, 0}, {0, 1, 0}, 40.0f, 24, 24);
+    for (LightSampling ls : {LightSampling::bsdf, LightSampling::mis}) {
+        for (bool rr : {false, true}) {
+            TraceParams tp;
+            tp.light_sampling = ls;
+            tp.russian_roulette = rr;
+            tp.max_depth = 256;
+            const Image img = render(scene, cam, tp, 32);
+            auto [m, se] = mean_stderr(img, 0, all_pixels);
+            EXPECT_NEAR(m, 1.0, 4.0 * se + 1e-3) << describe(tp);
+            EXPECT_LT(se, 0.02);
+        }
+    }
+}
+
+// Inside a closed box whose walls emit E and reflect diffusely with albedo rho, a path that
+// scatters k times before reaching an emitting wall carries rho^k E, so with depth limit D
+// (at most D scattering events) the radiance is E (1 - rho^(D+1)) / (1 - rho) exactly, for
+// any enclosure; the outside environment (bright)
+// must not leak in through shadow rays.
+TEST(PathTracer, EmissiveEnclosureGivesTheGeometricSeries) {
+    const float rho = 0.5f;
+    const TraceScene scene =
+        make_scene({{make_box({-1, -1, -1}, {1, 1, 1}), flat(diffuse(rho, Vec3f(1.0f)))}},
+                   std::make_shared<ConstantEnv>(Vec3f(10.0f)));
+    const Camera cam = make_camera({0.1f, 0.2f, 0.3f}, {0.5f, -0.3f, -1}, {0, 1, 0}, 90.0f, 16, 16);
+    for (int depth : {0, 1, 2, 3, 5}) {
+        TraceParams tp;
+        tp.max_depth = depth;
+        tp.russian_roulette = false;
+        const Image img = render(scene, cam, tp, 16);
+        const double expected = (1.0 - std::pow(rho, depth + 1)) / (1.0 - rho);
+        auto [m, se] = mean_stderr(img, 2, all_pixels);
+        EXPECT_NEAR(m, expected, 1e-5) << "depth " << depth;  // exact: every sample is the same
+        EXPECT_LT(se, 1e-5);
+        if (depth == 0) {
+            EXPECT_EQ(img.counters.shadow_rays, 0u);
+        } else {
+            EXPECT_GT(img.counters.shadow_rays, 0u);
+        }
+    }
+    // Russian roulette is unbiased: with a deep limit the series sums to 1 / (1 - rho).
+    TraceParams tp;
+    tp.max_depth = 200;
+    tp.russian_roulette = true;
+    tp.rr_min_depth = 1;
+    const Image img = render(scene, cam, tp, 64);
+    auto [m, se] = mean_stderr(img, 0, all_pixels);
+    EXPECT_NEAR(m, 1.0 / (1.0 - rho), 4.0 * se + 1e-3);
+    EXPECT_GT(se, 0.0);  // roulette adds noise: the check above is not vacuous
+}
+
+// A diffuse plane of albedo rho under a constant sky L returns rho * L, seen from either
+// side (materials are two-sided).
+TEST(PathTracer, DiffusePlaneUnderConstantSky) {
+    const Vec3f sky(0.2f, 0.4f, 0.8f);
+    const float rho = 0.6f;
+    const TraceScene scene =
+        make_scene({{make_quad({-50, 0, -50}, {0, 0, 100}, {100, 0, 0}), flat(diffuse(rho))}},
+                   std::make_shared<ConstantEnv>(sky));
+    for (float side : {1.0f, -1.0f}) {
+        const Camera cam = make_camera({0, 2 * side, 0}, {0.3f, 0, 0.2f}, {0, 0, 1}, 60.0f, 16, 16);
+        const Image img = render(scene, cam, TraceParams{}, 32);
+        for (int c = 0; c < 3; ++c) {
+            auto [m, se] = mean_stderr(img, c, all_pixels);
+            EXPECT_NEAR(m, rho * sky[c], 4.0 * se + 1e-5) << "side " << side << " channel " << c;
+        }
+    }
+}
+
+// A flat-shaded mirror sphere reflects the environment exactly: the radiance of a camera
+// ray equals albedo * env(reflect(d, n)) with n the hit triangle's normal.
+TEST(PathTracer, MirrorReflectsTheEnvironmentExactly) {
+    auto env = std::make_shared<test::GradientEnv>();
+    const Vec3f tint(0.9f, 0.8f, 0.7f);
+    const TraceScene scene = make_scene(
+        {{make_icosphere({0, 0, 0}, 1.0f, 3), flat(test::of_type(MaterialType::mirror, tint))}},
+        env);
+    Pcg32 rng(4);
+    int hits = 0;
+    for (int i = 0; i < 500; ++i) {
+        Ray ray;
+        ray.origin = Vec3f(0, 0, 5);
+        ray.dir = glm::normalize(Vec3f(rng.next_float() - 0.5f, rng.next_float() - 0.5f, -5.0f));
+        Hit hit;
+        if (!scene.tree->intersect(ray, hit)) continue;
+        ++hits;
+        const Vec3u t = scene.mesh->triangles[hit.prim];
+        const auto& p = scene.mesh->positions;
+        const Vec3f n = glm::normalize(glm::cross(p[t.y] - p[t.x], p[t.z] - p[t.x]));
+        const Vec3f r = glm::normalize(ray.dir - 2.0f * glm::dot(ray.dir, n) * n);
+        PixelSampler sampler(1, 0, 0, uint32_t(i));
+        PathCounters counters;
+        TraceParams tp;
+        const Vec3f L = trace_path(scene, tp, ray, sampler, counters);
+        const Vec3f expected = tint * env->eval(r);
+        for (int c = 0; c < 3; ++c) EXPECT_NEAR(L[c], expected[c], 2e-5f * expected[c]) << i;
+    }
+    EXPECT_GT(hits, 100);
+}
+
+// The same with the Grace probe: a mirror sphere shows the probe, smooth-shaded, exactly
+// (reflection about the interpolated normal), through the real environment light.
+TEST(PathTracer, MirrorSphereReflectsTheProbe) {
+    const auto data = test::shared_data_dir();
+    if (data.empty() || !std::filesystem::exists(data / "probes" / "grace.hdr")) {
+        GTEST_SKIP() << "shared data (probes/grace.hdr) not found; set KDT_SHARED_DATA";
+    }
+    EnvironmentDesc desc;
+    desc.file = (data / "probes" / "grace.hdr").string();
+    desc.rotation_degrees = 30.0f;
+    auto env = make_environment_light(desc);
+    const TraceScene scene = make_scene(
+        {{make_icosphere({0, 0, 0}, 1.0f, 3), test::smooth(test::of_type(MaterialType::mirror))}},
+        env);
+    Pcg32 rng(6);
+    int hits = 0;
+    for (int i = 0; i < 500; ++i) {
+        Ray ray;
+        ray.origin = Vec3f(0, 0.5f, 5);
+        ray.dir = glm::normalize(Vec3f(rng.next_float() - 0.5f, rng.next_float() - 0.6f, -5.0f));
+        Hit hit;
+        if (!scene.tree->intersect(ray, hit)) continue;
+        const Vec3u t = scene.mesh->triangles[hit.prim];
+        const float w = 1.0f - hit.u - hit.v;
+        const Vec3f n = glm::normalize(w * scene.normals[t.x] + hit.u * scene.normals[t.y] +
+                                       hit.v * scene.normals[t.z]);
+        if (glm::dot(n, -ray.dir) <= 0.0f) continue;
+        ++hits;
+        const Vec3f r = glm::normalize(ray.dir - 2.0f * glm::dot(ray.dir, n) * n);
+        PixelSampler sampler(1, 0, 0, uint32_t(i));
+        PathCounters counters;
+        const Vec3f L = trace_path(scene, TraceParams{}, ray, sampler, counters);
+        const Vec3f expected = env->eval(r);
+        for (int c = 0; c < 3; ++c)
+            EXPECT_NEAR(L[c], expected[c], 1e-4f * (1.0f + expected[c])) << i;
+    }
+    EXPECT_GT(hits, 100);
+}
+
+// Unbiasedness under real probes: BSDF sampling, NEE and MIS (with and without the map's
+// importance sampling) estimate the same image of a diffuse sphere on a box. Under Pisa all
+// strategies converge quickly; under Grace (tiny, very bright windows) only the importance-
+// sampled ones do within test time, so there NEE and MIS are compared with each other.
+TEST(PathTracer, LightSamplingStrategiesAgreeUnderProbes) {
+    const auto data = test::shared_data_dir();
+    if (data.empty() || !std::filesystem::exists(data / "probes" / "grace.hdr")) {
+        GTEST_SKIP() << "shared data (probes/*.hdr) not found; set KDT_SHARED_DATA";
+    }
+    const Camera cam = make_camera({0, 1, 3.5f}, {0, -0.3f, 0}, {0, 1, 0}, 35.0f, 12, 12);
+    for (const char* probe : {"pisa.hdr", "grace.hdr"}) {
+        EnvironmentDesc desc;
+        desc.file = (data / "probes" / probe).string();
+        const TraceScene scene =
+            make_scene({{make_icosphere({0, 0, 0}, 1.0f, 2), test::smooth(diffuse(0.7f))},
+                        {make_box({-3, -2, -3}, {3, -1, 3}), flat(diffuse(0.5f))}},
+                       make_environment_light(desc));
+        const bool hard = std::string(probe) == "grace.hdr";
+        std::vector<double> means;
+        for (int k = 0; k < 4; ++k) {
+            if (hard && (k == 0 || k == 3)) {
+                means.push_back(0.0);
+                continue;
+            }
+            TraceParams tp;
+            tp.light_sampling =
+                k == 0 ? LightSampling::bsdf : (k == 1 ? LightSampling::nee : LightSampling::mis);
+            tp.env_importance = k != 3;
+            tp.seed = uint64_t(k);
+            const Image img = render(scene, cam, tp, k == 0 ? 128 : 64);
+            means.push_back(mean_stderr(img, 1, all_pixels).first);
+        }
+        const double mis = means[2];
+        EXPECT_GT(mis, 0.05);
+        for (int k : {0, 1, 3}) {
+            if (hard && k != 1) continue;
+            EXPECT_NEAR(means[size_t(k)], mis, (hard ? 0.015 : 0.03) * mis)
+                << probe << ": strategy " << kLightSamplingNames[size_t(k < 3 ? k : 2)]
+                << (k == 3 ? " (uniform env)" : "");
+        }
+    }
+}
+
+// Depth counting: max_depth 0 shows only the environment and emitters.
+TEST(PathTracer, DepthZeroSeesOnlyTheEnvironment) {
+    const TraceScene scene = make_scene({{make_icosphere({0, 0, 0}, 1.0f, 1), flat(diffuse(0.8f))}},
+                                        std::make_shared<ConstantEnv>(Vec3f(1.0f)));
+    const Camera cam = make_camera({0, 0, 3}, {0, 0, 0}, {0, 1, 0}, 20.0f, 8, 8);
+    TraceParams tp;
+    tp.max_depth = 0;
+    const Image img = render(scene, cam, tp, 4);
+    EXPECT_EQ(img.at(4, 4), Vec3f(0.0f));
+    tp.max_depth = 1;
+    const Image img1 = render(scene, cam, tp, 64);
+    EXPECT_NEAR(img1.at(4, 4).x, 0.8f, 0.05f);
+}
+
+// Glass: a dielectric sphere in a constant environment conserves energy (no absorption),
+// up to the 1/eta^2 radiance scaling that cancels on the way out.
+TEST(PathTracer, DielectricSphereInFurnaceIsInvisible) {
+    const TraceScene scene = make_scene({{make_icosphere({0, 0, 0}, 1.0f, 3),
+                                          test::smooth(test::of_type(MaterialType::dielectric))}},
+                                        std::make_shared<ConstantEnv>(Vec3f(1.0f)));
+    const Camera cam = make_camera({0, 0, 4}, {0, 0, 0}, {0, 1, 0}, 30.0f, 16, 16);
+    TraceParams tp;
+    tp.max_depth = 64;
+    const Image img = render(scene, cam, tp, 16);
+    auto [m, se] = mean_stderr(img, 0, all_pixels);
+    EXPECT_NEAR(m, 1.0, 4.0 * se + 2e-3);
+}
+
+// Hard cases: degenerate triangles, grazing rays along a plane, a tiny very bright emitter,
+// broken file normals. No pixel may be NaN or infinite.
+TEST(PathTracer, HardScenesStayFinite) {
+    TriangleMesh junk;
+    junk.positions = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {0, 1, 0}, {0, 1, 0}};
+    junk.triangles = {{0, 1, 2}, {3, 4, 0}, {1, 1, 1}, {0, 1, 3}};
+    junk.normals = {{0, 0, 0}, {std::nanf(""), 0, 0}, {0, 0, 1}, {0, 0, -1}, {1e-30f, 0, 0}};
+    MaterialDesc lamp;
+    lamp.type = MaterialType::emissive;
+    lamp.emission = Vec3f(1e6f);
+    const TraceScene scene =
+        make_scene({{junk, test::smooth(diffuse(0.7f))},
+                    {make_quad({-5, 0, -5}, {0, 0, 10}, {10, 0, 0}), test::smooth(diffuse(0.9f))},
+                    {make_quad({0.3f, 0.5f, 0.3f}, {0.001f, 0, 0}, {0, 0, 0.001f}),
+                     flat(compile_material(lamp))},
+                    {make_icosphere({1, 0.3f, 0}, 0.3f, 1),
+                     test::smooth(test::of_type(MaterialType::dielectric))},
+                    {make_icosphere({-1, 0.3f, 0}, 0.3f, 1),
+                     test::smooth(test::of_type(MaterialType::conductor))}},
+                   std::make_shared<ConstantEnv>(Vec3f(1.0f)));
+    // Camera almost in the plane: grazing primary rays.
+    const Camera cam = make_camera({0, 1e-4f, 4}, {0, 0, 0}, {0, 1, 0}, 60.0f, 24, 16);
+    for (LightSampling ls : {LightSampling::bsdf, LightSampling::mis}) {
+        TraceParams tp;
+        tp.light_sampling = ls;
+        const Image img = render(scene, cam, tp, 16);
+        for (float v : img.rgb) ASSERT_TRUE(std::isfinite(v) && v >= 0.0f);
+        EXPECT_EQ(img.counters.nonfinite_dropped, 0u);
+    }
+}
+
+// Offsetting along the geometric normal avoids self-intersection without a scene-scale
+// epsilon, also far from the origin.
+TEST(PathTracer, OffsetOriginsDoNotSelfIntersect) {
+    for (float scale : {1.0f, 1e3f, 1e5f}) {
+        const Vec3f c(scale, -0.5f * scale, 0.25f * scale);
+        const TraceScene scene =
+            make_scene({{make_icosphere(c, 0.01f * scale, 2), flat(diffuse(0.5f))}},
+                       std::make_shared<ConstantEnv>(Vec3f(1.0f)));
+        Pcg32 rng(8);
+        int tested = 0;
+        for (int i = 0; i < 300; ++i) {
+            Ray ray;
+            ray.origin = c + Vec3f(0, 0, 0.05f * scale);
+            ray.dir =
+                glm::normalize(Vec3f(rng.next_float() - 0.5f, rng.next_float() - 0.5f, -1.0f) *
+                               Vec3f(0.2f, 0.2f, 1.0f));
+            Hit hit;
+            if (!scene.tree->intersect(ray, hit)) continue;
+            const Vec3u t = scene.mesh->triangles[hit.prim];
+            const auto& p = scene.mesh->positions;
+            const Vec3f ng = glm::normalize(glm::cross(p[t.y] - p[t.x], p[t.z] - p[t.x]));
+            const Vec3f hp = (1 - hit.u - hit.v) * p[t.x] + hit.u * p[t.y] + hit.v * p[t.z];
+            // Outgoing rays into the upper hemisphere of the convex sphere must escape.
+            Vec3f tt, bb;
+            make_basis(ng, tt, bb);
+            const Vec3f local = sample_cosine_hemisphere({rng.next_float(), rng.next_float()});
+            Ray out;
+            out.origin = offset_ray_origin(hp, ng);
+            out.dir = local.x * tt + local.y * bb + local.z * ng;
+            Hit again;
+            EXPECT_FALSE(scene.tree->intersect(out, again)) << "scale " << scale;
+            EXPECT_FALSE(scene.tree->occluded(out)) << "scale " << scale;
+            ++tested;
+        }
+        EXPECT_GT(tested, 50);
+    }
+}
+
+}  // namespace
+}  // namespace kdt

@@ -1,0 +1,219 @@
+// The render session: determinism for any thread count and tile split, reset, cancel,
+// snapshot swaps, adaptive sampling and stop conditions; compiling a Scene.
+#include "renderer/render/session.h"
+
+#include <cstring>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "renderer/core/error.h"
+#include "tests/renderer/integrator/test_scenes.h"
+
+namespace kdt {
+namespace {
+
+using test::ConstantEnv;
+using test::diffuse;
+using test::flat;
+
+std::shared_ptr<const RenderSnapshot> small_snapshot(int w = 40, int h = 24, float rho = 0.7f) {
+    const TraceScene scene =
+        test::make_scene({{test::make_icosphere({0, 0.5f, 0}, 0.5f, 2), test::smooth(diffuse(rho))},
+                          {test::make_box({-1, -1, -1}, {1, 0, 1}), flat(diffuse(0.5f))},
+                          {test::make_icosphere({0.7f, 0.3f, 0.4f}, 0.25f, 1),
+                           test::smooth(test::of_type(MaterialType::dielectric))}},
+                         std::make_shared<test::GradientEnv>());
+    return compile_snapshot(scene, make_camera({2, 2, 3}, {0, 0, 0}, {0, 1, 0}, 40.0f, w, h));
+}
+
+bool same_bits(const std::vector<float>& a, const std::vector<float>& b) {
+    return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0;
+}
+
+TEST(RenderSession, ImagesAreBitwiseIdenticalForAnyThreadCountAndTileSplit) {
+    auto snap = small_snapshot();
+    std::vector<std::vector<float>> images;
+    for (int threads : {1, 2, 3}) {
+        for (bool adaptive : {false, true}) {
+            TraceParams tp;
+            tp.threads = threads;
+            tp.samples_per_pass = 2;
+            FilmParams fp;
+            fp.adaptive = adaptive;
+            fp.adaptive_min_spp = 4;
+            fp.adaptive_threshold = 0.05f;
+            RenderSession s(snap, tp, fp);
+            for (int pass = 0; pass < 4; ++pass) s.render_pass();
+            if (threads == 1) {
+                images.push_back(s.film().linear_rgb());
+            } else {
+                EXPECT_TRUE(same_bits(images[adaptive ? 1 : 0], s.film().linear_rgb()))
+                    << threads << " threads, adaptive " << adaptive;
+            }
+        }
+    }
+    // Rendering the tiles in two halves, in reverse order (an MPI-like split), matches too.
+    TraceParams tp;
+    tp.samples_per_pass = 2;
+    RenderSession s(snap, tp, FilmParams{});
+    std::vector<int> even, odd;
+    for (int t = s.tile_count() - 1; t >= 0; --t) (t % 2 ? odd : even).push_back(t);
+    for (int pass = 0; pass < 4; ++pass) {
+        s.render_pass(odd);
+        s.render_pass(even);
+    }
+    EXPECT_TRUE(same_bits(images[0], s.film().linear_rgb()));
+    EXPECT_NE(images[0], images[1]);  // adaptive sampling changed the sample distribution
+}
+
+TEST(RenderSession, SeedChangesTheImage) {
+    auto snap = small_snapshot(16, 16);
+    TraceParams a, b;
+    b.seed = 1;
+    RenderSession sa(snap, a, FilmParams{}), sb(snap, b, FilmParams{});
+    sa.render_pass();
+    sb.render_pass();
+    EXPECT_FALSE(same_bits(sa.film().linear_rgb(), sb.film().linear_rgb()));
+}
+
+TEST(RenderSession, ResetRestartsAndSnapshotSwapTakesEffect) {
+    auto snap = small_snapshot(16, 16);
+    RenderSession s(snap, TraceParams{}, FilmParams{});
+    s.render_pass();
+    const std::vector<float> first = s.film().linear_rgb();
+    s.render_pass();
+    EXPECT_EQ(s.film().count(3, 3), 2u);
+    EXPECT_EQ(s.passes(), 2);
+    s.reset();
+    s.render_pass();
+    EXPECT_EQ(s.film().count(3, 3), 1u);
+    EXPECT_TRUE(same_bits(first, s.film().linear_rgb()));  // a clean restart replays
+
+    // A new snapshot with a different size and albedo swaps in at the next pass.
+    auto other = small_snapshot(8, 6, 0.1f);
+    s.set_snapshot(other);
+    EXPECT_EQ(s.film().width(), 16);  // not before the next pass
+    s.render_pass();
+    EXPECT_EQ(s.film().width(), 8);
+    EXPECT_EQ(s.film().height(), 6);
+    EXPECT_EQ(s.film().count(0, 0), 1u);
+    EXPECT_EQ(&s.snapshot(), other.get());
+    EXPECT_GT(s.totals().rays(), 0u);
+    EXPECT_EQ(s.heat_nodes().size(), 48u);
+}
+
+TEST(RenderSession, CancelStopsAPassAndKeepsFinishedTiles) {
+    auto snap = small_snapshot(64, 64);
+    TraceParams tp;
+    tp.samples_per_pass = 64;
+    tp.threads = 1;
+    RenderSession s(snap, tp, FilmParams{});
+    std::thread canceller([&] {
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+        s.cancel();
+    });
+    const PassStats ps = s.render_pass();
+    canceller.join();
+    EXPECT_TRUE(ps.cancelled) << ps.seconds;
+    if (ps.cancelled) {
+        EXPECT_LT(s.film().total_samples(), uint64_t(64 * 64 * 64));
+    }
+    for (int y = 0; y < 64; ++y) {
+        for (int x = 0; x < 64; ++x) {
+            const uint32_t n = s.film().count(x, y);
+            EXPECT_TRUE(n == 0 || n == 64);  // whole tiles only
+        }
+    }
+    // The next pass runs normally (one sample per pixel to keep the test short).
+    tp.samples_per_pass = 1;
+    s.set_params(tp, FilmParams{});
+    EXPECT_FALSE(s.render_pass().cancelled);
+    EXPECT_EQ(s.film().count(63, 63), 1u);
+}
+
+TEST(RenderSession, AdaptiveSamplingSpendsSamplesWhereTheNoiseIs) {
+    // A constant-environment furnace with one noisy object: background pixels converge at
+    // once (zero variance) and stop; the object keeps sampling.
+    const TraceScene scene =
+        test::make_scene({{test::make_icosphere({0, 0, 0}, 0.5f, 2), flat(diffuse(0.8f))}},
+                         std::make_shared<ConstantEnv>(Vec3f(1.0f)));
+    auto snap =
+        compile_snapshot(scene, make_camera({0, 0, 3}, {0, 0, 0}, {0, 1, 0}, 40.0f, 32, 32));
+    TraceParams tp;
+    tp.light_sampling = LightSampling::bsdf;
+    tp.diffuse_sampling = DiffuseSampling::uniform;
+    tp.samples_per_pass = 4;
+    FilmParams fp;
+    fp.adaptive = true;
+    fp.adaptive_min_spp = 8;
+    fp.adaptive_threshold = 0.01f;
+    RenderSession s(snap, tp, fp);
+    StopConditions stop;
+    stop.spp = 32;
+    const RenderProgress p = run_render(s, stop);
+    EXPECT_GE(p.samples, 32u * 32u * 32u);
+    EXPECT_EQ(s.film().count(0, 0), 8u);     // background stopped at the minimum
+    EXPECT_GT(s.film().count(16, 16), 32u);  // the object got the rest
+    EXPECT_NEAR(s.film().mean(16, 16).x, 0.8f, 0.1f);
+}
+
+TEST(RenderSession, StopConditions) {
+    auto snap = small_snapshot(16, 16);
+    TraceParams tp;
+    tp.samples_per_pass = 3;
+    RenderSession s(snap, tp, FilmParams{});
+    StopConditions stop;
+    EXPECT_THROW(run_render(s, stop), Error);
+    stop.spp = 10;
+    int calls = 0;
+    const RenderProgress p = run_render(s, stop, [&](const RenderProgress&) { ++calls; });
+    EXPECT_EQ(calls, 4);  // 3 + 3 + 3 + 1
+    EXPECT_EQ(s.film().count(5, 5), 10u);
+    EXPECT_EQ(p.fraction, 1.0);
+    // Error target without adaptivity: stops once the mean relative error is reached.
+    s.reset();
+    stop = StopConditions{};
+    stop.error = 0.2f;
+    const RenderProgress pe = run_render(s, stop);
+    EXPECT_LE(pe.mean_relative_error, 0.2);
+    EXPECT_GT(pe.mean_relative_error, 0.0);
+}
+
+TEST(RenderSnapshot, CompilesAScene) {
+    Scene scene;
+    scene.name = "test";
+    MeshInstance a;
+    a.mesh = std::make_shared<TriangleMesh>(test::make_box({0, 0, 0}, {1, 1, 1}));
+    a.world_from_object[3] = Vec4f(2, 0, 0, 1);  // translation by +2 in x
+    a.smooth = false;
+    MeshInstance b;
+    b.mesh = std::make_shared<TriangleMesh>(test::make_icosphere({0, 0, 0}, 1.0f, 1));
+    b.material.type = MaterialType::mirror;
+    scene.meshes = {a, b};
+    scene.camera.eye = {0, 0, 6};
+    SnapshotOptions opt;
+    opt.width = 20;
+    opt.height = 10;
+    opt.env = std::make_shared<ConstantEnv>(Vec3f(0.5f));
+    auto snap = compile_snapshot(scene, opt);
+    const TraceScene& ts = snap->scene;
+    EXPECT_EQ(ts.mesh->triangle_count(), 12u + 80u);
+    EXPECT_EQ(ts.normals.size(), ts.mesh->vertex_count());
+    EXPECT_EQ(ts.triangle_instance.front(), 0u);
+    EXPECT_EQ(ts.triangle_instance.back(), 1u);
+    EXPECT_EQ(ts.mesh->positions[0], Vec3f(2, 0, 0));  // transformed to world space
+    EXPECT_FALSE(ts.instances[0].smooth);
+    EXPECT_EQ(ts.instances[1].material.type, MaterialType::mirror);
+    EXPECT_EQ(snap->camera.width, 20);
+    ASSERT_TRUE(ts.tree);
+
+    scene.meshes[1].mesh.reset();
+    EXPECT_THROW(compile_snapshot(scene, opt), Error);
+    scene.meshes[1].mesh = b.mesh;
+    scene.meshes[1].material.albedo = Vec3f(std::nanf(""));
+    EXPECT_THROW(compile_snapshot(scene, opt), Error);
+}
+
+}  // namespace
+}  // namespace kdt
