@@ -291,6 +291,24 @@ TEST(PlyReader, FacesBeforeVerticesAndDegenerateFacesCounted) {
     EXPECT_EQ(m.positions[1], Vec3f(1, 0, 0));
 }
 
+TEST(PlyReader, BigPolygonFannedAndDegenerateTestedFast) {
+    // One face with 200000 corners: fanned into n-2 triangles; a repeated corner far apart
+    // makes it degenerate (found by sorting, not by comparing all pairs).
+    const int n = 200000;
+    Bytes b;
+    for (int i = 0; i < n; ++i) b.put(float(i)).put(0.0f).put(0.0f);
+    b.put(uint32_t(n));
+    for (int i = 0; i < n; ++i) b.put(i == n - 1 ? 0 : i);
+    std::string t = "ply\nformat binary_little_endian 1.0\nelement vertex " + std::to_string(n) +
+                    "\nproperty float x\nproperty float y\nproperty float z\nelement face 1\n"
+                    "property list uint int vertex_indices\nend_header\n" + b.s;
+    MeshLoadInfo info;
+    TriangleMesh m = load(t, {}, &info);
+    EXPECT_EQ(m.triangle_count(), size_t(n - 2));
+    EXPECT_EQ(info.degenerate_faces, 1u);
+    EXPECT_EQ(m.triangles[5], Vec3u(0, 6, 7));
+}
+
 TEST(PlyReader, BinaryTrailingBytesIgnored) {
     Bytes b;
     b.put(0.0f).put(0.0f).put(0.0f).put(1.0f).put(0.0f).put(0.0f).put(0.0f).put(1.0f).put(0.0f);
