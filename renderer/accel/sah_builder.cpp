@@ -882,6 +882,7 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
     size_t node_count = 1, index_count = 0;
     uint64_t splits = 0;
     count_output(top, node_count, index_count, splits);
+    KDT_CHECK(node_count < kMaxRefs);  // child indices have 30 bits
     out.nodes.reserve(node_count);
     out.indices.reserve(index_count);
     out.nodes.emplace_back();

@@ -636,13 +636,13 @@ std::shared_ptr<const KdTree> make_tree(const TriangleMesh& mesh, const KdTreePa
 }
 
 TEST(SahBuilderQueries, ClosestHitsMatchBruteForce) {
-    TriangleMesh with_degenerates = random_soup(300, 31, 0.2f);
+    TriangleMesh with_degenerates = random_soup(250, 31, 0.2f);
     with_degenerates.positions.push_back(Vec3f(0.1f));
     const auto p = uint32_t(with_degenerates.positions.size() - 1);
     with_degenerates.triangles.emplace_back(p, p, p);
     with_degenerates.positions[with_degenerates.triangles[5].x] =
         Vec3f(std::numeric_limits<float>::quiet_NaN());
-    const TriangleMesh meshes[] = {random_soup(400, 30, 0.3f), uv_sphere(14, 24), cube_lattice(3),
+    const TriangleMesh meshes[] = {random_soup(300, 30, 0.3f), uv_sphere(10, 20), cube_lattice(3),
                                    flat_grid(12), with_degenerates};
     size_t rays_checked = 0;
     for (size_t mi = 0; mi < std::size(meshes); ++mi) {
@@ -650,7 +650,7 @@ TEST(SahBuilderQueries, ClosestHitsMatchBruteForce) {
         for (const SahTuning& tuning : {SahTuning{}, binned_tuning()}) {
             KdBuildOutput copy;
             const auto tree = make_tree(mesh, KdTreeParams{}, tuning, &copy);
-            const std::vector<Ray> rays = make_rays(mesh, copy, 11000, uint32_t(40 + mi));
+            const std::vector<Ray> rays = make_rays(mesh, copy, 10000, uint32_t(40 + mi));
             rays_checked += rays.size();
             compare_hits(*tree, rays, [&](const Ray& r) { return test::brute_force_hit(mesh, r); },
                          "mesh " + std::to_string(mi));
@@ -671,7 +671,7 @@ TEST(SahBuilderQueries, DragonRes2MatchesBruteForce) {
     const auto sah = make_tree(*mesh, KdTreeParams{}, SahTuning{}, &copy);
     check_layout(*mesh, copy);
     EXPECT_LT(copy.stats.refs_per_triangle, 3.0);
-    const std::vector<Ray> rays = make_rays(*mesh, copy, 300, 77);
+    const std::vector<Ray> rays = make_rays(*mesh, copy, 100, 77);
     compare_hits(*sah, rays, [&](const Ray& r) { return test::brute_force_hit(*mesh, r); },
                  "dragon res2 vs brute force");
 }
