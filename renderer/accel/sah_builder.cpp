@@ -477,14 +477,20 @@ private:
                 auto& fresh = ws_.fresh[c].events[k];
                 auto& tmp = ws_.tmp[c];
                 auto& out = child[c]->events[k];
-                if (fresh.empty()) {
-                    out.swap(tmp);
-                    continue;
-                }
+                out.swap(tmp);
+                if (fresh.empty()) continue;
                 std::sort(fresh.begin(), fresh.end(), event_less);
-                out.resize(tmp.size() + fresh.size());
-                std::merge(tmp.begin(), tmp.end(), fresh.begin(), fresh.end(), out.begin(),
-                           event_less);
+                // Merge from the back in place: only the suffix after the first fresh event
+                // moves, and there are few straddlers.
+                size_t i = out.size(), j = fresh.size(), w = out.size() + fresh.size();
+                out.resize(w);
+                while (j > 0) {
+                    if (i > 0 && event_less(fresh[j - 1], out[i - 1])) {
+                        out[--w] = out[--i];
+                    } else {
+                        out[--w] = fresh[--j];
+                    }
+                }
             }
         }
     }
