@@ -262,7 +262,9 @@ void run(const ConvergeArgs& a) {
     if (!a.no_plot) {
         const std::string png = (fs::path(a.out_dir) / "converge.png").string();
         const fs::path script = find_plot_script();
-        const std::string cmd = "python3 '" + script.string() + "' '" + csv + "' '" + png + "'";
+        // Debian's interpreter has python3-matplotlib; a python3 earlier in PATH may not.
+        const std::string python = fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
+        const std::string cmd = python + " '" + script.string() + "' '" + csv + "' '" + png + "'";
         if (fs::exists(script) && std::system(cmd.c_str()) == 0) {
             std::printf("wrote %s\n", png.c_str());
         } else {
