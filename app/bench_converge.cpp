@@ -2,6 +2,9 @@
 // renders progressively with several sampling strategies, recording wall time, rays, RMSE
 // and relative MSE at 1, 2, 4, ... N spp; writes CSV, a log-log plot, and checks that the
 // error falls as time^(-1/2).
+#include <omp.h>
+
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -30,6 +33,8 @@ struct ConvergeArgs {
     float adaptive_threshold = 0.02f;
     int path_depth = 16;
     bool no_plot = false;
+    bool throughput = false;
+    int repeats = 3;
 };
 
 struct Config {
@@ -130,6 +135,61 @@ std::filesystem::path find_plot_script() {
     return "scripts/plot_converge.py";
 }
 
+// Shading overhead: the path tracer's rays per second against raw kd-tree traversal of the
+// very same rays (recorded from the same samples), same threads; medians of a.repeats runs.
+void run_throughput(const ConvergeArgs& a, const RenderSnapshot& snap,
+                    const std::shared_ptr<const RenderSnapshot>& snap_ptr) {
+    TraceParams tp;
+    tp.seed = a.seed;
+    tp.threads = a.threads;
+    tp.max_depth = a.path_depth;
+    tp.samples_per_pass = 4;
+    const int threads = a.threads > 0 ? a.threads : omp_get_max_threads();
+    RayRecord rec;
+    for (int y = 0; y < snap.camera.height; ++y) {
+        for (int x = 0; x < snap.camera.width; ++x) {
+            for (int s = 0; s < tp.samples_per_pass; ++s) {
+                record_rays(snap.scene, snap.camera, tp, x, y, uint32_t(s), rec);
+            }
+        }
+    }
+    const KdTree& tree = *snap.scene.tree;
+    std::vector<double> pt_rates, raw_rates;
+    for (int r = 0; r < a.repeats; ++r) {
+        RenderSession session(snap_ptr, tp, FilmParams{});
+        const PassStats ps = session.render_pass();
+        pt_rates.push_back(double(ps.counters.rays()) / ps.seconds * 1e-6);
+
+        Timer timer;
+        const auto nc = int64_t(rec.closest.size()), na = int64_t(rec.any.size());
+        uint64_t hits = 0;
+#pragma omp parallel num_threads(threads) reduction(+ : hits)
+        {
+#pragma omp for schedule(dynamic, 256) nowait
+            for (int64_t i = 0; i < nc; ++i) {
+                Hit h;
+                hits += tree.intersect(rec.closest[size_t(i)], h);
+            }
+#pragma omp for schedule(dynamic, 256)
+            for (int64_t i = 0; i < na; ++i) hits += tree.occluded(rec.any[size_t(i)]);
+        }
+        const double secs = timer.seconds();
+        raw_rates.push_back(double(nc + na) / secs * 1e-6);
+        std::printf(
+            "  run %d: path tracer %.3f Mrays/s (%llu rays), raw traversal %.3f Mrays/s "
+            "(%lld closest + %lld any-hit, %llu hits)\n",
+            r + 1, pt_rates.back(), (unsigned long long)ps.counters.rays(), raw_rates.back(),
+            (long long)nc, (long long)na, (unsigned long long)hits);
+    }
+    std::sort(pt_rates.begin(), pt_rates.end());
+    std::sort(raw_rates.begin(), raw_rates.end());
+    const double pt = pt_rates[pt_rates.size() / 2], raw = raw_rates[raw_rates.size() / 2];
+    std::printf(
+        "throughput: path tracer %.3f Mrays/s, raw traversal %.3f Mrays/s, ratio %.3f "
+        "(medians of %d, %d threads)\n",
+        pt, raw, pt / raw, a.repeats, threads);
+}
+
 void run(const ConvergeArgs& a) {
     namespace fs = std::filesystem;
     if (a.max_spp < 1 || a.reference_spp < 1)
@@ -145,6 +205,10 @@ void run(const ConvergeArgs& a) {
     std::printf("bench converge: %s%s%s, %dx%d, tree %.2f s\n",
                 a.scene.empty() ? "default scene" : a.scene.c_str(), a.env.empty() ? "" : " under ",
                 a.env.c_str(), a.width, a.height, prep.tree_seconds);
+    if (a.throughput) {
+        run_throughput(a, *prep.snapshot, prep.snapshot);
+        return;
+    }
 
     // Reference: given, or rendered with MIS at reference_spp under an independent seed.
     ImageRGB ref;
@@ -303,6 +367,9 @@ void add_bench_converge_command(CLI::App& parent) {
     cmd->add_option("-o,--out-dir", a.out_dir, "Directory for reference, CSV and plot")
         ->capture_default_str();
     cmd->add_flag("--no-plot", a.no_plot, "Do not run scripts/plot_converge.py");
+    cmd->add_flag("--throughput", a.throughput,
+                  "Instead: path tracer rays/s against raw traversal of the same rays");
+    cmd->add_option("--repeats", a.repeats, "--throughput: runs (median)")->capture_default_str();
     cmd->callback([] { run(a); });
 }
 
