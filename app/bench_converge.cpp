@@ -154,11 +154,17 @@ void run_throughput(const ConvergeArgs& a, const RenderSnapshot& snap,
         }
     }
     const KdTree& tree = *snap.scene.tree;
-    std::vector<double> pt_rates, raw_rates;
+    std::vector<double> pt_rates, pt_nc_rates, raw_rates;
     for (int r = 0; r < a.repeats; ++r) {
+        // The path tracer as shipped (traversal counters on), then without the counters.
         RenderSession session(snap_ptr, tp, FilmParams{});
         const PassStats ps = session.render_pass();
         pt_rates.push_back(double(ps.counters.rays()) / ps.seconds * 1e-6);
+        TraceParams tp_nc = tp;
+        tp_nc.count_traversal = false;
+        RenderSession session_nc(snap_ptr, tp_nc, FilmParams{});
+        const PassStats ps_nc = session_nc.render_pass();
+        pt_nc_rates.push_back(double(ps_nc.counters.rays()) / ps_nc.seconds * 1e-6);
 
         Timer timer;
         const auto nc = int64_t(rec.closest.size()), na = int64_t(rec.any.size());
@@ -176,18 +182,21 @@ void run_throughput(const ConvergeArgs& a, const RenderSnapshot& snap,
         const double secs = timer.seconds();
         raw_rates.push_back(double(nc + na) / secs * 1e-6);
         std::printf(
-            "  run %d: path tracer %.3f Mrays/s (%llu rays), raw traversal %.3f Mrays/s "
-            "(%lld closest + %lld any-hit, %llu hits)\n",
-            r + 1, pt_rates.back(), (unsigned long long)ps.counters.rays(), raw_rates.back(),
-            (long long)nc, (long long)na, (unsigned long long)hits);
+            "  run %d: path tracer %.3f Mrays/s (%llu rays; %.3f without traversal counters), "
+            "raw traversal %.3f Mrays/s (%lld closest + %lld any-hit, %llu hits)\n",
+            r + 1, pt_rates.back(), (unsigned long long)ps.counters.rays(), pt_nc_rates.back(),
+            raw_rates.back(), (long long)nc, (long long)na, (unsigned long long)hits);
+        std::fflush(stdout);
     }
-    std::sort(pt_rates.begin(), pt_rates.end());
-    std::sort(raw_rates.begin(), raw_rates.end());
-    const double pt = pt_rates[pt_rates.size() / 2], raw = raw_rates[raw_rates.size() / 2];
+    auto median = [](std::vector<double> v) {
+        std::sort(v.begin(), v.end());
+        return v[v.size() / 2];
+    };
+    const double pt = median(pt_rates), pt_nc = median(pt_nc_rates), raw = median(raw_rates);
     std::printf(
-        "throughput: path tracer %.3f Mrays/s, raw traversal %.3f Mrays/s, ratio %.3f "
-        "(medians of %d, %d threads)\n",
-        pt, raw, pt / raw, a.repeats, threads);
+        "throughput: path tracer %.3f Mrays/s, raw traversal %.3f Mrays/s, ratio %.3f (without "
+        "traversal counters %.3f Mrays/s, ratio %.3f; medians of %d, %d threads)\n",
+        pt, raw, pt / raw, pt_nc, pt_nc / raw, a.repeats, threads);
 }
 
 void run(const ConvergeArgs& a) {
@@ -258,7 +267,7 @@ void run(const ConvergeArgs& a) {
             // Passes until the film holds target x pixels samples (exactly target per pixel
             // without adaptivity); only rendering is timed.
             for (;;) {
-                const double done = double(s.film().total_samples() + s.totals().nonfinite_dropped);
+                const double done = double(s.totals().samples);
                 if (done >= double(target) * pixels) break;
                 const PassStats ps = s.render_pass(cfg.film.adaptive ? 0 : target);
                 seconds += ps.seconds;
