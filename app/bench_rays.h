@@ -1,0 +1,112 @@
+// Ray sets shared by the benchmarks: the views file (assets/views/*.json), jittered primary
+// rays per view, one-bounce cosine-distributed diffuse rays, and parallel tracing helpers.
+// Deterministic: every random number is a hash of (seed, view, pixel, sample).
+#pragma once
+
+#include <algorithm>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <omp.h>
+
+#include "renderer/accel/kdtree.h"
+#include "renderer/core/math.h"
+#include "renderer/core/timer.h"
+#include "renderer/geometry/mesh.h"
+#include "renderer/scene/scene.h"
+
+namespace kdt::app {
+
+/// One named camera of a views file.
+struct BenchView {
+    std::string name;   ///< "A", "B", ...
+    std::string label;  ///< "front", "side", ...
+    CameraDesc camera;
+};
+
+/// A views file: image size, samples per pixel, seed and the cameras.
+struct BenchViewSet {
+    int width = 640;
+    int height = 480;
+    int samples_per_pixel = 8;
+    uint64_t seed = 1;
+    std::vector<BenchView> views;
+};
+
+/// Reads a views file. Unknown keys, wrong types and missing values throw kdt::Error naming
+/// the file and the key (a JSON pointer).
+BenchViewSet load_views(const std::string& path);
+
+/// Finds a file under the assets directory: $KDT_ASSETS_DIR, ./assets, then assets/ relative
+/// to the executable (build/bin/../../assets, bin/../share/kdtrace/assets). Throws kdt::Error
+/// when none exists.
+std::string find_asset(const std::string& relative);
+
+/// Pinhole camera ray through raster position (x, y) in pixels (y down, pixel (0,0) covers
+/// [0,1)^2), the CameraDesc conventions: vertical fov, right = forward x up. Unit direction.
+Ray camera_ray(const CameraDesc& camera, int width, int height, float x, float y);
+
+/// width*height*spp primary rays with box-filter jitter, in 8x8-pixel tiles (tile-major,
+/// then pixels row-major, then samples) so consecutive rays are coherent.
+/// The jitter of (pixel, sample) depends only on (seed, view_index, pixel, sample).
+std::vector<Ray> make_primary_rays(const BenchViewSet& set, size_t view_index);
+
+/// For every ray that hit (hits[i].valid()), one cosine-distributed ray about the
+/// geometric normal flipped to face the incoming ray, starting at the hit point offset
+/// along that normal by a few float ULPs of the hit position. Misses produce no ray.
+std::vector<Ray> make_diffuse_rays(const TriangleMesh& mesh, const std::vector<Ray>& rays,
+                                   const std::vector<Hit>& hits, uint64_t seed);
+
+/// Uniform float in [0,1) from a 64-bit hash of the arguments (splitmix64 finaliser).
+float hash_uniform(uint64_t a, uint64_t b, uint64_t c, uint64_t d);
+
+/// Rays per OpenMP work item: one 8x8 tile of 8 samples.
+inline constexpr size_t kRayChunk = 512;
+
+/// Traces every ray with `intersect(ray, hit)` on `threads` OpenMP threads (0 = default),
+/// writing hits; returns wall seconds.
+template <class Intersect>
+double trace_closest(const std::vector<Ray>& rays, std::vector<Hit>& hits, int threads,
+                     const Intersect& intersect);
+/// Traces every ray with `occluded(ray)`; returns wall seconds; `occluded_count` receives
+/// the number of occluded rays.
+template <class Occluded>
+double trace_occluded(const std::vector<Ray>& rays, int threads, const Occluded& occluded,
+                      uint64_t* occluded_count);
+
+// ---- implementation of the templates ----
+
+template <class Intersect>
+double trace_closest(const std::vector<Ray>& rays, std::vector<Hit>& hits, int threads,
+                     const Intersect& intersect) {
+    hits.assign(rays.size(), Hit{});
+    const int64_t chunks = int64_t((rays.size() + kRayChunk - 1) / kRayChunk);
+    const int nthreads = threads > 0 ? threads : omp_get_max_threads();
+    Timer timer;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
+    for (int64_t c = 0; c < chunks; ++c) {
+        const size_t end = std::min(rays.size(), size_t(c + 1) * kRayChunk);
+        for (size_t i = size_t(c) * kRayChunk; i < end; ++i) intersect(rays[i], hits[i]);
+    }
+    return timer.seconds();
+}
+
+template <class Occluded>
+double trace_occluded(const std::vector<Ray>& rays, int threads, const Occluded& occluded,
+                      uint64_t* occluded_count) {
+    const int64_t chunks = int64_t((rays.size() + kRayChunk - 1) / kRayChunk);
+    const int nthreads = threads > 0 ? threads : omp_get_max_threads();
+    uint64_t count = 0;
+    Timer timer;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads) reduction(+ : count)
+    for (int64_t c = 0; c < chunks; ++c) {
+        const size_t end = std::min(rays.size(), size_t(c + 1) * kRayChunk);
+        for (size_t i = size_t(c) * kRayChunk; i < end; ++i) count += occluded(rays[i]) ? 1 : 0;
+    }
+    const double seconds = timer.seconds();
+    if (occluded_count) *occluded_count = count;
+    return seconds;
+}
+
+}  // namespace kdt::app

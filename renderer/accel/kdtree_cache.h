@@ -1,0 +1,83 @@
+// kd-tree cache files (.kdt): save a built tree, load it back by mmap after validating
+// everything (magic, version, builder and parameters, mesh hash, counts, structure,
+// checksum), and reuse-or-rebuild next to the model or in a cache directory.
+// Depends on core, geometry and the kd-tree; touches files (the one accel file that does).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "renderer/accel/kdtree.h"
+
+namespace kdt {
+
+/// Format version written into every cache file; files of any other version are rebuilt.
+inline constexpr uint32_t kKdCacheVersion = 1;
+
+/// Hash of the parameters that change the tree (builder, q, n0, depth, split flags, SAH
+/// costs; not threads). Used in cache file names and stored in the header.
+uint64_t kdtree_params_hash(const KdTreeParams& params);
+
+/// File name of a tree cache for a model: "<model file name>.<builder>-<16 hex digits>.kdt".
+std::string kdtree_cache_file_name(const std::string& model_path, const KdTreeParams& params);
+
+/// Writes `tree` to `path` atomically (temporary file in the same directory, then rename).
+/// Throws kdt::Error naming the path when it cannot be written.
+void save_kdtree(const std::string& path, const KdTree& tree);
+
+/// Maps `path` read-only and validates it against `mesh` and `params`: magic, byte order,
+/// version, builder and parameters, mesh content hash, vertex/triangle/node/index counts,
+/// file size, checksums, and the node structure (child indices in range and after their
+/// parent, each node referenced once, depth <= 64, leaf ranges in range, triangle indices
+/// < triangle count). Returns a tree sharing `mesh` (nodes and indices copied out of the
+/// mapping). Throws kdt::Error with the path, the element and the byte offset on any
+/// mismatch; never trusts a file it has not fully checked.
+std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
+                                          std::shared_ptr<const TriangleMesh> mesh,
+                                          const KdTreeParams& params);
+
+/// Recomputes both checksums of a cache file held in memory, for tests and tools that forge
+/// or patch files (so that only the structural checks can catch what they changed).
+/// Throws kdt::Error when `bytes` is shorter than a header.
+void reseal_kdtree_cache_image(std::vector<unsigned char>& bytes);
+
+/// Byte offset of the first node in a cache file (nodes, then indices, follow the header).
+size_t kdtree_cache_payload_offset();
+
+/// Receives one-line messages ("loaded ...", "rebuilding: <reason>", "cannot write ...").
+using KdCacheLog = std::function<void(const std::string& line)>;
+
+/// What get_or_build_kdtree() did, for reports and tests.
+struct KdCacheReport {
+    std::string path;      ///< cache file used or written; empty when none could be
+    bool loaded = false;   ///< true: tree came from the cache file
+    bool written = false;  ///< true: a fresh cache file was written
+    std::string reason;    ///< why a cache file was not used (empty when loaded or absent)
+    double seconds = 0.0;  ///< load or build (+ write) wall time
+};
+
+/// The default cache directory: $KDT_CACHE_DIR/trees, else $XDG_CACHE_HOME/kdtrace/trees,
+/// else $HOME/.cache/kdtrace/trees (empty when none of these is set).
+std::string default_kdtree_cache_dir();
+
+/// Returns the tree for `mesh` (loaded from `model_path`) built with `params`, from a cache
+/// file when a valid one exists, else built and written for the next run.
+/// Locations: with `cache_dir` empty, "<model>.<builder>-<hash>.kdt" next to the model when
+/// that directory is writable, then the same name in default_kdtree_cache_dir(); with
+/// `cache_dir` set, that directory only. `model_path` may be empty for generated meshes:
+/// the name is then derived from the mesh hash and only the cache directory is used.
+/// A corrupt, truncated, stale or foreign file is reported through `log` (one line with the
+/// reason; stderr when `log` is empty), rebuilt and rewritten atomically. A cache that cannot
+/// be written is reported and the built tree still returned. Throws only what the build
+/// throws (bad parameters).
+std::shared_ptr<const KdTree> get_or_build_kdtree(const std::string& model_path,
+                                                  std::shared_ptr<const TriangleMesh> mesh,
+                                                  const KdTreeParams& params,
+                                                  const std::string& cache_dir = {},
+                                                  const KdCacheLog& log = {},
+                                                  KdCacheReport* report = nullptr);
+
+}  // namespace kdt

@@ -1,0 +1,460 @@
+// Tree cache files: round trip, and every way a cache file can be wrong (truncated, flipped
+// bytes, foreign, stale, other parameters, empty, a directory, an unwritable location) is
+// detected with a clear reason and rebuilt.
+#include "renderer/accel/kdtree_cache.h"
+
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "renderer/core/error.h"
+#include "renderer/scene/scene.h"
+#include "tests/test_util.h"
+
+namespace kdt {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::shared_ptr<const TriangleMesh> sphere_mesh(int levels = 3) {
+    return std::make_shared<const TriangleMesh>(make_displaced_sphere(levels));
+}
+
+KdTreeParams thesis_params() {
+    KdTreeParams p;
+    p.builder = KdBuilder::thesis;
+    p.q = 0.98f;
+    p.n0 = 5;
+    p.max_depth = 20;
+    return p;
+}
+
+std::vector<unsigned char> read_bytes(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::vector<unsigned char>(std::istreambuf_iterator<char>(in), {});
+}
+
+void write_bytes(const fs::path& p, const std::vector<unsigned char>& bytes) {
+    std::ofstream out(p, std::ios::binary | std::ios::trunc);
+    out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+}
+
+void expect_same_tree(const KdTree& a, const KdTree& b) {
+    ASSERT_EQ(a.nodes().size(), b.nodes().size());
+    ASSERT_EQ(a.indices().size(), b.indices().size());
+    EXPECT_EQ(0,
+              std::memcmp(a.nodes().data(), b.nodes().data(), a.nodes().size() * sizeof(KdNode)));
+    EXPECT_EQ(a.indices(), b.indices());
+    EXPECT_EQ(a.bounds().lower, b.bounds().lower);
+    EXPECT_EQ(a.bounds().upper, b.bounds().upper);
+    EXPECT_EQ(a.stats().median_splits, b.stats().median_splits);
+    EXPECT_EQ(a.stats().center_splits, b.stats().center_splits);
+    EXPECT_EQ(a.stats().cutoff_splits, b.stats().cutoff_splits);
+    EXPECT_EQ(a.stats().sah_splits, b.stats().sah_splits);
+    EXPECT_EQ(a.stats().leaves, b.stats().leaves);
+    EXPECT_EQ(a.stats().depth_histogram, b.stats().depth_histogram);
+}
+
+std::string load_error(const fs::path& file, std::shared_ptr<const TriangleMesh> mesh,
+                       const KdTreeParams& params) {
+    try {
+        load_kdtree(file.string(), std::move(mesh), params);
+    } catch (const Error& e) {
+        return e.what();
+    }
+    return "";
+}
+
+// Runs get_or_build_kdtree with a captured log.
+struct CacheRun {
+    std::shared_ptr<const KdTree> tree;
+    KdCacheReport report;
+    std::string log;
+};
+
+CacheRun run_cache(const fs::path& model, std::shared_ptr<const TriangleMesh> mesh,
+                   const KdTreeParams& params, const fs::path& cache_dir) {
+    CacheRun r;
+    r.tree = get_or_build_kdtree(
+        model.string(), std::move(mesh), params, cache_dir.string(),
+        [&](const std::string& line) { r.log += line + "\n"; }, &r.report);
+    return r;
+}
+
+class CacheTest : public ::testing::Test {
+protected:
+    void SetUp() override {
+        dir_ = test::temp_dir("kdt_cache");
+        model_ = dir_ / "sphere.ply";
+        mesh_ = sphere_mesh();
+        params_ = thesis_params();
+        file_ = dir_ / kdtree_cache_file_name(model_.string(), params_);
+    }
+    void TearDown() override {
+        std::error_code ec;
+        fs::remove_all(dir_, ec);
+    }
+    // First run writes the cache file; returns the tree it built.
+    std::shared_ptr<const KdTree> prime() {
+        CacheRun r = run_cache(model_, mesh_, params_, dir_);
+        EXPECT_FALSE(r.report.loaded);
+        EXPECT_TRUE(r.report.written) << r.log;
+        EXPECT_EQ(r.report.path, file_.string());
+        EXPECT_TRUE(fs::is_regular_file(file_));
+        return r.tree;
+    }
+    // A damaged file is reported with `reason`, rebuilt and rewritten; the next run loads it.
+    void expect_rebuilt(const std::string& reason) {
+        CacheRun r = run_cache(model_, mesh_, params_, dir_);
+        ASSERT_TRUE(r.tree);
+        EXPECT_FALSE(r.report.loaded);
+        EXPECT_NE(r.report.reason.find(reason), std::string::npos)
+            << "reason: " << r.report.reason << "\nwanted: " << reason;
+        EXPECT_NE(r.log.find("rebuilding"), std::string::npos) << r.log;
+        EXPECT_NE(r.log.find(file_.string()), std::string::npos) << r.log;
+        EXPECT_TRUE(r.report.written) << r.log;
+        CacheRun again = run_cache(model_, mesh_, params_, dir_);
+        EXPECT_TRUE(again.report.loaded) << again.log;
+        expect_same_tree(*r.tree, *again.tree);
+    }
+
+    fs::path dir_, model_, file_;
+    std::shared_ptr<const TriangleMesh> mesh_;
+    KdTreeParams params_;
+};
+
+TEST_F(CacheTest, RoundTripGivesIdenticalTree) {
+    auto built = build_kdtree(mesh_, params_);
+    save_kdtree(file_.string(), *built);
+    auto loaded = load_kdtree(file_.string(), mesh_, params_);
+    ASSERT_TRUE(loaded);
+    expect_same_tree(*built, *loaded);
+    EXPECT_EQ(&loaded->mesh(), mesh_.get());
+    // Queries agree on a fan of rays through the sphere.
+    for (int i = 0; i < 200; ++i) {
+        Ray ray;
+        ray.origin = Vec3f(3.0f, 0.01f * float(i - 100), 0.3f);
+        ray.dir = glm::normalize(Vec3f(-1.0f, 0.002f * float(i), -0.1f));
+        Hit a, b;
+        EXPECT_EQ(built->intersect(ray, a), loaded->intersect(ray, b));
+        EXPECT_EQ(a.prim, b.prim);
+        EXPECT_EQ(a.t, b.t);
+    }
+}
+
+TEST_F(CacheTest, SecondRunLoadsTheFirstRunsFile) {
+    auto first = prime();
+    CacheRun second = run_cache(model_, mesh_, params_, dir_);
+    EXPECT_TRUE(second.report.loaded);
+    EXPECT_FALSE(second.report.written);
+    EXPECT_NE(second.log.find("loaded"), std::string::npos);
+    expect_same_tree(*first, *second.tree);
+}
+
+TEST_F(CacheTest, FileNameCarriesBuilderAndParameterHash) {
+    const std::string name = kdtree_cache_file_name("/some/where/dragon.ply", params_);
+    EXPECT_EQ(name.rfind("dragon.ply.thesis-", 0), 0u) << name;
+    EXPECT_EQ(name.substr(name.size() - 4), ".kdt");
+    KdTreeParams other = params_;
+    other.q = 0.95f;
+    EXPECT_NE(name, kdtree_cache_file_name("/some/where/dragon.ply", other));
+    other = params_;
+    other.threads = 7;  // threads do not change the tree
+    EXPECT_EQ(name, kdtree_cache_file_name("/some/where/dragon.ply", other));
+    other = params_;
+    other.use_median_split = false;
+    EXPECT_NE(kdtree_params_hash(params_), kdtree_params_hash(other));
+}
+
+TEST_F(CacheTest, TruncatedFileIsRebuilt) {
+    prime();
+    auto bytes = read_bytes(file_);
+    bytes.resize(bytes.size() - 100);
+    write_bytes(file_, bytes);
+    EXPECT_NE(load_error(file_, mesh_, params_).find("truncated"), std::string::npos);
+    expect_rebuilt("truncated");
+}
+
+TEST_F(CacheTest, FileCutInsideTheHeaderIsRebuilt) {
+    prime();
+    auto bytes = read_bytes(file_);
+    bytes.resize(100);
+    write_bytes(file_, bytes);
+    expect_rebuilt("truncated");
+}
+
+TEST_F(CacheTest, FlippedPayloadByteIsRebuilt) {
+    prime();
+    auto bytes = read_bytes(file_);
+    bytes[bytes.size() - 37] ^= 0x10;
+    write_bytes(file_, bytes);
+    expect_rebuilt("payload checksum mismatch");
+}
+
+TEST_F(CacheTest, FlippedHeaderByteIsRebuilt) {
+    prime();
+    auto bytes = read_bytes(file_);
+    bytes[200] ^= 0x01;  // inside the statistics block
+    write_bytes(file_, bytes);
+    expect_rebuilt("header checksum mismatch");
+}
+
+TEST_F(CacheTest, TrailingBytesAreRebuilt) {
+    prime();
+    auto bytes = read_bytes(file_);
+    bytes.insert(bytes.end(), 16, 0);
+    write_bytes(file_, bytes);
+    expect_rebuilt("trailing bytes");
+}
+
+TEST_F(CacheTest, WrongMagicIsRebuilt) {
+    prime();
+    auto bytes = read_bytes(file_);
+    bytes[1] = 'X';
+    write_bytes(file_, bytes);
+    expect_rebuilt("wrong magic");
+}
+
+TEST_F(CacheTest, ForeignFileIsRebuilt) {
+    std::ofstream(file_) << "ply\nformat ascii 1.0\nelement vertex 3\n";
+    expect_rebuilt("wrong magic");
+}
+
+TEST_F(CacheTest, WrongVersionIsRebuilt) {
+    prime();
+    auto bytes = read_bytes(file_);
+    const uint32_t version = kKdCacheVersion + 1;
+    std::memcpy(bytes.data() + 12, &version, 4);  // after magic and byte-order mark
+    write_bytes(file_, bytes);
+    expect_rebuilt("cache format version 2");
+}
+
+TEST_F(CacheTest, StaleFileForAnotherMeshIsRebuilt) {
+    prime();
+    mesh_ = sphere_mesh(2);  // the model changed on disk since the cache was written
+    expect_rebuilt("stale");
+}
+
+TEST_F(CacheTest, SameCountsDifferentPositionsIsStale) {
+    prime();
+    auto moved = std::make_shared<TriangleMesh>(*mesh_);
+    moved->positions[17].x += 1e-3f;
+    mesh_ = moved;
+    expect_rebuilt("stale");
+}
+
+TEST_F(CacheTest, OtherParametersAreDetected) {
+    prime();
+    KdTreeParams other = params_;
+    other.q = 0.9f;
+    const std::string err = load_error(file_, mesh_, other);
+    EXPECT_NE(err.find("other parameters"), std::string::npos) << err;
+    EXPECT_NE(err.find("q=0.98"), std::string::npos) << err;
+    // A file renamed to another parameter set's name is not trusted either.
+    fs::copy_file(file_, dir_ / kdtree_cache_file_name(model_.string(), other));
+    params_ = other;
+    file_ = dir_ / kdtree_cache_file_name(model_.string(), other);
+    expect_rebuilt("other parameters");
+}
+
+TEST_F(CacheTest, EmptyFileIsRebuilt) {
+    std::ofstream(file_).close();
+    ASSERT_TRUE(fs::exists(file_));
+    expect_rebuilt("empty file");
+}
+
+TEST_F(CacheTest, DirectoryInsteadOfFileIsReportedAndTreeStillBuilt) {
+    fs::create_directories(file_ / "x");
+    CacheRun r = run_cache(model_, mesh_, params_, dir_);
+    ASSERT_TRUE(r.tree);
+    EXPECT_GT(r.tree->nodes().size(), 0u);
+    EXPECT_FALSE(r.report.loaded);
+    EXPECT_NE(r.report.reason.find("is a directory"), std::string::npos) << r.report.reason;
+    EXPECT_FALSE(r.report.written);
+    EXPECT_NE(r.log.find("cannot write"), std::string::npos) << r.log;
+    EXPECT_TRUE(fs::is_directory(file_));
+    // No temporary files are left behind.
+    for (const auto& e : fs::directory_iterator(dir_)) {
+        EXPECT_EQ(e.path().string().find(".tmp-"), std::string::npos) << e.path();
+    }
+}
+
+TEST_F(CacheTest, UnwritableCacheDirectoryIsReportedAndTreeStillBuilt) {
+    // A path below a regular file can be neither created nor written, even by root.
+    std::ofstream(dir_ / "not_a_dir") << "x";
+    const fs::path cache = dir_ / "not_a_dir" / "trees";
+    CacheRun r = run_cache(model_, mesh_, params_, cache);
+    ASSERT_TRUE(r.tree);
+    EXPECT_GT(r.tree->indices().size(), 0u);
+    EXPECT_FALSE(r.report.loaded);
+    EXPECT_FALSE(r.report.written);
+    EXPECT_TRUE(r.report.path.empty());
+    EXPECT_NE(r.log.find("cannot write"), std::string::npos) << r.log;
+}
+
+TEST_F(CacheTest, SaveToUnwritablePathThrowsNamingIt) {
+    auto tree = build_kdtree(mesh_, params_);
+    const std::string bad = (dir_ / "missing" / "t.kdt").string();
+    try {
+        save_kdtree(bad, *tree);
+        FAIL() << "no error";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find(bad), std::string::npos) << e.what();
+    }
+}
+
+// Files whose checksums are right but whose structure is not: a valid file is patched and
+// resealed, so only the structural checks can catch the change.
+class CacheStructureTest : public CacheTest {
+protected:
+    void SetUp() override {
+        CacheTest::SetUp();
+        tree_ = build_kdtree(mesh_, params_);
+        save_kdtree(file_.string(), *tree_);
+        bytes_ = read_bytes(file_);
+        ASSERT_GT(tree_->nodes().size(), 8u);
+        ASSERT_FALSE(tree_->nodes()[0].is_leaf());
+    }
+    size_t node_offset(size_t i) const { return kdtree_cache_payload_offset() + 8 * i; }
+    size_t index_offset(size_t i) const { return node_offset(tree_->nodes().size()) + 4 * i; }
+    void set_node(size_t i, const KdNode& n) { std::memcpy(&bytes_[node_offset(i)], &n, 8); }
+    size_t first_inner_after(size_t i) const {
+        for (size_t k = i + 1; k < tree_->nodes().size(); ++k) {
+            if (!tree_->nodes()[k].is_leaf()) return k;
+        }
+        return 0;
+    }
+    size_t first_leaf() const {
+        for (size_t k = 0; k < tree_->nodes().size(); ++k) {
+            if (tree_->nodes()[k].is_leaf()) return k;
+        }
+        return 0;
+    }
+    std::string error() {
+        reseal_kdtree_cache_image(bytes_);
+        write_bytes(file_, bytes_);
+        return load_error(file_, mesh_, params_);
+    }
+
+    std::shared_ptr<const KdTree> tree_;
+    std::vector<unsigned char> bytes_;
+};
+
+TEST_F(CacheStructureTest, ResealedUnchangedFileLoads) { EXPECT_EQ(error(), ""); }
+
+TEST_F(CacheStructureTest, ChildIndexOutOfRange) {
+    const uint32_t n = uint32_t(tree_->nodes().size());
+    set_node(0, KdNode::make_inner(0, 0.0f, n + 5));
+    const std::string err = error();
+    EXPECT_NE(err.find("node 0: child index " + std::to_string(n + 5) + " out of range"),
+              std::string::npos)
+        << err;
+    EXPECT_NE(err.find("byte " + std::to_string(node_offset(0))), std::string::npos) << err;
+}
+
+TEST_F(CacheStructureTest, ChildPointingBackwardsWouldLoop) {
+    const size_t j = first_inner_after(0);
+    ASSERT_GT(j, 0u);
+    set_node(j, KdNode::make_inner(1, 0.0f, uint32_t(j)));
+    const std::string err = error();
+    EXPECT_NE(err.find("node " + std::to_string(j) + ": child index " + std::to_string(j) +
+                       " out of range"),
+              std::string::npos)
+        << err;
+}
+
+TEST_F(CacheStructureTest, SharedChild) {
+    const size_t j = first_inner_after(0);
+    ASSERT_GT(j, 0u);
+    // The root adopts j's children: they now have two parents (and the root's old ones none).
+    set_node(0, KdNode::make_inner(0, 0.0f, tree_->nodes()[j].child()));
+    const std::string err = error();
+    EXPECT_NE(err.find("child of two parents"), std::string::npos) << err;
+}
+
+TEST_F(CacheStructureTest, LeafRangeOutOfRange) {
+    const size_t leaf = first_leaf();
+    const uint32_t n = uint32_t(tree_->indices().size());
+    set_node(leaf, KdNode::make_leaf(2, n - 1));
+    const std::string err = error();
+    EXPECT_NE(
+        err.find("node " + std::to_string(leaf) + ": leaf range [" + std::to_string(n - 1) + ", " +
+                 std::to_string(n + 1) + ") outside the " + std::to_string(n) + " indices"),
+        std::string::npos)
+        << err;
+}
+
+TEST_F(CacheStructureTest, TriangleIndexOutOfRange) {
+    const uint32_t n = uint32_t(mesh_->triangle_count());
+    std::memcpy(&bytes_[index_offset(3)], &n, 4);
+    const std::string err = error();
+    EXPECT_NE(err.find("byte " + std::to_string(index_offset(3)) + ": index 3: triangle index " +
+                       std::to_string(n) + " out of range"),
+              std::string::npos)
+        << err;
+}
+
+TEST_F(CacheStructureTest, NonFiniteSplit) {
+    set_node(0, KdNode::make_inner(2, std::nanf(""), tree_->nodes()[0].child()));
+    const std::string err = error();
+    EXPECT_NE(err.find("split plane not finite"), std::string::npos) << err;
+}
+
+TEST_F(CacheStructureTest, StructureErrorTriggersRebuild) {
+    set_node(first_leaf(), KdNode::make_leaf(5, uint32_t(tree_->indices().size())));
+    error();
+    expect_rebuilt("leaf range");
+}
+
+TEST(CacheLocations, NextToModelThenCacheDirectory) {
+    const fs::path dir = test::temp_dir("kdt_cache_loc");
+    const fs::path cache = dir / "cache";
+    ::setenv("KDT_CACHE_DIR", cache.c_str(), 1);
+    EXPECT_EQ(default_kdtree_cache_dir(), (cache / "trees").string());
+    auto mesh = sphere_mesh(2);
+    KdTreeParams params = thesis_params();
+    std::string log;
+    auto say = [&](const std::string& l) { log += l + "\n"; };
+
+    // Writable model directory: the cache goes next to the model.
+    KdCacheReport rep;
+    get_or_build_kdtree((dir / "m.ply").string(), mesh, params, "", say, &rep);
+    EXPECT_TRUE(rep.written);
+    EXPECT_EQ(rep.path, (dir / kdtree_cache_file_name("m.ply", params)).string());
+
+    // Model directory missing (read-only media behave alike): the cache directory is used.
+    get_or_build_kdtree((dir / "ro" / "m.ply").string(), mesh, params, "", say, &rep);
+    EXPECT_TRUE(rep.written) << log;
+    EXPECT_EQ(rep.path, (cache / "trees" / kdtree_cache_file_name("m.ply", params)).string());
+    get_or_build_kdtree((dir / "ro" / "m.ply").string(), mesh, params, "", say, &rep);
+    EXPECT_TRUE(rep.loaded) << log;
+
+    // Generated meshes have no model path: named by the mesh hash, in the cache directory.
+    get_or_build_kdtree("", mesh, params, "", say, &rep);
+    EXPECT_TRUE(rep.written) << log;
+    EXPECT_EQ(fs::path(rep.path).parent_path(), cache / "trees");
+    EXPECT_EQ(fs::path(rep.path).filename().string().rfind("mesh-", 0), 0u) << rep.path;
+    get_or_build_kdtree("", mesh, params, "", say, &rep);
+    EXPECT_TRUE(rep.loaded) << log;
+
+    ::unsetenv("KDT_CACHE_DIR");
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+}
+
+TEST(CacheParams, BadParametersStillThrow) {
+    KdTreeParams p = thesis_params();
+    p.q = 1.5f;
+    EXPECT_THROW(
+        get_or_build_kdtree("", sphere_mesh(1), p, test::temp_dir("kdt_cache_bad").string(),
+                            [](const std::string&) {}),
+        Error);
+}
+
+}  // namespace
+}  // namespace kdt
