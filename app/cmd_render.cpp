@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <string>
 
 #include "app/commands.h"
@@ -148,9 +149,9 @@ void run(const RenderArgs& a) {
     RenderSession session(prep.snapshot, tp, fp);
     const bool tty = !a.quiet && isatty(fileno(stderr));
     const double pixels = double(session.film().pixel_count());
-    const RenderProgress p = run_render(session, stop, [&](const RenderProgress& pr) {
-        if (tty) draw_progress(pr, pixels);
-    });
+    std::function<void(const RenderProgress&)> progress;
+    if (tty) progress = [&](const RenderProgress& pr) { draw_progress(pr, pixels); };
+    const RenderProgress p = run_render(session, stop, progress);
     if (tty) std::fprintf(stderr, "\n");
 
     const Film& film = session.film();

@@ -11,9 +11,9 @@
 #include <algorithm>
 #include <atomic>
 #include <bit>
-#include <limits>
 #include <cmath>
 #include <deque>
+#include <limits>
 #include <memory>
 #include <string>
 #include <utility>
@@ -34,8 +34,7 @@ public:
     void add(int64_t bytes) {
         const int64_t now = current_.fetch_add(bytes, std::memory_order_relaxed) + bytes;
         int64_t peak = peak_.load(std::memory_order_relaxed);
-        while (now > peak &&
-               !peak_.compare_exchange_weak(peak, now, std::memory_order_relaxed)) {
+        while (now > peak && !peak_.compare_exchange_weak(peak, now, std::memory_order_relaxed)) {
         }
     }
     int64_t peak() const { return peak_.load(std::memory_order_relaxed); }
@@ -115,6 +114,15 @@ void add_events(const Bounds3f& box, uint32_t index, Vec* events) {
     }
 }
 
+/// Float bits mapped so that unsigned order is float order (-0 is folded into +0).
+inline uint32_t ordered_bits(float x) {
+    const uint32_t bits = std::bit_cast<uint32_t>(x + 0.0f);
+    return bits & 0x80000000u ? ~bits : bits | 0x80000000u;
+}
+inline float from_ordered_bits(uint32_t o) {
+    return std::bit_cast<float>(o & 0x80000000u ? o & 0x7fffffffu : ~o);
+}
+
 enum Side : uint8_t { kBoth = 0, kLeft = 1, kRight = 2 };
 
 /// Which side of the plane `split` on `axis` a reference goes to; planar references lying
@@ -153,8 +161,8 @@ struct Context {
     bool clip(const Ref& r, const Bounds3f& child, Ref& out) const {
         const Vec3u& t = mesh->triangles[r.tri];
         Bounds3f b;
-        if (!clip_triangle_to_box(mesh->positions[t.x], mesh->positions[t.y],
-                                  mesh->positions[t.z], child, b)) {
+        if (!clip_triangle_to_box(mesh->positions[t.x], mesh->positions[t.y], mesh->positions[t.z],
+                                  child, b)) {
             return false;
         }
         // Both boxes are conservative, so is their intersection.
@@ -170,8 +178,8 @@ struct Context {
 /// A finished subtree in local depth-first order: node 0 is its root, child indices and
 /// leaf offsets are local.
 struct Subtree {
-    explicit Subtree(ScratchMeter* m) : nodes(MeteredAllocator<KdNode>(m)),
-                                        indices(MeteredAllocator<uint32_t>(m)) {}
+    explicit Subtree(ScratchMeter* m)
+        : nodes(MeteredAllocator<KdNode>(m)), indices(MeteredAllocator<uint32_t>(m)) {}
     MeteredVector<KdNode> nodes;
     MeteredVector<uint32_t> indices;
     uint64_t splits = 0;
@@ -211,6 +219,7 @@ struct Workspace {
           side(MeteredAllocator<uint8_t>(m)),
           remap(MeteredAllocator<uint32_t>(m)),
           both(MeteredAllocator<uint32_t>(m)),
+          keys(MeteredAllocator<uint64_t>(m)),
           tmp{MeteredVector<Event>(MeteredAllocator<Event>(m)),
               MeteredVector<Event>(MeteredAllocator<Event>(m))},
           fresh{SweepNode(m), SweepNode(m)} {}
@@ -225,9 +234,10 @@ struct Workspace {
     std::deque<SweepNode> levels;  // deque: slots keep their address as levels are added
     MeteredVector<uint8_t> side;
     MeteredVector<uint32_t> remap;
-    MeteredVector<uint32_t> both;    // straddling references of the node being split
-    MeteredVector<Event> tmp[2];     // spliced one-sided events before the merge
-    SweepNode fresh[2];  // events of clipped straddlers for the left and right child
+    MeteredVector<uint32_t> both;  // straddling references of the node being split
+    MeteredVector<uint64_t> keys;  // sort keys of a subtree's first events
+    MeteredVector<Event> tmp[2];   // spliced one-sided events before the merge
+    SweepNode fresh[2];            // events of clipped straddlers for the left and right child
 };
 
 struct SweepSplit {
@@ -239,17 +249,41 @@ struct SweepSplit {
 
 class SweepBuilder {
 public:
-    SweepBuilder(const Context& ctx, Workspace& ws, Subtree& out)
-        : ctx_(ctx), ws_(ws), out_(out) {}
+    SweepBuilder(const Context& ctx, Workspace& ws, Subtree& out) : ctx_(ctx), ws_(ws), out_(out) {}
 
-    void build(const MeteredVector<Ref>& refs, const Bounds3f& box, int depth) {
+    /// Sweeps the subtree over `refs` (taken over: the vector is left empty).
+    void build(MeteredVector<Ref>& refs, const Bounds3f& box, int depth) {
         SweepNode& root = ws_.slot(0, 0);
         root.clear();
-        root.refs.assign(refs.begin(), refs.end());
-        for (size_t i = 0; i < root.refs.size(); ++i) {
-            add_events(root.refs[i].box, uint32_t(i), root.events);
+        root.refs.swap(refs);
+        // Wald & Havran sort once per subtree; sorting 64-bit keys (position, type, index)
+        // is much faster than comparing events.
+        auto& keys = ws_.keys;
+        const size_t n = root.refs.size();
+        for (int k = 0; k < 3; ++k) {
+            keys.clear();
+            for (size_t i = 0; i < n; ++i) {
+                const float lo = root.refs[i].box.lower[k], hi = root.refs[i].box.upper[k];
+                const uint64_t index = i;
+                if (lo == hi) {
+                    keys.push_back(uint64_t(ordered_bits(lo)) << 32 | uint64_t(kPlanar) << 30 |
+                                   index);
+                } else {
+                    keys.push_back(uint64_t(ordered_bits(lo)) << 32 | uint64_t(kStart) << 30 |
+                                   index);
+                    keys.push_back(uint64_t(ordered_bits(hi)) << 32 | uint64_t(kEnd) << 30 | index);
+                }
+            }
+            std::sort(keys.begin(), keys.end());
+            auto& ev = root.events[k];
+            ev.resize(keys.size());
+            for (size_t i = 0; i < keys.size(); ++i) {
+                const uint64_t key = keys[i];
+                const auto low = uint32_t(key);
+                ev[i] = Event(from_ordered_bits(uint32_t(key >> 32)),
+                              (low & 0x3fffffffu) << 2 | low >> 30);
+            }
         }
-        for (auto& e : root.events) std::sort(e.begin(), e.end(), event_less);
         out_.nodes.push_back(KdNode{});
         recurse(root, box, depth, 0, 0);
     }
@@ -443,14 +477,20 @@ private:
                 auto& fresh = ws_.fresh[c].events[k];
                 auto& tmp = ws_.tmp[c];
                 auto& out = child[c]->events[k];
-                if (fresh.empty()) {
-                    out.swap(tmp);
-                    continue;
-                }
+                out.swap(tmp);
+                if (fresh.empty()) continue;
                 std::sort(fresh.begin(), fresh.end(), event_less);
-                out.resize(tmp.size() + fresh.size());
-                std::merge(tmp.begin(), tmp.end(), fresh.begin(), fresh.end(), out.begin(),
-                           event_less);
+                // Merge from the back in place: only the suffix after the first fresh event
+                // moves, and there are few straddlers.
+                size_t i = out.size(), j = fresh.size(), w = out.size() + fresh.size();
+                out.resize(w);
+                while (j > 0) {
+                    if (i > 0 && event_less(fresh[j - 1], out[i - 1])) {
+                        out[--w] = out[--i];
+                    } else {
+                        out[--w] = fresh[--j];
+                    }
+                }
             }
         }
     }
@@ -469,9 +509,29 @@ struct BinnedSplit {
     float pos = 0.0f;
 };
 
-BinnedSplit find_binned_split(const Context& ctx, const MeteredVector<Ref>& refs,
-                              const Bounds3f& box) {
+/// A node of the binned phase. References never clipped so far are stored as bare triangle
+/// indices (their bounds lie inside the node and are read from the mesh), which keeps the
+/// top levels' scratch at about 4 bytes per triangle; clipped ones carry their box.
+struct TopJob {
+    TopJob(Context& c, TopNode& t, const Bounds3f& b, int d)
+        : ctx(c),
+          node(t),
+          whole(MeteredAllocator<uint32_t>(&c.meter)),
+          clipped(MeteredAllocator<Ref>(&c.meter)),
+          box(b),
+          depth(d) {}
+    size_t size() const { return whole.size() + clipped.size(); }
+    Context& ctx;
+    TopNode& node;
+    MeteredVector<uint32_t> whole;
+    MeteredVector<Ref> clipped;
+    Bounds3f box;
+    int depth;
+};
+
+BinnedSplit find_binned_split(const Context& ctx, const TopJob& job) {
     BinnedSplit best;
+    const Bounds3f& box = job.box;
     const float area = box.surface_area();
     if (!(area > 0.0f) || !std::isfinite(area)) return best;
     const int bins = std::max(2, ctx.tuning.bins);
@@ -483,14 +543,16 @@ BinnedSplit find_binned_split(const Context& ctx, const MeteredVector<Ref>& refs
         const float t = (x - box.lower[k]) * scale[k];
         return t >= float(bins) ? bins - 1 : (t > 0.0f ? int(t) : 0);  // NaN -> 0
     };
-    for (const Ref& r : refs) {
+    auto add = [&](const Bounds3f& b) {
         for (int k = 0; k < 3; ++k) {
-            ++starts[size_t(k * bins + bin(r.box.lower[k], k))];
-            ++ends[size_t(k * bins + bin(r.box.upper[k], k))];
+            ++starts[size_t(k * bins + bin(b.lower[k], k))];
+            ++ends[size_t(k * bins + bin(b.upper[k], k))];
         }
-    }
+    };
+    for (uint32_t t : job.whole) add(ctx.mesh->triangle_bounds(t));
+    for (const Ref& r : job.clipped) add(r.box);
     const float inv_area = 1.0f / area;
-    const size_t n = refs.size();
+    const size_t n = job.size();
     for (int k = 0; k < 3; ++k) {
         const float lo = box.lower[k], hi = box.upper[k];
         if (!(hi > lo)) continue;
@@ -511,16 +573,6 @@ BinnedSplit find_binned_split(const Context& ctx, const MeteredVector<Ref>& refs
     return best;
 }
 
-struct TopJob {
-    TopJob(Context& c, TopNode& t, MeteredVector<Ref> r, const Bounds3f& b, int d)
-        : ctx(c), node(t), refs(std::move(r)), box(b), depth(d) {}
-    Context& ctx;
-    TopNode& node;
-    MeteredVector<Ref> refs;
-    Bounds3f box;
-    int depth;
-};
-
 class TopBuilder {
 public:
     TopBuilder(Context& ctx, std::vector<std::unique_ptr<Workspace>>& workspaces)
@@ -528,66 +580,79 @@ public:
 
     void build(std::unique_ptr<TopJob> job) {
         Context& ctx = ctx_;
-        const size_t n = job->refs.size();
+        const TriangleMesh& mesh = *ctx.mesh;
+        const size_t n = job->size();
         if (n <= ctx.tuning.sweep_threshold || job->depth >= ctx.max_depth) {
             sweep_task(std::move(job));
             return;
         }
-        const BinnedSplit s = find_binned_split(ctx, job->refs, job->box);
+        const BinnedSplit s = find_binned_split(ctx, *job);
         if (s.axis < 0 || !(s.cost < ctx.leaf_cost(n))) {
             // The bins see no gain; the exact sweep decides.
             sweep_task(std::move(job));
             return;
         }
-        Bounds3f child_box[2] = {job->box, job->box};
-        child_box[0].upper[s.axis] = s.pos;
-        child_box[1].lower[s.axis] = s.pos;
-
-        // Two passes: count, then fill exactly sized child arrays.
-        MeteredVector<uint8_t> side(job->refs.size(), kBoth, MeteredAllocator<uint8_t>(&ctx.meter));
-        size_t count[3] = {0, 0, 0};
-        for (size_t i = 0; i < n; ++i) {
-            side[i] = classify(job->refs[i].box, s.axis, s.pos, kLeft);
-            ++count[side[i]];
-        }
-        MeteredVector<Ref> child_refs[2] = {MeteredVector<Ref>(MeteredAllocator<Ref>(&ctx.meter)),
-                                            MeteredVector<Ref>(MeteredAllocator<Ref>(&ctx.meter))};
-        child_refs[0].reserve(count[kLeft] + count[kBoth]);
-        child_refs[1].reserve(count[kRight] + count[kBoth]);
-        for (size_t i = 0; i < n; ++i) {
-            const Ref& r = job->refs[i];
-            if (side[i] == kLeft) {
-                child_refs[0].push_back(r);
-            } else if (side[i] == kRight) {
-                child_refs[1].push_back(r);
-            } else {
-                for (int c = 0; c < 2; ++c) {
-                    Ref clipped;
-                    if (ctx.clip(r, child_box[c], clipped)) child_refs[c].push_back(clipped);
-                }
-            }
-        }
-        release(side);
-        release(job->refs);
-
         TopNode& node = job->node;
         node.axis = s.axis;
         node.split = s.pos;
-        std::unique_ptr<TopJob> child_job[2];
+        std::unique_ptr<TopJob> child[2];
         for (int c = 0; c < 2; ++c) {
             node.child[c] = std::make_unique<TopNode>(&ctx.meter);
-            child_job[c] = std::make_unique<TopJob>(ctx, *node.child[c], std::move(child_refs[c]),
-                                                    child_box[c], job->depth + 1);
+            Bounds3f b = job->box;
+            (c == 0 ? b.upper : b.lower)[s.axis] = s.pos;
+            child[c] = std::make_unique<TopJob>(ctx, *node.child[c], b, job->depth + 1);
+        }
+
+        // Two passes: classify and count, then fill exactly sized child arrays.
+        const size_t n_whole = job->whole.size();
+        MeteredVector<uint8_t> side(n, kBoth, MeteredAllocator<uint8_t>(&ctx.meter));
+        size_t whole_count[3] = {0, 0, 0}, clipped_count[3] = {0, 0, 0};
+        for (size_t i = 0; i < n_whole; ++i) {
+            side[i] = classify(mesh.triangle_bounds(job->whole[i]), s.axis, s.pos, kLeft);
+            ++whole_count[side[i]];
+        }
+        for (size_t i = 0; i < job->clipped.size(); ++i) {
+            side[n_whole + i] = classify(job->clipped[i].box, s.axis, s.pos, kLeft);
+            ++clipped_count[side[n_whole + i]];
+        }
+        const size_t straddlers = whole_count[kBoth] + clipped_count[kBoth];
+        child[0]->whole.reserve(whole_count[kLeft]);
+        child[1]->whole.reserve(whole_count[kRight]);
+        child[0]->clipped.reserve(clipped_count[kLeft] + straddlers);
+        child[1]->clipped.reserve(clipped_count[kRight] + straddlers);
+        auto clip_both = [&](const Ref& r) {
+            for (int c = 0; c < 2; ++c) {
+                Ref part;
+                if (ctx.clip(r, child[c]->box, part)) child[c]->clipped.push_back(part);
+            }
+        };
+        for (size_t i = 0; i < n_whole; ++i) {
+            const uint32_t t = job->whole[i];
+            if (side[i] == kBoth) {
+                clip_both(Ref{mesh.triangle_bounds(t), t});
+            } else {
+                child[side[i] == kLeft ? 0 : 1]->whole.push_back(t);
+            }
+        }
+        for (size_t i = 0; i < job->clipped.size(); ++i) {
+            const Ref& r = job->clipped[i];
+            if (side[n_whole + i] == kBoth) {
+                clip_both(r);
+            } else {
+                child[side[n_whole + i] == kLeft ? 0 : 1]->clipped.push_back(r);
+            }
         }
         job.reset();
+        release(side);
+
         if (n > ctx.tuning.task_threshold) {
-            TopJob* left = child_job[0].release();
+            TopJob* left = child[0].release();
 #pragma omp task firstprivate(left)
             build(std::unique_ptr<TopJob>(left));
         } else {
-            build(std::move(child_job[0]));
+            build(std::move(child[0]));
         }
-        build(std::move(child_job[1]));
+        build(std::move(child[1]));
     }
 
 private:
@@ -596,10 +661,21 @@ private:
 #pragma omp task firstprivate(raw)
         {
             std::unique_ptr<TopJob> own(raw);
+            Context& ctx = own->ctx;
             auto& ws = workspaces_[size_t(omp_get_thread_num())];
-            if (!ws) ws = std::make_unique<Workspace>(&own->ctx.meter);
-            SweepBuilder sweep(own->ctx, *ws, own->node.sub);
-            sweep.build(own->refs, own->box, own->depth);
+            if (!ws) ws = std::make_unique<Workspace>(&ctx.meter);
+            // Full references (box + triangle) only now, for this subtree.
+            MeteredVector<Ref> refs(MeteredAllocator<Ref>(&ctx.meter));
+            refs.reserve(own->size());
+            for (uint32_t t : own->whole) refs.push_back({ctx.mesh->triangle_bounds(t), t});
+            refs.insert(refs.end(), own->clipped.begin(), own->clipped.end());
+            release(own->whole);
+            release(own->clipped);
+            SweepBuilder sweep(ctx, *ws, own->node.sub);
+            sweep.build(refs, own->box, own->depth);  // takes the references over
+            // Drop the growth slack: the subtrees together are as large as the final tree.
+            own->node.sub.nodes.shrink_to_fit();
+            own->node.sub.indices.shrink_to_fit();
         }
     }
 
@@ -717,9 +793,9 @@ bool clip_triangle_to_box(const Vec3f& a, const Vec3f& b, const Vec3f& c, const 
     }
     double magnitude = 0.0;
     for (int k = 0; k < 3; ++k) {
-        magnitude = std::max({magnitude, std::abs(double(box.lower[k])),
-                              std::abs(double(box.upper[k])), std::abs(double(a[k])),
-                              std::abs(double(b[k])), std::abs(double(c[k]))});
+        magnitude =
+            std::max({magnitude, std::abs(double(box.lower[k])), std::abs(double(box.upper[k])),
+                      std::abs(double(a[k])), std::abs(double(b[k])), std::abs(double(c[k]))});
     }
     // Interpolated coordinates carry a few double ulps of error relative to the largest
     // coordinate involved; widen them by far more than that before rounding to float.
@@ -769,9 +845,10 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
     ctx.f_table.resize(table);
     for (size_t i = 0; i < table; ++i) ctx.f_table[i] = thesis_f(float(i), params.q, params.n0);
 
-    // References of every triangle with finite vertices; the others are never referenced.
-    MeteredVector<Ref> refs{MeteredAllocator<Ref>(&ctx.meter)};
-    refs.reserve(tri_count);
+    // Every triangle with finite vertices; the others are never referenced.
+    TopNode top(&ctx.meter);
+    auto root = std::make_unique<TopJob>(ctx, top, Bounds3f{}, 0);
+    root->whole.reserve(tri_count);
     Bounds3f valid_bounds;
     const size_t vertex_count = mesh.vertex_count();
     for (size_t i = 0; i < tri_count; ++i) {
@@ -783,39 +860,36 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
                                 std::to_string(vertex_count) + " vertices)");
             }
         }
-        const Bounds3f b = mesh.triangle_bounds(i);
-        if (!is_finite(b.lower) || !is_finite(b.upper)) continue;
-        // triangle_bounds() silently drops NaN coordinates; check the vertices themselves.
         if (!is_finite(mesh.positions[t.x]) || !is_finite(mesh.positions[t.y]) ||
             !is_finite(mesh.positions[t.z])) {
             continue;
         }
-        refs.push_back({b, uint32_t(i)});
-        valid_bounds.extend(b);
+        root->whole.push_back(uint32_t(i));
+        valid_bounds.extend(mesh.triangle_bounds(i));
     }
 
     KdBuildOutput out;
     Bounds3f mesh_bounds = mesh.bounds();
-    out.bounds = (is_finite(mesh_bounds.lower) && is_finite(mesh_bounds.upper)) ? mesh_bounds
-                                                                               : valid_bounds;
+    out.bounds =
+        (is_finite(mesh_bounds.lower) && is_finite(mesh_bounds.upper)) ? mesh_bounds : valid_bounds;
     // The root box must hold every reference; valid_bounds is inside mesh_bounds anyway.
     Bounds3f root_box = out.bounds;
     root_box.extend(valid_bounds);
 
-    TopNode top(&ctx.meter);
+    root->box = root_box;
     {
         int threads = params.threads > 0 ? params.threads : omp_get_max_threads();
         std::vector<std::unique_ptr<Workspace>> workspaces(size_t(std::max(threads, 1)));
         TopBuilder builder(ctx, workspaces);
-        auto job = std::make_unique<TopJob>(ctx, top, std::move(refs), root_box, 0);
 #pragma omp parallel num_threads(threads)
 #pragma omp single
-        builder.build(std::move(job));
+        builder.build(std::move(root));
     }
 
     size_t node_count = 1, index_count = 0;
     uint64_t splits = 0;
     count_output(top, node_count, index_count, splits);
+    KDT_CHECK(node_count < kMaxRefs);  // child indices have 30 bits
     out.nodes.reserve(node_count);
     out.indices.reserve(index_count);
     out.nodes.emplace_back();

@@ -106,7 +106,7 @@ TriangleMesh read_obj(const std::string& path, const MeshLoadOptions& options, M
             for (int k = 0; k < 3; ++k) {
                 if (c[k].vertex_index < 0 || size_t(c[k].vertex_index) >= nv)
                     fail(path, "face", int64_t(face_index),
-                         "vertex index " + std::to_string(int64_t(c[k].vertex_index) + 1) + " out of range (" +
+                         "vertex index " + std::to_string(int64_t(c[k].vertex_index) + 1) + " (1-based, relative indices resolved) out of range (" +
                              std::to_string(nv) + " vertices)");
                 is_bad |= bad[size_t(c[k].vertex_index)] != 0;
             }

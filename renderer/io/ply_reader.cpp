@@ -8,6 +8,8 @@
 #include <cstring>
 #include <limits>
 #include <string_view>
+#include <system_error>
+#include <thread>
 #include <vector>
 
 #include "renderer/core/error.h"
@@ -109,6 +111,8 @@ constexpr size_t kMaxHeaderBytes = size_t(4) << 20;  // "missing end_header" bey
 constexpr size_t kMaxLineBytes = size_t(256) << 20;  // one ascii element per line
 
 inline bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
+// Ends a token: a blank, or the newline when parsing straight from the buffer.
+inline bool is_sep(char c) { return is_blank(c) || c == '\n'; }
 inline bool is_digit(char c) { return unsigned(c - '0') < 10u; }
 
 // ---------------------------------------------------------------------------------------
@@ -120,12 +124,16 @@ public:
     // near the end of the data without leaving the allocation.
     static constexpr size_t kPad = 16;
 
-    explicit Input(FileReader& reader) : reader_(reader), buf_(kBlockBytes + kPad) {
+    // Small inputs get a buffer of their own size instead of a whole block.
+    explicit Input(FileReader& reader)
+        : reader_(reader),
+          buf_(size_t(std::min<uint64_t>(kBlockBytes, std::max<uint64_t>(reader.size_bound(), 4096))) + kPad) {
         pos_ = end_ = buf_.data();
     }
 
     const char* pos() const { return pos_; }
     const char* end() const { return end_; }
+    bool eof() const { return eof_; }
     size_t avail() const { return size_t(end_ - pos_); }
     void advance(size_t n) { pos_ += n; }
     /// Stream offset of pos().
@@ -268,7 +276,7 @@ inline const char* skip_blanks(const char* p, const char* e) {
 }
 
 inline const char* skip_token(const char* p, const char* e) {
-    while (p < e && !is_blank(*p)) ++p;
+    while (p < e && !is_sep(*p)) ++p;
     return p;
 }
 
@@ -316,7 +324,7 @@ constexpr uint64_t kPow10Int[] = {1, 10, 100, 1000, 10000, 100000, 1000000, 1000
         q += n;
         if (n < 8) break;
     }
-    if (q == d0 || (q < e && !is_blank(*q))) return IntResult::invalid;
+    if (q == d0 || (q < e && !is_sep(*q))) return IntResult::invalid;
     if (q - d0 > 18) {
         while (d0 < q - 1 && *d0 == '0') ++d0;
         if (q - d0 > 18) return IntResult::overflow;
@@ -340,12 +348,19 @@ constexpr double kPow10[] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8
     if (q < e && (*q == '-' || *q == '+')) neg = *q++ == '-';
     uint64_t m = 0, chunk;
     int digits = 0, exp10 = 0;
-    for (;;) {
-        int n = digits8(q, e, chunk);
-        m = m * kPow10Int[n] + chunk;
-        q += n;
-        digits += n;
-        if (n < 8 || digits > 19) break;
+    if (e - q > 1 && is_digit(q[0]) && q[1] == '.') {
+        // One integer digit, as in most normalised coordinates: skip the SWAR step.
+        m = uint64_t(q[0] - '0');
+        digits = 1;
+        ++q;
+    } else {
+        for (;;) {
+            int n = digits8(q, e, chunk);
+            m = m * kPow10Int[n] + chunk;
+            q += n;
+            digits += n;
+            if (n < 8 || digits > 19) break;
+        }
     }
     if (q < e && *q == '.') {
         ++q;
@@ -371,7 +386,7 @@ constexpr double kPow10[] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8
         }
         exp10 += eneg ? -x : x;
     }
-    if (q < e && !is_blank(*q)) return false;
+    if (q < e && !is_sep(*q)) return false;
     if (m > (uint64_t(1) << 53) || exp10 < -22 || exp10 > 22) return false;
     mant = double(m);
     exp10_out = exp10;
@@ -421,7 +436,7 @@ inline bool parse_real(const char*& p, const char* e, T& out) {
     if (q < e && *q == '+') ++q;
     auto r = std::from_chars(q, e, out);
     if (r.ec == std::errc::invalid_argument) return false;
-    if (r.ptr < e && !is_blank(*r.ptr)) return false;
+    if (r.ptr < e && !is_sep(*r.ptr)) return false;
     if (r.ec == std::errc::result_out_of_range) {
         char tmp[128];
         size_t n = size_t(r.ptr - q);
@@ -447,7 +462,10 @@ std::string token_text(const char* p, const char* e) {
 class PlyParser {
 public:
     PlyParser(FileReader& reader, const MeshLoadOptions& options)
-        : reader_(reader), in_(reader), options_(options) {}
+        : reader_(reader), in_(reader), options_(options) {
+        threads_ = options.threads > 0 ? options.threads
+                                       : (std::thread::hardware_concurrency() >= 2 ? 2 : 1);
+    }
 
     TriangleMesh parse(MeshLoadInfo* info);
 
@@ -497,10 +515,20 @@ private:
 
     // ASCII
     void read_ascii_element(Element& el);
+    bool fast_ascii_scalars(const Element& el, const char*& p, const char* e, float* v) const;
+    bool fast_ascii_triangle(const char*& p, const char* e, int64_t* idx) const;
+    struct LinesResult {
+        uint64_t lines = 0;
+        const char* end = nullptr;
+    };
+    LinesResult parse_lines(const Element& el, bool faces, bool is_vertex, const char* p, const char* e,
+                            uint64_t first);
+    uint64_t parallel_chunk(const Element& el, uint64_t i, bool faces, bool is_vertex, bool& poor);
     bool next_data_line(const char*& b, const char*& e);
 
     // Shared
     void store_vertex(const Element& el, uint64_t i, const float* v);
+    [[gnu::noinline]] void non_finite_vertex(const Element& el, uint64_t i, const Vec3f& p);
     void emit_face(const Element& el, uint64_t i, const int64_t* idx, size_t n);
     void finish(TriangleMesh& mesh);
 
@@ -523,7 +551,9 @@ private:
     std::vector<uint8_t> bad_vertex_;  // only allocated once a non-finite vertex is seen
     uint64_t bad_vertices_ = 0;
     uint64_t dropped_faces_ = 0, degenerate_faces_ = 0, source_faces_ = 0;
-    std::vector<int64_t> poly_;  // indices of the face being read
+    std::vector<int64_t> poly_;    // indices of the face being read
+    std::vector<int64_t> sorted_;  // scratch for the degenerate test of big polygons
+    int threads_ = 1;
 };
 
 void PlyParser::parse_header() {
@@ -726,19 +756,21 @@ void PlyParser::check_counts() {
     }
 }
 
-void PlyParser::store_vertex(const Element& el, uint64_t i, const float* v) {
+inline void PlyParser::store_vertex(const Element& el, uint64_t i, const float* v) {
     Vec3f p(v[kPosX], v[kPosY], v[kPosZ]);
     mesh_.positions[i] = p;
     if (has_normals_) mesh_.normals[i] = Vec3f(v[kNormX], v[kNormY], v[kNormZ]);
     if (has_colors_) mesh_.colors[i] = Vec3f(v[kColR], v[kColG], v[kColB]);
-    if (!is_finite(p)) [[unlikely]] {
-        if (!options_.drop_invalid)
-            fail_at(el, i, "non-finite coordinate (" + std::to_string(p.x) + ", " + std::to_string(p.y) +
-                               ", " + std::to_string(p.z) + "); --drop-invalid drops the faces using it");
-        if (bad_vertex_.empty()) bad_vertex_.assign(vertex_count_, 0);
-        bad_vertex_[i] = 1;
-        ++bad_vertices_;
-    }
+    if (!is_finite(p)) [[unlikely]] non_finite_vertex(el, i, p);
+}
+
+void PlyParser::non_finite_vertex(const Element& el, uint64_t i, const Vec3f& p) {
+    if (!options_.drop_invalid)
+        fail_at(el, i, "non-finite coordinate (" + std::to_string(p.x) + ", " + std::to_string(p.y) + ", " +
+                           std::to_string(p.z) + "); --drop-invalid drops the faces using it");
+    if (bad_vertex_.empty()) bad_vertex_.assign(vertex_count_, 0);
+    bad_vertex_[i] = 1;
+    ++bad_vertices_;
 }
 
 void PlyParser::emit_face(const Element& el, uint64_t i, const int64_t* idx, size_t n) {
@@ -757,13 +789,19 @@ void PlyParser::emit_face(const Element& el, uint64_t i, const int64_t* idx, siz
     bool degenerate = false;
     if (n == 3) {
         degenerate = idx[0] == idx[1] || idx[1] == idx[2] || idx[0] == idx[2];
-    } else {
+    } else if (n <= 32) {
         for (size_t a = 0; a < n && !degenerate; ++a)
             for (size_t c = a + 1; c < n; ++c)
                 if (idx[a] == idx[c]) {
                     degenerate = true;
                     break;
                 }
+    } else {
+        // Big polygons: sort a copy instead of comparing all pairs (a hostile file could
+        // hold a face with millions of corners).
+        sorted_.assign(idx, idx + n);
+        std::sort(sorted_.begin(), sorted_.end());
+        degenerate = std::adjacent_find(sorted_.begin(), sorted_.end()) != sorted_.end();
     }
     degenerate_faces_ += degenerate;
     for (size_t k = 1; k + 1 < n; ++k)
@@ -946,6 +984,160 @@ bool PlyParser::next_data_line(const char*& b, const char*& e) {
     return false;
 }
 
+// Fast paths: parse one element straight from the buffer, without finding the line end
+// first; a newline ends the last token. They return false, consuming nothing, on anything
+// unusual (blank line, line cut by the buffer end, bad value, extra values), and the
+// caller then takes the line-based general path, which also reports the errors.
+bool PlyParser::fast_ascii_scalars(const Element& el, const char*& p, const char* e, float* v) const {
+    for (const Property& prop : el.props) {
+        p = skip_blanks(p, e);
+        if (p == e || *p == '\n') return false;
+        if (prop.slot < 0) {
+            p = skip_token(p, e);
+        } else if (prop.type == PlyType::f32) {
+            if (!parse_real(p, e, v[prop.slot])) return false;
+        } else if (prop.type == PlyType::f64) {
+            double d;
+            if (!parse_real(p, e, d)) return false;
+            v[prop.slot] = float(d);
+        } else {
+            int64_t x;
+            if (parse_int(p, e, x) != IntResult::ok || x < type_min(prop.type) || x > type_max(prop.type))
+                return false;
+            v[prop.slot] = float(x) * prop.scale;
+        }
+    }
+    p = skip_blanks(p, e);
+    if (p < e && *p == '\n') {
+        ++p;
+        return true;
+    }
+    return p == e && in_.eof();
+}
+
+bool PlyParser::fast_ascii_triangle(const char*& p, const char* e, int64_t* idx) const {
+    p = skip_blanks(p, e);
+    if (e - p < 2 || p[0] != '3' || !is_blank(p[1])) return false;
+    ++p;
+    for (int k = 0; k < 3; ++k) {
+        p = skip_blanks(p, e);
+        if (p == e || parse_int(p, e, idx[k]) != IntResult::ok) return false;
+    }
+    p = skip_blanks(p, e);
+    if (p < e && *p == '\n') {
+        ++p;
+        return true;
+    }
+    return p == e && in_.eof();
+}
+
+// Whole lines [p, e) (e just past a newline) of an all-scalar element, or "3 a b c" faces,
+// stored as elements first, first + 1, ...; stops at the first line the fast path cannot
+// take (including non-finite vertices and invalid or degenerate faces) and never throws.
+// Threads call it on disjoint line ranges, so they write disjoint array entries.
+PlyParser::LinesResult PlyParser::parse_lines(const Element& el, bool faces, bool is_vertex, const char* p,
+                                              const char* e, uint64_t first) {
+    LinesResult r;
+    r.end = p;
+    float v[9] = {};
+    int64_t idx[3];
+    while (p < e) {
+        const char* q = p;
+        const size_t k = size_t(first + r.lines);
+        if (faces) {
+            if (!fast_ascii_triangle(q, e, idx)) break;
+            if (uint64_t(idx[0]) >= vertex_count_ || uint64_t(idx[1]) >= vertex_count_ ||
+                uint64_t(idx[2]) >= vertex_count_ || idx[0] == idx[1] || idx[1] == idx[2] || idx[0] == idx[2])
+                break;
+            mesh_.triangles[k] = Vec3u(uint32_t(idx[0]), uint32_t(idx[1]), uint32_t(idx[2]));
+        } else {
+            if (!fast_ascii_scalars(el, q, e, v)) break;
+            if (is_vertex) {
+                Vec3f pos(v[kPosX], v[kPosY], v[kPosZ]);
+                if (!is_finite(pos)) break;
+                mesh_.positions[k] = pos;
+                if (has_normals_) mesh_.normals[k] = Vec3f(v[kNormX], v[kNormY], v[kNormZ]);
+                if (has_colors_) mesh_.colors[k] = Vec3f(v[kColR], v[kColG], v[kColB]);
+            }
+        }
+        p = q;
+        ++r.lines;
+        r.end = p;
+    }
+    return r;
+}
+
+// Parses the complete lines in the buffer (up to the element's end) in one tight loop, or
+// on two threads, each half of the bytes, split at a newline; the second half's first
+// element index comes from counting newlines in the first. Returns how many elements were committed; 0 means "take
+// the serial path for the next line" (small input, partial state, or a line the fast path
+// cannot take, which the serial path then parses or reports). `poor` tells the caller to
+// stay serial for the rest of the element (nothing or under half the chunk committed).
+uint64_t PlyParser::parallel_chunk(const Element& el, uint64_t i, bool faces, bool is_vertex, bool& poor) {
+    constexpr size_t kMinChunk = size_t(256) << 10;
+    // Every early exit turns the parallel path off for the rest of the element, so no
+    // buffer is ever scanned once per line.
+    poor = true;
+    if (in_.avail() < kMinChunk && !in_.eof()) in_.fill(kBlockBytes);
+    const char* b = in_.pos();
+    const char* e = in_.end();
+    if (size_t(e - b) < kMinChunk) return 0;
+    const void* last = memrchr(b, '\n', size_t(e - b));
+    if (!last) return 0;
+    e = static_cast<const char*>(last) + 1;
+    const uint64_t remaining = el.count - i;
+    uint64_t total = uint64_t(std::count(b, e, '\n'));
+    if (total > remaining) {
+        // The element ends inside the buffer: stop after its last line.
+        const char* q = b;
+        for (uint64_t k = 0; k < remaining; ++k) q = static_cast<const char*>(std::memchr(q, '\n', size_t(e - q))) + 1;
+        e = q;
+        total = remaining;
+    }
+    if (size_t(e - b) < kMinChunk) return 0;
+    const char* mid = e;
+    uint64_t na = total;
+    if (threads_ > 1) {
+        const char* half = b + (e - b) / 2;
+        mid = static_cast<const char*>(std::memchr(half, '\n', size_t(e - half))) + 1;
+        na = uint64_t(std::count(b, mid, '\n'));
+    }
+    if (faces) {
+        // Only while every face so far became exactly one triangle at its own index.
+        if (mesh_.triangles.size() != i || !bad_vertex_.empty()) return 0;
+        mesh_.triangles.resize(size_t(i + total));
+    }
+    LinesResult ra, rb;
+    if (threads_ > 1) {
+        try {
+            std::thread helper([&] { rb = parse_lines(el, faces, is_vertex, mid, e, i + na); });
+            ra = parse_lines(el, faces, is_vertex, b, mid, i);
+            helper.join();
+        } catch (const std::system_error&) {
+            if (faces) mesh_.triangles.resize(size_t(i));
+            return 0;
+        }
+    } else {
+        // One thread: the same tight loop over the whole chunk.
+        ra = parse_lines(el, faces, is_vertex, b, e, i);
+        rb.end = ra.end;
+    }
+    uint64_t done = ra.lines;
+    const char* end = ra.end;
+    if (ra.lines == na) {
+        done += rb.lines;
+        end = rb.end;
+    }
+    if (faces) {
+        mesh_.triangles.resize(size_t(i + done));
+        source_faces_ += done;
+    }
+    poor = done < total / 2;
+    in_.advance(size_t(end - in_.pos()));
+    line_ += int64_t(done);
+    return done;
+}
+
 void PlyParser::read_ascii_element(Element& el) {
     const bool is_vertex = &el == &elements_[size_t(vertex_el_)];
     const bool is_face = face_el_ >= 0 && &el == &elements_[size_t(face_el_)];
@@ -953,32 +1145,50 @@ void PlyParser::read_ascii_element(Element& el) {
     const char* b;
     const char* e;
     float v[9] = {};
+    const bool scalars_fast = !el.has_lists;
+    // One thread gains nothing from chunks (the newline count costs what the tight loop
+    // saves), so chunks are for two threads only.
+    bool parallel = threads_ > 1 && (scalars_fast || face_fast);
     for (uint64_t i = 0; i < el.count; ++i) {
+        if (parallel) {
+            uint64_t before = i;
+            bool poor = false;
+            uint64_t done = parallel_chunk(el, i, face_fast, is_vertex, poor);
+            // Inputs the fast path keeps rejecting (say, blank lines everywhere) go serial.
+            if (poor) parallel = false;
+            if (done > 0) {
+                i = before + done - 1;
+                continue;
+            }
+        }
+        if (scalars_fast || face_fast) {
+            // A partial line at the buffer end fails the fast path; refill early instead.
+            if (in_.avail() < 256 && !in_.eof()) in_.fill(256);
+            const char* p = in_.pos();
+            int64_t idx[3];
+            if (scalars_fast ? fast_ascii_scalars(el, p, in_.end(), v) : fast_ascii_triangle(p, in_.end(), idx)) {
+                in_.advance(size_t(p - in_.pos()));
+                ++line_;
+                if (is_vertex) {
+                    store_vertex(el, i, v);
+                } else if (face_fast) {
+                    if (uint64_t(idx[0]) < vertex_count_ && uint64_t(idx[1]) < vertex_count_ &&
+                        uint64_t(idx[2]) < vertex_count_ && bad_vertex_.empty() && idx[0] != idx[1] &&
+                        idx[1] != idx[2] && idx[0] != idx[2]) {
+                        ++source_faces_;
+                        mesh_.triangles.emplace_back(uint32_t(idx[0]), uint32_t(idx[1]), uint32_t(idx[2]));
+                    } else {
+                        emit_face(el, i, idx, 3);
+                    }
+                }
+                continue;
+            }
+        }
         if (!next_data_line(b, e))
             fail_data(el, i, line_ + 1, -1,
                       "unexpected end of data (file truncated? the header declares " +
                           std::to_string(el.count) + " " + el.name + " elements)");
         const char* p = b;
-        if (face_fast) {
-            // "3 a b c": the triangle lines of nearly every ascii mesh.
-            p = skip_blanks(p, e);
-            int64_t idx[3];
-            const char* q = p;
-            if (e - q > 2 && q[0] == '3' && is_blank(q[1])) {
-                q = skip_blanks(q + 1, e);
-                bool ok = q < e && parse_int(q, e, idx[0]) == IntResult::ok;
-                if (ok) q = skip_blanks(q, e), ok = q < e && parse_int(q, e, idx[1]) == IntResult::ok;
-                if (ok) q = skip_blanks(q, e), ok = q < e && parse_int(q, e, idx[2]) == IntResult::ok;
-                if (ok && skip_blanks(q, e) == e && uint64_t(idx[0]) < vertex_count_ &&
-                    uint64_t(idx[1]) < vertex_count_ && uint64_t(idx[2]) < vertex_count_ &&
-                    bad_vertex_.empty() && idx[0] != idx[1] && idx[1] != idx[2] && idx[0] != idx[2]) {
-                    ++source_faces_;
-                    mesh_.triangles.emplace_back(uint32_t(idx[0]), uint32_t(idx[1]), uint32_t(idx[2]));
-                    continue;
-                }
-            }
-            // Anything else takes the general path below, which reports errors.
-        }
         bool have_face = false;
         for (const Property& prop : el.props) {
             p = skip_blanks(p, e);
