@@ -1067,9 +1067,9 @@ PlyParser::LinesResult PlyParser::parse_lines(const Element& el, bool faces, boo
     return r;
 }
 
-// Parses the complete lines in the buffer (up to the element's end) on two threads, each
-// half of the bytes, split at a newline; the second half's first element index comes from
-// counting newlines in the first. Returns how many elements were committed; 0 means "take
+// Parses the complete lines in the buffer (up to the element's end) in one tight loop, or
+// on two threads, each half of the bytes, split at a newline; the second half's first
+// element index comes from counting newlines in the first. Returns how many elements were committed; 0 means "take
 // the serial path for the next line" (small input, partial state, or a line the fast path
 // cannot take, which the serial path then parses or reports). `poor` tells the caller to
 // stay serial for the rest of the element (nothing or under half the chunk committed).
@@ -1095,22 +1095,32 @@ uint64_t PlyParser::parallel_chunk(const Element& el, uint64_t i, bool faces, bo
         total = remaining;
     }
     if (size_t(e - b) < kMinChunk) return 0;
-    const char* half = b + (e - b) / 2;
-    const char* mid = static_cast<const char*>(std::memchr(half, '\n', size_t(e - half))) + 1;
-    const uint64_t na = uint64_t(std::count(b, mid, '\n'));
+    const char* mid = e;
+    uint64_t na = total;
+    if (threads_ > 1) {
+        const char* half = b + (e - b) / 2;
+        mid = static_cast<const char*>(std::memchr(half, '\n', size_t(e - half))) + 1;
+        na = uint64_t(std::count(b, mid, '\n'));
+    }
     if (faces) {
         // Only while every face so far became exactly one triangle at its own index.
         if (mesh_.triangles.size() != i || !bad_vertex_.empty()) return 0;
         mesh_.triangles.resize(size_t(i + total));
     }
     LinesResult ra, rb;
-    try {
-        std::thread helper([&] { rb = parse_lines(el, faces, is_vertex, mid, e, i + na); });
-        ra = parse_lines(el, faces, is_vertex, b, mid, i);
-        helper.join();
-    } catch (const std::system_error&) {
-        if (faces) mesh_.triangles.resize(size_t(i));
-        return 0;
+    if (threads_ > 1) {
+        try {
+            std::thread helper([&] { rb = parse_lines(el, faces, is_vertex, mid, e, i + na); });
+            ra = parse_lines(el, faces, is_vertex, b, mid, i);
+            helper.join();
+        } catch (const std::system_error&) {
+            if (faces) mesh_.triangles.resize(size_t(i));
+            return 0;
+        }
+    } else {
+        // One thread: the same tight loop over the whole chunk.
+        ra = parse_lines(el, faces, is_vertex, b, e, i);
+        rb.end = ra.end;
     }
     uint64_t done = ra.lines;
     const char* end = ra.end;
@@ -1136,6 +1146,8 @@ void PlyParser::read_ascii_element(Element& el) {
     const char* e;
     float v[9] = {};
     const bool scalars_fast = !el.has_lists;
+    // One thread gains nothing from chunks (the newline count costs what the tight loop
+    // saves), so chunks are for two threads only.
     bool parallel = threads_ > 1 && (scalars_fast || face_fast);
     for (uint64_t i = 0; i < el.count; ++i) {
         if (parallel) {
