@@ -2,6 +2,9 @@
 // renders progressively with several sampling strategies, recording wall time, rays, RMSE
 // and relative MSE at 1, 2, 4, ... N spp; writes CSV, a log-log plot, and checks that the
 // error falls as time^(-1/2).
+#include <omp.h>
+
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -30,6 +33,9 @@ struct ConvergeArgs {
     float adaptive_threshold = 0.02f;
     int path_depth = 16;
     bool no_plot = false;
+    bool throughput = false;
+    bool no_cache = false;
+    int repeats = 3;
 };
 
 struct Config {
@@ -130,6 +136,70 @@ std::filesystem::path find_plot_script() {
     return "scripts/plot_converge.py";
 }
 
+// Shading overhead: the path tracer's rays per second against raw kd-tree traversal of the
+// very same rays (recorded from the same samples), same threads; medians of a.repeats runs.
+void run_throughput(const ConvergeArgs& a, const RenderSnapshot& snap,
+                    const std::shared_ptr<const RenderSnapshot>& snap_ptr) {
+    TraceParams tp;
+    tp.seed = a.seed;
+    tp.threads = a.threads;
+    tp.max_depth = a.path_depth;
+    tp.samples_per_pass = 4;
+    const int threads = a.threads > 0 ? a.threads : omp_get_max_threads();
+    RayRecord rec;
+    for (int y = 0; y < snap.camera.height; ++y) {
+        for (int x = 0; x < snap.camera.width; ++x) {
+            for (int s = 0; s < tp.samples_per_pass; ++s) {
+                record_rays(snap.scene, snap.camera, tp, x, y, uint32_t(s), rec);
+            }
+        }
+    }
+    const KdTree& tree = *snap.scene.tree;
+    std::vector<double> pt_rates, pt_nc_rates, raw_rates;
+    for (int r = 0; r < a.repeats; ++r) {
+        // The path tracer as shipped (traversal counters on), then without the counters.
+        RenderSession session(snap_ptr, tp, FilmParams{});
+        const PassStats ps = session.render_pass();
+        pt_rates.push_back(double(ps.counters.rays()) / ps.seconds * 1e-6);
+        TraceParams tp_nc = tp;
+        tp_nc.count_traversal = false;
+        RenderSession session_nc(snap_ptr, tp_nc, FilmParams{});
+        const PassStats ps_nc = session_nc.render_pass();
+        pt_nc_rates.push_back(double(ps_nc.counters.rays()) / ps_nc.seconds * 1e-6);
+
+        Timer timer;
+        const auto nc = int64_t(rec.closest.size()), na = int64_t(rec.any.size());
+        uint64_t hits = 0;
+#pragma omp parallel num_threads(threads) reduction(+ : hits)
+        {
+#pragma omp for schedule(dynamic, 256) nowait
+            for (int64_t i = 0; i < nc; ++i) {
+                Hit h;
+                hits += tree.intersect(rec.closest[size_t(i)], h);
+            }
+#pragma omp for schedule(dynamic, 256)
+            for (int64_t i = 0; i < na; ++i) hits += tree.occluded(rec.any[size_t(i)]);
+        }
+        const double secs = timer.seconds();
+        raw_rates.push_back(double(nc + na) / secs * 1e-6);
+        std::printf(
+            "  run %d: path tracer %.3f Mrays/s (%llu rays; %.3f without traversal counters), "
+            "raw traversal %.3f Mrays/s (%lld closest + %lld any-hit, %llu hits)\n",
+            r + 1, pt_rates.back(), (unsigned long long)ps.counters.rays(), pt_nc_rates.back(),
+            raw_rates.back(), (long long)nc, (long long)na, (unsigned long long)hits);
+        std::fflush(stdout);
+    }
+    auto median = [](std::vector<double> v) {
+        std::sort(v.begin(), v.end());
+        return v[v.size() / 2];
+    };
+    const double pt = median(pt_rates), pt_nc = median(pt_nc_rates), raw = median(raw_rates);
+    std::printf(
+        "throughput: path tracer %.3f Mrays/s, raw traversal %.3f Mrays/s, ratio %.3f (without "
+        "traversal counters %.3f Mrays/s, ratio %.3f; medians of %d, %d threads)\n",
+        pt, raw, pt / raw, pt_nc, pt_nc / raw, a.repeats, threads);
+}
+
 void run(const ConvergeArgs& a) {
     namespace fs = std::filesystem;
     if (a.max_spp < 1 || a.reference_spp < 1)
@@ -141,10 +211,15 @@ void run(const ConvergeArgs& a) {
     po.width = a.width;
     po.height = a.height;
     po.tree.threads = a.threads;
+    po.use_cache = !a.no_cache;
     const Prepared prep = prepare_render(po);
     std::printf("bench converge: %s%s%s, %dx%d, tree %.2f s\n",
                 a.scene.empty() ? "default scene" : a.scene.c_str(), a.env.empty() ? "" : " under ",
                 a.env.c_str(), a.width, a.height, prep.tree_seconds);
+    if (a.throughput) {
+        run_throughput(a, *prep.snapshot, prep.snapshot);
+        return;
+    }
 
     // Reference: given, or rendered with MIS at reference_spp under an independent seed.
     ImageRGB ref;
@@ -194,7 +269,7 @@ void run(const ConvergeArgs& a) {
             // Passes until the film holds target x pixels samples (exactly target per pixel
             // without adaptivity); only rendering is timed.
             for (;;) {
-                const double done = double(s.film().total_samples() + s.totals().nonfinite_dropped);
+                const double done = double(s.totals().samples);
                 if (done >= double(target) * pixels) break;
                 const PassStats ps = s.render_pass(cfg.film.adaptive ? 0 : target);
                 seconds += ps.seconds;
@@ -262,7 +337,9 @@ void run(const ConvergeArgs& a) {
     if (!a.no_plot) {
         const std::string png = (fs::path(a.out_dir) / "converge.png").string();
         const fs::path script = find_plot_script();
-        const std::string cmd = "python3 '" + script.string() + "' '" + csv + "' '" + png + "'";
+        // Debian's interpreter has python3-matplotlib; a python3 earlier in PATH may not.
+        const std::string python = fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
+        const std::string cmd = python + " '" + script.string() + "' '" + csv + "' '" + png + "'";
         if (fs::exists(script) && std::system(cmd.c_str()) == 0) {
             std::printf("wrote %s\n", png.c_str());
         } else {
@@ -301,6 +378,10 @@ void add_bench_converge_command(CLI::App& parent) {
     cmd->add_option("-o,--out-dir", a.out_dir, "Directory for reference, CSV and plot")
         ->capture_default_str();
     cmd->add_flag("--no-plot", a.no_plot, "Do not run scripts/plot_converge.py");
+    cmd->add_flag("--no-cache", a.no_cache, "Build the kd-tree without the tree cache");
+    cmd->add_flag("--throughput", a.throughput,
+                  "Instead: path tracer rays/s against raw traversal of the same rays");
+    cmd->add_option("--repeats", a.repeats, "--throughput: runs (median)")->capture_default_str();
     cmd->callback([] { run(a); });
 }
 

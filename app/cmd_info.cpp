@@ -13,11 +13,13 @@ namespace {
 struct InfoArgs {
     std::string file;
     bool drop_invalid = false;
+    int threads = 0;
 };
 
 void run_info(const InfoArgs& args) {
     MeshLoadOptions options;
     options.drop_invalid = args.drop_invalid;
+    options.threads = args.threads;
     MeshLoadInfo info;
     reset_peak_rss();
     const size_t rss_before = current_rss_bytes();
@@ -62,6 +64,8 @@ void add_info_command(CLI::App& parent) {
     cmd->add_option("file", args->file, "Mesh file")->required();
     cmd->add_flag("--drop-invalid", args->drop_invalid,
                   "Drop faces that use non-finite vertices instead of failing (and report how many)");
+    cmd->add_option("--threads", args->threads, "Threads for ascii PLY parsing (0 = auto, 1 = one core)")
+        ->check(CLI::Range(0, 64));
     cmd->callback([args] { run_info(*args); });
 }
 

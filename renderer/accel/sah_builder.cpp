@@ -11,9 +11,9 @@
 #include <algorithm>
 #include <atomic>
 #include <bit>
-#include <limits>
 #include <cmath>
 #include <deque>
+#include <limits>
 #include <memory>
 #include <string>
 #include <utility>
@@ -34,8 +34,7 @@ public:
     void add(int64_t bytes) {
         const int64_t now = current_.fetch_add(bytes, std::memory_order_relaxed) + bytes;
         int64_t peak = peak_.load(std::memory_order_relaxed);
-        while (now > peak &&
-               !peak_.compare_exchange_weak(peak, now, std::memory_order_relaxed)) {
+        while (now > peak && !peak_.compare_exchange_weak(peak, now, std::memory_order_relaxed)) {
         }
     }
     int64_t peak() const { return peak_.load(std::memory_order_relaxed); }
@@ -162,8 +161,8 @@ struct Context {
     bool clip(const Ref& r, const Bounds3f& child, Ref& out) const {
         const Vec3u& t = mesh->triangles[r.tri];
         Bounds3f b;
-        if (!clip_triangle_to_box(mesh->positions[t.x], mesh->positions[t.y],
-                                  mesh->positions[t.z], child, b)) {
+        if (!clip_triangle_to_box(mesh->positions[t.x], mesh->positions[t.y], mesh->positions[t.z],
+                                  child, b)) {
             return false;
         }
         // Both boxes are conservative, so is their intersection.
@@ -179,8 +178,8 @@ struct Context {
 /// A finished subtree in local depth-first order: node 0 is its root, child indices and
 /// leaf offsets are local.
 struct Subtree {
-    explicit Subtree(ScratchMeter* m) : nodes(MeteredAllocator<KdNode>(m)),
-                                        indices(MeteredAllocator<uint32_t>(m)) {}
+    explicit Subtree(ScratchMeter* m)
+        : nodes(MeteredAllocator<KdNode>(m)), indices(MeteredAllocator<uint32_t>(m)) {}
     MeteredVector<KdNode> nodes;
     MeteredVector<uint32_t> indices;
     uint64_t splits = 0;
@@ -235,10 +234,10 @@ struct Workspace {
     std::deque<SweepNode> levels;  // deque: slots keep their address as levels are added
     MeteredVector<uint8_t> side;
     MeteredVector<uint32_t> remap;
-    MeteredVector<uint32_t> both;    // straddling references of the node being split
-    MeteredVector<uint64_t> keys;    // sort keys of a subtree's first events
-    MeteredVector<Event> tmp[2];     // spliced one-sided events before the merge
-    SweepNode fresh[2];  // events of clipped straddlers for the left and right child
+    MeteredVector<uint32_t> both;  // straddling references of the node being split
+    MeteredVector<uint64_t> keys;  // sort keys of a subtree's first events
+    MeteredVector<Event> tmp[2];   // spliced one-sided events before the merge
+    SweepNode fresh[2];            // events of clipped straddlers for the left and right child
 };
 
 struct SweepSplit {
@@ -250,8 +249,7 @@ struct SweepSplit {
 
 class SweepBuilder {
 public:
-    SweepBuilder(const Context& ctx, Workspace& ws, Subtree& out)
-        : ctx_(ctx), ws_(ws), out_(out) {}
+    SweepBuilder(const Context& ctx, Workspace& ws, Subtree& out) : ctx_(ctx), ws_(ws), out_(out) {}
 
     /// Sweeps the subtree over `refs` (taken over: the vector is left empty).
     void build(MeteredVector<Ref>& refs, const Bounds3f& box, int depth) {
@@ -268,9 +266,11 @@ public:
                 const float lo = root.refs[i].box.lower[k], hi = root.refs[i].box.upper[k];
                 const uint64_t index = i;
                 if (lo == hi) {
-                    keys.push_back(uint64_t(ordered_bits(lo)) << 32 | uint64_t(kPlanar) << 30 | index);
+                    keys.push_back(uint64_t(ordered_bits(lo)) << 32 | uint64_t(kPlanar) << 30 |
+                                   index);
                 } else {
-                    keys.push_back(uint64_t(ordered_bits(lo)) << 32 | uint64_t(kStart) << 30 | index);
+                    keys.push_back(uint64_t(ordered_bits(lo)) << 32 | uint64_t(kStart) << 30 |
+                                   index);
                     keys.push_back(uint64_t(ordered_bits(hi)) << 32 | uint64_t(kEnd) << 30 | index);
                 }
             }
@@ -280,7 +280,8 @@ public:
             for (size_t i = 0; i < keys.size(); ++i) {
                 const uint64_t key = keys[i];
                 const auto low = uint32_t(key);
-                ev[i] = Event(from_ordered_bits(uint32_t(key >> 32)), (low & 0x3fffffffu) << 2 | low >> 30);
+                ev[i] = Event(from_ordered_bits(uint32_t(key >> 32)),
+                              (low & 0x3fffffffu) << 2 | low >> 30);
             }
         }
         out_.nodes.push_back(KdNode{});
@@ -476,14 +477,20 @@ private:
                 auto& fresh = ws_.fresh[c].events[k];
                 auto& tmp = ws_.tmp[c];
                 auto& out = child[c]->events[k];
-                if (fresh.empty()) {
-                    out.swap(tmp);
-                    continue;
-                }
+                out.swap(tmp);
+                if (fresh.empty()) continue;
                 std::sort(fresh.begin(), fresh.end(), event_less);
-                out.resize(tmp.size() + fresh.size());
-                std::merge(tmp.begin(), tmp.end(), fresh.begin(), fresh.end(), out.begin(),
-                           event_less);
+                // Merge from the back in place: only the suffix after the first fresh event
+                // moves, and there are few straddlers.
+                size_t i = out.size(), j = fresh.size(), w = out.size() + fresh.size();
+                out.resize(w);
+                while (j > 0) {
+                    if (i > 0 && event_less(fresh[j - 1], out[i - 1])) {
+                        out[--w] = out[--i];
+                    } else {
+                        out[--w] = fresh[--j];
+                    }
+                }
             }
         }
     }
@@ -786,9 +793,9 @@ bool clip_triangle_to_box(const Vec3f& a, const Vec3f& b, const Vec3f& c, const 
     }
     double magnitude = 0.0;
     for (int k = 0; k < 3; ++k) {
-        magnitude = std::max({magnitude, std::abs(double(box.lower[k])),
-                              std::abs(double(box.upper[k])), std::abs(double(a[k])),
-                              std::abs(double(b[k])), std::abs(double(c[k]))});
+        magnitude =
+            std::max({magnitude, std::abs(double(box.lower[k])), std::abs(double(box.upper[k])),
+                      std::abs(double(a[k])), std::abs(double(b[k])), std::abs(double(c[k]))});
     }
     // Interpolated coordinates carry a few double ulps of error relative to the largest
     // coordinate involved; widen them by far more than that before rounding to float.
@@ -863,8 +870,8 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
 
     KdBuildOutput out;
     Bounds3f mesh_bounds = mesh.bounds();
-    out.bounds = (is_finite(mesh_bounds.lower) && is_finite(mesh_bounds.upper)) ? mesh_bounds
-                                                                               : valid_bounds;
+    out.bounds =
+        (is_finite(mesh_bounds.lower) && is_finite(mesh_bounds.upper)) ? mesh_bounds : valid_bounds;
     // The root box must hold every reference; valid_bounds is inside mesh_bounds anyway.
     Bounds3f root_box = out.bounds;
     root_box.extend(valid_bounds);
@@ -882,6 +889,7 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
     size_t node_count = 1, index_count = 0;
     uint64_t splits = 0;
     count_output(top, node_count, index_count, splits);
+    KDT_CHECK(node_count < kMaxRefs);  // child indices have 30 bits
     out.nodes.reserve(node_count);
     out.indices.reserve(index_count);
     out.nodes.emplace_back();

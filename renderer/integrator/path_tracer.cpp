@@ -91,8 +91,23 @@ SurfacePoint make_surface(const TraceScene& scene, const Ray& ray, const Hit& hi
 
 }  // namespace
 
-Vec3f trace_path(const TraceScene& scene, const TraceParams& params, const Ray& camera_ray,
-                 PixelSampler& sampler, PathCounters& counters) {
+namespace {
+
+// Records nothing: the rendering path (compiles away).
+struct NoRecorder {
+    void closest(const Ray&) {}
+    void any(const Ray&) {}
+};
+
+struct VectorRecorder {
+    RayRecord* out;
+    void closest(const Ray& r) { out->closest.push_back(r); }
+    void any(const Ray& r) { out->any.push_back(r); }
+};
+
+template <class Recorder>
+Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const Ray& camera_ray,
+                      PixelSampler& sampler, PathCounters& counters, Recorder& recorder) {
     const KdTree& tree = *scene.tree;
     const EnvironmentLight& env = *scene.env;
     TraversalCounters tc;
@@ -106,6 +121,7 @@ Vec3f trace_path(const TraceScene& scene, const TraceParams& params, const Ray& 
     float prev_bsdf_pdf = 0.0f;
     for (int depth = 0;; ++depth) {
         Hit hit;
+        recorder.closest(ray);
         if (!tree.intersect(ray, hit, tcp)) {
             if (specular_bounce || !use_nee) {
                 radiance += beta * env.eval(ray.dir);
@@ -148,6 +164,7 @@ Vec3f trace_path(const TraceScene& scene, const TraceParams& params, const Ray& 
                     shadow.origin = offset_ray_origin(sp.p, sp.ng);
                     shadow.dir = ls.dir;
                     ++counters.shadow_rays;
+                    recorder.any(shadow);
                     if (!tree.occluded(shadow, tcp)) {
                         const float w =
                             use_mis
@@ -189,6 +206,24 @@ Vec3f trace_path(const TraceScene& scene, const TraceParams& params, const Ray& 
     counters.nodes_visited += tc.nodes_visited;
     counters.triangles_tested += tc.triangles_tested;
     return radiance;
+}
+
+}  // namespace
+
+Vec3f trace_path(const TraceScene& scene, const TraceParams& params, const Ray& camera_ray,
+                 PixelSampler& sampler, PathCounters& counters) {
+    NoRecorder none;
+    return trace_path_impl(scene, params, camera_ray, sampler, counters, none);
+}
+
+void record_rays(const TraceScene& scene, const Camera& camera, const TraceParams& params, int x,
+                 int y, uint32_t sample_index, RayRecord& record) {
+    PixelSampler sampler(params.seed, uint32_t(x), uint32_t(y), sample_index);
+    const Vec2f offset = sample_pixel_filter(params.filter, sampler.next_2d());
+    const Ray ray = camera.generate_ray(Vec2f(float(x), float(y)) + offset);
+    PathCounters counters;
+    VectorRecorder rec{&record};
+    trace_path_impl(scene, params, ray, sampler, counters, rec);
 }
 
 Vec3f render_sample(const TraceScene& scene, const Camera& camera, const TraceParams& params, int x,

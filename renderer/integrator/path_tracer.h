@@ -6,6 +6,7 @@
 
 #include <array>
 #include <cstdint>
+#include <vector>
 
 #include "renderer/camera/camera.h"
 #include "renderer/core/sampler.h"
@@ -71,5 +72,15 @@ Vec3f trace_path(const TraceScene& scene, const TraceParams& params, const Ray& 
 /// trace_path. Non-finite results are returned as-is (see Film / render_tiles).
 Vec3f render_sample(const TraceScene& scene, const Camera& camera, const TraceParams& params, int x,
                     int y, uint32_t sample_index, PathCounters& counters);
+
+/// The rays one sample traces, in order: closest-hit queries (camera and bounce rays) and
+/// any-hit queries (shadow rays). For benchmarks that replay them as raw traversal.
+struct RayRecord {
+    std::vector<Ray> closest, any;
+};
+
+/// Runs render_sample() and appends its rays to record (allocates; not for rendering).
+void record_rays(const TraceScene& scene, const Camera& camera, const TraceParams& params, int x,
+                 int y, uint32_t sample_index, RayRecord& record);
 
 }  // namespace kdt

@@ -131,8 +131,12 @@ void validate_hdr(const std::string& path, const std::vector<uint8_t>& data) {
     size_t res_offset = pos;
     next_line(line);
     long long h = 0, w = 0;
-    char tail = 0;
-    if (std::sscanf(line.c_str(), "-Y %lld +X %lld%c", &h, &w, &tail) != 2) {
+    int used = 0;
+    bool parsed = std::sscanf(line.c_str(), "-Y %lld +X %lld%n", &h, &w, &used) == 2;
+    while (parsed && used < int(line.size()) &&
+           std::isspace(static_cast<unsigned char>(line[size_t(used)])))
+        ++used;
+    if (!parsed || used != int(line.size())) {
         fail(path, "unsupported resolution line '" + line + "' (only -Y H +X W)",
              int64_t(res_offset));
     }

@@ -348,12 +348,19 @@ constexpr double kPow10[] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8
     if (q < e && (*q == '-' || *q == '+')) neg = *q++ == '-';
     uint64_t m = 0, chunk;
     int digits = 0, exp10 = 0;
-    for (;;) {
-        int n = digits8(q, e, chunk);
-        m = m * kPow10Int[n] + chunk;
-        q += n;
-        digits += n;
-        if (n < 8 || digits > 19) break;
+    if (e - q > 1 && is_digit(q[0]) && q[1] == '.') {
+        // One integer digit, as in most normalised coordinates: skip the SWAR step.
+        m = uint64_t(q[0] - '0');
+        digits = 1;
+        ++q;
+    } else {
+        for (;;) {
+            int n = digits8(q, e, chunk);
+            m = m * kPow10Int[n] + chunk;
+            q += n;
+            digits += n;
+            if (n < 8 || digits > 19) break;
+        }
     }
     if (q < e && *q == '.') {
         ++q;
@@ -521,6 +528,7 @@ private:
 
     // Shared
     void store_vertex(const Element& el, uint64_t i, const float* v);
+    [[gnu::noinline]] void non_finite_vertex(const Element& el, uint64_t i, const Vec3f& p);
     void emit_face(const Element& el, uint64_t i, const int64_t* idx, size_t n);
     void finish(TriangleMesh& mesh);
 
@@ -543,7 +551,8 @@ private:
     std::vector<uint8_t> bad_vertex_;  // only allocated once a non-finite vertex is seen
     uint64_t bad_vertices_ = 0;
     uint64_t dropped_faces_ = 0, degenerate_faces_ = 0, source_faces_ = 0;
-    std::vector<int64_t> poly_;  // indices of the face being read
+    std::vector<int64_t> poly_;    // indices of the face being read
+    std::vector<int64_t> sorted_;  // scratch for the degenerate test of big polygons
     int threads_ = 1;
 };
 
@@ -747,19 +756,21 @@ void PlyParser::check_counts() {
     }
 }
 
-void PlyParser::store_vertex(const Element& el, uint64_t i, const float* v) {
+inline void PlyParser::store_vertex(const Element& el, uint64_t i, const float* v) {
     Vec3f p(v[kPosX], v[kPosY], v[kPosZ]);
     mesh_.positions[i] = p;
     if (has_normals_) mesh_.normals[i] = Vec3f(v[kNormX], v[kNormY], v[kNormZ]);
     if (has_colors_) mesh_.colors[i] = Vec3f(v[kColR], v[kColG], v[kColB]);
-    if (!is_finite(p)) [[unlikely]] {
-        if (!options_.drop_invalid)
-            fail_at(el, i, "non-finite coordinate (" + std::to_string(p.x) + ", " + std::to_string(p.y) +
-                               ", " + std::to_string(p.z) + "); --drop-invalid drops the faces using it");
-        if (bad_vertex_.empty()) bad_vertex_.assign(vertex_count_, 0);
-        bad_vertex_[i] = 1;
-        ++bad_vertices_;
-    }
+    if (!is_finite(p)) [[unlikely]] non_finite_vertex(el, i, p);
+}
+
+void PlyParser::non_finite_vertex(const Element& el, uint64_t i, const Vec3f& p) {
+    if (!options_.drop_invalid)
+        fail_at(el, i, "non-finite coordinate (" + std::to_string(p.x) + ", " + std::to_string(p.y) + ", " +
+                           std::to_string(p.z) + "); --drop-invalid drops the faces using it");
+    if (bad_vertex_.empty()) bad_vertex_.assign(vertex_count_, 0);
+    bad_vertex_[i] = 1;
+    ++bad_vertices_;
 }
 
 void PlyParser::emit_face(const Element& el, uint64_t i, const int64_t* idx, size_t n) {
@@ -778,13 +789,19 @@ void PlyParser::emit_face(const Element& el, uint64_t i, const int64_t* idx, siz
     bool degenerate = false;
     if (n == 3) {
         degenerate = idx[0] == idx[1] || idx[1] == idx[2] || idx[0] == idx[2];
-    } else {
+    } else if (n <= 32) {
         for (size_t a = 0; a < n && !degenerate; ++a)
             for (size_t c = a + 1; c < n; ++c)
                 if (idx[a] == idx[c]) {
                     degenerate = true;
                     break;
                 }
+    } else {
+        // Big polygons: sort a copy instead of comparing all pairs (a hostile file could
+        // hold a face with millions of corners).
+        sorted_.assign(idx, idx + n);
+        std::sort(sorted_.begin(), sorted_.end());
+        degenerate = std::adjacent_find(sorted_.begin(), sorted_.end()) != sorted_.end();
     }
     degenerate_faces_ += degenerate;
     for (size_t k = 1; k + 1 < n; ++k)
@@ -1050,9 +1067,9 @@ PlyParser::LinesResult PlyParser::parse_lines(const Element& el, bool faces, boo
     return r;
 }
 
-// Parses the complete lines in the buffer (up to the element's end) on two threads, each
-// half of the bytes, split at a newline; the second half's first element index comes from
-// counting newlines in the first. Returns how many elements were committed; 0 means "take
+// Parses the complete lines in the buffer (up to the element's end) in one tight loop, or
+// on two threads, each half of the bytes, split at a newline; the second half's first
+// element index comes from counting newlines in the first. Returns how many elements were committed; 0 means "take
 // the serial path for the next line" (small input, partial state, or a line the fast path
 // cannot take, which the serial path then parses or reports). `poor` tells the caller to
 // stay serial for the rest of the element (nothing or under half the chunk committed).
@@ -1078,22 +1095,32 @@ uint64_t PlyParser::parallel_chunk(const Element& el, uint64_t i, bool faces, bo
         total = remaining;
     }
     if (size_t(e - b) < kMinChunk) return 0;
-    const char* half = b + (e - b) / 2;
-    const char* mid = static_cast<const char*>(std::memchr(half, '\n', size_t(e - half))) + 1;
-    const uint64_t na = uint64_t(std::count(b, mid, '\n'));
+    const char* mid = e;
+    uint64_t na = total;
+    if (threads_ > 1) {
+        const char* half = b + (e - b) / 2;
+        mid = static_cast<const char*>(std::memchr(half, '\n', size_t(e - half))) + 1;
+        na = uint64_t(std::count(b, mid, '\n'));
+    }
     if (faces) {
         // Only while every face so far became exactly one triangle at its own index.
         if (mesh_.triangles.size() != i || !bad_vertex_.empty()) return 0;
         mesh_.triangles.resize(size_t(i + total));
     }
     LinesResult ra, rb;
-    try {
-        std::thread helper([&] { rb = parse_lines(el, faces, is_vertex, mid, e, i + na); });
-        ra = parse_lines(el, faces, is_vertex, b, mid, i);
-        helper.join();
-    } catch (const std::system_error&) {
-        if (faces) mesh_.triangles.resize(size_t(i));
-        return 0;
+    if (threads_ > 1) {
+        try {
+            std::thread helper([&] { rb = parse_lines(el, faces, is_vertex, mid, e, i + na); });
+            ra = parse_lines(el, faces, is_vertex, b, mid, i);
+            helper.join();
+        } catch (const std::system_error&) {
+            if (faces) mesh_.triangles.resize(size_t(i));
+            return 0;
+        }
+    } else {
+        // One thread: the same tight loop over the whole chunk.
+        ra = parse_lines(el, faces, is_vertex, b, e, i);
+        rb.end = ra.end;
     }
     uint64_t done = ra.lines;
     const char* end = ra.end;
@@ -1119,6 +1146,8 @@ void PlyParser::read_ascii_element(Element& el) {
     const char* e;
     float v[9] = {};
     const bool scalars_fast = !el.has_lists;
+    // One thread gains nothing from chunks (the newline count costs what the tight loop
+    // saves), so chunks are for two threads only.
     bool parallel = threads_ > 1 && (scalars_fast || face_fast);
     for (uint64_t i = 0; i < el.count; ++i) {
         if (parallel) {

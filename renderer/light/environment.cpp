@@ -85,16 +85,18 @@ ImageEnvironment::ImageEnvironment(ImageRGB image, EnvMapping mapping, float rot
 
     // Sampling weights: luminance times the pixel's solid angle per unit uv area, so that
     // the solid-angle pdf is close to proportional to luminance.
-    std::vector<float> weights(image_.pixel_count(), 0.0f);
+    // In double: luminance times a Jacobian of up to 4 pi^2 overflows float for huge pixels.
+    std::vector<double> weights(image_.pixel_count(), 0.0);
     std::vector<float> coverage(image_.pixel_count(), 1.0f);
     if (mapping_ == EnvMapping::latlong) {
         for (int y = 0; y < h; ++y) {
             // Mean of sin(theta) over the row: (cos theta0 - cos theta1) / (theta1 - theta0).
             double t0 = M_PI * y / h, t1 = M_PI * (y + 1) / h;
-            float mean_sin = float((std::cos(t0) - std::cos(t1)) / (t1 - t0));
+            double mean_sin = (std::cos(t0) - std::cos(t1)) / (t1 - t0);
             for (int x = 0; x < w; ++x) {
                 size_t i = size_t(y) * size_t(w) + size_t(x);
-                weights[i] = luminance(image_.at(x, y)) * mean_sin;
+                Vec3f c = image_.at(x, y);
+                weights[i] = (0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z) * mean_sin;
             }
         }
     } else {
@@ -105,34 +107,52 @@ ImageEnvironment::ImageEnvironment(ImageRGB image, EnvMapping mapping, float rot
                 // Disk coordinates of the pixel: a right, b up.
                 double a0 = 2.0 * x / w - 1.0, a1 = 2.0 * (x + 1) / w - 1.0;
                 double b0 = 1.0 - 2.0 * (y + 1) / h, b1 = 1.0 - 2.0 * y / h;
-                double cov = disk_rect_area(a0, a1, b0, b1) / ((a1 - a0) * (b1 - b0));
+                double far_a = std::max(std::abs(a0), std::abs(a1));
+                double far_b = std::max(std::abs(b0), std::abs(b1));
+                bool inside = far_a * far_a + far_b * far_b <= 1.0;
+                double cov =
+                    inside ? 1.0 : disk_rect_area(a0, a1, b0, b1) / ((a1 - a0) * (b1 - b0));
                 coverage[i] = float(cov);
-                float lum = luminance(image_.at(x, y));
-                if (!(cov > 0.0) || lum <= 0.0f) continue;
-                // Mean Jacobian over the pixel (zero outside the disk) by a kSub^2 grid; it
-                // only shapes the weights, the density below stays exact.
-                double jsum = 0.0;
-                for (int sy = 0; sy < kSub; ++sy) {
-                    for (int sx = 0; sx < kSub; ++sx) {
-                        Vec2f uv((float(x) + (float(sx) + 0.5f) / kSub) / float(w),
-                                 (float(y) + (float(sy) + 0.5f) / kSub) / float(h));
-                        if (auto d = angular_dir_from_uv(uv)) jsum += angular_jacobian(*d);
+                Vec3f c = image_.at(x, y);
+                double lum = 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
+                if (!(cov > 0.0) || lum <= 0.0) continue;
+                // Mean Jacobian over the pixel (zero outside the disk): the centre value for
+                // pixels inside the disk, a kSub^2 grid for pixels cut by the rim. It only
+                // shapes the weights; the density below stays exact.
+                double mean_j = 0.0;
+                if (inside) {
+                    mean_j = angular_jacobian(*angular_dir_from_uv(
+                        {(float(x) + 0.5f) / float(w), (float(y) + 0.5f) / float(h)}));
+                } else {
+                    for (int sy = 0; sy < kSub; ++sy) {
+                        for (int sx = 0; sx < kSub; ++sx) {
+                            Vec2f uv((float(x) + (float(sx) + 0.5f) / kSub) / float(w),
+                                     (float(y) + (float(sy) + 0.5f) / kSub) / float(h));
+                            if (auto d = angular_dir_from_uv(uv)) mean_j += angular_jacobian(*d);
+                        }
                     }
+                    mean_j /= kSub * kSub;
                 }
                 // A floor keeps pixels cut by the rim with no grid point inside samplable,
                 // so that pdf > 0 wherever eval > 0.
-                double mean_j = jsum / (kSub * kSub);
-                weights[i] = float(double(lum) * std::max(mean_j, cov * 1e-3));
+                weights[i] = lum * std::max(mean_j, cov * 1e-3);
             }
         }
     }
-    distribution_ = Distribution2D(weights, w, h);
+    // Normalised to a maximum of 1 so that the float distribution can neither overflow nor
+    // lose the scale; pixels below 1e-38 of the brightest one round to weight 0.
+    double max_weight = *std::max_element(weights.begin(), weights.end());
+    std::vector<float> normalised(weights.size(), 0.0f);
+    if (max_weight > 0.0) {
+        for (size_t i = 0; i < weights.size(); ++i) normalised[i] = float(weights[i] / max_weight);
+    }
+    distribution_ = Distribution2D(normalised, w, h);
     density_.assign(image_.pixel_count(), 0.0f);
     if (!distribution_.empty()) {
         for (int y = 0; y < h; ++y) {
             for (int x = 0; x < w; ++x) {
                 size_t i = size_t(y) * size_t(w) + size_t(x);
-                if (weights[i] > 0.0f) density_[i] = distribution_.pdf(x, y) / coverage[i];
+                if (normalised[i] > 0.0f) density_[i] = distribution_.pdf(x, y) / coverage[i];
             }
         }
     }

@@ -15,8 +15,6 @@ RenderSession::RenderSession(std::shared_ptr<const RenderSnapshot> snapshot,
     : snapshot_(std::move(snapshot)), trace_(trace), film_params_(film) {
     if (!snapshot_) throw Error("render session: no snapshot");
     film_.resize(snapshot_->camera.width, snapshot_->camera.height);
-    heat_nodes_.assign(film_.pixel_count(), 0);
-    heat_tris_.assign(film_.pixel_count(), 0);
 }
 
 void RenderSession::set_snapshot(std::shared_ptr<const RenderSnapshot> snapshot) {
@@ -51,8 +49,8 @@ void RenderSession::apply_pending() {
         } else {
             film_.clear();
         }
-        heat_nodes_.assign(film_.pixel_count(), 0);
-        heat_tris_.assign(film_.pixel_count(), 0);
+        heat_nodes_.assign(heat_map_ ? film_.pixel_count() : 0, 0);
+        heat_tris_.assign(heat_map_ ? film_.pixel_count() : 0, 0);
         totals_ = PathCounters{};
         passes_ = 0;
     }
@@ -80,6 +78,7 @@ PassStats RenderSession::render_pass(const std::vector<int>& tiles, int max_spp)
     const int spp = std::max(trace_.samples_per_pass, 1);
     const uint32_t cap = max_spp > 0 ? uint32_t(max_spp) : 0xffffffffu;
     const int threads = trace_.threads > 0 ? trace_.threads : omp_get_max_threads();
+    const bool heat = heat_map_ && !heat_nodes_.empty();
 
     // One cache line per thread for its counters.
     struct alignas(64) ThreadCounters {
@@ -107,9 +106,11 @@ PassStats RenderSession::render_pass(const std::vector<int>& tiles, int max_spp)
                                    tris0 = counters.triangles_tested;
                     const Vec3f L =
                         render_sample(snap.scene, snap.camera, trace_, x, y, index, counters);
-                    const size_t pi = size_t(y) * size_t(width) + size_t(x);
-                    heat_nodes_[pi] += counters.nodes_visited - nodes0;
-                    heat_tris_[pi] += counters.triangles_tested - tris0;
+                    if (heat) {
+                        const size_t pi = size_t(y) * size_t(width) + size_t(x);
+                        heat_nodes_[pi] += counters.nodes_visited - nodes0;
+                        heat_tris_[pi] += counters.triangles_tested - tris0;
+                    }
                     if (is_finite(L) && L.x >= 0.0f && L.y >= 0.0f && L.z >= 0.0f) {
                         film_.add_sample(x, y, L);
                     } else {
@@ -149,9 +150,10 @@ RenderProgress run_render(RenderSession& session, const StopConditions& stop,
         const Film& film = session.film();
         p.passes = session.passes();
         p.seconds = timer.seconds();
-        p.samples = film.total_samples() + session.totals().nonfinite_dropped;
+        p.samples = session.totals().samples;  // drawn, kept or dropped
         p.active_pixels = ps.active_pixels;
-        p.mean_relative_error = film.mean_relative_error();
+        // A full pass over the film: only when someone looks at it.
+        if (progress || stop.error > 0.0f) p.mean_relative_error = film.mean_relative_error();
         double frac = 0.0;
         if (budget > 0) frac = std::max(frac, double(p.samples) / double(budget));
         if (stop.seconds > 0.0) frac = std::max(frac, p.seconds / stop.seconds);
@@ -169,6 +171,8 @@ RenderProgress run_render(RenderSession& session, const StopConditions& stop,
             done = true;
         }
         if (done) p.fraction = 1.0;
+        if (done && !(progress || stop.error > 0.0f))
+            p.mean_relative_error = film.mean_relative_error();
         if (progress) progress(p);
         if (done) break;
     }

@@ -57,7 +57,15 @@ public:
     /// Totals since the last reset.
     const PathCounters& totals() const { return totals_; }
     int passes() const { return passes_; }
-    /// Per-pixel sums of kd-tree nodes visited and triangles tested (heat maps); divide by
+    /// Turns per-pixel heat-map accumulation on or off (off by default; needs
+    /// TraceParams::count_traversal). Takes effect with the next reset.
+    void set_heat_map(bool on) {
+        heat_map_ = on;
+        reset();
+    }
+    bool heat_map() const { return heat_map_; }
+    /// Per-pixel sums of kd-tree nodes visited and triangles tested (heat maps; empty when
+    /// off); divide by
     /// Film::count for per-sample values.
     const std::vector<uint64_t>& heat_nodes() const { return heat_nodes_; }
     const std::vector<uint64_t>& heat_triangles() const { return heat_tris_; }
@@ -73,6 +81,7 @@ private:
     Film film_;
     PathCounters totals_;
     int passes_ = 0;
+    bool heat_map_ = false;
     std::vector<uint64_t> heat_nodes_, heat_tris_;
     std::atomic<bool> reset_requested_{false};
     std::atomic<bool> cancel_requested_{false};

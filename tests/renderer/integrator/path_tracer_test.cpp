@@ -404,3 +404,32 @@ TEST(PathTracer, OffsetOriginsDoNotSelfIntersect) {
 
 }  // namespace
 }  // namespace kdt
+
+namespace kdt {
+namespace {
+
+// record_rays() sees exactly the rays render_sample() traces (for the throughput bench).
+TEST(PathTracer, RecordedRaysMatchTheCounters) {
+    const TraceScene scene = make_scene(
+        {{make_icosphere({0, 0.5f, 0}, 0.5f, 2), test::smooth(diffuse(0.8f))},
+         {make_box({-1, -1, -1}, {1, 0, 1}), flat(diffuse(0.5f))}},
+        std::make_shared<ConstantEnv>(Vec3f(1.0f)));
+    const Camera cam = make_camera({2, 2, 3}, {0, 0, 0}, {0, 1, 0}, 40.0f, 8, 8);
+    TraceParams tp;
+    PathCounters counters;
+    RayRecord rec;
+    for (int y = 0; y < 8; ++y) {
+        for (int x = 0; x < 8; ++x) {
+            for (uint32_t s = 0; s < 4; ++s) {
+                render_sample(scene, cam, tp, x, y, s, counters);
+                record_rays(scene, cam, tp, x, y, s, rec);
+            }
+        }
+    }
+    EXPECT_EQ(rec.closest.size(), counters.camera_rays + counters.bounce_rays);
+    EXPECT_EQ(rec.any.size(), counters.shadow_rays);
+    EXPECT_GT(counters.bounce_rays, 0u);
+}
+
+}  // namespace
+}  // namespace kdt

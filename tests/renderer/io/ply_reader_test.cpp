@@ -291,6 +291,24 @@ TEST(PlyReader, FacesBeforeVerticesAndDegenerateFacesCounted) {
     EXPECT_EQ(m.positions[1], Vec3f(1, 0, 0));
 }
 
+TEST(PlyReader, BigPolygonFannedAndDegenerateTestedFast) {
+    // One face with 200000 corners: fanned into n-2 triangles; a repeated corner far apart
+    // makes it degenerate (found by sorting, not by comparing all pairs).
+    const int n = 200000;
+    Bytes b;
+    for (int i = 0; i < n; ++i) b.put(float(i)).put(0.0f).put(0.0f);
+    b.put(uint32_t(n));
+    for (int i = 0; i < n; ++i) b.put(i == n - 1 ? 0 : i);
+    std::string t = "ply\nformat binary_little_endian 1.0\nelement vertex " + std::to_string(n) +
+                    "\nproperty float x\nproperty float y\nproperty float z\nelement face 1\n"
+                    "property list uint int vertex_indices\nend_header\n" + b.s;
+    MeshLoadInfo info;
+    TriangleMesh m = load(t, {}, &info);
+    EXPECT_EQ(m.triangle_count(), size_t(n - 2));
+    EXPECT_EQ(info.degenerate_faces, 1u);
+    EXPECT_EQ(m.triangles[5], Vec3u(0, 6, 7));
+}
+
 TEST(PlyReader, BinaryTrailingBytesIgnored) {
     Bytes b;
     b.put(0.0f).put(0.0f).put(0.0f).put(1.0f).put(0.0f).put(0.0f).put(0.0f).put(1.0f).put(0.0f);
@@ -551,7 +569,7 @@ namespace {
 // path must hand to the serial one: blank lines, a polygon, a degenerate face, and with
 // drop_invalid a non-finite vertex. One and two threads must agree exactly, and report
 // errors on the same line.
-std::string big_ascii(bool with_nan) {
+std::string big_ascii(bool with_nan, bool irregular = true) {
     const int nv = 60000, nf = 120000;
     std::string s = "ply\nformat ascii 1.0\nelement vertex " + std::to_string(nv) +
                     "\nproperty float x\nproperty float y\nproperty float z\nelement face " + std::to_string(nf) +
@@ -566,13 +584,13 @@ std::string big_ascii(bool with_nan) {
         }
         std::snprintf(buf, sizeof buf, "%.7g %.7g %.7g\n", double(u(rng)), double(u(rng)), double(u(rng)));
         s += buf;
-        if (i == 20000) s += "\n   \n";
+        if (i == 20000 && irregular) s += "\n   \n";
     }
     std::uniform_int_distribution<int> vi(0, nv - 1);
     for (int f = 0; f < nf; ++f) {
-        if (f == 70000) {
+        if (f == 70000 && irregular) {
             s += "4 1 2 3 4\n";
-        } else if (f == 90000) {
+        } else if (f == 90000 && irregular) {
             s += "3 5 5 6\n";
         } else {
             s += "3 " + std::to_string(vi(rng)) + " " + std::to_string(vi(rng)) + " " + std::to_string(vi(rng)) + "\n";
@@ -599,6 +617,18 @@ TEST(PlyReader, TwoThreadAsciiMatchesOneThread) {
         EXPECT_EQ(i1.source_faces, 120000u);
         EXPECT_EQ(i2.source_faces, 120000u);
         EXPECT_GE(i2.degenerate_faces, 1u);
+    }
+    // Regular lines only: every chunk is taken whole by the tight loop.
+    {
+        std::string text = big_ascii(false, false);
+        MeshLoadOptions one, two;
+        one.threads = 1;
+        two.threads = 2;
+        TriangleMesh a = load(text, one), b = load(text, two), c = load(text);
+        EXPECT_EQ(a.triangle_count(), 120000u);
+        EXPECT_EQ(a.positions, b.positions);
+        EXPECT_EQ(a.triangles, b.triangles);
+        EXPECT_EQ(a.triangles, c.triangles);
     }
     // An error deep in the file: same message (same line) either way.
     std::string text = big_ascii(false);

@@ -329,6 +329,18 @@ TEST(Environment, BadInputThrows) {
     EXPECT_EQ(clamped.clamped_pixels(), 2u);
     EXPECT_EQ(clamped.image().at(1, 0), Vec3f(0.0f, 0.0f, 1.0f));
 
+    // Huge but finite pixels must not overflow the sampling weights.
+    for (EnvMapping m : {EnvMapping::latlong, EnvMapping::angular}) {
+        ImageRGB huge(8, 8);
+        for (float& v : huge.rgb) v = 1.0f;
+        huge.set(3, 3, Vec3f(3e38f));
+        ImageEnvironment env(huge, m, 0.0f, 1.0f);
+        EnvSample s = env.sample({0.5f, 0.5f});
+        EXPECT_GT(s.pdf_solid_angle, 0.0f);
+        EXPECT_TRUE(std::isfinite(s.pdf_solid_angle));
+        EXPECT_EQ(s.radiance, Vec3f(3e38f)) << "the brightest pixel takes all samples";
+    }
+
     EXPECT_THROW(ImageEnvironment(neg, EnvMapping::latlong, 0.0f, -1.0f), Error);
     EXPECT_THROW(ImageEnvironment(neg, EnvMapping::latlong, kInfinity, 1.0f), Error);
     EnvironmentDesc bad_colour;

@@ -100,7 +100,18 @@ TEST(RenderSession, ResetRestartsAndSnapshotSwapTakesEffect) {
     EXPECT_EQ(s.film().count(0, 0), 1u);
     EXPECT_EQ(&s.snapshot(), other.get());
     EXPECT_GT(s.totals().rays(), 0u);
-    EXPECT_EQ(s.heat_nodes().size(), 48u);
+    EXPECT_TRUE(s.heat_nodes().empty());  // heat maps are opt-in
+    s.set_heat_map(true);
+    s.render_pass();
+    ASSERT_EQ(s.heat_nodes().size(), 48u);
+    uint64_t nodes = 0, tris = 0;
+    for (size_t i = 0; i < 48; ++i) {
+        nodes += s.heat_nodes()[i];
+        tris += s.heat_triangles()[i];
+    }
+    EXPECT_EQ(nodes, s.totals().nodes_visited);
+    EXPECT_EQ(tris, s.totals().triangles_tested);
+    EXPECT_GT(nodes, 0u);
 }
 
 TEST(RenderSession, CancelStopsAPassAndKeepsFinishedTiles) {
