@@ -34,6 +34,7 @@ struct ConvergeArgs {
     int path_depth = 16;
     bool no_plot = false;
     bool throughput = false;
+    bool no_cache = false;
     int repeats = 3;
 };
 
@@ -210,6 +211,7 @@ void run(const ConvergeArgs& a) {
     po.width = a.width;
     po.height = a.height;
     po.tree.threads = a.threads;
+    po.use_cache = !a.no_cache;
     const Prepared prep = prepare_render(po);
     std::printf("bench converge: %s%s%s, %dx%d, tree %.2f s\n",
                 a.scene.empty() ? "default scene" : a.scene.c_str(), a.env.empty() ? "" : " under ",
@@ -376,6 +378,7 @@ void add_bench_converge_command(CLI::App& parent) {
     cmd->add_option("-o,--out-dir", a.out_dir, "Directory for reference, CSV and plot")
         ->capture_default_str();
     cmd->add_flag("--no-plot", a.no_plot, "Do not run scripts/plot_converge.py");
+    cmd->add_flag("--no-cache", a.no_cache, "Build the kd-tree without the tree cache");
     cmd->add_flag("--throughput", a.throughput,
                   "Instead: path tracer rays/s against raw traversal of the same rays");
     cmd->add_option("--repeats", a.repeats, "--throughput: runs (median)")->capture_default_str();

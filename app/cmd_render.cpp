@@ -3,8 +3,10 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <functional>
 #include <string>
 
@@ -116,6 +118,15 @@ void run(const RenderArgs& a) {
     fp.adaptive_min_spp = a.adaptive_min_spp;
     fp.exposure = a.exposure;
     if (tp.max_depth < 0) throw Error("--path-depth must be >= 0");
+    {
+        // Fail before rendering, not after.
+        std::string ext = std::filesystem::path(a.output).extension().string();
+        for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+        if (ext != ".png" && ext != ".exr" && ext != ".pfm" && ext != ".hdr") {
+            throw Error(ErrorLocation{a.output},
+                        "unknown image format '" + ext + "' (use .png, .exr, .pfm or .hdr)");
+        }
+    }
     if (tp.samples_per_pass < 1) throw Error("--spp-per-pass must be >= 1");
 
     PrepareOptions po;
