@@ -414,6 +414,9 @@ TEST_F(CacheStructureTest, StructureErrorTriggersRebuild) {
 TEST(CacheLocations, NextToModelThenCacheDirectory) {
     const fs::path dir = test::temp_dir("kdt_cache_loc");
     const fs::path cache = dir / "cache";
+    // Other tests (and test_util's dragon_dir()) read KDT_CACHE_DIR: restore it afterwards.
+    const char* old_env = std::getenv("KDT_CACHE_DIR");
+    const std::string saved = old_env ? old_env : "";
     ::setenv("KDT_CACHE_DIR", cache.c_str(), 1);
     EXPECT_EQ(default_kdtree_cache_dir(), (cache / "trees").string());
     auto mesh = sphere_mesh(2);
@@ -442,7 +445,11 @@ TEST(CacheLocations, NextToModelThenCacheDirectory) {
     get_or_build_kdtree("", mesh, params, "", say, &rep);
     EXPECT_TRUE(rep.loaded) << log;
 
-    ::unsetenv("KDT_CACHE_DIR");
+    if (old_env) {
+        ::setenv("KDT_CACHE_DIR", saved.c_str(), 1);
+    } else {
+        ::unsetenv("KDT_CACHE_DIR");
+    }
     std::error_code ec;
     fs::remove_all(dir, ec);
 }
