@@ -35,7 +35,9 @@ struct Options {
     int repeat = 5;
     int threads = 0;
     int subdivide = 0;
-    int spp = 0;  // 0 = the views file's
+    int spp = 0;    // 0 = the views file's
+    int depth = 0;  // 0 = the thesis's 20
+    int n0 = -1;    // -1 = the thesis's 5
     bool embree = true;
     bool embree_robust = false;
     bool use_cache = false;
@@ -154,6 +156,20 @@ uint64_t count_disagreements(const std::vector<Hit>& a, const std::vector<Hit>& 
     return n;
 }
 
+/// Sizes counted from the arrays themselves (not every builder fills KdTreeStats alike).
+struct TreeSize {
+    uint64_t nodes = 0, leaves = 0, refs = 0, bytes = 0;
+};
+
+TreeSize tree_size(const KdTree& tree) {
+    TreeSize z;
+    z.nodes = tree.nodes().size();
+    for (const KdNode& n : tree.nodes()) z.leaves += n.is_leaf() ? 1 : 0;
+    z.refs = tree.indices().size();
+    z.bytes = z.nodes * sizeof(KdNode) + z.refs * sizeof(uint32_t);
+    return z;
+}
+
 struct RowResult {
     Config config;
     std::shared_ptr<const KdTree> tree;
@@ -165,33 +181,51 @@ struct RowResult {
 };
 
 // Vertex- and edge-aimed rays: from random points on a sphere around the model, aimed
-// exactly at a vertex (or edge midpoint) shared by closed fans of triangles. The aimed point
-// lies on the surface, so a watertight closest-hit query must hit at t <= 1; a miss or a hit
-// behind it is an escape.
+// exactly at a vertex (or edge midpoint) of a closed fan of triangles that, seen along the
+// ray, surrounds the aimed point (not on the silhouette). Any ray through such a point
+// must hit the fan, so a watertight closest-hit query hits at t <= 1; a miss or a hit
+// behind it is an escape. Silhouette points are skipped: there a ray passing one rounding
+// error beside the point may rightly miss.
 struct AimedRays {
     std::vector<Ray> vertex, edge;
 };
 
 AimedRays make_aimed_rays(const TriangleMesh& mesh, int count, uint64_t seed) {
-    // Edges used by exactly two triangles; vertices all of whose edges are such.
-    std::unordered_map<uint64_t, uint32_t> edge_faces;
-    edge_faces.reserve(mesh.triangle_count() * 2);
+    struct EdgeUse {
+        uint32_t faces = 0;
+        uint32_t opposite[2] = {0, 0};
+    };
+    std::unordered_map<uint64_t, EdgeUse> edges;
+    edges.reserve(mesh.triangle_count() * 2);
     auto key = [](uint32_t a, uint32_t b) {
         return a < b ? (uint64_t(a) << 32 | b) : (uint64_t(b) << 32 | a);
     };
+    // Vertex -> incident triangles (CSR).
+    std::vector<uint32_t> first(mesh.vertex_count() + 1, 0), incident;
     for (const Vec3u& t : mesh.triangles) {
         if (t.x == t.y || t.y == t.z || t.z == t.x) continue;
-        ++edge_faces[key(t.x, t.y)];
-        ++edge_faces[key(t.y, t.z)];
-        ++edge_faces[key(t.z, t.x)];
+        for (int k = 0; k < 3; ++k) {
+            ++first[t[k] + 1];
+            EdgeUse& e = edges[key(t[k], t[(k + 1) % 3])];
+            if (e.faces < 2) e.opposite[e.faces] = t[(k + 2) % 3];
+            ++e.faces;
+        }
+    }
+    for (size_t v = 0; v < mesh.vertex_count(); ++v) first[v + 1] += first[v];
+    incident.resize(first.back());
+    {
+        std::vector<uint32_t> fill(first.begin(), first.end() - 1);
+        for (uint32_t i = 0; i < mesh.triangle_count(); ++i) {
+            const Vec3u& t = mesh.triangles[i];
+            if (t.x == t.y || t.y == t.z || t.z == t.x) continue;
+            for (int k = 0; k < 3; ++k) incident[fill[t[k]]++] = i;
+        }
     }
     std::vector<uint8_t> vertex_ok(mesh.vertex_count(), 0);
-    for (const Vec3u& t : mesh.triangles) {
-        for (int k = 0; k < 3; ++k) vertex_ok[t[k]] = 1;
-    }
+    for (size_t v = 0; v < mesh.vertex_count(); ++v) vertex_ok[v] = first[v + 1] > first[v];
     std::vector<uint64_t> interior_edges;
-    for (const auto& [e, n] : edge_faces) {
-        if (n == 2) {
+    for (const auto& [e, use] : edges) {
+        if (use.faces == 2) {
             interior_edges.push_back(e);
         } else {
             vertex_ok[e >> 32] = 0;
@@ -203,6 +237,9 @@ AimedRays make_aimed_rays(const TriangleMesh& mesh, int count, uint64_t seed) {
     for (uint32_t v = 0; v < vertex_ok.size(); ++v) {
         if (vertex_ok[v]) interior_vertices.push_back(v);
     }
+    AimedRays out;
+    if (interior_vertices.empty() || interior_edges.empty()) return out;
+
     const Bounds3f b = mesh.bounds();
     const Vec3f c = b.center();
     const float radius = glm::length(b.extent());
@@ -212,24 +249,51 @@ AimedRays make_aimed_rays(const TriangleMesh& mesh, int count, uint64_t seed) {
         const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
         return c + radius * Vec3f(r * std::cos(phi), r * std::sin(phi), z);
     };
-    AimedRays out;
-    if (interior_vertices.empty() || interior_edges.empty()) return out;
-    for (int i = 0; i < count; ++i) {
-        const float pick = hash_uniform(seed, 0xa2, uint64_t(i), 0);
+    auto dpos = [&](uint32_t v) { return Vec3d(mesh.positions[v]); };
+    // Winding number of the fan around v, projected along dir (double precision).
+    auto surrounded = [&](uint32_t v, const Vec3d& dir) {
+        const Vec3d n = glm::normalize(dir);
+        const Vec3d u = glm::normalize(std::fabs(n.x) > 0.5 ? glm::cross(n, Vec3d(0, 1, 0))
+                                                            : glm::cross(n, Vec3d(1, 0, 0)));
+        const Vec3d w = glm::cross(n, u);
+        double angle = 0.0;
+        for (uint32_t k = first[v]; k < first[v + 1]; ++k) {
+            const Vec3u& t = mesh.triangles[incident[k]];
+            const int at = t.x == v ? 0 : (t.y == v ? 1 : 2);
+            const Vec3d pa = dpos(t[(at + 1) % 3]) - dpos(v), pb = dpos(t[(at + 2) % 3]) - dpos(v);
+            const double ax = glm::dot(pa, u), ay = glm::dot(pa, w);
+            const double bx = glm::dot(pb, u), by = glm::dot(pb, w);
+            angle += std::atan2(ax * by - ay * bx, ax * bx + ay * by);
+        }
+        return std::fabs(angle) > kPi;  // winding +-1 (2 pi) versus 0 on the silhouette
+    };
+    auto edge_crossed = [&](uint64_t e, const Vec3d& dir) {
+        const uint32_t a = uint32_t(e >> 32), bb = uint32_t(e & 0xffffffffu);
+        const EdgeUse& use = edges.at(e);
+        const Vec3d ab = dpos(bb) - dpos(a);
+        const double s1 = glm::dot(glm::cross(ab, dpos(use.opposite[0]) - dpos(a)), dir);
+        const double s2 = glm::dot(glm::cross(ab, dpos(use.opposite[1]) - dpos(a)), dir);
+        return s1 * s2 < 0.0;  // the two triangles lie on both sides of the edge, seen along dir
+    };
+    const uint64_t max_attempts = uint64_t(count) * 20;
+    for (uint64_t i = 0; i < max_attempts && out.vertex.size() < size_t(count); ++i) {
+        const float pick = hash_uniform(seed, 0xa2, i, 0);
         const uint32_t v = interior_vertices[std::min(
             interior_vertices.size() - 1, size_t(pick * float(interior_vertices.size())))];
         Ray r;
-        r.origin = from_sphere(uint64_t(i));
+        r.origin = from_sphere(i);
         r.dir = mesh.positions[v] - r.origin;  // t = 1 at the vertex
-        out.vertex.push_back(r);
-        const float pick_e = hash_uniform(seed, 0xa3, uint64_t(i), 0);
+        if (surrounded(v, Vec3d(r.dir))) out.vertex.push_back(r);
+    }
+    for (uint64_t i = 0; i < max_attempts && out.edge.size() < size_t(count); ++i) {
+        const float pick = hash_uniform(seed, 0xa3, i, 0);
         const uint64_t e = interior_edges[std::min(interior_edges.size() - 1,
-                                                   size_t(pick_e * float(interior_edges.size())))];
+                                                   size_t(pick * float(interior_edges.size())))];
         const Vec3f m = 0.5f * (mesh.positions[e >> 32] + mesh.positions[e & 0xffffffffu]);
-        Ray s;
-        s.origin = from_sphere(uint64_t(i) + 0x100000000ull);
-        s.dir = m - s.origin;
-        out.edge.push_back(s);
+        Ray r;
+        r.origin = from_sphere(i + 0x100000000ull);
+        r.dir = m - r.origin;
+        if (edge_crossed(e, Vec3d(r.dir))) out.edge.push_back(r);
     }
     return out;
 }
@@ -323,7 +387,7 @@ void run(const Options& opt) {
         model_key += ".sub" + std::to_string(opt.subdivide);
     }
     std::shared_ptr<const TriangleMesh> mesh = mesh_rw;
-    [[maybe_unused]] const double tris = double(mesh->triangle_count());
+    const double tris = double(mesh->triangle_count());
     std::fprintf(stderr, "%zu triangles; %d threads; %d repeats; %zu views of %dx%d x %d spp\n",
                  mesh->triangle_count(), threads, repeat, views.views.size(), views.width,
                  views.height, views.samples_per_pixel);
@@ -342,6 +406,11 @@ void run(const Options& opt) {
         r.config = cfg;
         KdTreeParams params = cfg.params;
         params.threads = threads;
+        if (params.builder == KdBuilder::thesis) {
+            if (opt.depth > 0) params.max_depth = opt.depth;
+            if (opt.n0 >= 0) params.n0 = opt.n0;
+        }
+        r.config.params = params;
         std::vector<double> builds;
         if (opt.use_cache) {
             r.tree = get_or_build_kdtree(model_key, mesh, params);
@@ -384,9 +453,9 @@ void run(const Options& opt) {
             }
         }
         r.mrays = double(total_primary) / total * 1e-6;
-        const KdTreeStats& s = tree.stats();
         std::fprintf(stderr, "row %s: build %.3f s, %.2f Mrays/s, %.1f bytes/triangle\n",
-                     cfg.id.c_str(), r.build_seconds, r.mrays, s.bytes_per_triangle);
+                     cfg.id.c_str(), r.build_seconds, r.mrays,
+                     double(tree_size(tree).bytes) / tris);
         results.push_back(std::move(r));
     }
 
@@ -416,7 +485,7 @@ void run(const Options& opt) {
                                         p.builder == KdBuilder::thesis ? std::to_string(p.n0) : "-",
                                         std::to_string(s.max_depth_reached) + "/" +
                                             (p.max_depth ? std::to_string(p.max_depth) : "auto"),
-                                        fmt("%.0f", double(s.bytes) / 1024.0),
+                                        fmt("%.0f", double(tree_size(*r.tree).bytes) / 1024.0),
                                         fmt("%.3f", r.build_seconds)};
         for (double sec : r.view_seconds) row.push_back(fmt("%.3f", sec));
         row.push_back(std::to_string(s.median_splits));
@@ -424,10 +493,11 @@ void run(const Options& opt) {
         row.push_back(std::to_string(s.cutoff_splits));
         row.push_back(std::to_string(s.sah_splits));
         row.push_back(fmt("%.2f", r.mrays));
-        row.push_back(std::to_string(s.nodes));
-        row.push_back(std::to_string(s.leaves));
-        row.push_back(fmt("%.2f", s.refs_per_triangle));
-        row.push_back(fmt("%.1f", s.bytes_per_triangle));
+        const TreeSize z = tree_size(*r.tree);
+        row.push_back(std::to_string(z.nodes));
+        row.push_back(std::to_string(z.leaves));
+        row.push_back(fmt("%.2f", double(z.refs) / tris));
+        row.push_back(fmt("%.1f", double(z.bytes) / tris));
         row.push_back(fmt("%.1f", double(s.peak_build_bytes) / (1024.0 * 1024.0)));
         row.push_back(opt.use_cache ? "-" : fmt("%.1f", r.rss_build_mb));
         row.push_back(&r == &results[0] ? "-" : std::to_string(r.disagreements));
@@ -473,7 +543,7 @@ void run(const Options& opt) {
                     kKdBuilderNames[size_t(best->config.params.builder)] + ")";
         ours.tree = &tree;
         ours.build_seconds = best->build_seconds;
-        ours.bytes_per_triangle = tree.stats().bytes_per_triangle;
+        ours.bytes_per_triangle = double(tree_size(tree).bytes) / tris;
         ours.peak_mb = double(tree.stats().peak_build_bytes) / (1024.0 * 1024.0);
         engines.push_back(std::move(ours));
     }
@@ -582,20 +652,24 @@ void run(const Options& opt) {
         std::vector<Ray> nonfinite = make_nonfinite_rays(normal);
         Table t3;
         t3.name = "robustness";
-        t3.title = "Robustness: " + std::to_string(aimed.vertex.size()) + " vertex-aimed and " +
-                   std::to_string(aimed.edge.size()) +
-                   " edge-aimed rays (interior vertices/edges, aimed point at t = 1; escape = "
-                   "miss or hit beyond it), NaN/Inf rays against as many normal primary rays";
+        t3.title =
+            "Robustness: " + std::to_string(aimed.vertex.size()) + " vertex-aimed and " +
+            std::to_string(aimed.edge.size()) +
+            " edge-aimed rays (closed fans, not on the silhouette; aimed point at t = 1; "
+            "escape = miss or hit beyond it), NaN/Inf rays against as many normal primary rays";
         t3.header = {"engine",         "vertex escapes",   "vertex escape %",
                      "edge escapes",   "edge escape %",    "normal ns/ray",
                      "NaN/Inf ns/ray", "NaN/Inf slowdown", "NaN/Inf hits"};
         for (Engine& e : engines) {
             std::vector<Hit> hv, he, hn;
             std::vector<double> tn, tb;
+            // Debian's Embree is built with assertions: a NaN/Inf ray aborts in
+            // BVHNIntersector1 (assert ray.valid()), so only kdtrace runs that set.
+            const bool nonfinite_ok = e.tree != nullptr;
             with_queries(e, [&](const auto& isect, const auto&) {
                 trace_closest(aimed.vertex, hv, threads, isect);
                 trace_closest(aimed.edge, he, threads, isect);
-                for (int k = 0; k < repeat; ++k) {
+                for (int k = 0; k < repeat && nonfinite_ok; ++k) {
                     tn.push_back(trace_closest(normal, hn, threads, isect));
                     tb.push_back(trace_closest(nonfinite, hn, threads, isect));
                 }
@@ -610,8 +684,10 @@ void run(const Options& opt) {
                  fmt("%.3f", 100.0 * double(ve) / double(std::max<size_t>(1, aimed.vertex.size()))),
                  std::to_string(ee),
                  fmt("%.3f", 100.0 * double(ee) / double(std::max<size_t>(1, aimed.edge.size()))),
-                 fmt("%.1f", ns_normal), fmt("%.1f", ns_bad), fmt("%.2f", ns_bad / ns_normal),
-                 std::to_string(nonfinite_hits)});
+                 nonfinite_ok ? fmt("%.1f", ns_normal) : "-",
+                 nonfinite_ok ? fmt("%.1f", ns_bad) : "n/a (asserts)",
+                 nonfinite_ok ? fmt("%.2f", ns_bad / ns_normal) : "-",
+                 nonfinite_ok ? std::to_string(nonfinite_hits) : "-"});
         }
         tables.push_back(t3);
     }
@@ -658,6 +734,12 @@ void add_bench_kdtree_command(CLI::App& bench) {
         ->check(CLI::Range(0, 3));
     cmd->add_option("--rows", opt.rows, "Rows of table 6.1 to run (1-7, sah), comma-separated")
         ->capture_default_str();
+    cmd->add_option("--depth", opt.depth,
+                    "Thesis rows: maximum depth instead of 20 (the thesis's 10M-triangle table "
+                    "uses 24)")
+        ->check(CLI::Range(1, 64));
+    cmd->add_option("--n0", opt.n0, "Thesis rows: n0 instead of 5 (the 10M table uses 4)")
+        ->check(CLI::Range(0, 1000));
     cmd->add_option("--spp", opt.spp, "Primary rays per pixel (default: the views file's)");
     cmd->add_option("--csv", opt.csv, "Also write all tables as CSV");
     cmd->add_option("--md", opt.md, "Write the Markdown here instead of stdout");

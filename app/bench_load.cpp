@@ -30,7 +30,7 @@ struct BenchLoadArgs {
     std::string csv;
     std::string make_binary;
     bool no_assimp = false;
-    int threads = 0;
+    int threads = 1;
 };
 
 // CPU seconds of this process (user + system): steadier than wall time on a shared machine,
@@ -147,7 +147,7 @@ void run_bench_load(const BenchLoadArgs& args) {
         rows.push_back(row);
     }
 
-    std::printf("\nPLY load, median of %d runs (ours: kdt::load_mesh, ascii threads %d (0 = auto); Assimp: "
+    std::printf("\nPLY load, median of %d runs (ours: kdt::load_mesh, ascii threads %d; Assimp: "
                 "aiImportFile, flags 0).\nwall = elapsed ms; cpu = process CPU ms (user + system, all threads), "
                 "steadier on a busy machine.\n\n",
                 args.repeat, args.threads);
@@ -193,7 +193,8 @@ void add_bench_load_command(CLI::App& bench) {
                     "Write binary little- and big-endian copies of the inputs into DIR with our writer "
                     "and benchmark them too");
     cmd->add_flag("--no-assimp", args->no_assimp, "Time our reader only");
-    cmd->add_option("--threads", args->threads, "Threads for our ascii PLY parsing (0 = auto, 1 = one core)")
+    cmd->add_option("--threads", args->threads,
+                    "Threads for our ascii PLY parsing (1 = one core, 2 = two, 0 = auto)")
         ->check(CLI::Range(0, 64));
     cmd->callback([args] { run_bench_load(*args); });
 }

@@ -13,7 +13,7 @@ namespace {
 struct InfoArgs {
     std::string file;
     bool drop_invalid = false;
-    int threads = 0;
+    int threads = 1;
 };
 
 void run_info(const InfoArgs& args) {
@@ -64,7 +64,7 @@ void add_info_command(CLI::App& parent) {
     cmd->add_option("file", args->file, "Mesh file")->required();
     cmd->add_flag("--drop-invalid", args->drop_invalid,
                   "Drop faces that use non-finite vertices instead of failing (and report how many)");
-    cmd->add_option("--threads", args->threads, "Threads for ascii PLY parsing (0 = auto, 1 = one core)")
+    cmd->add_option("--threads", args->threads, "Threads for ascii PLY parsing (1 = one core, 2 = two, 0 = auto)")
         ->check(CLI::Range(0, 64));
     cmd->callback([args] { run_info(*args); });
 }

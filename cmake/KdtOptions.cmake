@@ -1,6 +1,7 @@
 # Shared compile settings: warnings (our code only), sanitizers, dependency discovery.
 add_library(kdt_warnings INTERFACE)
-target_compile_options(kdt_warnings INTERFACE -Wall -Wextra -Wshadow=local -Wno-missing-field-initializers
+target_compile_options(kdt_warnings INTERFACE -Wall -Wextra $<$<CXX_COMPILER_ID:GNU>:-Wshadow=local>
+  -Wno-missing-field-initializers
   # GCC 12 reports false -Wrestrict positives inside libstdc++ string code (GCC PR 105329).
   $<$<CXX_COMPILER_ID:GNU>:-Wno-restrict>)
 if(KDT_WERROR)

@@ -33,7 +33,7 @@ struct KdTreeParams {
     float empty_bonus = 0.2f;      ///< SAH builder: cost reduction for cutting off empty space
     // SAH defaults tuned on the dragon: 3 / 1.5 / 0.2 traces as fast as 1 / 1.5 / 0.2 with
     // 1.5 instead of 1.9 references per triangle and a third of the nodes.
-    int threads = 0;               ///< 0 = OpenMP default
+    int threads = 0;  ///< 0 = OpenMP default
     /// Thesis builder: evaluate the candidates on x, y and z and keep the cheapest, instead
     /// of alternating x, y, z by depth as the thesis did (false = the thesis's rule).
     bool thesis_all_axes = false;

@@ -409,10 +409,10 @@ std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
                 "implausible counts (" + std::to_string(h.node_count) + " nodes, " +
                     std::to_string(h.index_count) + " indices)");
     }
-    if (h.leaves > h.node_count || h.references != h.index_count ||
-        h.depth_histogram_count > kMaxDepthHistogram) {
+    // Statistics are informational (a builder may leave some zero); only bound what is read.
+    if (h.depth_histogram_count > kMaxDepthHistogram) {
         fail_at(path, "header", -1, offsetof(FileHeader, leaves),
-                "statistics inconsistent with the counts");
+                "depth histogram longer than " + std::to_string(kMaxDepthHistogram));
     }
     const uint64_t expected =
         sizeof(FileHeader) + h.node_count * sizeof(KdNode) + h.index_count * 4;
