@@ -69,14 +69,14 @@ constexpr std::array<std::array<uint32_t, 256>, 4> make_sobol1_tables() {
 
 constexpr auto kSobol1 = make_sobol1_tables();
 
-uint32_t reverse_bits(uint32_t x) {
+inline uint32_t reverse_bits(uint32_t x) {
     x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
     x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
     x = ((x >> 4) & 0x0f0f0f0fu) | ((x & 0x0f0f0f0fu) << 4);
     return __builtin_bswap32(x);
 }
 
-uint32_t sobol1(uint32_t i) {
+inline uint32_t sobol1(uint32_t i) {
     return kSobol1[0][i & 0xffu] ^ kSobol1[1][(i >> 8) & 0xffu] ^ kSobol1[2][(i >> 16) & 0xffu] ^
            kSobol1[3][i >> 24];
 }
@@ -84,7 +84,7 @@ uint32_t sobol1(uint32_t i) {
 // A hash that only propagates bits upwards: applied to bit-reversed values it flips each
 // bit depending only on the more significant bits, which is an Owen scramble
 // (Laine & Karras 2011; constants from Burley 2020).
-uint32_t laine_karras_permutation(uint32_t x, uint32_t seed) {
+inline uint32_t laine_karras_permutation(uint32_t x, uint32_t seed) {
     x += seed;
     x ^= x * 0x6c50b47cu;
     x ^= x * 0xb82f1e52u;
@@ -93,24 +93,26 @@ uint32_t laine_karras_permutation(uint32_t x, uint32_t seed) {
     return x;
 }
 
+inline uint32_t nested_scramble(uint32_t x, uint32_t seed) {
+    return reverse_bits(laine_karras_permutation(reverse_bits(x), seed));
+}
+
 }  // namespace
 
 uint32_t sobol_u32(uint32_t index, int dim) {
     return dim == 0 ? reverse_bits(index) : sobol1(index);
 }
 
-uint32_t owen_scramble(uint32_t x, uint32_t seed) {
-    return reverse_bits(laine_karras_permutation(reverse_bits(x), seed));
-}
+uint32_t owen_scramble(uint32_t x, uint32_t seed) { return nested_scramble(x, seed); }
 
 Vec2f sobol_2d(uint32_t index, uint64_t seed) {
     // Shuffle the sample order (so that padded dimensions decorrelate), then scramble each
     // coordinate with its own seed (Burley 2020, section 4).
     const auto s0 = uint32_t(seed), s1 = uint32_t(seed >> 32);
-    const uint32_t shuffled = owen_scramble(index, s0 ^ 0x5bd1e995u);
+    const uint32_t shuffled = nested_scramble(index, s0 ^ 0x5bd1e995u);
     // Dimension 0 is the bit reversal, so its Owen scramble needs no reversal at all.
     const uint32_t x = reverse_bits(laine_karras_permutation(shuffled, s0));
-    const uint32_t y = owen_scramble(sobol1(shuffled), s1);
+    const uint32_t y = nested_scramble(sobol1(shuffled), s1);
     return {bits_to_unit_float(x), bits_to_unit_float(y)};
 }
 

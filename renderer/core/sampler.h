@@ -69,8 +69,11 @@ public:
     /// Next 2D sample in [0,1)^2.
     Vec2f next_2d() {
         const uint32_t d = dim_++;
-        if (d < kSobolPairs) return sobol_2d(index_, hash64(pixel_key_, d));
-        const uint64_t h = hash64(pixel_key_, index_, d);
+        // pixel_key_ is already well mixed: one finaliser round per draw suffices.
+        if (d < kSobolPairs)
+            return sobol_2d(index_, mix64(pixel_key_ ^ (uint64_t(d + 1) * 0x9e3779b97f4a7c15ull)));
+        const uint64_t h = mix64(pixel_key_ ^ (uint64_t(d + 1) * 0x9e3779b97f4a7c15ull) ^
+                                 (uint64_t(index_) * 0xd1b54a32d192ed03ull));
         return {bits_to_unit_float(uint32_t(h)), bits_to_unit_float(uint32_t(h >> 32))};
     }
     /// Next 1D sample in [0,1) (consumes one 2D dimension pair).

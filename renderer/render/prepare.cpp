@@ -1,5 +1,8 @@
 #include "renderer/render/prepare.h"
 
+#include <cstdio>
+
+#include "renderer/accel/kdtree_cache.h"
 #include "renderer/core/timer.h"
 #include "renderer/render/settings.h"
 
@@ -22,16 +25,33 @@ Prepared prepare_render(const PrepareOptions& o) {
     out.scene.environment.rotation_degrees += o.env_rotation_degrees;
     out.load_seconds = timer.seconds();
 
+    auto log =
+        o.log ? o.log : [](const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); };
     SnapshotOptions so;
     so.width = o.width;
     so.height = o.height;
     so.tree = o.tree;
-    so.build_tree = [&](std::shared_ptr<const TriangleMesh> mesh, const KdTreeParams& params) {
-        Timer t;
-        auto tree = build_kdtree(std::move(mesh), params);
-        out.tree_seconds = t.seconds();
-        return tree;
-    };
+    const std::string model = o.scene_path;
+    if (o.use_cache) {
+        so.build_tree = [&](std::shared_ptr<const TriangleMesh> mesh, const KdTreeParams& params) {
+            Timer t;
+            KdCacheReport report;
+            // The merged world-space mesh of a scene file differs from the file's mesh; the
+            // cache validates the content hash, so naming it after the scene is safe.
+            auto tree =
+                get_or_build_kdtree(model, std::move(mesh), params, o.cache_dir, log, &report);
+            out.tree_seconds = t.seconds();
+            out.tree_from_cache = report.loaded;
+            return tree;
+        };
+    } else {
+        so.build_tree = [&](std::shared_ptr<const TriangleMesh> mesh, const KdTreeParams& params) {
+            Timer t;
+            auto tree = build_kdtree(std::move(mesh), params);
+            out.tree_seconds = t.seconds();
+            return tree;
+        };
+    }
     out.snapshot = compile_snapshot(out.scene, so);
     return out;
 }
