@@ -1,9 +1,9 @@
 // `kdtrace bench load FILE... [--repeat 5] [--csv out.csv] [--make-binary DIR]`:
 // median load time of our PLY reader against Assimp's importer on the same files.
 #include <algorithm>
+#include <cstdio>
 #include <cstring>
 #include <ctime>
-#include <cstdio>
 #include <filesystem>
 #include <memory>
 #include <string>
@@ -68,7 +68,8 @@ double assimp_load_ms(const std::string& path, size_t* triangles, double* cpu_ms
     const aiScene* scene = aiImportFile(path.c_str(), 0);
     double ms = t.seconds() * 1e3;
     *cpu_ms = (cpu_seconds() - c0) * 1e3;
-    if (!scene) throw Error(ErrorLocation{path}, std::string("Assimp failed: ") + aiGetErrorString());
+    if (!scene)
+        throw Error(ErrorLocation{path}, std::string("Assimp failed: ") + aiGetErrorString());
     size_t tris = 0;
     for (unsigned m = 0; m < scene->mNumMeshes; ++m)
         for (unsigned f = 0; f < scene->mMeshes[m]->mNumFaces; ++f) {
@@ -89,11 +90,14 @@ void run_bench_load(const BenchLoadArgs& args) {
             TriangleMesh mesh = load_mesh(f);
             std::string stem = std::filesystem::path(f).filename().string();
             for (const char* ext : {".gz", ".ply"})
-                if (stem.size() > std::strlen(ext) && stem.ends_with(ext)) stem.resize(stem.size() - std::strlen(ext));
-            for (PlyEncoding enc : {PlyEncoding::binary_little_endian, PlyEncoding::binary_big_endian}) {
-                std::string out = (std::filesystem::path(args.make_binary) /
-                                   (stem + (enc == PlyEncoding::binary_little_endian ? "_le.ply" : "_be.ply")))
-                                      .string();
+                if (stem.size() > std::strlen(ext) && stem.ends_with(ext))
+                    stem.resize(stem.size() - std::strlen(ext));
+            for (PlyEncoding enc :
+                 {PlyEncoding::binary_little_endian, PlyEncoding::binary_big_endian}) {
+                std::string out =
+                    (std::filesystem::path(args.make_binary) /
+                     (stem + (enc == PlyEncoding::binary_little_endian ? "_le.ply" : "_be.ply")))
+                        .string();
                 write_ply(out, mesh, enc);
                 std::printf("wrote %s\n", out.c_str());
                 files.push_back(out);
@@ -118,7 +122,9 @@ void run_bench_load(const BenchLoadArgs& args) {
             ours.push_back(t.seconds() * 1e3);
             ours_cpu.push_back((cpu_seconds() - c0) * 1e3);
             size_t peak = peak_rss_bytes();
-            double ratio = mesh.memory_bytes() ? double(peak > before ? peak - before : 0) / mesh.memory_bytes() : 0;
+            double ratio = mesh.memory_bytes()
+                               ? double(peak > before ? peak - before : 0) / mesh.memory_bytes()
+                               : 0;
             row.peak_ratio = r == 0 ? ratio : std::max(row.peak_ratio, ratio);
             row.encoding = info.encoding;
             row.gzip = info.gzip;
@@ -147,35 +153,42 @@ void run_bench_load(const BenchLoadArgs& args) {
         rows.push_back(row);
     }
 
-    std::printf("\nPLY load, median of %d runs (ours: kdt::load_mesh, ascii threads %d; Assimp: "
-                "aiImportFile, flags 0).\nwall = elapsed ms; cpu = process CPU ms (user + system, all threads), "
-                "steadier on a busy machine.\n\n",
-                args.repeat, args.threads);
-    std::printf("| file | encoding | gzip | MB | triangles | ours wall | ours cpu | ours MB/s (cpu) | peak RSS / mesh "
-                "| Assimp wall | Assimp cpu | Assimp tris | speedup wall | speedup cpu |\n");
+    std::printf(
+        "\nPLY load, median of %d runs (ours: kdt::load_mesh, ascii threads %d; Assimp: "
+        "aiImportFile, flags 0).\nwall = elapsed ms; cpu = process CPU ms (user + system, all "
+        "threads), "
+        "steadier on a busy machine.\n\n",
+        args.repeat, args.threads);
+    std::printf(
+        "| file | encoding | gzip | MB | triangles | ours wall | ours cpu | ours MB/s (cpu) | peak "
+        "RSS / mesh "
+        "| Assimp wall | Assimp cpu | Assimp tris | speedup wall | speedup cpu |\n");
     std::printf("|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     for (const Row& r : rows) {
         double mb = r.bytes / 1e6;
         std::printf("| %s | %s | %s | %.1f | %zu | %.1f | %.1f | %.0f | %.2f | ",
-                    std::filesystem::path(r.file).filename().c_str(), r.encoding.c_str(), r.gzip ? "yes" : "no", mb,
-                    r.triangles, r.ours_ms, r.ours_cpu_ms, r.ours_cpu_ms > 0 ? mb / (r.ours_cpu_ms * 1e-3) : 0.0,
-                    r.peak_ratio);
+                    std::filesystem::path(r.file).filename().c_str(), r.encoding.c_str(),
+                    r.gzip ? "yes" : "no", mb, r.triangles, r.ours_ms, r.ours_cpu_ms,
+                    r.ours_cpu_ms > 0 ? mb / (r.ours_cpu_ms * 1e-3) : 0.0, r.peak_ratio);
         if (r.assimp_ms > 0)
-            std::printf("%.1f | %.1f | %zu | %.1fx | %.1fx |\n", r.assimp_ms, r.assimp_cpu_ms, r.assimp_triangles,
-                        r.assimp_ms / r.ours_ms, r.ours_cpu_ms > 0 ? r.assimp_cpu_ms / r.ours_cpu_ms : 0.0);
+            std::printf("%.1f | %.1f | %zu | %.1fx | %.1fx |\n", r.assimp_ms, r.assimp_cpu_ms,
+                        r.assimp_triangles, r.assimp_ms / r.ours_ms,
+                        r.ours_cpu_ms > 0 ? r.assimp_cpu_ms / r.ours_cpu_ms : 0.0);
         else
             std::printf("- | - | - | - | - |\n");
     }
     if (!args.csv.empty()) {
         FILE* out = std::fopen(args.csv.c_str(), "w");
         if (!out) throw Error(ErrorLocation{args.csv}, "cannot open for writing");
-        std::fprintf(out,
-                     "file,encoding,gzip,bytes,triangles,ours_ms,ours_cpu_ms,assimp_ms,assimp_cpu_ms,"
-                     "assimp_triangles,peak_rss_over_mesh\n");
+        std::fprintf(
+            out,
+            "file,encoding,gzip,bytes,triangles,ours_ms,ours_cpu_ms,assimp_ms,assimp_cpu_ms,"
+            "assimp_triangles,peak_rss_over_mesh\n");
         for (const Row& r : rows)
             std::fprintf(out, "%s,%s,%d,%llu,%zu,%.4f,%.4f,%.4f,%.4f,%zu,%.4f\n", r.file.c_str(),
-                         r.encoding.c_str(), int(r.gzip), (unsigned long long)r.bytes, r.triangles, r.ours_ms,
-                         r.ours_cpu_ms, r.assimp_ms, r.assimp_cpu_ms, r.assimp_triangles, r.peak_ratio);
+                         r.encoding.c_str(), int(r.gzip), (unsigned long long)r.bytes, r.triangles,
+                         r.ours_ms, r.ours_cpu_ms, r.assimp_ms, r.assimp_cpu_ms, r.assimp_triangles,
+                         r.peak_ratio);
         std::fclose(out);
     }
 }
@@ -184,14 +197,16 @@ void run_bench_load(const BenchLoadArgs& args) {
 
 void add_bench_load_command(CLI::App& bench) {
     auto args = std::make_shared<BenchLoadArgs>();
-    CLI::App* cmd = bench.add_subcommand("load", "PLY load time: ours against Assimp (Markdown table)");
+    CLI::App* cmd =
+        bench.add_subcommand("load", "PLY load time: ours against Assimp (Markdown table)");
     cmd->add_option("files", args->files, "PLY/OBJ files")->required();
     cmd->add_option("--repeat", args->repeat, "Runs per file and reader (median reported)")
         ->check(CLI::Range(1, 1000));
     cmd->add_option("--csv", args->csv, "Also write the table as CSV");
-    cmd->add_option("--make-binary", args->make_binary,
-                    "Write binary little- and big-endian copies of the inputs into DIR with our writer "
-                    "and benchmark them too");
+    cmd->add_option(
+        "--make-binary", args->make_binary,
+        "Write binary little- and big-endian copies of the inputs into DIR with our writer "
+        "and benchmark them too");
     cmd->add_flag("--no-assimp", args->no_assimp, "Time our reader only");
     cmd->add_option("--threads", args->threads,
                     "Threads for our ascii PLY parsing (1 = one core, 2 = two, 0 = auto)")

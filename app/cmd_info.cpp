@@ -50,7 +50,8 @@ void run_info(const InfoArgs& args) {
     else
         std::printf("bounds:      (%g, %g, %g) - (%g, %g, %g)\n", b.lower.x, b.lower.y, b.lower.z,
                     b.upper.x, b.upper.y, b.upper.z);
-    std::printf("mesh memory: %.2f MiB (%zu bytes)\n", mesh.memory_bytes() * mib, mesh.memory_bytes());
+    std::printf("mesh memory: %.2f MiB (%zu bytes)\n", mesh.memory_bytes() * mib,
+                mesh.memory_bytes());
     std::printf("load time:   %.3f ms\n", info.seconds * 1e3);
     std::printf("peak RSS:    %.2f MiB (%.2f MiB above the RSS before loading)\n", peak * mib,
                 (peak > rss_before ? peak - rss_before : 0) * mib);
@@ -60,11 +61,14 @@ void run_info(const InfoArgs& args) {
 
 void add_info_command(CLI::App& parent) {
     auto args = std::make_shared<InfoArgs>();
-    CLI::App* cmd = parent.add_subcommand("info", "Load a mesh (PLY, PLY.gz, OBJ) and print its statistics");
+    CLI::App* cmd =
+        parent.add_subcommand("info", "Load a mesh (PLY, PLY.gz, OBJ) and print its statistics");
     cmd->add_option("file", args->file, "Mesh file")->required();
-    cmd->add_flag("--drop-invalid", args->drop_invalid,
-                  "Drop faces that use non-finite vertices instead of failing (and report how many)");
-    cmd->add_option("--threads", args->threads, "Threads for ascii PLY parsing (1 = one core, 2 = two, 0 = auto)")
+    cmd->add_flag(
+        "--drop-invalid", args->drop_invalid,
+        "Drop faces that use non-finite vertices instead of failing (and report how many)");
+    cmd->add_option("--threads", args->threads,
+                    "Threads for ascii PLY parsing (1 = one core, 2 = two, 0 = auto)")
         ->check(CLI::Range(0, 64));
     cmd->callback([args] { run_info(*args); });
 }

@@ -1,12 +1,12 @@
 #include "renderer/io/file_reader.h"
 
-#include <algorithm>
-#include <cerrno>
-#include <cstring>
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 #include <zlib.h>
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
 
 #include "renderer/core/error.h"
 
@@ -30,7 +30,8 @@ FileReader FileReader::open(const std::string& path) {
     r.fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
     if (r.fd_ < 0) fail(path, std::string("cannot open file: ") + std::strerror(errno));
     struct stat st {};
-    if (::fstat(r.fd_, &st) != 0) fail(path, std::string("cannot stat file: ") + std::strerror(errno));
+    if (::fstat(r.fd_, &st) != 0)
+        fail(path, std::string("cannot stat file: ") + std::strerror(errno));
     if (S_ISDIR(st.st_mode)) fail(path, "is a directory, not a file");
     r.file_bytes_ = static_cast<uint64_t>(st.st_size);
     r.size_bound_ = r.file_bytes_;

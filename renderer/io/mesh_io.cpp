@@ -14,7 +14,8 @@ namespace {
 bool ends_with_ci(const std::string& s, const std::string& suffix) {
     if (s.size() < suffix.size()) return false;
     return std::equal(suffix.rbegin(), suffix.rend(), s.rbegin(), [](char a, char b) {
-        return std::tolower(static_cast<unsigned char>(a)) == std::tolower(static_cast<unsigned char>(b));
+        return std::tolower(static_cast<unsigned char>(a)) ==
+               std::tolower(static_cast<unsigned char>(b));
     });
 }
 
@@ -26,18 +27,23 @@ MeshFormat detect_mesh_format(const std::string& path) {
     FileReader reader = FileReader::open(path);
     char head[4] = {};
     size_t got = reader.read(head, 4);
-    if (got == 4 && head[0] == 'p' && head[1] == 'l' && head[2] == 'y' && (head[3] == '\n' || head[3] == '\r'))
+    if (got == 4 && head[0] == 'p' && head[1] == 'l' && head[2] == 'y' &&
+        (head[3] == '\n' || head[3] == '\r'))
         return MeshFormat::ply;
     if (ends_with_ci(path, ".obj")) return MeshFormat::obj;
     if (ends_with_ci(path, ".ply") || ends_with_ci(path, ".ply.gz")) return MeshFormat::ply;
     return MeshFormat::unknown;
 }
 
-TriangleMesh load_mesh(const std::string& path, const MeshLoadOptions& options, MeshLoadInfo* info) {
+TriangleMesh load_mesh(const std::string& path, const MeshLoadOptions& options,
+                       MeshLoadInfo* info) {
     switch (detect_mesh_format(path)) {
-        case MeshFormat::ply: return read_ply(path, options, info);
-        case MeshFormat::obj: return read_obj(path, options, info);
-        default: break;
+        case MeshFormat::ply:
+            return read_ply(path, options, info);
+        case MeshFormat::obj:
+            return read_obj(path, options, info);
+        default:
+            break;
     }
     ErrorLocation w;
     w.path = path;

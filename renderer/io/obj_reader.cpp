@@ -38,7 +38,8 @@ TriangleMesh read_obj(const std::string& path, const MeshLoadOptions& options, M
     config.triangulate = true;
     config.vertex_color = false;
     tinyobj::ObjReader reader;
-    if (!reader.ParseFromFile(path, config)) fail(path, "", -1, "OBJ parse error: " + first_line(reader.Error()));
+    if (!reader.ParseFromFile(path, config))
+        fail(path, "", -1, "OBJ parse error: " + first_line(reader.Error()));
 
     const tinyobj::attrib_t& attrib = reader.GetAttrib();
     const size_t nv = attrib.vertices.size() / 3;
@@ -61,14 +62,15 @@ TriangleMesh read_obj(const std::string& path, const MeshLoadOptions& options, M
         Vec3f p(attrib.vertices[3 * i], attrib.vertices[3 * i + 1], attrib.vertices[3 * i + 2]);
         if (!is_finite(p)) {
             if (!options.drop_invalid)
-                fail(path, "vertex", int64_t(i), "non-finite coordinate; --drop-invalid drops the faces using it");
+                fail(path, "vertex", int64_t(i),
+                     "non-finite coordinate; --drop-invalid drops the faces using it");
             bad[i] = 1;
             ++bad_count;
         }
     }
 
     std::unordered_map<uint64_t, uint32_t> split;  // (position, normal) -> vertex, with normals
-    std::vector<uint32_t> remap;                    // file position -> vertex, without normals
+    std::vector<uint32_t> remap;                   // file position -> vertex, without normals
     if (!use_normals) {
         // Keep the file's vertex order (unused vertices too), minus non-finite ones.
         remap.assign(nv, UINT32_MAX);
@@ -99,14 +101,17 @@ TriangleMesh read_obj(const std::string& path, const MeshLoadOptions& options, M
         size_t corner = 0;
         for (unsigned char fv : shape.mesh.num_face_vertices) {
             if (fv != 3)
-                fail(path, "face", int64_t(face_index), "has " + std::to_string(fv) + " vertices after triangulation");
-            if (corner + 3 > shape.mesh.indices.size()) fail(path, "face", int64_t(face_index), "truncated index list");
+                fail(path, "face", int64_t(face_index),
+                     "has " + std::to_string(fv) + " vertices after triangulation");
+            if (corner + 3 > shape.mesh.indices.size())
+                fail(path, "face", int64_t(face_index), "truncated index list");
             const tinyobj::index_t* c = &shape.mesh.indices[corner];
             bool is_bad = false;
             for (int k = 0; k < 3; ++k) {
                 if (c[k].vertex_index < 0 || size_t(c[k].vertex_index) >= nv)
                     fail(path, "face", int64_t(face_index),
-                         "vertex index " + std::to_string(int64_t(c[k].vertex_index) + 1) + " (1-based, relative indices resolved) out of range (" +
+                         "vertex index " + std::to_string(int64_t(c[k].vertex_index) + 1) +
+                             " (1-based, relative indices resolved) out of range (" +
                              std::to_string(nv) + " vertices)");
                 is_bad |= bad[size_t(c[k].vertex_index)] != 0;
             }

@@ -28,11 +28,11 @@ struct TypeName {
     PlyType type;
 };
 constexpr TypeName kTypeNames[] = {
-    {"char", PlyType::i8},     {"int8", PlyType::i8},      {"uchar", PlyType::u8},
-    {"uint8", PlyType::u8},    {"short", PlyType::i16},    {"int16", PlyType::i16},
-    {"ushort", PlyType::u16},  {"uint16", PlyType::u16},   {"int", PlyType::i32},
-    {"int32", PlyType::i32},   {"uint", PlyType::u32},     {"uint32", PlyType::u32},
-    {"float", PlyType::f32},   {"float32", PlyType::f32},  {"double", PlyType::f64},
+    {"char", PlyType::i8},     {"int8", PlyType::i8},     {"uchar", PlyType::u8},
+    {"uint8", PlyType::u8},    {"short", PlyType::i16},   {"int16", PlyType::i16},
+    {"ushort", PlyType::u16},  {"uint16", PlyType::u16},  {"int", PlyType::i32},
+    {"int32", PlyType::i32},   {"uint", PlyType::u32},    {"uint32", PlyType::u32},
+    {"float", PlyType::f32},   {"float32", PlyType::f32}, {"double", PlyType::f64},
     {"float64", PlyType::f64},
 };
 
@@ -45,46 +45,70 @@ PlyType parse_type(std::string_view s) {
 constexpr size_t type_size(PlyType t) {
     switch (t) {
         case PlyType::i8:
-        case PlyType::u8: return 1;
+        case PlyType::u8:
+            return 1;
         case PlyType::i16:
-        case PlyType::u16: return 2;
+        case PlyType::u16:
+            return 2;
         case PlyType::i32:
         case PlyType::u32:
-        case PlyType::f32: return 4;
-        case PlyType::f64: return 8;
-        default: return 0;
+        case PlyType::f32:
+            return 4;
+        case PlyType::f64:
+            return 8;
+        default:
+            return 0;
     }
 }
 
-constexpr bool is_integer(PlyType t) { return t != PlyType::none && t != PlyType::f32 && t != PlyType::f64; }
+constexpr bool is_integer(PlyType t) {
+    return t != PlyType::none && t != PlyType::f32 && t != PlyType::f64;
+}
 
 constexpr int64_t type_min(PlyType t) {
     switch (t) {
-        case PlyType::i8: return INT8_MIN;
-        case PlyType::i16: return INT16_MIN;
-        case PlyType::i32: return INT32_MIN;
-        default: return 0;
+        case PlyType::i8:
+            return INT8_MIN;
+        case PlyType::i16:
+            return INT16_MIN;
+        case PlyType::i32:
+            return INT32_MIN;
+        default:
+            return 0;
     }
 }
 
 constexpr int64_t type_max(PlyType t) {
     switch (t) {
-        case PlyType::i8: return INT8_MAX;
-        case PlyType::u8: return UINT8_MAX;
-        case PlyType::i16: return INT16_MAX;
-        case PlyType::u16: return UINT16_MAX;
-        case PlyType::i32: return INT32_MAX;
-        case PlyType::u32: return UINT32_MAX;
-        default: return 0;
+        case PlyType::i8:
+            return INT8_MAX;
+        case PlyType::u8:
+            return UINT8_MAX;
+        case PlyType::i16:
+            return INT16_MAX;
+        case PlyType::u16:
+            return UINT16_MAX;
+        case PlyType::i32:
+            return INT32_MAX;
+        case PlyType::u32:
+            return UINT32_MAX;
+        default:
+            return 0;
     }
 }
 
 // Destination of a vertex value: position, normal, colour component, or the face's index list.
 enum Slot : int8_t {
     kSkip = -1,
-    kPosX = 0, kPosY, kPosZ,
-    kNormX, kNormY, kNormZ,
-    kColR, kColG, kColB,
+    kPosX = 0,
+    kPosY,
+    kPosZ,
+    kNormX,
+    kNormY,
+    kNormZ,
+    kColR,
+    kColG,
+    kColB,
     kIndices,
 };
 
@@ -93,7 +117,7 @@ struct Property {
     PlyType type = PlyType::none;        // scalar type, or the list's item type
     PlyType count_type = PlyType::none;  // list count type; none for scalars
     int slot = kSkip;
-    float scale = 1.0f;                  // colour normalisation for integer types
+    float scale = 1.0f;  // colour normalisation for integer types
     bool is_list() const { return count_type != PlyType::none; }
 };
 
@@ -110,7 +134,9 @@ constexpr size_t kBlockBytes = size_t(4) << 20;      // read() block; reused buf
 constexpr size_t kMaxHeaderBytes = size_t(4) << 20;  // "missing end_header" beyond this
 constexpr size_t kMaxLineBytes = size_t(256) << 20;  // one ascii element per line
 
-inline bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
+inline bool is_blank(char c) {
+    return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f';
+}
 // Ends a token: a blank, or the newline when parsing straight from the buffer.
 inline bool is_sep(char c) { return is_blank(c) || c == '\n'; }
 inline bool is_digit(char c) { return unsigned(c - '0') < 10u; }
@@ -127,7 +153,9 @@ public:
     // Small inputs get a buffer of their own size instead of a whole block.
     explicit Input(FileReader& reader)
         : reader_(reader),
-          buf_(size_t(std::min<uint64_t>(kBlockBytes, std::max<uint64_t>(reader.size_bound(), 4096))) + kPad) {
+          buf_(size_t(
+                   std::min<uint64_t>(kBlockBytes, std::max<uint64_t>(reader.size_bound(), 4096))) +
+               kPad) {
         pos_ = end_ = buf_.data();
     }
 
@@ -235,15 +263,24 @@ inline U load_uint(const char* p) {
 template <bool Swap>
 inline double load_double(const char* p, PlyType t) {
     switch (t) {
-        case PlyType::i8: return double(int8_t(*p));
-        case PlyType::u8: return double(uint8_t(*p));
-        case PlyType::i16: return double(int16_t(load_uint<Swap, uint16_t>(p)));
-        case PlyType::u16: return double(load_uint<Swap, uint16_t>(p));
-        case PlyType::i32: return double(int32_t(load_uint<Swap, uint32_t>(p)));
-        case PlyType::u32: return double(load_uint<Swap, uint32_t>(p));
-        case PlyType::f32: return double(std::bit_cast<float>(load_uint<Swap, uint32_t>(p)));
-        case PlyType::f64: return std::bit_cast<double>(load_uint<Swap, uint64_t>(p));
-        default: return 0.0;
+        case PlyType::i8:
+            return double(int8_t(*p));
+        case PlyType::u8:
+            return double(uint8_t(*p));
+        case PlyType::i16:
+            return double(int16_t(load_uint<Swap, uint16_t>(p)));
+        case PlyType::u16:
+            return double(load_uint<Swap, uint16_t>(p));
+        case PlyType::i32:
+            return double(int32_t(load_uint<Swap, uint32_t>(p)));
+        case PlyType::u32:
+            return double(load_uint<Swap, uint32_t>(p));
+        case PlyType::f32:
+            return double(std::bit_cast<float>(load_uint<Swap, uint32_t>(p)));
+        case PlyType::f64:
+            return std::bit_cast<double>(load_uint<Swap, uint64_t>(p));
+        default:
+            return 0.0;
     }
 }
 
@@ -257,13 +294,20 @@ inline float load_float(const char* p, PlyType t) {
 template <bool Swap>
 inline int64_t load_int(const char* p, PlyType t) {
     switch (t) {
-        case PlyType::i8: return int8_t(*p);
-        case PlyType::u8: return uint8_t(*p);
-        case PlyType::i16: return int16_t(load_uint<Swap, uint16_t>(p));
-        case PlyType::u16: return load_uint<Swap, uint16_t>(p);
-        case PlyType::i32: return int32_t(load_uint<Swap, uint32_t>(p));
-        case PlyType::u32: return load_uint<Swap, uint32_t>(p);
-        default: return 0;
+        case PlyType::i8:
+            return int8_t(*p);
+        case PlyType::u8:
+            return uint8_t(*p);
+        case PlyType::i16:
+            return int16_t(load_uint<Swap, uint16_t>(p));
+        case PlyType::u16:
+            return load_uint<Swap, uint16_t>(p);
+        case PlyType::i32:
+            return int32_t(load_uint<Swap, uint32_t>(p));
+        case PlyType::u32:
+            return load_uint<Swap, uint32_t>(p);
+        default:
+            return 0;
     }
 }
 
@@ -341,8 +385,8 @@ constexpr double kPow10[] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8
 // m * 10^e or m / 10^e in one correctly rounded double operation (Clinger 1990). Splits
 // the token into m (exact as a double) and e; returns false for anything else (the
 // caller then uses from_chars).
-[[gnu::always_inline]] inline bool fast_decimal(const char*& p, const char* e, double& mant, int& exp10_out,
-                                                bool& negative) {
+[[gnu::always_inline]] inline bool fast_decimal(const char*& p, const char* e, double& mant,
+                                                int& exp10_out, bool& negative) {
     const char* q = p;
     bool neg = false;
     if (q < e && (*q == '-' || *q == '+')) neg = *q++ == '-';
@@ -509,8 +553,7 @@ private:
     void read_binary_faces_fast(Element& el);
     void need(const Element& el, uint64_t i, size_t n) {
         if (!in_.fill(n))
-            fail_data(el, i, -1, int64_t(in_.offset()),
-                      "unexpected end of data (file truncated?)");
+            fail_data(el, i, -1, int64_t(in_.offset()), "unexpected end of data (file truncated?)");
     }
 
     // ASCII
@@ -521,8 +564,8 @@ private:
         uint64_t lines = 0;
         const char* end = nullptr;
     };
-    LinesResult parse_lines(const Element& el, bool faces, bool is_vertex, const char* p, const char* e,
-                            uint64_t first);
+    LinesResult parse_lines(const Element& el, bool faces, bool is_vertex, const char* p,
+                            const char* e, uint64_t first);
     uint64_t parallel_chunk(const Element& el, uint64_t i, bool faces, bool is_vertex, bool& poor);
     bool next_data_line(const char*& b, const char*& e);
 
@@ -578,7 +621,8 @@ void PlyParser::parse_header() {
     }
     ++line_;
     split(b, e, tok);
-    if (tok.size() != 1 || tok[0] != "ply") fail_header("not a PLY file (the first line must be 'ply')");
+    if (tok.size() != 1 || tok[0] != "ply")
+        fail_header("not a PLY file (the first line must be 'ply')");
 
     bool have_format = false, have_end = false;
     while (!have_end) {
@@ -594,15 +638,21 @@ void PlyParser::parse_header() {
         if (kw == "format") {
             if (have_format) fail_header("second format line");
             if (tok.size() != 3 || (tok[2] != "1.0" && tok[2] != "1"))
-                fail_header("unknown format line '" + std::string(b, size_t(e - b)) +
-                            "' (expected 'format ascii|binary_little_endian|binary_big_endian 1.0')");
-            if (tok[1] == "ascii") encoding_ = PlyEncoding::ascii;
-            else if (tok[1] == "binary_little_endian") encoding_ = PlyEncoding::binary_little_endian;
-            else if (tok[1] == "binary_big_endian") encoding_ = PlyEncoding::binary_big_endian;
-            else fail_header("unknown format '" + std::string(tok[1]) + "'");
+                fail_header(
+                    "unknown format line '" + std::string(b, size_t(e - b)) +
+                    "' (expected 'format ascii|binary_little_endian|binary_big_endian 1.0')");
+            if (tok[1] == "ascii")
+                encoding_ = PlyEncoding::ascii;
+            else if (tok[1] == "binary_little_endian")
+                encoding_ = PlyEncoding::binary_little_endian;
+            else if (tok[1] == "binary_big_endian")
+                encoding_ = PlyEncoding::binary_big_endian;
+            else
+                fail_header("unknown format '" + std::string(tok[1]) + "'");
             have_format = true;
         } else if (kw == "element") {
-            if (tok.size() != 3) fail_header("malformed element line (expected 'element NAME COUNT')");
+            if (tok.size() != 3)
+                fail_header("malformed element line (expected 'element NAME COUNT')");
             Element el;
             el.name = std::string(tok[1]);
             el.line = line_;
@@ -610,10 +660,13 @@ void PlyParser::parse_header() {
             int64_t count = 0;
             IntResult r = parse_int(p, tok[2].data() + tok[2].size(), count);
             if (r == IntResult::invalid)
-                fail_header("element " + el.name + ": count '" + std::string(tok[2]) + "' is not an integer");
+                fail_header("element " + el.name + ": count '" + std::string(tok[2]) +
+                            "' is not an integer");
             if (r == IntResult::overflow || count > int64_t(1) << 48)
-                fail_header("element " + el.name + ": count " + std::string(tok[2]) + " is too large");
-            if (count < 0) fail_header("element " + el.name + ": negative count " + std::to_string(count));
+                fail_header("element " + el.name + ": count " + std::string(tok[2]) +
+                            " is too large");
+            if (count < 0)
+                fail_header("element " + el.name + ": negative count " + std::to_string(count));
             el.count = uint64_t(count);
             for (const Element& other : elements_)
                 if (other.name == el.name) fail_header("second element named '" + el.name + "'");
@@ -624,25 +677,33 @@ void PlyParser::parse_header() {
             Property prop;
             if (tok.size() >= 2 && tok[1] == "list") {
                 if (tok.size() != 5)
-                    fail_header("malformed list property (expected 'property list COUNT_TYPE ITEM_TYPE NAME')");
+                    fail_header(
+                        "malformed list property (expected 'property list COUNT_TYPE ITEM_TYPE "
+                        "NAME')");
                 prop.count_type = parse_type(tok[2]);
                 prop.type = parse_type(tok[3]);
-                if (prop.count_type == PlyType::none) fail_header("unknown property type '" + std::string(tok[2]) + "'");
-                if (prop.type == PlyType::none) fail_header("unknown property type '" + std::string(tok[3]) + "'");
+                if (prop.count_type == PlyType::none)
+                    fail_header("unknown property type '" + std::string(tok[2]) + "'");
+                if (prop.type == PlyType::none)
+                    fail_header("unknown property type '" + std::string(tok[3]) + "'");
                 if (!is_integer(prop.count_type))
-                    fail_header("list count type '" + std::string(tok[2]) + "' is not an integer type");
+                    fail_header("list count type '" + std::string(tok[2]) +
+                                "' is not an integer type");
                 prop.name = std::string(tok[4]);
                 el.has_lists = true;
             } else {
-                if (tok.size() != 3) fail_header("malformed property line (expected 'property TYPE NAME')");
+                if (tok.size() != 3)
+                    fail_header("malformed property line (expected 'property TYPE NAME')");
                 prop.type = parse_type(tok[1]);
-                if (prop.type == PlyType::none) fail_header("unknown property type '" + std::string(tok[1]) + "'");
+                if (prop.type == PlyType::none)
+                    fail_header("unknown property type '" + std::string(tok[1]) + "'");
                 prop.name = std::string(tok[2]);
                 el.scalar_bytes += type_size(prop.type);
             }
             for (const Property& other : el.props)
                 if (other.name == prop.name)
-                    fail_header("element " + el.name + ": second property named '" + prop.name + "'");
+                    fail_header("element " + el.name + ": second property named '" + prop.name +
+                                "'");
             el.props.push_back(std::move(prop));
         } else if (kw == "end_header") {
             have_end = true;
@@ -672,12 +733,24 @@ void PlyParser::plan_elements() {
         int slot;
     };
     static constexpr Name kNames[] = {
-        {"x", kPosX}, {"y", kPosY}, {"z", kPosZ},
-        {"nx", kNormX}, {"ny", kNormY}, {"nz", kNormZ},
-        {"normal_x", kNormX}, {"normal_y", kNormY}, {"normal_z", kNormZ},
-        {"red", kColR}, {"green", kColG}, {"blue", kColB},
-        {"r", kColR}, {"g", kColG}, {"b", kColB},
-        {"diffuse_red", kColR}, {"diffuse_green", kColG}, {"diffuse_blue", kColB},
+        {"x", kPosX},
+        {"y", kPosY},
+        {"z", kPosZ},
+        {"nx", kNormX},
+        {"ny", kNormY},
+        {"nz", kNormZ},
+        {"normal_x", kNormX},
+        {"normal_y", kNormY},
+        {"normal_z", kNormZ},
+        {"red", kColR},
+        {"green", kColG},
+        {"blue", kColB},
+        {"r", kColR},
+        {"g", kColG},
+        {"b", kColB},
+        {"diffuse_red", kColR},
+        {"diffuse_green", kColG},
+        {"diffuse_blue", kColB},
     };
     int found[9] = {};
     for (Property& p : v.props) {
@@ -739,7 +812,8 @@ void PlyParser::check_counts() {
             if (ascii_) {
                 min_bytes += p.slot == kIndices ? 8 : 2;
             } else if (p.is_list()) {
-                min_bytes += type_size(p.count_type) + (p.slot == kIndices ? 3 * type_size(p.type) : 0);
+                min_bytes +=
+                    type_size(p.count_type) + (p.slot == kIndices ? 3 * type_size(p.type) : 0);
             } else {
                 min_bytes += type_size(p.type);
             }
@@ -748,10 +822,12 @@ void PlyParser::check_counts() {
         total += need;
         if (total > remaining) {
             line_ = el.line;
-            fail_header("element " + el.name + ": count " + std::to_string(el.count) + " needs at least " +
+            fail_header("element " + el.name + ": count " + std::to_string(el.count) +
+                        " needs at least " +
                         (need > UINT64_MAX ? std::string("2^64") : std::to_string(uint64_t(need))) +
                         " bytes, more than the " + std::to_string(remaining) +
-                        (reader_.gzip() ? " bytes the compressed file can hold" : " bytes of data in the file"));
+                        (reader_.gzip() ? " bytes the compressed file can hold"
+                                        : " bytes of data in the file"));
         }
     }
 }
@@ -761,13 +837,15 @@ inline void PlyParser::store_vertex(const Element& el, uint64_t i, const float* 
     mesh_.positions[i] = p;
     if (has_normals_) mesh_.normals[i] = Vec3f(v[kNormX], v[kNormY], v[kNormZ]);
     if (has_colors_) mesh_.colors[i] = Vec3f(v[kColR], v[kColG], v[kColB]);
-    if (!is_finite(p)) [[unlikely]] non_finite_vertex(el, i, p);
+    if (!is_finite(p)) [[unlikely]]
+        non_finite_vertex(el, i, p);
 }
 
 void PlyParser::non_finite_vertex(const Element& el, uint64_t i, const Vec3f& p) {
     if (!options_.drop_invalid)
-        fail_at(el, i, "non-finite coordinate (" + std::to_string(p.x) + ", " + std::to_string(p.y) + ", " +
-                           std::to_string(p.z) + "); --drop-invalid drops the faces using it");
+        fail_at(el, i,
+                "non-finite coordinate (" + std::to_string(p.x) + ", " + std::to_string(p.y) +
+                    ", " + std::to_string(p.z) + "); --drop-invalid drops the faces using it");
     if (bad_vertex_.empty()) bad_vertex_.assign(vertex_count_, 0);
     bad_vertex_[i] = 1;
     ++bad_vertices_;
@@ -778,8 +856,9 @@ void PlyParser::emit_face(const Element& el, uint64_t i, const int64_t* idx, siz
     bool bad = false;
     for (size_t k = 0; k < n; ++k) {
         if (idx[k] < 0 || uint64_t(idx[k]) >= vertex_count_) [[unlikely]]
-            fail_at(el, i, "vertex index " + std::to_string(idx[k]) + " out of range (" +
-                               std::to_string(vertex_count_) + " vertices)");
+            fail_at(el, i,
+                    "vertex index " + std::to_string(idx[k]) + " out of range (" +
+                        std::to_string(vertex_count_) + " vertices)");
         if (!bad_vertex_.empty() && vertices_read_) bad |= bad_vertex_[size_t(idx[k])] != 0;
     }
     if (bad) {
@@ -856,7 +935,8 @@ void PlyParser::read_binary_vertices_fixed(Element& el) {
         } else {
             for (uint64_t k = 0; k < n; ++k) {
                 const char* r = base + k * rec;
-                for (const Plan& pl : plan) v[pl.slot] = load_float<Swap>(r + pl.offset, pl.type) * pl.scale;
+                for (const Plan& pl : plan)
+                    v[pl.slot] = load_float<Swap>(r + pl.offset, pl.type) * pl.scale;
                 record_offset_ = in_.offset() + k * rec;
                 store_vertex(el, i + k, v);
             }
@@ -885,10 +965,12 @@ void PlyParser::read_binary_record(Element& el, uint64_t i) {
         need(el, i, csz);
         int64_t count = load_int<Swap>(in_.pos(), p.count_type);
         in_.advance(csz);
-        if (count < 0) fail_at(el, i, "negative list count " + std::to_string(count) + " in " + p.name);
+        if (count < 0)
+            fail_at(el, i, "negative list count " + std::to_string(count) + " in " + p.name);
         if (p.slot != kIndices) {
             if (!in_.skip(uint64_t(count) * isz))
-                fail_data(el, i, -1, int64_t(in_.offset()), "unexpected end of data (file truncated?)");
+                fail_data(el, i, -1, int64_t(in_.offset()),
+                          "unexpected end of data (file truncated?)");
             continue;
         }
         if (count < 3)
@@ -897,7 +979,8 @@ void PlyParser::read_binary_record(Element& el, uint64_t i) {
         if (uint64_t(count) * isz <= kBlockBytes) {
             need(el, i, size_t(count) * isz);
             const char* q = in_.pos();
-            for (int64_t k = 0; k < count; ++k) poly_.push_back(load_int<Swap>(q + k * isz, p.type));
+            for (int64_t k = 0; k < count; ++k)
+                poly_.push_back(load_int<Swap>(q + k * isz, p.type));
             in_.advance(size_t(count) * isz);
         } else {
             // A huge polygon: stream it; poly_ grows only as real data arrives.
@@ -928,8 +1011,9 @@ void PlyParser::read_binary_faces_fast(Element& el) {
         if (count == 3) [[likely]] {
             if (isz == 4) {
                 for (int k = 0; k < 3; ++k)
-                    idx[k] = p.type == PlyType::i32 ? int64_t(int32_t(load_uint<Swap, uint32_t>(r + 1 + 4 * k)))
-                                                    : int64_t(load_uint<Swap, uint32_t>(r + 1 + 4 * k));
+                    idx[k] = p.type == PlyType::i32
+                                 ? int64_t(int32_t(load_uint<Swap, uint32_t>(r + 1 + 4 * k)))
+                                 : int64_t(load_uint<Swap, uint32_t>(r + 1 + 4 * k));
             } else {
                 for (int k = 0; k < 3; ++k) idx[k] = load_int<Swap>(r + 1 + isz * k, p.type);
             }
@@ -960,8 +1044,8 @@ void PlyParser::read_binary_element(Element& el) {
     } else if (!is_vertex && !is_face && !el.has_lists) {
         record_offset_ = in_.offset();
         if (!in_.skip(el.count * el.scalar_bytes))
-            fail_data(el, (in_.offset() - record_offset_) / std::max<size_t>(el.scalar_bytes, 1), -1,
-                      int64_t(in_.offset()), "unexpected end of data (file truncated?)");
+            fail_data(el, (in_.offset() - record_offset_) / std::max<size_t>(el.scalar_bytes, 1),
+                      -1, int64_t(in_.offset()), "unexpected end of data (file truncated?)");
     } else {
         for (uint64_t i = 0; i < el.count; ++i) read_binary_record<Swap>(el, i);
     }
@@ -988,7 +1072,8 @@ bool PlyParser::next_data_line(const char*& b, const char*& e) {
 // first; a newline ends the last token. They return false, consuming nothing, on anything
 // unusual (blank line, line cut by the buffer end, bad value, extra values), and the
 // caller then takes the line-based general path, which also reports the errors.
-bool PlyParser::fast_ascii_scalars(const Element& el, const char*& p, const char* e, float* v) const {
+bool PlyParser::fast_ascii_scalars(const Element& el, const char*& p, const char* e,
+                                   float* v) const {
     for (const Property& prop : el.props) {
         p = skip_blanks(p, e);
         if (p == e || *p == '\n') return false;
@@ -1002,7 +1087,8 @@ bool PlyParser::fast_ascii_scalars(const Element& el, const char*& p, const char
             v[prop.slot] = float(d);
         } else {
             int64_t x;
-            if (parse_int(p, e, x) != IntResult::ok || x < type_min(prop.type) || x > type_max(prop.type))
+            if (parse_int(p, e, x) != IntResult::ok || x < type_min(prop.type) ||
+                x > type_max(prop.type))
                 return false;
             v[prop.slot] = float(x) * prop.scale;
         }
@@ -1035,8 +1121,8 @@ bool PlyParser::fast_ascii_triangle(const char*& p, const char* e, int64_t* idx)
 // stored as elements first, first + 1, ...; stops at the first line the fast path cannot
 // take (including non-finite vertices and invalid or degenerate faces) and never throws.
 // Threads call it on disjoint line ranges, so they write disjoint array entries.
-PlyParser::LinesResult PlyParser::parse_lines(const Element& el, bool faces, bool is_vertex, const char* p,
-                                              const char* e, uint64_t first) {
+PlyParser::LinesResult PlyParser::parse_lines(const Element& el, bool faces, bool is_vertex,
+                                              const char* p, const char* e, uint64_t first) {
     LinesResult r;
     r.end = p;
     float v[9] = {};
@@ -1047,7 +1133,8 @@ PlyParser::LinesResult PlyParser::parse_lines(const Element& el, bool faces, boo
         if (faces) {
             if (!fast_ascii_triangle(q, e, idx)) break;
             if (uint64_t(idx[0]) >= vertex_count_ || uint64_t(idx[1]) >= vertex_count_ ||
-                uint64_t(idx[2]) >= vertex_count_ || idx[0] == idx[1] || idx[1] == idx[2] || idx[0] == idx[2])
+                uint64_t(idx[2]) >= vertex_count_ || idx[0] == idx[1] || idx[1] == idx[2] ||
+                idx[0] == idx[2])
                 break;
             mesh_.triangles[k] = Vec3u(uint32_t(idx[0]), uint32_t(idx[1]), uint32_t(idx[2]));
         } else {
@@ -1069,11 +1156,12 @@ PlyParser::LinesResult PlyParser::parse_lines(const Element& el, bool faces, boo
 
 // Parses the complete lines in the buffer (up to the element's end) in one tight loop, or
 // on two threads, each half of the bytes, split at a newline; the second half's first
-// element index comes from counting newlines in the first. Returns how many elements were committed; 0 means "take
-// the serial path for the next line" (small input, partial state, or a line the fast path
-// cannot take, which the serial path then parses or reports). `poor` tells the caller to
-// stay serial for the rest of the element (nothing or under half the chunk committed).
-uint64_t PlyParser::parallel_chunk(const Element& el, uint64_t i, bool faces, bool is_vertex, bool& poor) {
+// element index comes from counting newlines in the first. Returns how many elements were
+// committed; 0 means "take the serial path for the next line" (small input, partial state, or a
+// line the fast path cannot take, which the serial path then parses or reports). `poor` tells the
+// caller to stay serial for the rest of the element (nothing or under half the chunk committed).
+uint64_t PlyParser::parallel_chunk(const Element& el, uint64_t i, bool faces, bool is_vertex,
+                                   bool& poor) {
     constexpr size_t kMinChunk = size_t(256) << 10;
     // Every early exit turns the parallel path off for the rest of the element, so no
     // buffer is ever scanned once per line.
@@ -1090,7 +1178,8 @@ uint64_t PlyParser::parallel_chunk(const Element& el, uint64_t i, bool faces, bo
     if (total > remaining) {
         // The element ends inside the buffer: stop after its last line.
         const char* q = b;
-        for (uint64_t k = 0; k < remaining; ++k) q = static_cast<const char*>(std::memchr(q, '\n', size_t(e - q))) + 1;
+        for (uint64_t k = 0; k < remaining; ++k)
+            q = static_cast<const char*>(std::memchr(q, '\n', size_t(e - q))) + 1;
         e = q;
         total = remaining;
     }
@@ -1166,17 +1255,19 @@ void PlyParser::read_ascii_element(Element& el) {
             if (in_.avail() < 256 && !in_.eof()) in_.fill(256);
             const char* p = in_.pos();
             int64_t idx[3];
-            if (scalars_fast ? fast_ascii_scalars(el, p, in_.end(), v) : fast_ascii_triangle(p, in_.end(), idx)) {
+            if (scalars_fast ? fast_ascii_scalars(el, p, in_.end(), v)
+                             : fast_ascii_triangle(p, in_.end(), idx)) {
                 in_.advance(size_t(p - in_.pos()));
                 ++line_;
                 if (is_vertex) {
                     store_vertex(el, i, v);
                 } else if (face_fast) {
                     if (uint64_t(idx[0]) < vertex_count_ && uint64_t(idx[1]) < vertex_count_ &&
-                        uint64_t(idx[2]) < vertex_count_ && bad_vertex_.empty() && idx[0] != idx[1] &&
-                        idx[1] != idx[2] && idx[0] != idx[2]) {
+                        uint64_t(idx[2]) < vertex_count_ && bad_vertex_.empty() &&
+                        idx[0] != idx[1] && idx[1] != idx[2] && idx[0] != idx[2]) {
                         ++source_faces_;
-                        mesh_.triangles.emplace_back(uint32_t(idx[0]), uint32_t(idx[1]), uint32_t(idx[2]));
+                        mesh_.triangles.emplace_back(uint32_t(idx[0]), uint32_t(idx[1]),
+                                                     uint32_t(idx[2]));
                     } else {
                         emit_face(el, i, idx, 3);
                     }
@@ -1192,7 +1283,8 @@ void PlyParser::read_ascii_element(Element& el) {
         bool have_face = false;
         for (const Property& prop : el.props) {
             p = skip_blanks(p, e);
-            if (p == e) fail_at(el, i, "missing value for property " + prop.name + " (line too short)");
+            if (p == e)
+                fail_at(el, i, "missing value for property " + prop.name + " (line too short)");
             if (!prop.is_list()) {
                 if (prop.slot < 0) {
                     p = skip_token(p, e);
@@ -1211,37 +1303,46 @@ void PlyParser::read_ascii_element(Element& el) {
                     IntResult r = parse_int(p, e, x);
                     ok = r == IntResult::ok;
                     if (ok && (x < type_min(prop.type) || x > type_max(prop.type)))
-                        fail_at(el, i, "value " + token_text(start, e) + " of property " + prop.name +
-                                           " out of range for its type");
+                        fail_at(el, i,
+                                "value " + token_text(start, e) + " of property " + prop.name +
+                                    " out of range for its type");
                     v[prop.slot] = float(x) * prop.scale;
                 }
                 if (!ok)
-                    fail_at(el, i, "invalid number '" + token_text(p, e) + "' for property " + prop.name);
+                    fail_at(el, i,
+                            "invalid number '" + token_text(p, e) + "' for property " + prop.name);
                 continue;
             }
             int64_t count = 0;
             const char* start = p;
             IntResult r = parse_int(p, e, count);
-            if (r != IntResult::ok || count > type_max(prop.count_type) || count < type_min(prop.count_type))
-                fail_at(el, i, "invalid list count '" + token_text(start, e) + "' for " + prop.name);
-            if (count < 0) fail_at(el, i, "negative list count " + std::to_string(count) + " in " + prop.name);
+            if (r != IntResult::ok || count > type_max(prop.count_type) ||
+                count < type_min(prop.count_type))
+                fail_at(el, i,
+                        "invalid list count '" + token_text(start, e) + "' for " + prop.name);
+            if (count < 0)
+                fail_at(el, i, "negative list count " + std::to_string(count) + " in " + prop.name);
             if (prop.slot != kIndices) {
                 for (int64_t k = 0; k < count; ++k) {
                     p = skip_blanks(p, e);
                     if (p == e)
-                        fail_at(el, i, "list " + prop.name + " has " + std::to_string(k) + " of " +
-                                           std::to_string(count) + " values");
+                        fail_at(el, i,
+                                "list " + prop.name + " has " + std::to_string(k) + " of " +
+                                    std::to_string(count) + " values");
                     p = skip_token(p, e);
                 }
                 continue;
             }
-            if (count < 3) fail_at(el, i, "face has " + std::to_string(count) + " vertices (at least 3 needed)");
+            if (count < 3)
+                fail_at(el, i,
+                        "face has " + std::to_string(count) + " vertices (at least 3 needed)");
             poly_.clear();
             for (int64_t k = 0; k < count; ++k) {
                 p = skip_blanks(p, e);
                 if (p == e)
-                    fail_at(el, i, "face lists " + std::to_string(k) + " of " + std::to_string(count) +
-                                       " vertex indices");
+                    fail_at(el, i,
+                            "face lists " + std::to_string(k) + " of " + std::to_string(count) +
+                                " vertex indices");
                 int64_t x = 0;
                 const char* s = p;
                 if (parse_int(p, e, x) != IntResult::ok)
@@ -1251,8 +1352,9 @@ void PlyParser::read_ascii_element(Element& el) {
             have_face = true;
         }
         if (skip_blanks(p, e) != e)
-            fail_at(el, i, "more values on the line than the header declares ('" + token_text(skip_blanks(p, e), e) +
-                               "' after the last property)");
+            fail_at(el, i,
+                    "more values on the line than the header declares ('" +
+                        token_text(skip_blanks(p, e), e) + "' after the last property)");
         if (is_vertex) store_vertex(el, i, v);
         if (have_face) emit_face(el, i, poly_.data(), poly_.size());
     }
@@ -1303,9 +1405,12 @@ TriangleMesh PlyParser::parse(MeshLoadInfo* info) {
 
     line_ = header_lines_;
     for (Element& el : elements_) {
-        if (ascii_) read_ascii_element(el);
-        else if (swap_) read_binary_element<true>(el);
-        else read_binary_element<false>(el);
+        if (ascii_)
+            read_ascii_element(el);
+        else if (swap_)
+            read_binary_element<true>(el);
+        else
+            read_binary_element<false>(el);
         if (&el == &elements_[size_t(vertex_el_)]) vertices_read_ = true;
     }
     if (ascii_) {

@@ -1,12 +1,12 @@
 #include "renderer/io/ply_writer.h"
 
+#include <zlib.h>
 #include <bit>
 #include <cerrno>
 #include <charconv>
 #include <cstdio>
 #include <cstring>
 #include <vector>
-#include <zlib.h>
 
 #include "renderer/core/error.h"
 

@@ -16,7 +16,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         kdt::TriangleMesh mesh = kdt::read_ply_memory(data, size, "fuzz.ply", options, &info);
         // Every index must be in range: read them all so ASan sees any stray one.
         for (const kdt::Vec3u& t : mesh.triangles) {
-            if (t.x >= mesh.positions.size() || t.y >= mesh.positions.size() || t.z >= mesh.positions.size())
+            if (t.x >= mesh.positions.size() || t.y >= mesh.positions.size() ||
+                t.z >= mesh.positions.size())
                 __builtin_trap();
         }
         if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size()) __builtin_trap();

@@ -410,10 +410,10 @@ namespace {
 
 // record_rays() sees exactly the rays render_sample() traces (for the throughput bench).
 TEST(PathTracer, RecordedRaysMatchTheCounters) {
-    const TraceScene scene = make_scene(
-        {{make_icosphere({0, 0.5f, 0}, 0.5f, 2), test::smooth(diffuse(0.8f))},
-         {make_box({-1, -1, -1}, {1, 0, 1}), flat(diffuse(0.5f))}},
-        std::make_shared<ConstantEnv>(Vec3f(1.0f)));
+    const TraceScene scene =
+        make_scene({{make_icosphere({0, 0.5f, 0}, 0.5f, 2), test::smooth(diffuse(0.8f))},
+                    {make_box({-1, -1, -1}, {1, 0, 1}), flat(diffuse(0.5f))}},
+                   std::make_shared<ConstantEnv>(Vec3f(1.0f)));
     const Camera cam = make_camera({2, 2, 3}, {0, 0, 0}, {0, 1, 0}, 40.0f, 8, 8);
     TraceParams tp;
     PathCounters counters;

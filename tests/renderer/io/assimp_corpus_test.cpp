@@ -3,20 +3,21 @@
 // is rejected with our error. Skipped when assimp-testmodels or Assimp are absent.
 // Positions are compared within one float ulp (see near()), faces in file order.
 //
-// | file                 | outcome  | why                                                                  |
+// | file                 | outcome  | why |
 // |----------------------|----------|----------------------------------------------------------------------|
-// | PLY/Wuson.ply        | loads    | ascii, normals + s/t; bare "Created by Blender3D" header line ignored |
-// | PLY/cube.ply         | loads    | ascii quads (float32/uint8/int32 aliases, trailing blanks): 12 tris  |
-// | PLY/cube_binary.ply  | loads    | binary little endian triangles                                       |
-// | PLY/cube_uv.ply      | loads    | ascii quads with normals and texture coordinates (skipped)           |
-// | PLY/float-color.ply  | loads    | float red/green/blue/alpha colours kept as given                     |
-// | PLY/issue623.ply     | rejected | header declares a vertex list property vertex_indices that the data  |
-// |                      |          | lines lack: "line 13: vertex 0: missing value for property ..."      |
-// | PLY/points.ply       | loads    | point cloud (no face element): 4 vertices, 0 triangles               |
-// | PLY/pond.0.ply       | rejected | binary point cloud whose data is 69 bytes shorter than its 70051     |
-// |                      |          | vertices x 31 bytes: "element vertex: count 70051 needs at least     |
-// |                      |          | 2171581 bytes, more than the 2171512 bytes of data in the file"      |
-// | invalid/empty.ply    | rejected | zero bytes: "line 1: header: empty file (not a PLY file)"            |
+// | PLY/Wuson.ply        | loads    | ascii, normals + s/t; bare "Created by Blender3D" header line
+// ignored | | PLY/cube.ply         | loads    | ascii quads (float32/uint8/int32 aliases, trailing
+// blanks): 12 tris  | | PLY/cube_binary.ply  | loads    | binary little endian triangles | |
+// PLY/cube_uv.ply      | loads    | ascii quads with normals and texture coordinates (skipped) | |
+// PLY/float-color.ply  | loads    | float red/green/blue/alpha colours kept as given | |
+// PLY/issue623.ply     | rejected | header declares a vertex list property vertex_indices that the
+// data  | |                      |          | lines lack: "line 13: vertex 0: missing value for
+// property ..."      | | PLY/points.ply       | loads    | point cloud (no face element): 4
+// vertices, 0 triangles               | | PLY/pond.0.ply       | rejected | binary point cloud
+// whose data is 69 bytes shorter than its 70051     | |                      |          | vertices
+// x 31 bytes: "element vertex: count 70051 needs at least     | |                      |          |
+// 2171581 bytes, more than the 2171512 bytes of data in the file"      | | invalid/empty.ply    |
+// rejected | zero bytes: "line 1: header: empty file (not a PLY file)"            |
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -52,10 +53,12 @@ const Expectation kCorpus[] = {
     {"PLY/cube_binary.ply", true, nullptr},
     {"PLY/cube_uv.ply", true, nullptr},
     {"PLY/float-color.ply", true, nullptr},
-    {"PLY/issue623.ply", false, "issue623.ply: line 13: vertex 0: missing value for property vertex_indices"},
+    {"PLY/issue623.ply", false,
+     "issue623.ply: line 13: vertex 0: missing value for property vertex_indices"},
     {"PLY/points.ply", true, nullptr},
     {"PLY/pond.0.ply", false,
-     "pond.0.ply: line 3: header: element vertex: count 70051 needs at least 2171581 bytes, more than the "
+     "pond.0.ply: line 3: header: element vertex: count 70051 needs at least 2171581 bytes, more "
+     "than the "
      "2171512 bytes of data in the file"},
     {"invalid/empty.ply", false, "empty.ply: line 1: header: empty file (not a PLY file)"},
 };
@@ -75,7 +78,8 @@ bool near(const Vec3f& a, const Vec3f& b) {
 // Same triangle up to where each reader starts it (winding kept).
 bool same_triangle(const Tri& a, const Tri& b) {
     for (int r = 0; r < 3; ++r)
-        if (near(a[0], b[size_t(r)]) && near(a[1], b[size_t((r + 1) % 3)]) && near(a[2], b[size_t((r + 2) % 3)]))
+        if (near(a[0], b[size_t(r)]) && near(a[1], b[size_t((r + 1) % 3)]) &&
+            near(a[2], b[size_t((r + 2) % 3)]))
             return true;
     return false;
 }
@@ -119,13 +123,16 @@ TEST(AssimpCorpus, EveryPlyLoadsLikeAssimpOrIsRejectedClearly) {
         std::vector<Vec3f> their_points;
         for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
             const aiMesh* am = scene->mMeshes[m];
-            auto v = [&](unsigned i) { return Vec3f(am->mVertices[i].x, am->mVertices[i].y, am->mVertices[i].z); };
+            auto v = [&](unsigned i) {
+                return Vec3f(am->mVertices[i].x, am->mVertices[i].y, am->mVertices[i].z);
+            };
             bool points = true;
             for (unsigned f = 0; f < am->mNumFaces; ++f) {
                 const aiFace& face = am->mFaces[f];
                 if (face.mNumIndices >= 3) points = false;
                 for (unsigned k = 1; k + 1 < face.mNumIndices; ++k)
-                    theirs.push_back({v(face.mIndices[0]), v(face.mIndices[k]), v(face.mIndices[k + 1])});
+                    theirs.push_back(
+                        {v(face.mIndices[0]), v(face.mIndices[k]), v(face.mIndices[k + 1])});
             }
             if (points || am->mNumFaces == 0)
                 for (unsigned i = 0; i < am->mNumVertices; ++i) their_points.push_back(v(i));
@@ -138,7 +145,8 @@ TEST(AssimpCorpus, EveryPlyLoadsLikeAssimpOrIsRejectedClearly) {
         EXPECT_EQ(ours.size(), theirs.size()) << "triangle count differs from Assimp's";
         // Both readers keep the file's face order.
         size_t differ = 0;
-        for (size_t t = 0; t < std::min(ours.size(), theirs.size()); ++t) differ += !same_triangle(ours[t], theirs[t]);
+        for (size_t t = 0; t < std::min(ours.size(), theirs.size()); ++t)
+            differ += !same_triangle(ours[t], theirs[t]);
         EXPECT_EQ(differ, 0u) << "triangles whose corner positions differ from Assimp's";
         if (mesh.triangle_count() == 0) {
             ASSERT_EQ(mesh.positions.size(), their_points.size());

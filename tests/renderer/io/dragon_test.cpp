@@ -11,8 +11,8 @@
 namespace kdt {
 namespace {
 
-#define REQUIRE_DRAGON()                                                                        \
-    const std::filesystem::path dir = test::dragon_dir();                                       \
+#define REQUIRE_DRAGON()                                  \
+    const std::filesystem::path dir = test::dragon_dir(); \
     if (dir.empty()) GTEST_SKIP() << "Stanford dragon not fetched: run scripts/fetch_assets.sh"
 
 TEST(Dragon, ExactCountsInEveryResolution) {

@@ -35,9 +35,10 @@ protected:
 };
 
 TEST_F(ObjReader, QuadsTriangulatedAndPositionsKept) {
-    std::string p = write("quad.obj",
-                          "# a square and a triangle\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0.5 0.5 1\n"
-                          "f 1 2 3 4\nf -5 -4 -1\n");
+    std::string p =
+        write("quad.obj",
+              "# a square and a triangle\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0.5 0.5 1\n"
+              "f 1 2 3 4\nf -5 -4 -1\n");
     MeshLoadInfo info;
     TriangleMesh m = load_mesh(p, {}, &info);
     EXPECT_EQ(info.format, "obj");
@@ -50,7 +51,8 @@ TEST_F(ObjReader, QuadsTriangulatedAndPositionsKept) {
     float area = 0;
     for (int t = 0; t < 2; ++t) {
         const Vec3u& i = m.triangles[size_t(t)];
-        area += 0.5f * glm::length(glm::cross(m.positions[i.y] - m.positions[i.x], m.positions[i.z] - m.positions[i.x]));
+        area += 0.5f * glm::length(glm::cross(m.positions[i.y] - m.positions[i.x],
+                                              m.positions[i.z] - m.positions[i.x]));
     }
     EXPECT_FLOAT_EQ(area, 1.0f);
 }
@@ -69,15 +71,20 @@ TEST_F(ObjReader, NormalsSplitVerticesPerPositionNormalPair) {
 }
 
 TEST_F(ObjReader, Errors) {
-    EXPECT_NE(error_of((dir_ / "missing.obj").string()).find("missing.obj: cannot open file"), std::string::npos);
+    EXPECT_NE(error_of((dir_ / "missing.obj").string()).find("missing.obj: cannot open file"),
+              std::string::npos);
     std::string oor = write("oor.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 9\n");
-    EXPECT_NE(error_of(oor).find("oor.obj: face 1: vertex index 9 (1-based, relative indices resolved) out of range (3 vertices)"),
+    EXPECT_NE(error_of(oor).find("oor.obj: face 1: vertex index 9 (1-based, relative indices "
+                                 "resolved) out of range (3 vertices)"),
               std::string::npos)
         << error_of(oor);
     std::string rel = write("rel.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -9\n");
-    EXPECT_NE(error_of(rel).find("rel.obj: face 0: vertex index"), std::string::npos) << error_of(rel);
-    std::string inf = write("inf.obj", "v 0 0 0\nv 1e999 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 1 3 4\n");
-    EXPECT_NE(error_of(inf).find("inf.obj: vertex 1: non-finite coordinate"), std::string::npos) << error_of(inf);
+    EXPECT_NE(error_of(rel).find("rel.obj: face 0: vertex index"), std::string::npos)
+        << error_of(rel);
+    std::string inf =
+        write("inf.obj", "v 0 0 0\nv 1e999 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 1 3 4\n");
+    EXPECT_NE(error_of(inf).find("inf.obj: vertex 1: non-finite coordinate"), std::string::npos)
+        << error_of(inf);
     MeshLoadOptions o;
     o.drop_invalid = true;
     MeshLoadInfo info;
@@ -90,17 +97,21 @@ TEST_F(ObjReader, Errors) {
 
 TEST_F(ObjReader, LoadMeshDispatchesOnContentThenExtension) {
     // PLY content wins over a misleading name; unknown content and extension is an error.
-    std::string ply = write("mesh.dat",
-                            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-                            "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
-                            "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    std::string ply = write(
+        "mesh.dat",
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+        "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
     EXPECT_EQ(detect_mesh_format(ply), MeshFormat::ply);
     EXPECT_EQ(load_mesh(ply).triangle_count(), 1u);
     std::string unknown = write("mesh.stl", "solid x\nendsolid x\n");
-    EXPECT_NE(error_of(unknown).find("mesh.stl: unknown mesh format"), std::string::npos) << error_of(unknown);
+    EXPECT_NE(error_of(unknown).find("mesh.stl: unknown mesh format"), std::string::npos)
+        << error_of(unknown);
     std::string bad_ply = write("bad.ply", "not a ply\n");
-    EXPECT_NE(error_of(bad_ply).find("bad.ply: line 1: header: not a PLY file"), std::string::npos) << error_of(bad_ply);
-    EXPECT_NE(error_of(dir_.string()).find("is a directory"), std::string::npos) << error_of(dir_.string());
+    EXPECT_NE(error_of(bad_ply).find("bad.ply: line 1: header: not a PLY file"), std::string::npos)
+        << error_of(bad_ply);
+    EXPECT_NE(error_of(dir_.string()).find("is a directory"), std::string::npos)
+        << error_of(dir_.string());
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 // broken file per error the reader reports, each asserting its message.
 #include "renderer/io/ply_reader.h"
 
+#include <zlib.h>
 #include <bit>
 #include <charconv>
 #include <cmath>
@@ -11,7 +12,6 @@
 #include <fstream>
 #include <random>
 #include <string>
-#include <zlib.h>
 
 #include <gtest/gtest.h>
 
@@ -21,7 +21,8 @@
 namespace kdt {
 namespace {
 
-TriangleMesh load(const std::string& text, MeshLoadOptions options = {}, MeshLoadInfo* info = nullptr) {
+TriangleMesh load(const std::string& text, MeshLoadOptions options = {},
+                  MeshLoadInfo* info = nullptr) {
     return read_ply_memory(text.data(), text.size(), "test.ply", options, info);
 }
 
@@ -35,10 +36,10 @@ std::string error_of(const std::string& text, MeshLoadOptions options = {}) {
     return "";
 }
 
-#define EXPECT_ERROR(text, substring)                                                \
-    do {                                                                             \
-        std::string msg_ = error_of(text);                                           \
-        EXPECT_NE(msg_.find(substring), std::string::npos)                           \
+#define EXPECT_ERROR(text, substring)                                                            \
+    do {                                                                                         \
+        std::string msg_ = error_of(text);                                                       \
+        EXPECT_NE(msg_.find(substring), std::string::npos)                                       \
             << "expected an error containing \"" << (substring) << "\", got \"" << msg_ << "\""; \
     } while (0)
 
@@ -98,8 +99,10 @@ TEST(PlyReader, CrlfHeaderAndDataAndBlankLines) {
     std::string t = kCubeAscii;
     std::string crlf;
     for (char c : t) {
-        if (c == '\n') crlf += "\r\n";
-        else crlf += c;
+        if (c == '\n')
+            crlf += "\r\n";
+        else
+            crlf += c;
     }
     crlf.insert(crlf.find("0.5 0.5 1"), "\r\n  \r\n");
     TriangleMesh m = load(crlf);
@@ -119,16 +122,17 @@ TEST(PlyReader, EveryScalarTypeAndAliasInEveryEncoding) {
         const char* name;
         int kind;  // 0 i8, 1 u8, 2 i16, 3 u16, 4 i32, 5 u32, 6 f32, 7 f64
     };
-    const T types[] = {{"char", 0},   {"int8", 0},   {"uchar", 1},   {"uint8", 1},  {"short", 2},
-                       {"int16", 2},  {"ushort", 3}, {"uint16", 3},  {"int", 4},    {"int32", 4},
-                       {"uint", 5},   {"uint32", 5}, {"float", 6},   {"float32", 6}, {"double", 7},
-                       {"float64", 7}};
+    const T types[] = {{"char", 0},  {"int8", 0},    {"uchar", 1},  {"uint8", 1},
+                       {"short", 2}, {"int16", 2},   {"ushort", 3}, {"uint16", 3},
+                       {"int", 4},   {"int32", 4},   {"uint", 5},   {"uint32", 5},
+                       {"float", 6}, {"float32", 6}, {"double", 7}, {"float64", 7}};
     const double values[3][3] = {{1, 2, 3}, {4, 5, 6}, {7, 8, 100}};
     for (const T& t : types) {
         for (int enc = 0; enc < 3; ++enc) {
             std::string h = std::string("ply\nformat ") + kPlyEncodingNames[size_t(enc)] +
-                            " 1.0\nelement vertex 3\nproperty " + t.name + " x\nproperty " + t.name +
-                            " y\nproperty " + t.name + " z\nelement face 1\nproperty list " +
+                            " 1.0\nelement vertex 3\nproperty " + t.name + " x\nproperty " +
+                            t.name + " y\nproperty " + t.name +
+                            " z\nelement face 1\nproperty list " +
                             (t.kind == 6 || t.kind == 7 ? std::string("uchar") : t.name) + " " +
                             (t.kind == 6 || t.kind == 7 ? std::string("int") : t.name) +
                             " vertex_indices\nend_header\n";
@@ -136,20 +140,37 @@ TEST(PlyReader, EveryScalarTypeAndAliasInEveryEncoding) {
             b.big = enc == 2;
             auto put = [&](double v, int kind) {
                 switch (kind) {
-                    case 0: b.put(int8_t(v)); break;
-                    case 1: b.put(uint8_t(v)); break;
-                    case 2: b.put(int16_t(v)); break;
-                    case 3: b.put(uint16_t(v)); break;
-                    case 4: b.put(int32_t(v)); break;
-                    case 5: b.put(uint32_t(v)); break;
-                    case 6: b.put(float(v)); break;
-                    default: b.put(double(v)); break;
+                    case 0:
+                        b.put(int8_t(v));
+                        break;
+                    case 1:
+                        b.put(uint8_t(v));
+                        break;
+                    case 2:
+                        b.put(int16_t(v));
+                        break;
+                    case 3:
+                        b.put(uint16_t(v));
+                        break;
+                    case 4:
+                        b.put(int32_t(v));
+                        break;
+                    case 5:
+                        b.put(uint32_t(v));
+                        break;
+                    case 6:
+                        b.put(float(v));
+                        break;
+                    default:
+                        b.put(double(v));
+                        break;
                 }
             };
             std::string data;
             if (enc == 0) {
-                for (auto& v : values) data += std::to_string(int(v[0])) + " " + std::to_string(int(v[1])) + " " +
-                                               std::to_string(int(v[2])) + "\n";
+                for (auto& v : values)
+                    data += std::to_string(int(v[0])) + " " + std::to_string(int(v[1])) + " " +
+                            std::to_string(int(v[2])) + "\n";
                 data += "3 0 1 2\n";
             } else {
                 for (auto& v : values)
@@ -202,8 +223,8 @@ std::string mixed_layout(PlyEncoding enc) {
     if (enc == PlyEncoding::ascii) {
         std::string d = "2 7 8 0.5\n0 1.5\n";
         for (int i = 0; i < 4; ++i)
-            d += "51 1 2 9 9 " + std::to_string(3 * i) + " 255 0 -7 " + std::to_string(2 * i) + " 0 " +
-                 std::to_string(i) + " 0\n";
+            d += "51 1 2 9 9 " + std::to_string(3 * i) + " 255 0 -7 " + std::to_string(2 * i) +
+                 " 0 " + std::to_string(i) + " 0\n";
         d += "9 4 0 1 2 3 2 0.25 0.75\n1 3 1 2 3 0\n";
         d += "0 1\n";
         return h + d;
@@ -213,23 +234,46 @@ std::string mixed_layout(PlyEncoding enc) {
     b.put(uint16_t(2)).put(int16_t(7)).put(int16_t(8)).put(0.5);
     b.put(uint16_t(0)).put(1.5);
     for (int i = 0; i < 4; ++i) {
-        b.put(uint8_t(51)).put(1.0f).put(int32_t(2)).put(uint32_t(9)).put(uint32_t(9)).put(double(3 * i));
-        b.put(uint8_t(255)).put(0.0f).put(int16_t(-7)).put(float(2 * i)).put(0.0f).put(float(i)).put(uint8_t(0));
+        b.put(uint8_t(51))
+            .put(1.0f)
+            .put(int32_t(2))
+            .put(uint32_t(9))
+            .put(uint32_t(9))
+            .put(double(3 * i));
+        b.put(uint8_t(255))
+            .put(0.0f)
+            .put(int16_t(-7))
+            .put(float(2 * i))
+            .put(0.0f)
+            .put(float(i))
+            .put(uint8_t(0));
     }
-    b.put(uint8_t(9)).put(uint32_t(4)).put(uint16_t(0)).put(uint16_t(1)).put(uint16_t(2)).put(uint16_t(3));
+    b.put(uint8_t(9))
+        .put(uint32_t(4))
+        .put(uint16_t(0))
+        .put(uint16_t(1))
+        .put(uint16_t(2))
+        .put(uint16_t(3));
     b.put(uint8_t(2)).put(0.25f).put(0.75f);
-    b.put(uint8_t(1)).put(uint32_t(3)).put(uint16_t(1)).put(uint16_t(2)).put(uint16_t(3)).put(uint8_t(0));
+    b.put(uint8_t(1))
+        .put(uint32_t(3))
+        .put(uint16_t(1))
+        .put(uint16_t(2))
+        .put(uint16_t(3))
+        .put(uint8_t(0));
     b.put(int32_t(0)).put(int32_t(1));
     return h + b.s;
 }
 
 TEST(PlyReader, AnyPropertyOrderUnknownElementsAndListsSkipped) {
-    for (PlyEncoding enc : {PlyEncoding::ascii, PlyEncoding::binary_little_endian, PlyEncoding::binary_big_endian}) {
+    for (PlyEncoding enc :
+         {PlyEncoding::ascii, PlyEncoding::binary_little_endian, PlyEncoding::binary_big_endian}) {
         SCOPED_TRACE(kPlyEncodingNames[size_t(enc)]);
         TriangleMesh m = load(mixed_layout(enc));
         ASSERT_EQ(m.vertex_count(), 4u);
         ASSERT_EQ(m.triangle_count(), 3u);
-        for (int i = 0; i < 4; ++i) EXPECT_EQ(m.positions[size_t(i)], Vec3f(float(i), float(2 * i), float(3 * i)));
+        for (int i = 0; i < 4; ++i)
+            EXPECT_EQ(m.positions[size_t(i)], Vec3f(float(i), float(2 * i), float(3 * i)));
         ASSERT_EQ(m.normals.size(), 4u);
         EXPECT_EQ(m.normals[3], Vec3f(0, 0, 1));
         ASSERT_EQ(m.colors.size(), 4u);
@@ -254,7 +298,8 @@ TEST(PlyReader, KeepOptionsDropAttributes) {
 
 TEST(PlyReader, FloatColoursKeptAsGiven) {
     std::string t =
-        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty "
+        "float z\n"
         "property float red\nproperty float green\nproperty float blue\nproperty float alpha\n"
         "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
         "0 0 0 0.25 0.5 1 1\n1 0 0 0 0 1 1\n0 1 0 0 0 1 1\n3 0 1 2\n";
@@ -265,13 +310,15 @@ TEST(PlyReader, FloatColoursKeptAsGiven) {
 
 TEST(PlyReader, PointCloudAndEmptyMeshes) {
     std::string pc =
-        "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\n"
+        "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty "
+        "float z\n"
         "end_header\n1 2 3\n4 5 6\n";
     TriangleMesh m = load(pc);
     EXPECT_EQ(m.vertex_count(), 2u);
     EXPECT_EQ(m.triangle_count(), 0u);
     std::string empty =
-        "ply\nformat binary_little_endian 1.0\nelement vertex 0\nproperty float x\nproperty float y\n"
+        "ply\nformat binary_little_endian 1.0\nelement vertex 0\nproperty float x\nproperty float "
+        "y\n"
         "property float z\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n";
     TriangleMesh e = load(empty);
     EXPECT_EQ(e.vertex_count(), 0u);
@@ -301,7 +348,8 @@ TEST(PlyReader, BigPolygonFannedAndDegenerateTestedFast) {
     for (int i = 0; i < n; ++i) b.put(i == n - 1 ? 0 : i);
     std::string t = "ply\nformat binary_little_endian 1.0\nelement vertex " + std::to_string(n) +
                     "\nproperty float x\nproperty float y\nproperty float z\nelement face 1\n"
-                    "property list uint int vertex_indices\nend_header\n" + b.s;
+                    "property list uint int vertex_indices\nend_header\n" +
+                    b.s;
     MeshLoadInfo info;
     TriangleMesh m = load(t, {}, &info);
     EXPECT_EQ(m.triangle_count(), size_t(n - 2));
@@ -314,7 +362,8 @@ TEST(PlyReader, BinaryTrailingBytesIgnored) {
     b.put(0.0f).put(0.0f).put(0.0f).put(1.0f).put(0.0f).put(0.0f).put(0.0f).put(1.0f).put(0.0f);
     b.put(uint8_t(3)).put(0).put(1).put(2);
     std::string t =
-        "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+        "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float "
+        "y\n"
         "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n" +
         b.s + "\n\n";
     EXPECT_EQ(load(t).triangle_count(), 1u);
@@ -361,7 +410,8 @@ TEST(PlyReader, AsciiFloatsParseExactly) {
         do {
             f = std::bit_cast<float>(bits(rng));
         } while (!std::isfinite(f));
-        if (i % 3 == 1) f = float(std::ldexp(double(bits(rng) % 2000000) - 1e6, -int(bits(rng) % 20)));
+        if (i % 3 == 1)
+            f = float(std::ldexp(double(bits(rng) % 2000000) - 1e6, -int(bits(rng) % 20)));
         int style = i % 4;
         if (style == 0) {
             auto r = std::to_chars(buf, buf + 64, f);
@@ -383,13 +433,16 @@ TEST(PlyReader, AsciiFloatsParseExactly) {
     TriangleMesh m = load(h + data);
     ASSERT_EQ(m.vertex_count(), size_t(n));
     int wrong = 0;
-    for (int i = 0; i < n; ++i) wrong += std::bit_cast<uint32_t>(m.positions[size_t(i)].x) != std::bit_cast<uint32_t>(expect[size_t(i)]);
+    for (int i = 0; i < n; ++i)
+        wrong += std::bit_cast<uint32_t>(m.positions[size_t(i)].x) !=
+                 std::bit_cast<uint32_t>(expect[size_t(i)]);
     EXPECT_EQ(wrong, 0);
 }
 
 TEST(PlyReader, DropInvalidDropsFacesOfNonFiniteVertices) {
     std::string t =
-        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty "
+        "float z\n"
         "element face 2\nproperty list uchar int vertex_indices\nend_header\n"
         "0 0 0\n1 0 0\nnan 1 0\n0 1 0\n3 0 1 2\n3 0 1 3\n";
     EXPECT_ERROR(t, "test.ply: line 12: vertex 2: non-finite coordinate");
@@ -408,9 +461,12 @@ TEST(PlyReader, DropInvalidDropsFacesOfNonFiniteVertices) {
     Bytes b;
     b.put(0.0f).put(0.0f).put(0.0f).put(INFINITY).put(0.0f).put(0.0f).put(0.0f).put(1.0f).put(0.0f);
     std::string bin =
-        "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-        "property float z\nend_header\n" + b.s;
-    EXPECT_ERROR(bin, "test.ply: byte 127: vertex 1: non-finite coordinate (inf, 0.000000, 0.000000)");
+        "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float "
+        "y\n"
+        "property float z\nend_header\n" +
+        b.s;
+    EXPECT_ERROR(bin,
+                 "test.ply: byte 127: vertex 1: non-finite coordinate (inf, 0.000000, 0.000000)");
     std::string big = t;
     big.replace(big.find("nan"), 3, "1e999");
     EXPECT_ERROR(big, "vertex 2: non-finite coordinate");
@@ -429,13 +485,16 @@ std::string xyz_body() {
 }
 
 TEST(PlyReaderErrors, TruncatedBinaryData) {
-    std::string full = std::string(kHeaderXYZ) + xyz_body() + Bytes().put(uint8_t(3)).put(0).put(1).put(2).s;
+    std::string full =
+        std::string(kHeaderXYZ) + xyz_body() + Bytes().put(uint8_t(3)).put(0).put(1).put(2).s;
     EXPECT_EQ(load(full).triangle_count(), 1u);
     // The size check passes (a face needs at least 13 bytes) but the list says 200 indices.
-    std::string t = std::string(kHeaderXYZ) + xyz_body() + Bytes().put(uint8_t(200)).put(0).put(1).put(2).s;
+    std::string t =
+        std::string(kHeaderXYZ) + xyz_body() + Bytes().put(uint8_t(200)).put(0).put(1).put(2).s;
     EXPECT_ERROR(t, "test.ply: byte ");
     EXPECT_ERROR(t, "face 0: unexpected end of data (file truncated?)");
-    std::string short_vertices = std::string(kHeaderXYZ).substr(0, std::strlen(kHeaderXYZ)) + xyz_body();
+    std::string short_vertices =
+        std::string(kHeaderXYZ).substr(0, std::strlen(kHeaderXYZ)) + xyz_body();
     short_vertices.replace(short_vertices.find("element face 1"), 14, "element face 0");
     EXPECT_EQ(load(short_vertices).triangle_count(), 0u);
     std::string missing = short_vertices.substr(0, short_vertices.size() - 5);
@@ -447,7 +506,9 @@ TEST(PlyReaderErrors, TruncatedAsciiData) {
     std::string t = kCubeAscii;
     t.replace(t.find("0.5 0.5 1"), 9, "0.500000000 0.500000000 1.000000000");
     t = t.substr(0, t.find("3 0 1 4"));
-    EXPECT_ERROR(t, "test.ply: line 18: face 1: unexpected end of data (file truncated? the header declares 2 face elements)");
+    EXPECT_ERROR(t,
+                 "test.ply: line 18: face 1: unexpected end of data (file truncated? the header "
+                 "declares 2 face elements)");
     std::string short_line = kCubeAscii;
     short_line.replace(short_line.find("1 1 0\n"), 6, "1 1\n");
     EXPECT_ERROR(short_line, "line 14: vertex 2: missing value for property z");
@@ -459,17 +520,23 @@ TEST(PlyReaderErrors, TruncatedAsciiData) {
 TEST(PlyReaderErrors, CountsTheFileCannotHold) {
     std::string t = kCubeAscii;
     t.replace(t.find("element vertex 5"), 16, "element vertex 999999999999");
-    EXPECT_ERROR(t, "test.ply: line 5: header: element vertex: 999999999999 vertices exceed the 32-bit index limit");
+    EXPECT_ERROR(t,
+                 "test.ply: line 5: header: element vertex: 999999999999 vertices exceed the "
+                 "32-bit index limit");
     t = kCubeAscii;
     t.replace(t.find("element vertex 5"), 16, "element vertex 999999999");
-    EXPECT_ERROR(t, "test.ply: line 5: header: element vertex: count 999999999 needs at least 5999999994 bytes, "
-                    "more than the 52 bytes of data in the file");
+    EXPECT_ERROR(t,
+                 "test.ply: line 5: header: element vertex: count 999999999 needs at least "
+                 "5999999994 bytes, "
+                 "more than the 52 bytes of data in the file");
     std::string other = kCubeAscii;
-    other.replace(other.find("element face 2"), 14, "element normals 999999999999\nproperty float q\nelement face 2");
+    other.replace(other.find("element face 2"), 14,
+                  "element normals 999999999999\nproperty float q\nelement face 2");
     EXPECT_ERROR(other, "element normals: count 999999999999 needs at least");
     std::string b = std::string(kHeaderXYZ) + xyz_body();
     b.replace(b.find("element face 1"), 14, "element face 4000000000");
-    EXPECT_ERROR(b, "element face: count 4000000000 needs at least 52000000000 bytes, more than the");
+    EXPECT_ERROR(b,
+                 "element face: count 4000000000 needs at least 52000000000 bytes, more than the");
     std::string huge = kCubeAscii;
     huge.replace(huge.find("element vertex 5"), 16, "element vertex 99999999999999999999999");
     EXPECT_ERROR(huge, "element vertex: count 99999999999999999999999 is too large");
@@ -483,7 +550,8 @@ TEST(PlyReaderErrors, NegativeCounts) {
     list.replace(list.find("3 0 1 4"), 7, "-3 0 1 4");
     list.replace(list.find("list uchar int"), 14, "list char int");
     EXPECT_ERROR(list, "line 18: face 1: negative list count -3 in vertex_indices");
-    std::string bin = std::string(kHeaderXYZ) + xyz_body() + Bytes().put(int8_t(-1)).put(0).put(1).put(2).s;
+    std::string bin =
+        std::string(kHeaderXYZ) + xyz_body() + Bytes().put(int8_t(-1)).put(0).put(1).put(2).s;
     bin.replace(bin.find("list uchar int"), 14, "list char int");
     EXPECT_ERROR(bin, "test.ply: byte 204: face 0: negative list count -1 in vertex_indices");
 }
@@ -495,7 +563,8 @@ TEST(PlyReaderErrors, IndicesOutOfRange) {
     std::string neg = kCubeAscii;
     neg.replace(neg.find("3 0 1 4"), 7, "3 0 -1 4");
     EXPECT_ERROR(neg, "face 1: vertex index -1 out of range (5 vertices)");
-    std::string bin = std::string(kHeaderXYZ) + xyz_body() + Bytes().put(uint8_t(3)).put(0).put(1).put(3).s;
+    std::string bin =
+        std::string(kHeaderXYZ) + xyz_body() + Bytes().put(uint8_t(3)).put(0).put(1).put(3).s;
     EXPECT_ERROR(bin, "test.ply: byte 205: face 0: vertex index 3 out of range (3 vertices)");
     std::string bin_be = bin;
     bin_be.replace(bin_be.find("binary_little_endian"), 20, "binary_big_endian");
@@ -506,7 +575,8 @@ TEST(PlyReaderErrors, FacesWithFewerThanThreeVertices) {
     std::string t = kCubeAscii;
     t.replace(t.find("3 0 1 4"), 7, "2 0 1");
     EXPECT_ERROR(t, "line 18: face 1: face has 2 vertices (at least 3 needed)");
-    std::string bin = std::string(kHeaderXYZ) + xyz_body() + Bytes().put(uint8_t(0)).put(0).put(1).put(2).s;
+    std::string bin =
+        std::string(kHeaderXYZ) + xyz_body() + Bytes().put(uint8_t(0)).put(0).put(1).put(2).s;
     EXPECT_ERROR(bin, "test.ply: byte 205: face 0: face has 0 vertices (at least 3 needed)");
 }
 
@@ -516,19 +586,25 @@ TEST(PlyReaderErrors, HeaderErrors) {
         t.replace(t.find(from), from.size(), to);
         return t;
     };
-    EXPECT_ERROR(with("format ascii 1.0", "format ebcdic 1.0"), "line 2: header: unknown format 'ebcdic'");
-    EXPECT_ERROR(with("format ascii 1.0", "format ascii 2.0"), "line 2: header: unknown format line 'format ascii 2.0'");
+    EXPECT_ERROR(with("format ascii 1.0", "format ebcdic 1.0"),
+                 "line 2: header: unknown format 'ebcdic'");
+    EXPECT_ERROR(with("format ascii 1.0", "format ascii 2.0"),
+                 "line 2: header: unknown format line 'format ascii 2.0'");
     EXPECT_ERROR(with("format ascii 1.0\n", ""), "missing format line");
     EXPECT_ERROR(with("end_header\n", ""), "missing end_header");
     EXPECT_ERROR(with("ply\n", "plx\n"), "line 1: header: not a PLY file");
-    EXPECT_ERROR(with("property float y", "property float16 y"), "line 7: header: unknown property type 'float16'");
-    EXPECT_ERROR(with("list uchar int", "list float int"), "list count type 'float' is not an integer type");
-    EXPECT_ERROR(with("list uchar int", "list uchar float"), "face list vertex_indices has non-integer item type");
+    EXPECT_ERROR(with("property float y", "property float16 y"),
+                 "line 7: header: unknown property type 'float16'");
+    EXPECT_ERROR(with("list uchar int", "list float int"),
+                 "list count type 'float' is not an integer type");
+    EXPECT_ERROR(with("list uchar int", "list uchar float"),
+                 "face list vertex_indices has non-integer item type");
     EXPECT_ERROR(with("property float y", "property float x"), "second property named 'x'");
     EXPECT_ERROR(with("property float y", "property float w"), "element vertex has no property y");
     EXPECT_ERROR(with("element vertex 5", "element vertex five"), "count 'five' is not an integer");
     EXPECT_ERROR(with("comment", "property float q\ncomment"), "property before any element");
-    EXPECT_ERROR(with("vertex_indices", "corners"), "element face has no list property vertex_indices");
+    EXPECT_ERROR(with("vertex_indices", "corners"),
+                 "element face has no list property vertex_indices");
     EXPECT_ERROR("", "test.ply: line 1: header: empty file");
     // A header without end_header that goes on forever stops at 4 MiB.
     std::string endless = "ply\nformat ascii 1.0\n" + std::string(5 << 20, 'c');
@@ -542,8 +618,10 @@ TEST(PlyReaderErrors, AsciiValueErrors) {
         t.replace(t.find(from), from.size(), to);
         return t;
     };
-    EXPECT_ERROR(with("1 1 0\n", "1 x1 0\n"), "line 14: vertex 2: invalid number 'x1' for property y");
-    EXPECT_ERROR(with("1 1 0\n", "1 1 0 7\n"), "line 14: vertex 2: more values on the line than the header declares");
+    EXPECT_ERROR(with("1 1 0\n", "1 x1 0\n"),
+                 "line 14: vertex 2: invalid number 'x1' for property y");
+    EXPECT_ERROR(with("1 1 0\n", "1 1 0 7\n"),
+                 "line 14: vertex 2: more values on the line than the header declares");
     EXPECT_ERROR(with("3 0 1 4", "3 0 1.5 4"), "line 18: face 1: invalid vertex index '1.5'");
     EXPECT_ERROR(with("3 0 1 4", "300 0 1 4"), "invalid list count '300' for vertex_indices");
     EXPECT_ERROR(std::string(kCubeAscii) + "3 0 1 2\n", "line 19: data after the last element");
@@ -554,7 +632,8 @@ TEST(PlyReaderErrors, MissingFile) {
         read_ply("/nonexistent/dir/mesh.ply");
         FAIL();
     } catch (const Error& e) {
-        EXPECT_NE(std::string(e.what()).find("/nonexistent/dir/mesh.ply: cannot open file"), std::string::npos)
+        EXPECT_NE(std::string(e.what()).find("/nonexistent/dir/mesh.ply: cannot open file"),
+                  std::string::npos)
             << e.what();
     }
 }
@@ -572,8 +651,8 @@ namespace {
 std::string big_ascii(bool with_nan, bool irregular = true) {
     const int nv = 60000, nf = 120000;
     std::string s = "ply\nformat ascii 1.0\nelement vertex " + std::to_string(nv) +
-                    "\nproperty float x\nproperty float y\nproperty float z\nelement face " + std::to_string(nf) +
-                    "\nproperty list uchar int vertex_indices\nend_header\n";
+                    "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
+                    std::to_string(nf) + "\nproperty list uchar int vertex_indices\nend_header\n";
     std::mt19937 rng(99);
     std::uniform_real_distribution<float> u(-1.0f, 1.0f);
     char buf[96];
@@ -582,7 +661,8 @@ std::string big_ascii(bool with_nan, bool irregular = true) {
             s += "nan 0 0\n";
             continue;
         }
-        std::snprintf(buf, sizeof buf, "%.7g %.7g %.7g\n", double(u(rng)), double(u(rng)), double(u(rng)));
+        std::snprintf(buf, sizeof buf, "%.7g %.7g %.7g\n", double(u(rng)), double(u(rng)),
+                      double(u(rng)));
         s += buf;
         if (i == 20000 && irregular) s += "\n   \n";
     }
@@ -593,7 +673,8 @@ std::string big_ascii(bool with_nan, bool irregular = true) {
         } else if (f == 90000 && irregular) {
             s += "3 5 5 6\n";
         } else {
-            s += "3 " + std::to_string(vi(rng)) + " " + std::to_string(vi(rng)) + " " + std::to_string(vi(rng)) + "\n";
+            s += "3 " + std::to_string(vi(rng)) + " " + std::to_string(vi(rng)) + " " +
+                 std::to_string(vi(rng)) + "\n";
         }
     }
     return s;

@@ -4,9 +4,9 @@
 
 #include <bit>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <limits>
-#include <cstring>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -19,7 +19,8 @@ namespace kdt {
 namespace {
 
 // A seeded random mesh including awkward floats: -0, subnormals, huge and tiny values.
-TriangleMesh random_mesh(uint32_t seed, size_t vertices, size_t triangles, bool normals, bool colors) {
+TriangleMesh random_mesh(uint32_t seed, size_t vertices, size_t triangles, bool normals,
+                         bool colors) {
     std::mt19937 rng(seed);
     std::uniform_int_distribution<uint32_t> bits;
     auto any_float = [&] {
@@ -32,13 +33,17 @@ TriangleMesh random_mesh(uint32_t seed, size_t vertices, size_t triangles, bool 
     std::uniform_real_distribution<float> unit(0.0f, 1.0f);
     TriangleMesh m;
     for (size_t i = 0; i < vertices; ++i) {
-        Vec3f p = i % 2 ? Vec3f(any_float(), any_float(), any_float()) : Vec3f(unit(rng), -unit(rng), unit(rng) * 1e3f);
+        Vec3f p = i % 2 ? Vec3f(any_float(), any_float(), any_float())
+                        : Vec3f(unit(rng), -unit(rng), unit(rng) * 1e3f);
         m.positions.push_back(p);
-        if (normals) m.normals.push_back(glm::normalize(Vec3f(unit(rng) - 0.5f, unit(rng) - 0.5f, 1.0f)));
+        if (normals)
+            m.normals.push_back(glm::normalize(Vec3f(unit(rng) - 0.5f, unit(rng) - 0.5f, 1.0f)));
         if (colors) m.colors.push_back(Vec3f(unit(rng), unit(rng), unit(rng)));
     }
-    m.positions[0] = Vec3f(-0.0f, std::numeric_limits<float>::denorm_min(), std::numeric_limits<float>::max());
-    m.positions[1] = Vec3f(std::numeric_limits<float>::lowest(), std::numeric_limits<float>::min(), 1e-30f);
+    m.positions[0] =
+        Vec3f(-0.0f, std::numeric_limits<float>::denorm_min(), std::numeric_limits<float>::max());
+    m.positions[1] =
+        Vec3f(std::numeric_limits<float>::lowest(), std::numeric_limits<float>::min(), 1e-30f);
     std::uniform_int_distribution<uint32_t> vi(0, uint32_t(vertices - 1));
     for (size_t t = 0; t < triangles; ++t) m.triangles.emplace_back(vi(rng), vi(rng), vi(rng));
     return m;
@@ -55,7 +60,8 @@ TEST(PlyWriter, RoundTripInEveryEncodingIsBitExact) {
     for (int variant = 0; variant < 4; ++variant) {
         bool normals = variant & 1, colors = variant & 2;
         TriangleMesh mesh = random_mesh(7 + uint32_t(variant), 3000, 5000, normals, colors);
-        for (PlyEncoding enc : {PlyEncoding::ascii, PlyEncoding::binary_little_endian, PlyEncoding::binary_big_endian}) {
+        for (PlyEncoding enc : {PlyEncoding::ascii, PlyEncoding::binary_little_endian,
+                                PlyEncoding::binary_big_endian}) {
             for (const char* ext : {".ply", ".ply.gz"}) {
                 std::string path = (dir / (std::string("m") + std::to_string(variant) + "_" +
                                            kPlyEncodingNames[size_t(enc)] + ext))
@@ -89,7 +95,8 @@ TEST(PlyWriter, EmptyMeshAndPointCloud) {
     back = read_ply((dir / "p.ply").string());
     EXPECT_EQ(back.positions, pts.positions);
     EXPECT_EQ(back.triangle_count(), 0u);
-    EXPECT_THROW(write_ply((dir / "no" / "such" / "dir.ply").string(), pts, PlyEncoding::ascii), Error);
+    EXPECT_THROW(write_ply((dir / "no" / "such" / "dir.ply").string(), pts, PlyEncoding::ascii),
+                 Error);
     std::filesystem::remove_all(dir);
 }
 
