@@ -1,8 +1,11 @@
 // Helpers shared by the test executables: paths to the source tree, shared data, assets.
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <string>
+
+#include "renderer/core/math.h"
 
 namespace kdt::test {
 
@@ -15,5 +18,20 @@ std::filesystem::path shared_data_dir();
 std::filesystem::path dragon_dir();
 /// A fresh temporary directory for one test.
 std::filesystem::path temp_dir(const std::string& name);
+
+/// Seeded SplitMix64 stream for test inputs (not the renderer's sampler): fixed seeds only.
+struct HashRng {
+    uint64_t state;
+    explicit HashRng(uint64_t seed) : state(seed * 0x9e3779b97f4a7c15ull + 0x632be59bd9b4e019ull) {}
+    uint64_t next_u64() {
+        uint64_t z = (state += 0x9e3779b97f4a7c15ull);
+        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+        z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+        return z ^ (z >> 31);
+    }
+    /// Uniform in [0, 1) with 24 random bits.
+    float next() { return float(next_u64() >> 40) * 0x1p-24f; }
+    Vec2f next2() { return {next(), next()}; }
+};
 
 }  // namespace kdt::test

@@ -23,17 +23,7 @@
 namespace kdt {
 namespace {
 
-struct HashRng {
-    uint64_t state;
-    explicit HashRng(uint64_t seed) : state(seed * 0x9e3779b97f4a7c15ull + 0x632be59bd9b4e019ull) {}
-    uint64_t next_u64() {
-        uint64_t z = (state += 0x9e3779b97f4a7c15ull);
-        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-        z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-        return z ^ (z >> 31);
-    }
-    float next() { return float(next_u64() >> 40) * 0x1p-24f; }
-};
+using test::HashRng;
 
 ImageRGB random_image(int w, int h, uint64_t seed, float scale) {
     ImageRGB img(w, h);

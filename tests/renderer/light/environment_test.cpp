@@ -10,6 +10,8 @@
 
 #include <gtest/gtest.h>
 
+#include "renderer/material/material.h"
+
 #include "renderer/core/error.h"
 #include "renderer/light/image_environment.h"
 #include "renderer/light/mapping.h"
@@ -18,25 +20,7 @@
 namespace kdt {
 namespace {
 
-struct HashRng {
-    uint64_t state;
-    explicit HashRng(uint64_t seed) : state(seed * 0x9e3779b97f4a7c15ull + 0x632be59bd9b4e019ull) {}
-    uint64_t next_u64() {
-        uint64_t z = (state += 0x9e3779b97f4a7c15ull);
-        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-        z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-        return z ^ (z >> 31);
-    }
-    float next() { return float(next_u64() >> 40) * 0x1p-24f; }
-    Vec2f next2() { return {next(), next()}; }
-};
-
-Vec3f uniform_sphere(const Vec2f& u) {
-    float z = 1.0f - 2.0f * u.x;
-    float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
-    float phi = 2.0f * kPi * u.y;
-    return {r * std::cos(phi), r * std::sin(phi), z};
-}
+using test::HashRng;
 
 /// Running mean and standard error.
 struct Stat {
@@ -108,7 +92,8 @@ TEST_P(MapTest, PdfIntegratesToOneOverTheSphere) {
     ImageEnvironment env = make(true);
     HashRng rng(2);
     Stat s;
-    for (int i = 0; i < 400000; ++i) s.add(4.0 * M_PI * env.pdf(uniform_sphere(rng.next2())));
+    for (int i = 0; i < 400000; ++i)
+        s.add(4.0 * M_PI * env.pdf(sample_uniform_sphere(rng.next2())));
     EXPECT_NEAR(s.mean(), 1.0, 4.0 * s.std_error() + 1e-3) << "se " << s.std_error();
 
     // Exact: the density table integrates to one over the image (weighted by coverage).
@@ -248,7 +233,7 @@ void compare_on_probe(const ImageEnvironment& env, const std::string& label, dou
         }
     }
     for (int i = 0; i < (1 << 20); ++i) {
-        Vec3f d = uniform_sphere(rng_u.next2());
+        Vec3f d = sample_uniform_sphere(rng_u.next2());
         double l = luminance(env.eval(d));
         for (size_t j = 0; j < k; ++j) uni[j].add(4.0 * M_PI * integrand(d, l, j));
     }

@@ -7,31 +7,16 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/test_util.h"
+
+#include "renderer/material/material.h"
+
 #include "renderer/light/image_environment.h"
 
 namespace kdt {
 namespace {
 
-/// Counter-based hash RNG (SplitMix64 finaliser over seed and index): fixed seeds.
-struct HashRng {
-    uint64_t state;
-    explicit HashRng(uint64_t seed) : state(seed * 0x9e3779b97f4a7c15ull + 0x632be59bd9b4e019ull) {}
-    uint64_t next_u64() {
-        uint64_t z = (state += 0x9e3779b97f4a7c15ull);
-        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-        z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-        return z ^ (z >> 31);
-    }
-    float next() { return float(next_u64() >> 40) * 0x1p-24f; }
-    Vec2f next2() { return {next(), next()}; }
-};
-
-Vec3f uniform_sphere(const Vec2f& u) {
-    float z = 1.0f - 2.0f * u.x;
-    float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
-    float phi = 2.0f * kPi * u.y;
-    return {r * std::cos(phi), r * std::sin(phi), z};
-}
+using test::HashRng;
 
 void expect_near_vec(const Vec3f& a, const Vec3f& b, float tol) {
     EXPECT_NEAR(a.x, b.x, tol);
@@ -58,7 +43,7 @@ TEST(Mapping, AngularAnchorsFollowDebevec) {
     // Debevec's formula: r = acos(Dz) / (pi sqrt(Dx^2 + Dy^2)), (a, b) = (Dx r, Dy r).
     HashRng rng(7);
     for (int i = 0; i < 1000; ++i) {
-        Vec3f d = uniform_sphere(rng.next2());
+        Vec3f d = sample_uniform_sphere(rng.next2());
         double r =
             std::acos(double(d.z)) / (M_PI * std::sqrt(double(d.x) * d.x + double(d.y) * d.y));
         Vec2f uv = angular_uv_from_dir(d);
@@ -71,7 +56,7 @@ TEST(Mapping, RoundTripsDirectionsAndCoordinates) {
     HashRng rng(1);
     float worst_ll = 0.0f, worst_ang = 0.0f;
     for (int i = 0; i < 200000; ++i) {
-        Vec3f d = uniform_sphere(rng.next2());
+        Vec3f d = sample_uniform_sphere(rng.next2());
         Vec2f uv = latlong_uv_from_dir(d);
         ASSERT_GE(uv.x, 0.0f);
         ASSERT_LT(uv.x, 1.0f);
@@ -115,7 +100,7 @@ TEST(Mapping, RotationTurnsTheMapAboutPlusY) {
         ImageEnvironment rotated(img, m, 37.0f, 1.0f);
         HashRng rng(3);
         for (int i = 0; i < 20000; ++i) {
-            Vec3f d = uniform_sphere(rng.next2());
+            Vec3f d = sample_uniform_sphere(rng.next2());
             Vec2f uv = rotated.uv_from_dir(d);
             auto back = rotated.dir_from_uv(uv);
             ASSERT_TRUE(back.has_value());
@@ -267,7 +252,7 @@ TEST(Mapping, AngularConversionRoundTrips) {
     HashRng rng(13);
     double diff = 0.0, sum = 0.0;
     for (int i = 0; i < 20000; ++i) {
-        Vec3f d = uniform_sphere(rng.next2());
+        Vec3f d = sample_uniform_sphere(rng.next2());
         diff += glm::length(a.eval(d) - b.eval(d));
         sum += glm::length(a.eval(d));
     }
