@@ -1,5 +1,6 @@
 #include "tests/renderer/accel/kd_test_meshes.h"
 
+#include <cmath>
 #include <random>
 #include <string>
 
@@ -53,6 +54,20 @@ TriangleMesh make_planar_grid(int n, uint32_t seed) {
             }
     }
     return m;
+}
+
+bool same_closest_hit(const TriangleMesh& mesh, const Ray& ray, const Hit& hit, const Hit& ref) {
+    if (hit.valid() != ref.valid()) return false;
+    if (!hit.valid()) return true;
+    if (!(std::fabs(hit.t - ref.t) <= 1e-6f * std::fabs(ref.t))) return false;
+    if (hit.prim == ref.prim) return true;
+    Ray tie = ray;
+    tie.tmax = ref.t;
+    float t, u, v;
+    const Vec3u& tri = mesh.triangles[hit.prim];
+    return intersect_triangle(tie, mesh.positions[tri.x], mesh.positions[tri.y],
+                              mesh.positions[tri.z], t, u, v) &&
+           t == ref.t;
 }
 
 Hit brute_force_hit(const TriangleMesh& mesh, const Ray& ray) {

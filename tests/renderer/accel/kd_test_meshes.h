@@ -22,6 +22,10 @@ TriangleMesh make_planar_grid(int n, uint32_t seed);
 
 /// Closest hit over all triangles with the same watertight test the tree uses.
 Hit brute_force_hit(const TriangleMesh& mesh, const Ray& ray);
+/// True when `hit` (from a tree) agrees with the reference `ref` for `ray`: both miss, or
+/// both hit with t within 1e-6 relative and the same triangle unless the tree's triangle is
+/// hit at exactly the same t (a tie).
+bool same_closest_hit(const TriangleMesh& mesh, const Ray& ray, const Hit& hit, const Hit& ref);
 /// Any hit over all triangles.
 bool brute_force_occluded(const TriangleMesh& mesh, const Ray& ray);
 

@@ -112,20 +112,7 @@ TEST_P(KdTreeBruteForce, ClosestAndAnyHitMatchBruteForce) {
             const bool got = tree->intersect(r, hit);
             ++rays_checked;
             hits += ref.valid();
-            bool ok = got == ref.valid() && hit.valid() == got;
-            if (ok && got) {
-                ok = std::fabs(hit.t - ref.t) <= 1e-6f * std::fabs(ref.t);
-                if (ok && hit.prim != ref.prim) {
-                    // Allowed only for an exact tie: the tree's triangle at the same t.
-                    Ray tie = r;
-                    tie.tmax = ref.t;
-                    float t, u, v;
-                    const Vec3u& tri = mesh->triangles[hit.prim];
-                    ok = intersect_triangle(tie, mesh->positions[tri.x], mesh->positions[tri.y],
-                                            mesh->positions[tri.z], t, u, v) &&
-                         t == ref.t;
-                }
-            }
+            bool ok = got == hit.valid() && test::same_closest_hit(*mesh, r, hit, ref);
             const bool occ = tree->occluded(r);
             ok = ok && occ == (i % 4 ? got : test::brute_force_occluded(*mesh, r));
             if (!ok) {

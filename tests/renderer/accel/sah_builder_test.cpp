@@ -601,19 +601,7 @@ size_t compare_hits(const KdTree& tree, const std::vector<Ray>& rays,
         Hit hit;
         const bool got = tree.intersect(r, hit);
         hits += ref.valid();
-        bool ok = got == ref.valid() && hit.valid() == got;
-        if (ok && got) {
-            ok = std::fabs(hit.t - ref.t) <= 1e-6f * std::fabs(ref.t);
-            if (ok && hit.prim != ref.prim) {
-                Ray tie = r;
-                tie.tmax = ref.t;
-                float t, u, v;
-                const Vec3u& tri = mesh.triangles[hit.prim];
-                ok = intersect_triangle(tie, mesh.positions[tri.x], mesh.positions[tri.y],
-                                        mesh.positions[tri.z], t, u, v) &&
-                     t == ref.t;
-            }
-        }
+        const bool ok = got == hit.valid() && test::same_closest_hit(mesh, r, hit, ref);
         if (!ok) {
             ++failures;
             ADD_FAILURE() << what << " ray " << i << ": tree "
