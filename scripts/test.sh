@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The whole test suite: install, fetch the dragon, build Release and run every test, run the
 # unit tests again under ASan+UBSan, fuzz the PLY parser for 60 s, and check formatting.
+# The ASan unit tests run last, so ctest's summary closes the output.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -14,10 +15,11 @@ cmake --preset release >/dev/null
 cmake --build --preset release
 ctest --preset release -j2
 
+echo "== fuzzing the PLY parser"
+bash scripts/run_fuzz.sh
+
 echo "== asan+ubsan build and unit tests"
 cmake --preset asan >/dev/null
 cmake --build --preset asan
 ASAN_OPTIONS=detect_leaks=1 ctest --preset asan -j2
 
-echo "== fuzzing the PLY parser"
-bash scripts/run_fuzz.sh
