@@ -19,7 +19,7 @@
 
 #include "app/bench_rays.h"
 #include "app/commands.h"
-#include "app/embree_peer.h"
+#include "app/peer_embree.h"
 #include "renderer/accel/kdtree_cache.h"
 #include "renderer/core/error.h"
 #include "renderer/core/timer.h"

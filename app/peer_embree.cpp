@@ -1,4 +1,4 @@
-#include "app/embree_peer.h"
+#include "app/peer_embree.h"
 
 #ifdef KDT_HAVE_EMBREE
 
