@@ -148,33 +148,32 @@ bool traverse(const KdNode* nodes, const uint32_t* indices, const Vec3f* positio
     return true;
 }
 
+// Sets up the ray and dispatches to the traversal with or without cost counters.
+template <bool kAnyHit>
+bool query(const TriangleMesh* mesh, const Bounds3f& bounds, const std::vector<KdNode>& nodes,
+           const std::vector<uint32_t>& indices, const Ray& ray, Hit* hit,
+           TraversalCounters* counters) {
+    RayState rs;
+    float t0, t1;
+    if (!mesh || !setup_ray(ray, bounds, rs, t0, t1)) return false;
+    const float tmin = ray.tmin / rs.t_scale, tmax = ray.tmax / rs.t_scale;
+    if (counters)
+        return traverse<kAnyHit, true>(nodes.data(), indices.data(), mesh->positions.data(),
+                                       mesh->triangles.data(), rs, t0, t1, tmin, tmax, hit,
+                                       counters);
+    return traverse<kAnyHit, false>(nodes.data(), indices.data(), mesh->positions.data(),
+                                    mesh->triangles.data(), rs, t0, t1, tmin, tmax, hit, nullptr);
+}
+
 }  // namespace
 
 bool KdTree::intersect(const Ray& ray, Hit& hit, TraversalCounters* counters) const {
     hit = Hit{};
-    RayState rs;
-    float t0, t1;
-    if (!mesh_ || !setup_ray(ray, bounds_, rs, t0, t1)) return false;
-    const float tmin = ray.tmin / rs.t_scale, tmax = ray.tmax / rs.t_scale;
-    const TriangleMesh& m = *mesh_;
-    if (counters)
-        return traverse<false, true>(nodes_.data(), indices_.data(), m.positions.data(),
-                                     m.triangles.data(), rs, t0, t1, tmin, tmax, &hit, counters);
-    return traverse<false, false>(nodes_.data(), indices_.data(), m.positions.data(),
-                                  m.triangles.data(), rs, t0, t1, tmin, tmax, &hit, nullptr);
+    return query<false>(mesh_.get(), bounds_, nodes_, indices_, ray, &hit, counters);
 }
 
 bool KdTree::occluded(const Ray& ray, TraversalCounters* counters) const {
-    RayState rs;
-    float t0, t1;
-    if (!mesh_ || !setup_ray(ray, bounds_, rs, t0, t1)) return false;
-    const float tmin = ray.tmin / rs.t_scale, tmax = ray.tmax / rs.t_scale;
-    const TriangleMesh& m = *mesh_;
-    if (counters)
-        return traverse<true, true>(nodes_.data(), indices_.data(), m.positions.data(),
-                                    m.triangles.data(), rs, t0, t1, tmin, tmax, nullptr, counters);
-    return traverse<true, false>(nodes_.data(), indices_.data(), m.positions.data(),
-                                 m.triangles.data(), rs, t0, t1, tmin, tmax, nullptr, nullptr);
+    return query<true>(mesh_.get(), bounds_, nodes_, indices_, ray, nullptr, counters);
 }
 
 }  // namespace kdt
