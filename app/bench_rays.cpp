@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "renderer/core/error.h"
+#include "renderer/material/material.h"
 
 namespace kdt::app {
 namespace {
@@ -64,15 +65,6 @@ Vec3f vec3(const std::string& path, const std::string& pointer, const json& v) {
     return Vec3f(float(number(path, pointer + "/0", v[0])),
                  float(number(path, pointer + "/1", v[1])),
                  float(number(path, pointer + "/2", v[2])));
-}
-
-// Orthonormal basis around unit n (Duff et al. 2017, "Building an Orthonormal Basis, Revisited").
-void onb(const Vec3f& n, Vec3f& b1, Vec3f& b2) {
-    const float sign = std::copysign(1.0f, n.z);
-    const float a = -1.0f / (sign + n.z);
-    const float b = n.x * n.y * a;
-    b1 = Vec3f(1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x);
-    b2 = Vec3f(b, sign + n.y * n.y * a, -n.y);
 }
 
 }  // namespace
@@ -223,13 +215,12 @@ std::vector<Ray> make_diffuse_rays(const TriangleMesh& mesh, const std::vector<R
         const float offset = std::max(m, 1e-30f) * 0x1.0p-19f;
         Ray r;
         r.origin = p + offset * n;
-        // Cosine-distributed direction about n (Malley's method).
-        const float u1 = hash_uniform(seed, 0x5eed, i, 0), u2 = hash_uniform(seed, 0x5eed, i, 1);
-        const float radius = std::sqrt(u1), phi = 2.0f * kPi * u2;
+        // Cosine-distributed direction about n, with the path tracer's own sampling.
+        const Vec3f local = sample_cosine_hemisphere(
+            {hash_uniform(seed, 0x5eed, i, 0), hash_uniform(seed, 0x5eed, i, 1)});
         Vec3f b1, b2;
-        onb(n, b1, b2);
-        r.dir = glm::normalize(radius * std::cos(phi) * b1 + radius * std::sin(phi) * b2 +
-                               std::sqrt(std::max(0.0f, 1.0f - u1)) * n);
+        make_basis(n, b1, b2);
+        r.dir = glm::normalize(local.x * b1 + local.y * b2 + local.z * n);
         out.push_back(r);
     }
     return out;
