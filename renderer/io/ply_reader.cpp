@@ -12,6 +12,10 @@
 #include <thread>
 #include <vector>
 
+#if defined(__SSE2__)
+#include <immintrin.h>
+#endif
+
 #include "renderer/core/error.h"
 #include "renderer/core/timer.h"
 
@@ -146,9 +150,10 @@ inline bool is_digit(char c) { return unsigned(c - '0') < 10u; }
 
 class Input {
 public:
-    // kPad zero bytes after the usable capacity let the digit parser load 8 bytes at once
-    // near the end of the data without leaving the allocation.
-    static constexpr size_t kPad = 16;
+    // kPad bytes after the usable capacity let the parsers load 64 bytes of a line (and 8
+    // more for a digit run inside it) near the end of the data without leaving the
+    // allocation; bytes at or past end() never count.
+    static constexpr size_t kPad = 80;
 
     // Small inputs get a buffer of their own size instead of a whole block.
     explicit Input(FileReader& reader)
@@ -163,6 +168,8 @@ public:
     const char* end() const { return end_; }
     bool eof() const { return eof_; }
     size_t avail() const { return size_t(end_ - pos_); }
+    /// Bytes the buffer holds without growing.
+    size_t capacity() const { return buf_.size() - kPad; }
     void advance(size_t n) { pos_ += n; }
     /// Stream offset of pos().
     uint64_t offset() const { return base_ + uint64_t(pos_ - buf_.data()); }
@@ -443,38 +450,43 @@ constexpr double kInvPow10[] = {1e0,   1e-1,  1e-2,  1e-3,  1e-4,  1e-5,  1e-6, 
                                 1e-8,  1e-9,  1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15,
                                 1e-16, 1e-17, 1e-18, 1e-19, 1e-20, 1e-21, 1e-22};
 
+// Rounds m * 10^exp10 (m < 2^53 exact, |exp10| <= 22) to T; false when the float result could
+// round twice (the caller then asks from_chars).
+template <typename T>
+[[gnu::always_inline]] inline bool decimal_to_real(double m, int exp10, bool neg, T& out) {
+    if constexpr (sizeof(T) == 8) {
+        double d = exp10 < 0 ? m / kPow10[-exp10] : m * kPow10[exp10];
+        out = neg ? -d : d;
+        return true;
+    } else {
+        // For a float result, multiplying by a rounded 10^-k (no division latency) is
+        // within 2 double ulps of m / 10^k. Rounding that to float gives the correctly
+        // rounded float unless a float midpoint lies within those ulps; such rare
+        // values take the exact division, and a result exactly on a midpoint (where
+        // rounding twice could differ) goes to from_chars.
+        double d;
+        if (exp10 >= 0) {
+            d = m * kPow10[exp10];
+        } else {
+            d = m * kInvPow10[-exp10];
+            uint64_t low = std::bit_cast<uint64_t>(d) & 0x1fffffffu;
+            if (low - 0x10000000u + 4u <= 8u) d = m / kPow10[-exp10];
+        }
+        if ((std::bit_cast<uint64_t>(d) & 0x1fffffffu) == 0x10000000u) return false;
+        out = float(neg ? -d : d);
+        return true;
+    }
+}
+
 template <typename T>
 inline bool parse_real(const char*& p, const char* e, T& out) {
     double m;
     int exp10;
     bool neg;
     const char* fp = p;
-    if (fast_decimal(fp, e, m, exp10, neg)) {
-        if constexpr (sizeof(T) == 8) {
-            double d = exp10 < 0 ? m / kPow10[-exp10] : m * kPow10[exp10];
-            out = neg ? -d : d;
-            p = fp;
-            return true;
-        } else {
-            // For a float result, multiplying by a rounded 10^-k (no division latency) is
-            // within 2 double ulps of m / 10^k. Rounding that to float gives the correctly
-            // rounded float unless a float midpoint lies within those ulps; such rare
-            // values take the exact division, and a result exactly on a midpoint (where
-            // rounding twice could differ) goes to from_chars.
-            double d;
-            if (exp10 >= 0) {
-                d = m * kPow10[exp10];
-            } else {
-                d = m * kInvPow10[-exp10];
-                uint64_t low = std::bit_cast<uint64_t>(d) & 0x1fffffffu;
-                if (low - 0x10000000u + 4u <= 8u) d = m / kPow10[-exp10];
-            }
-            if ((std::bit_cast<uint64_t>(d) & 0x1fffffffu) != 0x10000000u) {
-                out = float(neg ? -d : d);
-                p = fp;
-                return true;
-            }
-        }
+    if (fast_decimal(fp, e, m, exp10, neg) && decimal_to_real(m, exp10, neg, out)) {
+        p = fp;
+        return true;
     }
     const char* q = p;
     if (q < e && *q == '+') ++q;
@@ -491,6 +503,113 @@ inline bool parse_real(const char*& p, const char* e, T& out) {
     }
     p = r.ptr;
     return true;
+}
+
+// ---------------------------------------------------------------------------------------
+// Whole-line parsing by byte classes. One pass over the 64 bytes at a line start gives bit
+// masks of its digits, blanks, dots, minus signs and newlines; every token's start and end
+// then follow by bit arithmetic, so the tokens of a line are converted independently
+// instead of each one waiting for the end of the one before. Lines longer than 64 bytes,
+// exponents, '+' signs and anything else unusual go to the per-token parsers.
+
+struct LineClasses {
+    uint64_t digit = 0, blank = 0, dot = 0, minus = 0, newline = 0;
+};
+
+#if defined(__SSE2__)
+constexpr bool kHaveLineClasses = true;
+
+// Bit i of each mask describes p[i]; reads 64 bytes at p (the Input padding keeps them
+// inside the buffer).
+[[gnu::always_inline]] inline LineClasses classify_line(const char* p) {
+    LineClasses c;
+#if defined(__AVX512BW__)
+    const __m512i x = _mm512_loadu_si512(p);
+    c.digit =
+        _mm512_cmplt_epu8_mask(_mm512_sub_epi8(x, _mm512_set1_epi8('0')), _mm512_set1_epi8(10));
+    c.blank = _mm512_cmpeq_epi8_mask(x, _mm512_set1_epi8(' ')) |
+              _mm512_cmpeq_epi8_mask(x, _mm512_set1_epi8('\t')) |
+              _mm512_cmpeq_epi8_mask(x, _mm512_set1_epi8('\r'));
+    c.dot = _mm512_cmpeq_epi8_mask(x, _mm512_set1_epi8('.'));
+    c.minus = _mm512_cmpeq_epi8_mask(x, _mm512_set1_epi8('-'));
+    c.newline = _mm512_cmpeq_epi8_mask(x, _mm512_set1_epi8('\n'));
+#else
+    for (int k = 0; k < 4; ++k) {
+        const __m128i x = _mm_loadu_si128(reinterpret_cast<const __m128i*>(p + 16 * k));
+        const __m128i t = _mm_sub_epi8(x, _mm_set1_epi8('0'));
+        auto bits = [k](__m128i m) { return uint64_t(uint32_t(_mm_movemask_epi8(m))) << (16 * k); };
+        c.digit |= bits(_mm_cmpeq_epi8(_mm_min_epu8(t, _mm_set1_epi8(9)), t));
+        c.blank |= bits(_mm_or_si128(_mm_or_si128(_mm_cmpeq_epi8(x, _mm_set1_epi8(' ')),
+                                                  _mm_cmpeq_epi8(x, _mm_set1_epi8('\t'))),
+                                     _mm_cmpeq_epi8(x, _mm_set1_epi8('\r'))));
+        c.dot |= bits(_mm_cmpeq_epi8(x, _mm_set1_epi8('.')));
+        c.minus |= bits(_mm_cmpeq_epi8(x, _mm_set1_epi8('-')));
+        c.newline |= bits(_mm_cmpeq_epi8(x, _mm_set1_epi8('\n')));
+    }
+#endif
+    return c;
+}
+#else
+constexpr bool kHaveLineClasses = false;
+inline LineClasses classify_line(const char*) { return {}; }
+#endif
+
+// Length of the line at p (bytes before its '\n'), when the '\n' lies within the 64 classified
+// bytes and before e; else -1.
+[[gnu::always_inline]] inline int line_length(const LineClasses& c, const char* p, const char* e) {
+    uint64_t nl = c.newline;
+    if (e - p < 64) nl &= (uint64_t(1) << (e - p)) - 1;
+    return nl ? __builtin_ctzll(nl) : -1;
+}
+
+// Value of the n decimal digits at q (0 <= n <= 8, all digits), by multiply-shift as in
+// digits8. Loads 8 bytes at q when n > 0.
+[[gnu::always_inline]] inline uint64_t digits_value(const char* q, int n) {
+    if (n == 0) return 0;
+    uint64_t x;
+    std::memcpy(&x, q, 8);
+    uint64_t d = (x & 0x0f0f0f0f0f0f0f0full) << (8 * (8 - n));
+    d = (d * 10 + (d >> 8)) & 0x00ff00ff00ff00ffull;
+    d = (d * 100 + (d >> 16)) & 0x0000ffff0000ffffull;
+    d = (d * 10000 + (d >> 32)) & 0xffffffffull;
+    return d;
+}
+
+// The token of n bytes at t, made of digits, dots and minus signs only (`dots` and `minus`
+// mark them, bit i for t[i]): a plain decimal "-ddd.ddd" with up to 8 digits on either side
+// of the dot is m / 10^k with m < 10^16 < 2^53 and k <= 8, which Clinger's fast path converts
+// exactly (decimal_to_real). False for anything else, which the caller hands to parse_real.
+template <typename T>
+[[gnu::always_inline]] inline bool parse_plain_decimal(const char* t, int n, uint64_t dots,
+                                                       uint64_t minus, T& out) {
+    int a = 0;
+    if (minus) {
+        if (minus != 1) return false;
+        a = 1;
+    }
+    int int_digits = n - a, frac_digits = 0;
+    if (dots) {
+        if (dots & (dots - 1)) return false;
+        const int dot = __builtin_ctzll(dots);
+        int_digits = dot - a;
+        frac_digits = n - dot - 1;
+    }
+    if (int_digits + frac_digits == 0 || int_digits > 8 || frac_digits > 8) return false;
+    const uint64_t m = digits_value(t + a, int_digits) * kPow10Int[frac_digits] +
+                       digits_value(t + a + int_digits + 1, frac_digits);
+    return decimal_to_real(double(m), -frac_digits, a != 0, out);
+}
+
+inline uint64_t low_bits(int n) { return n >= 64 ? ~uint64_t(0) : (uint64_t(1) << n) - 1; }
+
+// Counts '\n' in [b, e).
+inline uint64_t count_newlines(const char* b, const char* e) {
+    uint64_t n = 0;
+    if constexpr (kHaveLineClasses) {
+        // classify_line reads 64 bytes: stop one block early and count the rest bytewise.
+        for (; e - b >= 64; b += 64) n += uint64_t(__builtin_popcountll(classify_line(b).newline));
+    }
+    return n + uint64_t(std::count(b, e, '\n'));
 }
 
 std::string token_text(const char* p, const char* e) {
@@ -560,12 +679,14 @@ private:
     void read_ascii_element(Element& el);
     bool fast_ascii_scalars(const Element& el, const char*& p, const char* e, float* v) const;
     bool fast_ascii_triangle(const char*& p, const char* e, int64_t* idx) const;
+    bool line_ascii_scalars(const Element& el, const char*& p, const char* e, float* v) const;
+    bool line_ascii_triangle(const char*& p, const char* e, int64_t* idx) const;
     struct LinesResult {
         uint64_t lines = 0;
         const char* end = nullptr;
     };
     LinesResult parse_lines(const Element& el, bool faces, bool is_vertex, const char* p,
-                            const char* e, uint64_t first);
+                            const char* e, uint64_t first, uint64_t max_lines, bool append);
     uint64_t parallel_chunk(const Element& el, uint64_t i, bool faces, bool is_vertex, bool& poor);
     bool next_data_line(const char*& b, const char*& e);
 
@@ -1072,8 +1193,85 @@ bool PlyParser::next_data_line(const char*& b, const char*& e) {
 // first; a newline ends the last token. They return false, consuming nothing, on anything
 // unusual (blank line, line cut by the buffer end, bad value, extra values), and the
 // caller then takes the line-based general path, which also reports the errors.
+// Line-at-once versions of the fast paths (see classify_line): the same results, false on
+// anything they do not take (the fast paths then try token by token).
+[[gnu::always_inline]] inline bool PlyParser::line_ascii_scalars(const Element& el, const char*& p,
+                                                                 const char* e, float* v) const {
+    if constexpr (!kHaveLineClasses) return false;
+    const LineClasses c = classify_line(p);
+    const int len = line_length(c, p, e);
+    if (len <= 0) return false;
+    const uint64_t line = low_bits(len);
+    const uint64_t tok = line & ~c.blank;
+    if (tok & ~(c.digit | c.dot | c.minus)) return false;
+    uint64_t starts = tok & ~(tok << 1);
+    uint64_t ends = tok & ~(tok >> 1);  // last byte of each token
+    if (size_t(__builtin_popcountll(starts)) != el.props.size()) return false;
+    const char* le = p + len;
+    for (const Property& prop : el.props) {
+        const int s = __builtin_ctzll(starts);
+        const int n = __builtin_ctzll(ends) - s + 1;
+        starts &= starts - 1;
+        ends &= ends - 1;
+        if (prop.slot < 0) continue;
+        const char* t = p + s;
+        if (prop.type == PlyType::f32) {
+            const uint64_t m = low_bits(n);
+            if (!parse_plain_decimal(t, n, (c.dot >> s) & m, (c.minus >> s) & m, v[prop.slot]) &&
+                !parse_real(t, le, v[prop.slot]))
+                return false;
+        } else if (prop.type == PlyType::f64) {
+            const uint64_t m = low_bits(n);
+            double d;
+            if (!parse_plain_decimal(t, n, (c.dot >> s) & m, (c.minus >> s) & m, d) &&
+                !parse_real(t, le, d))
+                return false;
+            v[prop.slot] = float(d);
+        } else {
+            int64_t x;
+            if (parse_int(t, le, x) != IntResult::ok || x < type_min(prop.type) ||
+                x > type_max(prop.type))
+                return false;
+            v[prop.slot] = float(x) * prop.scale;
+        }
+    }
+    p = le + 1;
+    return true;
+}
+
+// "3 a b c" with indices of up to 8 digits.
+[[gnu::always_inline]] inline bool PlyParser::line_ascii_triangle(const char*& p, const char* e,
+                                                                  int64_t* idx) const {
+    if constexpr (!kHaveLineClasses) return false;
+    const LineClasses c = classify_line(p);
+    const int len = line_length(c, p, e);
+    if (len <= 0) return false;
+    const uint64_t line = low_bits(len);
+    const uint64_t tok = line & ~c.blank;
+    if (tok & ~c.digit) return false;
+    uint64_t starts = tok & ~(tok << 1);
+    uint64_t ends = tok & ~(tok >> 1);  // last byte of each token
+    if (__builtin_popcountll(starts) != 4 || (starts & -starts) != (ends & -ends) ||
+        p[__builtin_ctzll(starts)] != '3')
+        return false;
+    starts &= starts - 1;
+    ends &= ends - 1;
+    int s[3], n[3];
+    for (int k = 0; k < 3; ++k) {
+        s[k] = __builtin_ctzll(starts);
+        n[k] = __builtin_ctzll(ends) - s[k] + 1;
+        starts &= starts - 1;
+        ends &= ends - 1;
+    }
+    if (n[0] > 8 || n[1] > 8 || n[2] > 8) return false;
+    for (int k = 0; k < 3; ++k) idx[k] = int64_t(digits_value(p + s[k], n[k]));
+    p += len + 1;
+    return true;
+}
+
 bool PlyParser::fast_ascii_scalars(const Element& el, const char*& p, const char* e,
                                    float* v) const {
+    if (line_ascii_scalars(el, p, e, v)) return true;
     for (const Property& prop : el.props) {
         p = skip_blanks(p, e);
         if (p == e || *p == '\n') return false;
@@ -1102,6 +1300,7 @@ bool PlyParser::fast_ascii_scalars(const Element& el, const char*& p, const char
 }
 
 bool PlyParser::fast_ascii_triangle(const char*& p, const char* e, int64_t* idx) const {
+    if (line_ascii_triangle(p, e, idx)) return true;
     p = skip_blanks(p, e);
     if (e - p < 2 || p[0] != '3' || !is_blank(p[1])) return false;
     ++p;
@@ -1117,28 +1316,35 @@ bool PlyParser::fast_ascii_triangle(const char*& p, const char* e, int64_t* idx)
     return p == e && in_.eof();
 }
 
-// Whole lines [p, e) (e just past a newline) of an all-scalar element, or "3 a b c" faces,
-// stored as elements first, first + 1, ...; stops at the first line the fast path cannot
-// take (including non-finite vertices and invalid or degenerate faces) and never throws.
-// Threads call it on disjoint line ranges, so they write disjoint array entries.
+// Lines from p (up to e) of an all-scalar element, or "3 a b c" faces, stored as elements
+// first, first + 1, ..., at most max_lines of them; stops at the first line the fast path
+// cannot take (including a line cut by e, non-finite vertices and invalid or degenerate
+// faces) and never throws. Faces are written to their entries of a sized array, or appended
+// when `append` (one thread). Threads call it on disjoint line ranges, so they write disjoint
+// array entries.
 PlyParser::LinesResult PlyParser::parse_lines(const Element& el, bool faces, bool is_vertex,
-                                              const char* p, const char* e, uint64_t first) {
+                                              const char* p, const char* e, uint64_t first,
+                                              uint64_t max_lines, bool append) {
     LinesResult r;
     r.end = p;
     float v[9] = {};
     int64_t idx[3];
-    while (p < e) {
+    while (p < e && r.lines < max_lines) {
         const char* q = p;
         const size_t k = size_t(first + r.lines);
         if (faces) {
-            if (!fast_ascii_triangle(q, e, idx)) break;
+            if (!line_ascii_triangle(q, e, idx) && !fast_ascii_triangle(q, e, idx)) break;
             if (uint64_t(idx[0]) >= vertex_count_ || uint64_t(idx[1]) >= vertex_count_ ||
                 uint64_t(idx[2]) >= vertex_count_ || idx[0] == idx[1] || idx[1] == idx[2] ||
                 idx[0] == idx[2])
                 break;
-            mesh_.triangles[k] = Vec3u(uint32_t(idx[0]), uint32_t(idx[1]), uint32_t(idx[2]));
+            const Vec3u t{uint32_t(idx[0]), uint32_t(idx[1]), uint32_t(idx[2])};
+            if (append)
+                mesh_.triangles.push_back(t);
+            else
+                mesh_.triangles[k] = t;
         } else {
-            if (!fast_ascii_scalars(el, q, e, v)) break;
+            if (!line_ascii_scalars(el, q, e, v) && !fast_ascii_scalars(el, q, e, v)) break;
             if (is_vertex) {
                 Vec3f pos(v[kPosX], v[kPosY], v[kPosZ]);
                 if (!is_finite(pos)) break;
@@ -1154,27 +1360,43 @@ PlyParser::LinesResult PlyParser::parse_lines(const Element& el, bool faces, boo
     return r;
 }
 
-// Parses the complete lines in the buffer (up to the element's end) in one tight loop, or
-// on two threads, each half of the bytes, split at a newline; the second half's first
-// element index comes from counting newlines in the first. Returns how many elements were
-// committed; 0 means "take the serial path for the next line" (small input, partial state, or a
-// line the fast path cannot take, which the serial path then parses or reports). `poor` tells the
-// caller to stay serial for the rest of the element (nothing or under half the chunk committed).
+// Parses the complete lines in the buffer (up to the element's end) in one tight loop. One
+// thread runs it straight over the buffer. Two threads take half of the bytes each, split at
+// a newline; the second half's first element index comes from counting newlines in the
+// first. Returns how many elements were committed; 0 means "take the serial path for the
+// next line" (small input, partial state, or a line the fast path cannot take, which the
+// serial path then parses or reports). `poor` tells the caller to stay serial for the rest of
+// the element (two threads: nothing or under half the chunk committed).
 uint64_t PlyParser::parallel_chunk(const Element& el, uint64_t i, bool faces, bool is_vertex,
                                    bool& poor) {
     constexpr size_t kMinChunk = size_t(256) << 10;
+    const uint64_t remaining = el.count - i;
+    if (in_.avail() < kMinChunk && !in_.eof()) in_.fill(in_.capacity());
+    if (threads_ == 1) {
+        // No newline count: the loop stops at the element's end, the first line it cannot
+        // take, or the line cut by the buffer end, and costs nothing when it stops at once.
+        poor = false;
+        if (faces && (mesh_.triangles.size() != i || !bad_vertex_.empty())) {
+            poor = true;
+            return 0;
+        }
+        LinesResult r =
+            parse_lines(el, faces, is_vertex, in_.pos(), in_.end(), i, remaining, faces);
+        if (faces) source_faces_ += r.lines;
+        in_.advance(size_t(r.end - in_.pos()));
+        line_ += int64_t(r.lines);
+        return r.lines;
+    }
     // Every early exit turns the parallel path off for the rest of the element, so no
     // buffer is ever scanned once per line.
     poor = true;
-    if (in_.avail() < kMinChunk && !in_.eof()) in_.fill(kBlockBytes);
     const char* b = in_.pos();
     const char* e = in_.end();
     if (size_t(e - b) < kMinChunk) return 0;
     const void* last = memrchr(b, '\n', size_t(e - b));
     if (!last) return 0;
     e = static_cast<const char*>(last) + 1;
-    const uint64_t remaining = el.count - i;
-    uint64_t total = uint64_t(std::count(b, e, '\n'));
+    uint64_t total = count_newlines(b, e);
     if (total > remaining) {
         // The element ends inside the buffer: stop after its last line.
         const char* q = b;
@@ -1184,32 +1406,23 @@ uint64_t PlyParser::parallel_chunk(const Element& el, uint64_t i, bool faces, bo
         total = remaining;
     }
     if (size_t(e - b) < kMinChunk) return 0;
-    const char* mid = e;
-    uint64_t na = total;
-    if (threads_ > 1) {
-        const char* half = b + (e - b) / 2;
-        mid = static_cast<const char*>(std::memchr(half, '\n', size_t(e - half))) + 1;
-        na = uint64_t(std::count(b, mid, '\n'));
-    }
+    const char* half = b + (e - b) / 2;
+    const char* mid = static_cast<const char*>(std::memchr(half, '\n', size_t(e - half))) + 1;
+    const uint64_t na = count_newlines(b, mid);
     if (faces) {
         // Only while every face so far became exactly one triangle at its own index.
         if (mesh_.triangles.size() != i || !bad_vertex_.empty()) return 0;
         mesh_.triangles.resize(size_t(i + total));
     }
     LinesResult ra, rb;
-    if (threads_ > 1) {
-        try {
-            std::thread helper([&] { rb = parse_lines(el, faces, is_vertex, mid, e, i + na); });
-            ra = parse_lines(el, faces, is_vertex, b, mid, i);
-            helper.join();
-        } catch (const std::system_error&) {
-            if (faces) mesh_.triangles.resize(size_t(i));
-            return 0;
-        }
-    } else {
-        // One thread: the same tight loop over the whole chunk.
-        ra = parse_lines(el, faces, is_vertex, b, e, i);
-        rb.end = ra.end;
+    try {
+        std::thread helper(
+            [&] { rb = parse_lines(el, faces, is_vertex, mid, e, i + na, total - na, false); });
+        ra = parse_lines(el, faces, is_vertex, b, mid, i, na, false);
+        helper.join();
+    } catch (const std::system_error&) {
+        if (faces) mesh_.triangles.resize(size_t(i));
+        return 0;
     }
     uint64_t done = ra.lines;
     const char* end = ra.end;
@@ -1235,15 +1448,18 @@ void PlyParser::read_ascii_element(Element& el) {
     const char* e;
     float v[9] = {};
     const bool scalars_fast = !el.has_lists;
-    // One thread gains nothing from chunks (the newline count costs what the tight loop
-    // saves), so chunks are for two threads only.
-    bool parallel = threads_ > 1 && (scalars_fast || face_fast);
+    // The tight loop over whole buffers, on one thread or two.
+    bool parallel = scalars_fast || face_fast;
+    uint64_t misses = 0, hits = 0;
     for (uint64_t i = 0; i < el.count; ++i) {
         if (parallel) {
             uint64_t before = i;
             bool poor = false;
             uint64_t done = parallel_chunk(el, i, face_fast, is_vertex, poor);
-            // Inputs the fast path keeps rejecting (say, blank lines everywhere) go serial.
+            hits += done;
+            // Inputs the fast path keeps rejecting (say, blank lines or quads everywhere) go
+            // serial, so no line is tried twice for long.
+            if (done == 0 && ++misses > 64 && misses * 16 > hits) poor = true;
             if (poor) parallel = false;
             if (done > 0) {
                 i = before + done - 1;
