@@ -12,6 +12,9 @@
 #include <thread>
 #include <vector>
 
+#include <sys/mman.h>
+#include <unistd.h>
+
 #if defined(__SSE2__)
 #include <immintrin.h>
 #endif
@@ -155,13 +158,19 @@ public:
     // allocation; bytes at or past end() never count.
     static constexpr size_t kPad = 80;
 
-    // Small inputs get a buffer of their own size instead of a whole block.
-    explicit Input(FileReader& reader)
-        : reader_(reader),
-          buf_(size_t(
-                   std::min<uint64_t>(kBlockBytes, std::max<uint64_t>(reader.size_bound(), 4096))) +
-               kPad) {
+    // Plain files of at least kMapBytes are mapped: no copy, no buffer to fault in.
+    // Small files and gzip/memory input get a buffer, small inputs one of their own size.
+    explicit Input(FileReader& reader) : reader_(reader) {
+        if (map_file()) return;
+        buf_.resize(
+            size_t(std::min<uint64_t>(kBlockBytes, std::max<uint64_t>(reader.size_bound(), 4096))) +
+            kPad);
         pos_ = end_ = buf_.data();
+    }
+    Input(const Input&) = delete;
+    Input& operator=(const Input&) = delete;
+    ~Input() {
+        if (map_) ::munmap(map_, map_bytes_);
     }
 
     const char* pos() const { return pos_; }
@@ -169,14 +178,17 @@ public:
     bool eof() const { return eof_; }
     size_t avail() const { return size_t(end_ - pos_); }
     /// Bytes the buffer holds without growing.
-    size_t capacity() const { return buf_.size() - kPad; }
+    size_t capacity() const { return map_ ? kBlockBytes : buf_.size() - kPad; }
     void advance(size_t n) { pos_ += n; }
     /// Stream offset of pos().
-    uint64_t offset() const { return base_ + uint64_t(pos_ - buf_.data()); }
+    uint64_t offset() const {
+        return map_ ? uint64_t(pos_ - map_) : base_ + uint64_t(pos_ - buf_.data());
+    }
 
     /// Makes at least n bytes available at pos(); false when the data ends first.
     bool fill(size_t n) {
         if (avail() >= n) return true;
+        if (map_) return slide(n);
         size_t have = avail();
         if (pos_ != buf_.data()) {
             base_ += uint64_t(pos_ - buf_.data());
@@ -238,12 +250,58 @@ public:
     }
 
 private:
+    // Maps the whole file read-only over a reservation one padding page longer, so loads
+    // past the end read zeros; the parser then sees the file through a window of
+    // kBlockBytes that slide() moves on. (A file truncated by another process while it is
+    // read would fault, as with any mapped file.)
+    bool map_file() {
+        const int fd = reader_.plain_fd();
+        const uint64_t size = reader_.file_bytes();
+        if (fd < 0 || size < kMapBytes || size > uint64_t(SIZE_MAX) / 2) return false;
+        const size_t page = size_t(::sysconf(_SC_PAGESIZE));
+        const size_t bytes = (size_t(size) + kPad + 2 * page - 1) / page * page;
+        void* base = ::mmap(nullptr, bytes, PROT_READ, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+        if (base == MAP_FAILED) return false;
+        if (::mmap(base, size_t(size), PROT_READ, MAP_PRIVATE | MAP_FIXED, fd, 0) == MAP_FAILED) {
+            ::munmap(base, bytes);
+            return false;
+        }
+        ::madvise(base, size_t(size), MADV_SEQUENTIAL);
+        map_ = static_cast<char*>(base);
+        map_bytes_ = bytes;
+        map_end_ = map_ + size;
+        page_ = page;
+        released_ = map_;
+        pos_ = end_ = map_;
+        return true;
+    }
+
+    // Moves the window of a mapped file to [pos, pos + max(n, kBlockBytes)) and unmaps the
+    // pages before it, so resident memory stays about one window whatever the file size.
+    bool slide(size_t n) {
+        char* done = map_ + size_t(pos_ - map_) / page_ * page_;
+        if (size_t(done - released_) >= kReleaseBytes) {
+            ::madvise(released_, size_t(done - released_), MADV_DONTNEED);
+            released_ = done;
+        }
+        end_ = pos_ + std::min(size_t(map_end_ - pos_), std::max(n, kBlockBytes));
+        eof_ = end_ == map_end_;
+        return avail() >= n;
+    }
+
+    static constexpr uint64_t kMapBytes = uint64_t(1) << 20;
+    static constexpr size_t kReleaseBytes = size_t(1) << 20;
+
     FileReader& reader_;
     std::vector<char> buf_;
-    const char* pos_;
-    const char* end_;
+    const char* pos_ = nullptr;
+    const char* end_ = nullptr;
     uint64_t base_ = 0;
     bool eof_ = false;
+    char* map_ = nullptr;  // mapped file, or null for buffered input
+    const char* map_end_ = nullptr;
+    char* released_ = nullptr;  // pages before it are unmapped again
+    size_t map_bytes_ = 0, page_ = 4096;
 };
 
 // ---------------------------------------------------------------------------------------
@@ -582,11 +640,9 @@ inline LineClasses classify_line(const char*) { return {}; }
 template <typename T>
 [[gnu::always_inline]] inline bool parse_plain_decimal(const char* t, int n, uint64_t dots,
                                                        uint64_t minus, T& out) {
-    int a = 0;
-    if (minus) {
-        if (minus != 1) return false;
-        a = 1;
-    }
+    // Branch-free sign: half of all coordinates are negative, at random.
+    if (minus > 1) return false;
+    const int a = int(minus);
     int int_digits = n - a, frac_digits = 0;
     if (dots) {
         if (dots & (dots - 1)) return false;
@@ -1346,9 +1402,17 @@ PlyParser::LinesResult PlyParser::parse_lines(const Element& el, bool faces, boo
         } else {
             if (!line_ascii_scalars(el, q, e, v) && !fast_ascii_scalars(el, q, e, v)) break;
             if (is_vertex) {
-                Vec3f pos(v[kPosX], v[kPosY], v[kPosZ]);
-                if (!is_finite(pos)) break;
-                mesh_.positions[k] = pos;
+                // Exponent bits per coordinate, read back one float at a time: a wider load of
+                // v[] would wait for the three separate stores (no store forwarding).
+                const uint32_t bx = std::bit_cast<uint32_t>(v[kPosX]);
+                const uint32_t by = std::bit_cast<uint32_t>(v[kPosY]);
+                const uint32_t bz = std::bit_cast<uint32_t>(v[kPosZ]);
+                constexpr uint32_t kExp = 0x7f800000u;
+                if ((bx & kExp) == kExp || (by & kExp) == kExp || (bz & kExp) == kExp) break;
+                Vec3f& pos = mesh_.positions[k];
+                pos.x = std::bit_cast<float>(bx);
+                pos.y = std::bit_cast<float>(by);
+                pos.z = std::bit_cast<float>(bz);
                 if (has_normals_) mesh_.normals[k] = Vec3f(v[kNormX], v[kNormY], v[kNormZ]);
                 if (has_colors_) mesh_.colors[k] = Vec3f(v[kColR], v[kColG], v[kColB]);
             }
