@@ -514,7 +514,8 @@ template <typename T>
 [[gnu::always_inline]] inline bool decimal_to_real(double m, int exp10, bool neg, T& out) {
     if constexpr (sizeof(T) == 8) {
         double d = exp10 < 0 ? m / kPow10[-exp10] : m * kPow10[exp10];
-        out = neg ? -d : d;
+        // The sign as a bit, not a branch: signs of coordinates are random.
+        out = std::bit_cast<double>(std::bit_cast<uint64_t>(d) | (uint64_t(neg) << 63));
         return true;
     } else {
         // For a float result, multiplying by a rounded 10^-k (no division latency) is
@@ -531,7 +532,7 @@ template <typename T>
             if (low - 0x10000000u + 4u <= 8u) d = m / kPow10[-exp10];
         }
         if ((std::bit_cast<uint64_t>(d) & 0x1fffffffu) == 0x10000000u) return false;
-        out = float(neg ? -d : d);
+        out = std::bit_cast<float>(std::bit_cast<uint32_t>(float(d)) | (uint32_t(neg) << 31));
         return true;
     }
 }
@@ -620,12 +621,9 @@ inline LineClasses classify_line(const char*) { return {}; }
     return nl ? __builtin_ctzll(nl) : -1;
 }
 
-// Value of the n decimal digits at q (0 <= n <= 8, all digits), by multiply-shift as in
-// digits8. Loads 8 bytes at q when n > 0.
-[[gnu::always_inline]] inline uint64_t digits_value(const char* q, int n) {
-    if (n == 0) return 0;
-    uint64_t x;
-    std::memcpy(&x, q, 8);
+// Value of the first n bytes of x (0 < n <= 8, all digits, first digit in the low byte), by
+// multiply-shift as in digits8.
+[[gnu::always_inline]] inline uint64_t digits_word_value(uint64_t x, int n) {
     uint64_t d = (x & 0x0f0f0f0f0f0f0f0full) << (8 * (8 - n));
     d = (d * 10 + (d >> 8)) & 0x00ff00ff00ff00ffull;
     d = (d * 100 + (d >> 16)) & 0x0000ffff0000ffffull;
@@ -633,6 +631,54 @@ inline LineClasses classify_line(const char*) { return {}; }
     return d;
 }
 
+// Value of the n decimal digits at q (0 <= n <= 8). Loads 8 bytes at q when n > 0.
+[[gnu::always_inline]] inline uint64_t digits_value(const char* q, int n) {
+    if (n == 0) return 0;
+    uint64_t x;
+    std::memcpy(&x, q, 8);
+    return digits_word_value(x, n);
+}
+
+#if defined(__SSSE3__) && defined(__SSE4_1__)
+// Value of the `digits` decimal digits (1 to 16) in the 16 bytes at q, skipping the byte at
+// `dot` (127 when there is none): one shuffle right-aligns the digits without the dot, then
+// multiply-adds combine pairs, quads and octets (Lemire's SIMD digit parsing). No branch, so
+// no misprediction however the digit counts vary from token to token.
+[[gnu::always_inline]] inline uint64_t digits16_value(const char* q, int digits, int dot) {
+    const __m128i x =
+        _mm_sub_epi8(_mm_loadu_si128(reinterpret_cast<const __m128i*>(q)), _mm_set1_epi8('0'));
+    const __m128i iota = _mm_setr_epi8(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    // Output byte i takes digit i - (16 - digits), one byte further on from the dot.
+    __m128i src = _mm_sub_epi8(iota, _mm_set1_epi8(char(16 - digits)));
+    src = _mm_sub_epi8(src, _mm_cmpgt_epi8(src, _mm_set1_epi8(char(dot - 1))));
+    src = _mm_or_si128(src, _mm_cmpgt_epi8(_mm_setzero_si128(), src));  // leading zeros
+    __m128i d = _mm_shuffle_epi8(x, src);
+    d = _mm_maddubs_epi16(d, _mm_setr_epi8(10, 1, 10, 1, 10, 1, 10, 1, 10, 1, 10, 1, 10, 1, 10, 1));
+    d = _mm_madd_epi16(d, _mm_setr_epi16(100, 1, 100, 1, 100, 1, 100, 1));
+    d = _mm_packus_epi32(d, d);
+    d = _mm_madd_epi16(d, _mm_setr_epi16(10000, 1, 10000, 1, 10000, 1, 10000, 1));
+    return uint64_t(uint32_t(_mm_cvtsi128_si32(d))) * 100000000u +
+           uint32_t(_mm_extract_epi32(d, 1));
+}
+
+// The token of n bytes at t, made of digits, dots and minus signs only (`dots` and `minus`
+// mark them, bit i for t[i]): a plain decimal "-ddd.ddd" of at most 16 bytes after the sign is
+// m / 10^k with m <= 2^53 (checked) and k <= 15, which Clinger's fast path converts exactly
+// (decimal_to_real). False for anything else, which the caller hands to parse_real.
+template <typename T>
+[[gnu::always_inline]] inline bool parse_plain_decimal(const char* t, int n, uint64_t dots,
+                                                       uint64_t minus, T& out) {
+    if (minus > 1 || (dots & (dots - 1))) return false;
+    const int a = int(minus);  // the sign as a number, not a branch: signs are random
+    const int body = n - a;
+    const int dot = dots ? __builtin_ctzll(dots) - a : 127;
+    const int digits = body - (dots != 0);
+    if (digits == 0 || body > 16) return false;
+    const uint64_t m = digits16_value(t + a, digits, dot);
+    if (m > (uint64_t(1) << 53)) return false;
+    return decimal_to_real(double(m), dots ? dot + 1 - body : 0, a != 0, out);
+}
+#else
 // The token of n bytes at t, made of digits, dots and minus signs only (`dots` and `minus`
 // mark them, bit i for t[i]): a plain decimal "-ddd.ddd" with up to 8 digits on either side
 // of the dot is m / 10^k with m < 10^16 < 2^53 and k <= 8, which Clinger's fast path converts
@@ -640,7 +686,6 @@ inline LineClasses classify_line(const char*) { return {}; }
 template <typename T>
 [[gnu::always_inline]] inline bool parse_plain_decimal(const char* t, int n, uint64_t dots,
                                                        uint64_t minus, T& out) {
-    // Branch-free sign: half of all coordinates are negative, at random.
     if (minus > 1) return false;
     const int a = int(minus);
     int int_digits = n - a, frac_digits = 0;
@@ -655,6 +700,7 @@ template <typename T>
                        digits_value(t + a + int_digits + 1, frac_digits);
     return decimal_to_real(double(m), -frac_digits, a != 0, out);
 }
+#endif
 
 inline uint64_t low_bits(int n) { return n >= 64 ? ~uint64_t(0) : (uint64_t(1) << n) - 1; }
 
@@ -737,6 +783,7 @@ private:
     bool fast_ascii_triangle(const char*& p, const char* e, int64_t* idx) const;
     bool line_ascii_scalars(const Element& el, const char*& p, const char* e, float* v) const;
     bool line_ascii_triangle(const char*& p, const char* e, int64_t* idx) const;
+    bool line_ascii_xyz(const char*& p, const char* e, Vec3f& pos) const;
     struct LinesResult {
         uint64_t lines = 0;
         const char* end = nullptr;
@@ -764,6 +811,7 @@ private:
     std::vector<Element> elements_;
     int vertex_el_ = -1, face_el_ = -1;
     bool has_normals_ = false, has_colors_ = false;
+    bool xyz_only_ = false;  // vertex properties: float x, y, z and nothing else
     bool vertices_read_ = false;
     uint64_t vertex_count_ = 0;
 
@@ -954,6 +1002,9 @@ void PlyParser::plan_elements() {
         if (p.slot >= kColR && p.slot <= kColB && is_integer(p.type))
             p.scale = float(1.0 / double(type_max(p.type)));
     }
+    xyz_only_ = v.props.size() == 3;
+    for (size_t k = 0; k < v.props.size() && xyz_only_; ++k)
+        xyz_only_ = v.props[k].slot == int(k) && v.props[k].type == PlyType::f32;
     if (v.count > uint64_t(UINT32_MAX))
         fail_header("element vertex: " + std::to_string(v.count) +
                     " vertices exceed the 32-bit index limit");
@@ -1295,6 +1346,39 @@ bool PlyParser::next_data_line(const char*& b, const char*& e) {
     return true;
 }
 
+// Vertex lines "x y z" of floats: line_ascii_scalars without the property loop.
+[[gnu::always_inline]] inline bool PlyParser::line_ascii_xyz(const char*& p, const char* e,
+                                                             Vec3f& pos) const {
+    if constexpr (!kHaveLineClasses) return false;
+    const LineClasses c = classify_line(p);
+    const int len = line_length(c, p, e);
+    if (len <= 0) return false;
+    const uint64_t tok = low_bits(len) & ~c.blank;
+    if (tok & ~(c.digit | c.dot | c.minus)) return false;
+    uint64_t starts = tok & ~(tok << 1);
+    uint64_t ends = tok & ~(tok >> 1);  // last byte of each token
+    if (__builtin_popcountll(starts) != 3) return false;
+    const char* le = p + len;
+    int s[3], n[3];
+    for (int k = 0; k < 3; ++k) {
+        s[k] = __builtin_ctzll(starts);
+        n[k] = __builtin_ctzll(ends) - s[k] + 1;
+        starts &= starts - 1;
+        ends &= ends - 1;
+    }
+    float f[3];
+    for (int k = 0; k < 3; ++k) {
+        const uint64_t m = low_bits(n[k]);
+        const char* t = p + s[k];
+        if (!parse_plain_decimal(t, n[k], (c.dot >> s[k]) & m, (c.minus >> s[k]) & m, f[k]) &&
+            !parse_real(t, le, f[k]))
+            return false;
+    }
+    pos = Vec3f(f[0], f[1], f[2]);
+    p = le + 1;
+    return true;
+}
+
 // "3 a b c" with indices of up to 8 digits.
 [[gnu::always_inline]] inline bool PlyParser::line_ascii_triangle(const char*& p, const char* e,
                                                                   int64_t* idx) const {
@@ -1385,6 +1469,7 @@ PlyParser::LinesResult PlyParser::parse_lines(const Element& el, bool faces, boo
     r.end = p;
     float v[9] = {};
     int64_t idx[3];
+    const bool xyz = is_vertex && xyz_only_;
     while (p < e && r.lines < max_lines) {
         const char* q = p;
         const size_t k = size_t(first + r.lines);
@@ -1399,6 +1484,14 @@ PlyParser::LinesResult PlyParser::parse_lines(const Element& el, bool faces, boo
                 mesh_.triangles.push_back(t);
             else
                 mesh_.triangles[k] = t;
+        } else if (xyz) {
+            Vec3f pos;
+            if (!line_ascii_xyz(q, e, pos)) {
+                if (!fast_ascii_scalars(el, q, e, v)) break;
+                pos = Vec3f(v[kPosX], v[kPosY], v[kPosZ]);
+            }
+            if (!is_finite(pos)) break;
+            mesh_.positions[k] = pos;
         } else {
             if (!line_ascii_scalars(el, q, e, v) && !fast_ascii_scalars(el, q, e, v)) break;
             if (is_vertex) {
