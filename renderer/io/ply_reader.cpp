@@ -714,6 +714,60 @@ inline uint64_t count_newlines(const char* b, const char* e) {
     return n + uint64_t(std::count(b, e, '\n'));
 }
 
+// The line of len bytes at p (len > 0, its newline at p[len]), whose byte classes c holds
+// with bit 0 for p[0]: "x y z" as plain floats into pos. False for anything else (the caller
+// then parses the line token by token).
+[[gnu::always_inline]] inline bool xyz_from_classes(const LineClasses& c, const char* p, int len,
+                                                    Vec3f& pos) {
+    const uint64_t tok = low_bits(len) & ~c.blank;
+    if (tok & ~(c.digit | c.dot | c.minus)) return false;
+    uint64_t starts = tok & ~(tok << 1);
+    uint64_t ends = tok & ~(tok >> 1);  // last byte of each token
+    if (__builtin_popcountll(starts) != 3) return false;
+    const char* le = p + len;
+    int s[3], n[3];
+    for (int k = 0; k < 3; ++k) {
+        s[k] = __builtin_ctzll(starts);
+        n[k] = __builtin_ctzll(ends) - s[k] + 1;
+        starts &= starts - 1;
+        ends &= ends - 1;
+    }
+    float f[3];
+    for (int k = 0; k < 3; ++k) {
+        const uint64_t m = low_bits(n[k]);
+        const char* t = p + s[k];
+        if (!parse_plain_decimal(t, n[k], (c.dot >> s[k]) & m, (c.minus >> s[k]) & m, f[k]) &&
+            !parse_real(t, le, f[k]))
+            return false;
+    }
+    pos = Vec3f(f[0], f[1], f[2]);
+    return true;
+}
+
+// Same for a face line "3 a b c" with indices of up to 8 digits.
+[[gnu::always_inline]] inline bool triangle_from_classes(const LineClasses& c, const char* p,
+                                                         int len, int64_t* idx) {
+    const uint64_t tok = low_bits(len) & ~c.blank;
+    if (tok & ~c.digit) return false;
+    uint64_t starts = tok & ~(tok << 1);
+    uint64_t ends = tok & ~(tok >> 1);  // last byte of each token
+    if (__builtin_popcountll(starts) != 4 || (starts & -starts) != (ends & -ends) ||
+        p[__builtin_ctzll(starts)] != '3')
+        return false;
+    starts &= starts - 1;
+    ends &= ends - 1;
+    int s[3], n[3];
+    for (int k = 0; k < 3; ++k) {
+        s[k] = __builtin_ctzll(starts);
+        n[k] = __builtin_ctzll(ends) - s[k] + 1;
+        starts &= starts - 1;
+        ends &= ends - 1;
+    }
+    if (n[0] > 8 || n[1] > 8 || n[2] > 8) return false;
+    for (int k = 0; k < 3; ++k) idx[k] = int64_t(digits_value(p + s[k], n[k]));
+    return true;
+}
+
 std::string token_text(const char* p, const char* e) {
     const char* t = skip_token(p, e);
     std::string s(p, size_t(t - p));
@@ -783,7 +837,6 @@ private:
     bool fast_ascii_triangle(const char*& p, const char* e, int64_t* idx) const;
     bool line_ascii_scalars(const Element& el, const char*& p, const char* e, float* v) const;
     bool line_ascii_triangle(const char*& p, const char* e, int64_t* idx) const;
-    bool line_ascii_xyz(const char*& p, const char* e, Vec3f& pos) const;
     struct LinesResult {
         uint64_t lines = 0;
         const char* end = nullptr;
@@ -1346,65 +1399,13 @@ bool PlyParser::next_data_line(const char*& b, const char*& e) {
     return true;
 }
 
-// Vertex lines "x y z" of floats: line_ascii_scalars without the property loop.
-[[gnu::always_inline]] inline bool PlyParser::line_ascii_xyz(const char*& p, const char* e,
-                                                             Vec3f& pos) const {
-    if constexpr (!kHaveLineClasses) return false;
-    const LineClasses c = classify_line(p);
-    const int len = line_length(c, p, e);
-    if (len <= 0) return false;
-    const uint64_t tok = low_bits(len) & ~c.blank;
-    if (tok & ~(c.digit | c.dot | c.minus)) return false;
-    uint64_t starts = tok & ~(tok << 1);
-    uint64_t ends = tok & ~(tok >> 1);  // last byte of each token
-    if (__builtin_popcountll(starts) != 3) return false;
-    const char* le = p + len;
-    int s[3], n[3];
-    for (int k = 0; k < 3; ++k) {
-        s[k] = __builtin_ctzll(starts);
-        n[k] = __builtin_ctzll(ends) - s[k] + 1;
-        starts &= starts - 1;
-        ends &= ends - 1;
-    }
-    float f[3];
-    for (int k = 0; k < 3; ++k) {
-        const uint64_t m = low_bits(n[k]);
-        const char* t = p + s[k];
-        if (!parse_plain_decimal(t, n[k], (c.dot >> s[k]) & m, (c.minus >> s[k]) & m, f[k]) &&
-            !parse_real(t, le, f[k]))
-            return false;
-    }
-    pos = Vec3f(f[0], f[1], f[2]);
-    p = le + 1;
-    return true;
-}
-
 // "3 a b c" with indices of up to 8 digits.
 [[gnu::always_inline]] inline bool PlyParser::line_ascii_triangle(const char*& p, const char* e,
                                                                   int64_t* idx) const {
     if constexpr (!kHaveLineClasses) return false;
     const LineClasses c = classify_line(p);
     const int len = line_length(c, p, e);
-    if (len <= 0) return false;
-    const uint64_t line = low_bits(len);
-    const uint64_t tok = line & ~c.blank;
-    if (tok & ~c.digit) return false;
-    uint64_t starts = tok & ~(tok << 1);
-    uint64_t ends = tok & ~(tok >> 1);  // last byte of each token
-    if (__builtin_popcountll(starts) != 4 || (starts & -starts) != (ends & -ends) ||
-        p[__builtin_ctzll(starts)] != '3')
-        return false;
-    starts &= starts - 1;
-    ends &= ends - 1;
-    int s[3], n[3];
-    for (int k = 0; k < 3; ++k) {
-        s[k] = __builtin_ctzll(starts);
-        n[k] = __builtin_ctzll(ends) - s[k] + 1;
-        starts &= starts - 1;
-        ends &= ends - 1;
-    }
-    if (n[0] > 8 || n[1] > 8 || n[2] > 8) return false;
-    for (int k = 0; k < 3; ++k) idx[k] = int64_t(digits_value(p + s[k], n[k]));
+    if (len <= 0 || !triangle_from_classes(c, p, len, idx)) return false;
     p += len + 1;
     return true;
 }
@@ -1470,11 +1471,29 @@ PlyParser::LinesResult PlyParser::parse_lines(const Element& el, bool faces, boo
     float v[9] = {};
     int64_t idx[3];
     const bool xyz = is_vertex && xyz_only_;
+    // Byte classes of the window [p, p + have): one classification serves every line that
+    // ends inside it, so finding the next line is a shift, not a dependent 64-byte load.
+    LineClasses c;
+    int have = 0;
     while (p < e && r.lines < max_lines) {
         const char* q = p;
         const size_t k = size_t(first + r.lines);
+        int len = -1;
+        if (kHaveLineClasses && (faces || xyz)) {
+            if (have == 0 || (c.newline == 0 && have < 64)) {
+                c = classify_line(p);
+                have = int(std::min<ptrdiff_t>(64, e - p));
+                c.newline &= low_bits(have);
+            }
+            if (c.newline) len = __builtin_ctzll(c.newline);
+        }
         if (faces) {
-            if (!line_ascii_triangle(q, e, idx) && !fast_ascii_triangle(q, e, idx)) break;
+            if (len > 0 && triangle_from_classes(c, p, len, idx)) {
+                q = p + len + 1;
+            } else {
+                if (!fast_ascii_triangle(q, e, idx)) break;
+                have = 0;
+            }
             if (uint64_t(idx[0]) >= vertex_count_ || uint64_t(idx[1]) >= vertex_count_ ||
                 uint64_t(idx[2]) >= vertex_count_ || idx[0] == idx[1] || idx[1] == idx[2] ||
                 idx[0] == idx[2])
@@ -1486,9 +1505,12 @@ PlyParser::LinesResult PlyParser::parse_lines(const Element& el, bool faces, boo
                 mesh_.triangles[k] = t;
         } else if (xyz) {
             Vec3f pos;
-            if (!line_ascii_xyz(q, e, pos)) {
+            if (len > 0 && xyz_from_classes(c, p, len, pos)) {
+                q = p + len + 1;
+            } else {
                 if (!fast_ascii_scalars(el, q, e, v)) break;
                 pos = Vec3f(v[kPosX], v[kPosY], v[kPosZ]);
+                have = 0;
             }
             if (!is_finite(pos)) break;
             mesh_.positions[k] = pos;
@@ -1508,6 +1530,20 @@ PlyParser::LinesResult PlyParser::parse_lines(const Element& el, bool faces, boo
                 pos.z = std::bit_cast<float>(bz);
                 if (has_normals_) mesh_.normals[k] = Vec3f(v[kNormX], v[kNormY], v[kNormZ]);
                 if (has_colors_) mesh_.colors[k] = Vec3f(v[kColR], v[kColG], v[kColB]);
+            }
+        }
+        if (have > 0) {
+            // Move the window's classes on to the next line (or drop them at its end).
+            const int shift = int(q - p);
+            if (shift >= have) {
+                have = 0;
+            } else {
+                c.digit >>= shift;
+                c.blank >>= shift;
+                c.dot >>= shift;
+                c.minus >>= shift;
+                c.newline >>= shift;
+                have -= shift;
             }
         }
         p = q;
