@@ -1,12 +1,17 @@
 #include "renderer/io/ply_reader.h"
 
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <charconv>
 #include <cmath>
+#include <condition_variable>
 #include <cstdlib>
 #include <cstring>
+#include <functional>
 #include <limits>
+#include <memory>
+#include <mutex>
 #include <string_view>
 #include <system_error>
 #include <thread>
@@ -284,12 +289,22 @@ private:
             ::madvise(released_, size_t(done - released_), MADV_DONTNEED);
             released_ = done;
         }
+        const char* old_end = end_;
         end_ = pos_ + std::min(size_t(map_end_ - pos_), std::max(n, kBlockBytes));
         eof_ = end_ == map_end_;
+        // Map the window's pages in one call rather than one fault per 16 pages.
+        char* from = map_ + size_t(std::max(old_end, pos_) - map_) / page_ * page_;
+        if (end_ > from) ::madvise(from, size_t(end_ - from), kPopulateRead);
         return avail() >= n;
     }
 
     static constexpr uint64_t kMapBytes = uint64_t(1) << 20;
+    // MADV_POPULATE_READ (Linux 5.14); older kernels reject it and fault pages in as read.
+#ifdef MADV_POPULATE_READ
+    static constexpr int kPopulateRead = MADV_POPULATE_READ;
+#else
+    static constexpr int kPopulateRead = 22;
+#endif
     static constexpr size_t kReleaseBytes = size_t(1) << 20;
 
     FileReader& reader_;
@@ -776,6 +791,80 @@ std::string token_text(const char* p, const char* e) {
 }
 
 // ---------------------------------------------------------------------------------------
+// A second parsing thread that takes work when it gets a core: parallel_for(n, fn) runs
+// fn(0), ..., fn(n - 1) on the calling thread and the helper, each taking the next index,
+// and returns once all are done. A helper that wakes late (the machine is shared) finds
+// little or nothing left and holds no one up, unlike a fixed split in halves.
+
+class Helper {
+public:
+    Helper() : thread_([this] { loop(); }) {}
+    Helper(const Helper&) = delete;
+    Helper& operator=(const Helper&) = delete;
+    ~Helper() {
+        {
+            std::lock_guard<std::mutex> lock(mutex_);
+            quit_ = true;
+        }
+        wake_.notify_one();
+        thread_.join();
+    }
+
+    /// fn must not throw.
+    template <typename F>
+    void parallel_for(size_t n, F&& fn) {
+        Job job;
+        job.n = n;
+        job.fn = [&fn](size_t k) { fn(k); };
+        {
+            std::lock_guard<std::mutex> lock(mutex_);
+            job_ = &job;
+            ++generation_;
+        }
+        wake_.notify_one();
+        work(job);
+        std::unique_lock<std::mutex> lock(mutex_);
+        job_ = nullptr;  // the helper can no longer join this job...
+        done_.wait(lock, [&] { return job.active == 0; });  // ...and has left it
+    }
+
+private:
+    struct Job {
+        size_t n = 0;
+        std::function<void(size_t)> fn;
+        std::atomic<size_t> next{0};
+        int active = 0;  // helpers inside work(); guarded by mutex_
+    };
+
+    static void work(Job& job) {
+        for (size_t k; (k = job.next.fetch_add(1, std::memory_order_relaxed)) < job.n;) job.fn(k);
+    }
+
+    void loop() {
+        std::unique_lock<std::mutex> lock(mutex_);
+        uint64_t seen = 0;
+        for (;;) {
+            wake_.wait(lock, [&] { return quit_ || (job_ && generation_ != seen); });
+            if (quit_) return;
+            seen = generation_;
+            Job* job = job_;
+            ++job->active;
+            lock.unlock();
+            work(*job);
+            lock.lock();
+            if (--job->active == 0) done_.notify_all();
+        }
+    }
+
+    std::mutex mutex_;
+    std::condition_variable wake_, done_;
+    Job* job_ = nullptr;
+    uint64_t generation_ = 0;
+    bool quit_ = false;
+    std::thread thread_;  // last: starts once the members above exist
+};
+
+// ---------------------------------------------------------------------------------------
 // The parser
 
 class PlyParser {
@@ -875,6 +964,7 @@ private:
     std::vector<int64_t> poly_;    // indices of the face being read
     std::vector<int64_t> sorted_;  // scratch for the degenerate test of big polygons
     int threads_ = 1;
+    std::unique_ptr<Helper> helper_;  // created by the first two-thread chunk
 };
 
 void PlyParser::parse_header() {
@@ -1583,45 +1673,56 @@ uint64_t PlyParser::parallel_chunk(const Element& el, uint64_t i, bool faces, bo
     // Every early exit turns the parallel path off for the rest of the element, so no
     // buffer is ever scanned once per line.
     poor = true;
+    if (faces && (mesh_.triangles.size() != i || !bad_vertex_.empty())) return 0;
     const char* b = in_.pos();
     const char* e = in_.end();
     if (size_t(e - b) < kMinChunk) return 0;
     const void* last = memrchr(b, '\n', size_t(e - b));
     if (!last) return 0;
     e = static_cast<const char*>(last) + 1;
-    uint64_t total = count_newlines(b, e);
-    if (total > remaining) {
-        // The element ends inside the buffer: stop after its last line.
-        const char* q = b;
-        for (uint64_t k = 0; k < remaining; ++k)
-            q = static_cast<const char*>(std::memchr(q, '\n', size_t(e - q))) + 1;
-        e = q;
-        total = remaining;
+    if (!helper_) {
+        try {
+            helper_ = std::make_unique<Helper>();
+        } catch (const std::system_error&) {
+            threads_ = 1;  // no second thread to be had: one thread from now on
+            poor = false;
+            return 0;
+        }
     }
-    if (size_t(e - b) < kMinChunk) return 0;
-    const char* half = b + (e - b) / 2;
-    const char* mid = static_cast<const char*>(std::memchr(half, '\n', size_t(e - half))) + 1;
-    const uint64_t na = count_newlines(b, mid);
-    if (faces) {
-        // Only while every face so far became exactly one triangle at its own index.
-        if (mesh_.triangles.size() != i || !bad_vertex_.empty()) return 0;
-        mesh_.triangles.resize(size_t(i + total));
+    // Pieces of about kPieceBytes, cut after a newline; the threads count each piece's
+    // lines, the prefix sums give each piece its first element index, and the threads
+    // parse the pieces.
+    constexpr size_t kPieceBytes = size_t(64) << 10;
+    std::vector<const char*> cut{b};
+    while (size_t(e - cut.back()) > kPieceBytes) {
+        const char* q = cut.back() + kPieceBytes;
+        cut.push_back(static_cast<const char*>(std::memchr(q, '\n', size_t(e - q))) + 1);
     }
-    LinesResult ra, rb;
-    try {
-        std::thread helper(
-            [&] { rb = parse_lines(el, faces, is_vertex, mid, e, i + na, total - na, false); });
-        ra = parse_lines(el, faces, is_vertex, b, mid, i, na, false);
-        helper.join();
-    } catch (const std::system_error&) {
-        if (faces) mesh_.triangles.resize(size_t(i));
-        return 0;
+    if (cut.back() != e) cut.push_back(e);
+    const size_t pieces = cut.size() - 1;
+    std::vector<uint64_t> lines(pieces), first(pieces);
+    helper_->parallel_for(pieces, [&](size_t k) { lines[k] = count_newlines(cut[k], cut[k + 1]); });
+    uint64_t total = 0;
+    size_t used = 0;
+    for (; used < pieces && total < remaining; ++used) {
+        first[used] = total;
+        // The element ends inside this piece: parse only its own lines.
+        lines[used] = std::min(lines[used], remaining - total);
+        total += lines[used];
     }
-    uint64_t done = ra.lines;
-    const char* end = ra.end;
-    if (ra.lines == na) {
-        done += rb.lines;
-        end = rb.end;
+    if (faces) mesh_.triangles.resize(size_t(i + total));
+    std::vector<LinesResult> result(used);
+    helper_->parallel_for(used, [&](size_t k) {
+        result[k] =
+            parse_lines(el, faces, is_vertex, cut[k], cut[k + 1], i + first[k], lines[k], false);
+    });
+    // Commit the pieces up to and including the first one the fast path stopped in.
+    uint64_t done = 0;
+    const char* end = b;
+    for (size_t k = 0; k < used; ++k) {
+        done += result[k].lines;
+        end = result[k].end;
+        if (result[k].lines != lines[k]) break;
     }
     if (faces) {
         mesh_.triangles.resize(size_t(i + done));
