@@ -747,13 +747,17 @@ inline uint64_t count_newlines(const char* b, const char* e) {
         starts &= starts - 1;
         ends &= ends - 1;
     }
+    // f[] stays in registers: only the rare from_chars path writes through memory (a float
+    // array in memory read back as a vector would stall store forwarding every line).
     float f[3];
     for (int k = 0; k < 3; ++k) {
         const uint64_t m = low_bits(n[k]);
         const char* t = p + s[k];
-        if (!parse_plain_decimal(t, n[k], (c.dot >> s[k]) & m, (c.minus >> s[k]) & m, f[k]) &&
-            !parse_real(t, le, f[k]))
-            return false;
+        if (!parse_plain_decimal(t, n[k], (c.dot >> s[k]) & m, (c.minus >> s[k]) & m, f[k])) {
+            float slow;
+            if (!parse_real(t, le, slow)) return false;
+            f[k] = slow;
+        }
     }
     pos = Vec3f(f[0], f[1], f[2]);
     return true;
@@ -1578,17 +1582,19 @@ PlyParser::LinesResult PlyParser::parse_lines(const Element& el, bool faces, boo
             if (c.newline) len = __builtin_ctzll(c.newline);
         }
         if (faces) {
-            if (len > 0 && triangle_from_classes(c, p, len, idx)) {
+            int64_t ix[3];  // registers; idx[] is the token path's, in memory
+            if (len > 0 && triangle_from_classes(c, p, len, ix)) {
                 q = p + len + 1;
             } else {
                 if (!fast_ascii_triangle(q, e, idx)) break;
+                ix[0] = idx[0], ix[1] = idx[1], ix[2] = idx[2];
                 have = 0;
             }
-            if (uint64_t(idx[0]) >= vertex_count_ || uint64_t(idx[1]) >= vertex_count_ ||
-                uint64_t(idx[2]) >= vertex_count_ || idx[0] == idx[1] || idx[1] == idx[2] ||
-                idx[0] == idx[2])
+            if (uint64_t(ix[0]) >= vertex_count_ || uint64_t(ix[1]) >= vertex_count_ ||
+                uint64_t(ix[2]) >= vertex_count_ || ix[0] == ix[1] || ix[1] == ix[2] ||
+                ix[0] == ix[2])
                 break;
-            const Vec3u t{uint32_t(idx[0]), uint32_t(idx[1]), uint32_t(idx[2])};
+            const Vec3u t{uint32_t(ix[0]), uint32_t(ix[1]), uint32_t(ix[2])};
             if (append)
                 mesh_.triangles.push_back(t);
             else
