@@ -21,7 +21,16 @@
 #include <unistd.h>
 
 #if defined(__SSE2__)
+// GCC 12 warns about the deliberately undefined vectors inside its own AVX-512 intrinsics
+// (GCC PR 105593); the pragma covers the header's lines only.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
 #include <immintrin.h>
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 #endif
 
 #include "renderer/core/error.h"
@@ -786,6 +795,145 @@ inline uint64_t count_newlines(const char* b, const char* e) {
     for (int k = 0; k < 3; ++k) idx[k] = int64_t(digits_value(p + s[k], n[k]));
     return true;
 }
+
+#if defined(__AVX512VBMI__) && defined(__AVX512DQ__) && defined(__AVX512VL__)
+#define KDT_PLY_VBMI 1
+
+// The 64 bytes at p less '0': digit values for the vbmi paths below.
+[[gnu::always_inline]] inline __m512i window_digits(const char* p) {
+    return _mm512_sub_epi8(_mm512_loadu_si512(p), _mm512_set1_epi8('0'));
+}
+
+// Byte v in every byte of a 64-bit lane.
+inline long long bytes8(int v) { return (long long)(uint64_t(uint8_t(v)) * 0x0101010101010101ull); }
+
+// Bytes 0..7 in every 64-bit lane, and 0..15 in every 128-bit lane.
+inline __m512i iota8() { return _mm512_set1_epi64(0x0706050403020100ll); }
+inline __m512i iota16() {
+    return _mm512_set4_epi64(0x0f0e0d0c0b0a0908ll, 0x0706050403020100ll, 0x0f0e0d0c0b0a0908ll,
+                             0x0706050403020100ll);
+}
+
+// Pairs, quads and octets of digit bytes combined by multiply-adds: each 64-bit lane of the
+// result holds the value of its 8 digit bytes (first byte most significant).
+[[gnu::always_inline]] inline __m512i octets_value(__m512i d) {
+    d = _mm512_maddubs_epi16(d, _mm512_set1_epi16(0x010a));   // bytes (10, 1)
+    d = _mm512_madd_epi16(d, _mm512_set1_epi32(0x00010064));  // words (100, 1)
+    return _mm512_add_epi64(_mm512_mul_epu32(d, _mm512_set1_epi64(10000)),
+                            _mm512_srli_epi64(d, 32));
+}
+
+// The face line "3 a b c" of len bytes at `off` in the window whose digit values are wd and
+// whose classes (shifted to the line) are c: the three indices (up to 8 digits) gathered by
+// one byte permute and converted together.
+[[gnu::always_inline]] inline bool triangle_vbmi(const LineClasses& c, __m512i wd, int off,
+                                                 const char* p, int len, int64_t* idx) {
+    const uint64_t tok = low_bits(len) & ~c.blank;
+    if (tok & ~c.digit) return false;
+    uint64_t starts = tok & ~(tok << 1);
+    uint64_t ends = tok & ~(tok >> 1);  // last byte of each token
+    if (__builtin_popcountll(starts) != 4 || (starts & -starts) != (ends & -ends) ||
+        p[__builtin_ctzll(starts)] != '3')
+        return false;
+    starts &= starts - 1;
+    ends &= ends - 1;
+    int s[3], n[3];
+    for (int k = 0; k < 3; ++k) {
+        s[k] = __builtin_ctzll(starts);
+        n[k] = __builtin_ctzll(ends) - s[k] + 1;
+        starts &= starts - 1;
+        ends &= ends - 1;
+    }
+    if (n[0] > 8 || n[1] > 8 || n[2] > 8) return false;
+    // Lane k takes the 8 bytes ending at index k's last digit, the bytes before it zeroed.
+    const __m512i base =
+        _mm512_set_epi64(0, 0, 0, 0, 0, bytes8(off + s[2] + n[2] - 8),
+                         bytes8(off + s[1] + n[1] - 8), bytes8(off + s[0] + n[0] - 8));
+    const __m512i lead =
+        _mm512_set_epi64(-1, -1, -1, -1, -1, bytes8(8 - n[2]), bytes8(8 - n[1]), bytes8(8 - n[0]));
+    const __mmask64 keep = _mm512_cmpge_epu8_mask(iota8(), lead);
+    const __m512i d = _mm512_maskz_permutexvar_epi8(keep, _mm512_add_epi8(base, iota8()), wd);
+    alignas(64) uint64_t v[8];
+    _mm512_store_si512(v, octets_value(d));
+    idx[0] = int64_t(v[0]);
+    idx[1] = int64_t(v[1]);
+    idx[2] = int64_t(v[2]);
+    return true;
+}
+
+constexpr double kInvPow10Lo[8] = {1e0, 1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7};
+constexpr double kInvPow10Hi[8] = {1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15};
+
+// The vertex line "x y z" of len bytes at `off` in the window (see triangle_vbmi): plain
+// decimals of at most 16 bytes after the sign, their digits gathered without the dot into
+// one 128-bit lane each, converted together, then scaled and rounded to float as
+// decimal_to_real does. Lines where a value lies near a float midpoint (or anything
+// unusual) return false and take the scalar path, which decides those exactly.
+[[gnu::always_inline]] inline bool xyz_vbmi(const LineClasses& c, __m512i wd, int off, int len,
+                                            Vec3f& pos) {
+    const uint64_t tok = low_bits(len) & ~c.blank;
+    if (tok & ~(c.digit | c.dot | c.minus)) return false;
+    uint64_t starts = tok & ~(tok << 1);
+    uint64_t ends = tok & ~(tok >> 1);
+    if (__builtin_popcountll(starts) != 3) return false;
+    long long base[3], lead[3], after[3], scale[3];
+    int sign[3];
+    for (int k = 0; k < 3; ++k) {
+        const int s = __builtin_ctzll(starts);
+        const int n = __builtin_ctzll(ends) - s + 1;
+        starts &= starts - 1;
+        ends &= ends - 1;
+        const uint64_t in = low_bits(n);
+        const uint64_t minus = (c.minus >> s) & in, dots = (c.dot >> s) & in;
+        if (minus > 1 || (dots & (dots - 1))) return false;
+        const int a = int(minus);
+        const int body = n - a;
+        const int digits = body - (dots != 0);
+        if (digits == 0 || body > 16) return false;
+        const int dot = dots ? __builtin_ctzll(dots) - a : 64;
+        // Output byte j (of 16) takes byte j - (16 - digits) of the body, one further on from
+        // the dot; bytes j < 16 - digits are zero.
+        base[k] = bytes8(off + s + a - (16 - digits));
+        lead[k] = bytes8(16 - digits);
+        after[k] = bytes8(std::min(dot + 16 - digits, 255));
+        scale[k] = dots ? body - dot - 1 : 0;
+        sign[k] = a;
+    }
+    const __m512i vbase =
+        _mm512_set_epi64(0, 0, base[2], base[2], base[1], base[1], base[0], base[0]);
+    const __m512i vlead =
+        _mm512_set_epi64(-1, -1, lead[2], lead[2], lead[1], lead[1], lead[0], lead[0]);
+    const __m512i vafter =
+        _mm512_set_epi64(-1, -1, after[2], after[2], after[1], after[1], after[0], after[0]);
+    const __mmask64 keep = _mm512_cmpge_epu8_mask(iota16(), vlead);
+    const __mmask64 past_dot = _mm512_cmpge_epu8_mask(iota16(), vafter);
+    __m512i ctrl = _mm512_add_epi8(vbase, iota16());
+    ctrl = _mm512_mask_add_epi8(ctrl, past_dot, ctrl, _mm512_set1_epi8(1));
+    const __m512i oct = octets_value(_mm512_maskz_permutexvar_epi8(keep, ctrl, wd));
+    // Even 64-bit lanes: high octet * 10^8 + low octet = the token's digits as an integer.
+    const __m512i m = _mm512_add_epi64(_mm512_mul_epu32(oct, _mm512_set1_epi64(100000000)),
+                                       _mm512_bsrli_epi128(oct, 8));
+    constexpr __mmask8 kLanes = 0x15;  // lanes 0, 2, 4
+    if (_mm512_mask_cmpgt_epu64_mask(kLanes, m, _mm512_set1_epi64(int64_t(1) << 53))) return false;
+    const __m512i which = _mm512_set_epi64(0, 0, 0, scale[2], 0, scale[1], 0, scale[0]);
+    const __m512d inv =
+        _mm512_permutex2var_pd(_mm512_loadu_pd(kInvPow10Lo), which, _mm512_loadu_pd(kInvPow10Hi));
+    const __m512d d = _mm512_mul_pd(_mm512_cvtepu64_pd(m), inv);
+    // Within 4 double ulps of a float midpoint: let the scalar path decide (as in
+    // decimal_to_real, which then divides exactly or asks from_chars).
+    const __m512i low = _mm512_and_si512(_mm512_castpd_si512(d), _mm512_set1_epi64(0x1fffffff));
+    const __m512i dist = _mm512_add_epi64(_mm512_sub_epi64(low, _mm512_set1_epi64(0x10000000)),
+                                          _mm512_set1_epi64(4));
+    if (_mm512_mask_cmple_epu64_mask(kLanes, dist, _mm512_set1_epi64(8))) return false;
+    __m256i f = _mm256_castps_si256(_mm512_cvtpd_ps(d));
+    f = _mm256_or_si256(
+        f, _mm256_set_epi32(0, 0, 0, sign[2] << 31, 0, sign[1] << 31, 0, sign[0] << 31));
+    alignas(32) float out[8];
+    _mm256_store_si256(reinterpret_cast<__m256i*>(out), f);
+    pos = Vec3f(out[0], out[2], out[4]);
+    return true;
+}
+#endif
 
 std::string token_text(const char* p, const char* e) {
     const char* t = skip_token(p, e);
@@ -1569,6 +1717,10 @@ PlyParser::LinesResult PlyParser::parse_lines(const Element& el, bool faces, boo
     // ends inside it, so finding the next line is a shift, not a dependent 64-byte load.
     LineClasses c;
     int have = 0;
+#ifdef KDT_PLY_VBMI
+    __m512i wd = _mm512_setzero_si512();  // digit values of the window
+    int off = 0;                          // p's offset in the window
+#endif
     while (p < e && r.lines < max_lines) {
         const char* q = p;
         const size_t k = size_t(first + r.lines);
@@ -1578,12 +1730,21 @@ PlyParser::LinesResult PlyParser::parse_lines(const Element& el, bool faces, boo
                 c = classify_line(p);
                 have = int(std::min<ptrdiff_t>(64, e - p));
                 c.newline &= low_bits(have);
+#ifdef KDT_PLY_VBMI
+                wd = window_digits(p);
+                off = 0;
+#endif
             }
             if (c.newline) len = __builtin_ctzll(c.newline);
         }
         if (faces) {
             int64_t ix[3];  // registers; idx[] is the token path's, in memory
-            if (len > 0 && triangle_from_classes(c, p, len, ix)) {
+#ifdef KDT_PLY_VBMI
+            const bool line_ok = len > 0 && triangle_vbmi(c, wd, off, p, len, ix);
+#else
+            const bool line_ok = len > 0 && triangle_from_classes(c, p, len, ix);
+#endif
+            if (line_ok) {
                 q = p + len + 1;
             } else {
                 if (!fast_ascii_triangle(q, e, idx)) break;
@@ -1601,7 +1762,13 @@ PlyParser::LinesResult PlyParser::parse_lines(const Element& el, bool faces, boo
                 mesh_.triangles[k] = t;
         } else if (xyz) {
             Vec3f pos;
-            if (len > 0 && xyz_from_classes(c, p, len, pos)) {
+#ifdef KDT_PLY_VBMI
+            const bool line_ok =
+                len > 0 && (xyz_vbmi(c, wd, off, len, pos) || xyz_from_classes(c, p, len, pos));
+#else
+            const bool line_ok = len > 0 && xyz_from_classes(c, p, len, pos);
+#endif
+            if (line_ok) {
                 q = p + len + 1;
             } else {
                 if (!fast_ascii_scalars(el, q, e, v)) break;
@@ -1640,6 +1807,9 @@ PlyParser::LinesResult PlyParser::parse_lines(const Element& el, bool faces, boo
                 c.minus >>= shift;
                 c.newline >>= shift;
                 have -= shift;
+#ifdef KDT_PLY_VBMI
+                off += shift;
+#endif
             }
         }
         p = q;
