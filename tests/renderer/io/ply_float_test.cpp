@@ -160,6 +160,33 @@ TEST(PlyFloat, RandomDecimalsMatchFromChars) {
         }
         EXPECT_EQ(wrong, 0);
     }
+    // The same tokens as x y z only (the reader's vertex fast path), finite ones only since
+    // a non-finite position is an error.
+    std::vector<float> want;
+    std::string xyz;
+    size_t in_line = 0;
+    for (size_t i = 0; i < tokens.size(); ++i) {
+        if (!std::isfinite(expect[i])) continue;
+        want.push_back(expect[i]);
+        xyz += tokens[i] + (++in_line % 3 ? " " : "\n");
+    }
+    want.resize(want.size() / 3 * 3);
+    xyz.resize(xyz.rfind('\n') + 1);
+    const size_t nv = want.size() / 3;
+    xyz = "ply\nformat ascii 1.0\nelement vertex " + std::to_string(nv) +
+          "\nproperty float x\nproperty float y\nproperty float z\nend_header\n" + xyz;
+    for (int threads : {1, 2}) {
+        MeshLoadOptions options;
+        options.threads = threads;
+        TriangleMesh m = read_ply_memory(xyz.data(), xyz.size(), "xyz.ply", options);
+        ASSERT_EQ(m.positions.size(), nv);
+        int wrong = 0;
+        for (size_t i = 0; i < nv; ++i)
+            for (int k = 0; k < 3; ++k)
+                wrong += std::bit_cast<uint32_t>(m.positions[i][k]) !=
+                         std::bit_cast<uint32_t>(want[3 * i + size_t(k)]);
+        EXPECT_EQ(wrong, 0) << "threads " << threads;
+    }
 }
 
 // Short plain decimals only (the whole-line path's domain), every digit split of up to 8 + 8
@@ -203,8 +230,9 @@ TEST(PlyFloat, PlainDecimalsEverySplit) {
 
 // Decimals on and next to the midpoint between two floats, where rounding the decimal to a
 // double first and then to float could go wrong: exact midpoints of floats in [2^16, 2^26)
-// (at most 8 + 8 digits, the whole-line path) and their neighbours 1e-8 apart, and
-// 16-digit roundings of midpoints of floats in [1e-6, 1e6) (the token path).
+// (at most 8 + 8 digits, the whole-line path) and their neighbours 1e-8 apart, 16-digit
+// roundings of midpoints of floats in [1e-6, 1e6) (the token path) and 14-decimal roundings
+// of midpoints in [0.25, 8), a few double ulps away from them (the whole-line path).
 TEST(PlyFloat, NearFloatMidpoints) {
     std::mt19937 rng(2024);
     std::vector<std::string> tokens;
@@ -224,6 +252,11 @@ TEST(PlyFloat, NearFloatMidpoints) {
             std::ldexp(1.0f + float(rng() % (1u << 23)) * 0x1p-23f, int(rng() % 40) - 20);
         const double gmid = 0.5 * (double(g) + double(std::nextafter(g, INFINITY)));
         std::snprintf(buf, sizeof buf, "%.15e", gmid);
+        tokens.emplace_back(buf);
+        // 14-decimal roundings of midpoints in [0.25, 8): 16 bytes, a few double ulps off.
+        const float h = std::ldexp(1.0f + float(rng() % (1u << 23)) * 0x1p-23f, int(rng() % 5) - 2);
+        const double hmid = 0.5 * (double(h) + double(std::nextafter(h, INFINITY)));
+        std::snprintf(buf, sizeof buf, "%s%.14f", rng() % 2 ? "-" : "", hmid);
         tokens.emplace_back(buf);
     }
     const size_t n = tokens.size();
