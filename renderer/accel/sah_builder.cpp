@@ -26,56 +26,6 @@ namespace kdt {
 namespace {
 
 // ---------------------------------------------------------------------------------------
-// Scratch memory accounting: every builder buffer goes through MeteredAllocator, so the
-// peak reported in KdTreeStats::peak_build_bytes is measured, not guessed.
-
-class ScratchMeter {
-public:
-    void add(int64_t bytes) {
-        const int64_t now = current_.fetch_add(bytes, std::memory_order_relaxed) + bytes;
-        int64_t peak = peak_.load(std::memory_order_relaxed);
-        while (now > peak && !peak_.compare_exchange_weak(peak, now, std::memory_order_relaxed)) {
-        }
-    }
-    int64_t peak() const { return peak_.load(std::memory_order_relaxed); }
-
-private:
-    std::atomic<int64_t> current_{0};
-    std::atomic<int64_t> peak_{0};
-};
-
-template <class T>
-struct MeteredAllocator {
-    using value_type = T;
-    ScratchMeter* meter = nullptr;
-
-    explicit MeteredAllocator(ScratchMeter* m) : meter(m) {}
-    template <class U>
-    MeteredAllocator(const MeteredAllocator<U>& other) : meter(other.meter) {}  // NOLINT
-
-    T* allocate(size_t n) {
-        meter->add(int64_t(n * sizeof(T)));
-        return std::allocator<T>{}.allocate(n);
-    }
-    void deallocate(T* p, size_t n) {
-        meter->add(-int64_t(n * sizeof(T)));
-        std::allocator<T>{}.deallocate(p, n);
-    }
-    template <class U>
-    bool operator==(const MeteredAllocator<U>& other) const {
-        return meter == other.meter;
-    }
-};
-
-template <class T>
-using MeteredVector = std::vector<T, MeteredAllocator<T>>;
-
-template <class T>
-void release(MeteredVector<T>& v) {
-    MeteredVector<T>(v.get_allocator()).swap(v);
-}
-
-// ---------------------------------------------------------------------------------------
 // References and events.
 
 /// A triangle reference: its conservative box inside the current node, and the triangle.
