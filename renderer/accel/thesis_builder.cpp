@@ -14,6 +14,7 @@
 #include <utility>
 #include <vector>
 
+#include <malloc.h>
 #include <omp.h>
 
 #include "renderer/accel/builder.h"
@@ -414,11 +415,22 @@ void flatten_nodes(Subtree& st, uint32_t root_slot, std::vector<KdNode>& out, si
         flatten_nodes(*sub, uint32_t(global(slot)), out, index_base, stats);
 }
 
-void flatten_indices(Subtree& st, std::vector<uint32_t>& out) {
+// glibc keeps freed heap memory resident; the assembly hands the parts' pages back every
+// kTrimBytes so that the arrays it fills replace them instead of adding to them.
+constexpr size_t kTrimBytes = size_t(1) << 20;
+
+void return_free_pages() { malloc_trim(0); }
+
+void flatten_indices(Subtree& st, std::vector<uint32_t>& out, size_t& freed) {
     out.insert(out.end(), st.indices.begin(), st.indices.end());
+    freed += st.indices.capacity() * sizeof(uint32_t);
     release(st.indices);
+    if (freed >= kTrimBytes) {
+        return_free_pages();
+        freed = 0;
+    }
     for (auto& link : st.links) {
-        flatten_indices(*link.second, out);
+        flatten_indices(*link.second, out, freed);
         link.second.reset();
     }
 }
@@ -480,6 +492,7 @@ KdBuildOutput build_thesis_tree(const TriangleMesh& mesh, const KdTreeParams& pa
     }
     ctx.scratch.clear();
     release(root.tris);
+    return_free_pages();
 
     size_t node_count = 1, index_count = 0;
     count_parts(*top, node_count, index_count);
@@ -493,9 +506,11 @@ KdBuildOutput build_thesis_tree(const TriangleMesh& mesh, const KdTreeParams& pa
     out.nodes.resize(1);
     size_t index_base = 0;
     flatten_nodes(*top, 0, out.nodes, index_base, stats);
+    return_free_pages();
     out.indices.reserve(index_count);
     ctx.meter.add(int64_t(out.indices.capacity() * sizeof(uint32_t)));
-    flatten_indices(*top, out.indices);
+    size_t freed = 0;
+    flatten_indices(*top, out.indices, freed);
     top.reset();
     out.stats = stats;
     out.stats.peak_build_bytes = uint64_t(std::max<int64_t>(ctx.meter.peak(), 0));
