@@ -6,6 +6,7 @@
 // on its own OpenMP task. Depends on core, geometry and the builder interface.
 #include "renderer/accel/sah_builder.h"
 
+#include <malloc.h>
 #include <omp.h>
 
 #include <algorithm>
@@ -180,6 +181,31 @@ struct Workspace {
         }
         return levels[size_t(2 * level + which)];
     }
+    /// Bytes held, by capacity.
+    size_t bytes() const {
+        size_t b = side.capacity() + 4 * (remap.capacity() + both.capacity()) +
+                   8 * (keys.capacity() + tmp[0].capacity() + tmp[1].capacity());
+        auto node_bytes = [](const SweepNode& s) {
+            return s.refs.capacity() * sizeof(Ref) +
+                   (s.events[0].capacity() + s.events[1].capacity() + s.events[2].capacity()) *
+                       sizeof(Event);
+        };
+        for (const SweepNode& s : levels) b += node_bytes(s);
+        return b + node_bytes(fresh[0]) + node_bytes(fresh[1]);
+    }
+    /// Frees every buffer (between subtrees only: slots must keep their address within one).
+    void trim() {
+        levels.clear();
+        release(side);
+        release(remap);
+        release(both);
+        release(keys);
+        for (auto& t : tmp) release(t);
+        for (auto& f : fresh) {
+            release(f.refs);
+            for (auto& e : f.events) release(e);
+        }
+    }
     ScratchMeter* meter;
     std::deque<SweepNode> levels;  // deque: slots keep their address as levels are added
     MeteredVector<uint8_t> side;
@@ -189,6 +215,9 @@ struct Workspace {
     MeteredVector<Event> tmp[2];   // spliced one-sided events before the merge
     SweepNode fresh[2];            // events of clipped straddlers for the left and right child
 };
+
+// Scratch bytes a thread's workspace may keep between two subtrees.
+constexpr size_t kWorkspaceBudget = size_t(1) << 20;
 
 struct SweepSplit {
     float cost = kInfinity;
@@ -626,6 +655,9 @@ private:
             // Drop the growth slack: the subtrees together are as large as the final tree.
             own->node.sub.nodes.shrink_to_fit();
             own->node.sub.indices.shrink_to_fit();
+            // Buffers reused from subtree to subtree grow towards the largest slot ever seen
+            // at every level; bound what a thread keeps between subtrees.
+            if (ws->bytes() > kWorkspaceBudget) ws->trim();
         }
     }
 
@@ -649,32 +681,61 @@ void count_output(const TopNode& t, size_t& nodes, size_t& indices, uint64_t& sp
     }
 }
 
-void emit(TopNode& t, uint32_t slot, KdBuildOutput& out) {
+// Two passes so that only one of the two arrays exists twice at a time: first every
+// subtree's nodes (relocated; leaf offsets from the running index count), then every
+// subtree's indices in the same depth-first order. Each array is freed once copied, and
+// glibc is asked every kTrimBytes to hand the freed pages back, so that the final arrays
+// replace the subtrees in memory instead of adding to them.
+constexpr size_t kTrimBytes = size_t(1) << 20;
+
+void return_free_pages() { malloc_trim(0); }
+
+void emit_nodes(TopNode& t, uint32_t slot, std::vector<KdNode>& out, size_t& index_base,
+                size_t& freed) {
     if (t.axis >= 0) {
-        const auto first_child = uint32_t(out.nodes.size());
-        out.nodes.resize(first_child + 2);
-        out.nodes[slot] = KdNode::make_inner(t.axis, t.split, first_child);
-        emit(*t.child[0], first_child, out);
+        const auto first_child = uint32_t(out.size());
+        out.resize(first_child + 2);
+        out[slot] = KdNode::make_inner(t.axis, t.split, first_child);
+        emit_nodes(*t.child[0], first_child, out, index_base, freed);
+        emit_nodes(*t.child[1], first_child + 1, out, index_base, freed);
+        return;
+    }
+    const auto index_offset = uint32_t(index_base);
+    const auto base = uint32_t(out.size());  // local node i >= 1 goes to base + i - 1
+    for (size_t i = 0; i < t.sub.nodes.size(); ++i) {
+        KdNode nd = t.sub.nodes[i];
+        nd = nd.is_leaf() ? KdNode::make_leaf(nd.count(), nd.first + index_offset)
+                          : KdNode::make_inner(nd.axis(), nd.split, base + nd.child() - 1);
+        if (i == 0) {
+            out[slot] = nd;
+        } else {
+            out.push_back(nd);
+        }
+    }
+    index_base += t.sub.indices.size();
+    freed += t.sub.nodes.capacity() * sizeof(KdNode);
+    release(t.sub.nodes);
+    if (freed >= kTrimBytes) {
+        return_free_pages();
+        freed = 0;
+    }
+}
+
+void emit_indices(TopNode& t, std::vector<uint32_t>& out, size_t& freed) {
+    if (t.axis >= 0) {
+        emit_indices(*t.child[0], out, freed);
         t.child[0].reset();
-        emit(*t.child[1], first_child + 1, out);
+        emit_indices(*t.child[1], out, freed);
         t.child[1].reset();
         return;
     }
-    const auto index_base = uint32_t(out.indices.size());
-    out.indices.insert(out.indices.end(), t.sub.indices.begin(), t.sub.indices.end());
-    const auto base = uint32_t(out.nodes.size());  // local node i >= 1 goes to base + i - 1
-    for (size_t i = 0; i < t.sub.nodes.size(); ++i) {
-        KdNode nd = t.sub.nodes[i];
-        nd = nd.is_leaf() ? KdNode::make_leaf(nd.count(), nd.first + index_base)
-                          : KdNode::make_inner(nd.axis(), nd.split, base + nd.child() - 1);
-        if (i == 0) {
-            out.nodes[slot] = nd;
-        } else {
-            out.nodes.push_back(nd);
-        }
-    }
-    release(t.sub.nodes);
+    out.insert(out.end(), t.sub.indices.begin(), t.sub.indices.end());
+    freed += t.sub.indices.capacity() * sizeof(uint32_t);
     release(t.sub.indices);
+    if (freed >= kTrimBytes) {
+        return_free_pages();
+        freed = 0;
+    }
 }
 
 /// The next float towards -infinity / +infinity (finite, non-NaN input).
@@ -794,6 +855,7 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
     const size_t table = std::min<size_t>(tri_count, 1u << 16) + 1;
     ctx.f_table.resize(table);
     for (size_t i = 0; i < table; ++i) ctx.f_table[i] = thesis_f(float(i), params.q, params.n0);
+    ctx.meter.add(int64_t(ctx.f_table.capacity() * sizeof(float)));
 
     // Every triangle with finite vertices; the others are never referenced.
     TopNode top(&ctx.meter);
@@ -840,10 +902,18 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
     uint64_t splits = 0;
     count_output(top, node_count, index_count, splits);
     KDT_CHECK(node_count < kMaxRefs);  // child indices have 30 bits
+    // The final arrays count towards the peak from the moment they are reserved.
+    return_free_pages();
+    size_t freed = 0, index_base = 0;
     out.nodes.reserve(node_count);
-    out.indices.reserve(index_count);
+    ctx.meter.add(int64_t(out.nodes.capacity() * sizeof(KdNode)));
     out.nodes.emplace_back();
-    emit(top, 0, out);
+    emit_nodes(top, 0, out.nodes, index_base, freed);
+    return_free_pages();
+    freed = 0;
+    out.indices.reserve(index_count);
+    ctx.meter.add(int64_t(out.indices.capacity() * sizeof(uint32_t)));
+    emit_indices(top, out.indices, freed);
     KDT_CHECK(out.nodes.size() == node_count && out.indices.size() == index_count);
     finalize_stats(out, tri_count);
     out.stats.sah_splits = splits;
