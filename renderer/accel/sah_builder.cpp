@@ -86,6 +86,41 @@ inline Side classify(const Bounds3f& box, int axis, float split, Side planar_sid
     return kBoth;
 }
 
+/// Sorts event keys (ordered position << 32 | type << 30 | index) that were generated in
+/// increasing index order. A stable LSD radix sort on the 34 bits of position and type gives
+/// exactly the order of sorting the full keys, since keys equal in those bits come from
+/// different references, already in index order. 8-bit digits; a digit that is the same in
+/// every key (the exponent, within a small node) costs one histogram and no pass.
+template <class Vec>
+void radix_sort_keys(Vec& keys, Vec& tmp) {
+    const size_t n = keys.size();
+    if (n < 64) {
+        std::sort(keys.begin(), keys.end());
+        return;
+    }
+    constexpr int kDigits = 5;  // bits 30-37, 38-45, 46-53, 54-61, 62-63
+    uint32_t count[kDigits][256] = {};
+    for (const uint64_t key : keys) {
+        for (int d = 0; d < kDigits; ++d) ++count[d][(key >> (30 + 8 * d)) & 0xffu];
+    }
+    tmp.resize(n);
+    uint64_t* src = keys.data();
+    uint64_t* dst = tmp.data();
+    for (int d = 0; d < kDigits; ++d) {
+        const int shift = 30 + 8 * d;
+        if (count[d][(src[0] >> shift) & 0xffu] == n) continue;  // one bucket: order kept
+        uint32_t offset[256];
+        uint32_t sum = 0;
+        for (int b = 0; b < 256; ++b) {
+            offset[b] = sum;
+            sum += count[d][b];
+        }
+        for (size_t i = 0; i < n; ++i) dst[offset[(src[i] >> shift) & 0xffu]++] = src[i];
+        std::swap(src, dst);
+    }
+    if (src != keys.data()) std::copy(src, src + n, keys.data());
+}
+
 // ---------------------------------------------------------------------------------------
 // Build context shared by all tasks.
 
@@ -171,6 +206,7 @@ struct Workspace {
           remap(MeteredAllocator<uint32_t>(m)),
           both(MeteredAllocator<uint32_t>(m)),
           keys(MeteredAllocator<uint64_t>(m)),
+          keys_tmp(MeteredAllocator<uint64_t>(m)),
           tmp{MeteredVector<Event>(MeteredAllocator<Event>(m)),
               MeteredVector<Event>(MeteredAllocator<Event>(m))},
           fresh{SweepNode(m), SweepNode(m)} {}
@@ -183,8 +219,9 @@ struct Workspace {
     }
     /// Bytes held, by capacity.
     size_t bytes() const {
-        size_t b = side.capacity() + 4 * (remap.capacity() + both.capacity()) +
-                   8 * (keys.capacity() + tmp[0].capacity() + tmp[1].capacity());
+        size_t b =
+            side.capacity() + 4 * (remap.capacity() + both.capacity()) +
+            8 * (keys.capacity() + keys_tmp.capacity() + tmp[0].capacity() + tmp[1].capacity());
         auto node_bytes = [](const SweepNode& s) {
             return s.refs.capacity() * sizeof(Ref) +
                    (s.events[0].capacity() + s.events[1].capacity() + s.events[2].capacity()) *
@@ -200,6 +237,7 @@ struct Workspace {
         release(remap);
         release(both);
         release(keys);
+        release(keys_tmp);
         for (auto& t : tmp) release(t);
         for (auto& f : fresh) {
             release(f.refs);
@@ -212,8 +250,9 @@ struct Workspace {
     MeteredVector<uint32_t> remap;
     MeteredVector<uint32_t> both;  // straddling references of the node being split
     MeteredVector<uint64_t> keys;  // sort keys of a subtree's first events
-    MeteredVector<Event> tmp[2];   // spliced one-sided events before the merge
-    SweepNode fresh[2];            // events of clipped straddlers for the left and right child
+    MeteredVector<uint64_t> keys_tmp;
+    MeteredVector<Event> tmp[2];  // spliced one-sided events before the merge
+    SweepNode fresh[2];           // events of clipped straddlers for the left and right child
 };
 
 // Scratch bytes a thread's workspace may keep between two subtrees.
@@ -253,7 +292,7 @@ public:
                     keys.push_back(uint64_t(ordered_bits(hi)) << 32 | uint64_t(kEnd) << 30 | index);
                 }
             }
-            std::sort(keys.begin(), keys.end());
+            radix_sort_keys(keys, ws_.keys_tmp);
             auto& ev = root.events[k];
             ev.resize(keys.size());
             for (size_t i = 0; i < keys.size(); ++i) {
