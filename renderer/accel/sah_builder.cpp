@@ -364,7 +364,11 @@ private:
     void recurse(SweepNode& node, const Bounds3f& box, int depth, int level, uint32_t slot) {
         const size_t n = node.refs.size();
         SweepSplit best;
-        if (n > 0 && depth < ctx_.max_depth) best = find_split(node, box);
+        // Every split costs at least traversal_cost, so a node whose leaf is no dearer
+        // stays a leaf without a sweep (the sweep could not find a cheaper split).
+        if (n > 0 && depth < ctx_.max_depth && ctx_.leaf_cost(n) > ctx_.params.traversal_cost) {
+            best = find_split(node, box);
+        }
         if (best.axis < 0 || !(best.cost < ctx_.leaf_cost(n))) {
             make_leaf(node, slot);
             node.clear();
@@ -527,6 +531,11 @@ struct BinnedSplit {
     float pos = 0.0f;
 };
 
+/// Binned nodes with at least this many references count and classify them in
+/// kTopChunks tasks (the root would otherwise keep the other threads waiting).
+constexpr size_t kParallelTopRefs = size_t(1) << 18;
+constexpr int kTopChunks = 8;
+
 /// A node of the binned phase. References never clipped so far are stored as bare triangle
 /// indices (their bounds lie inside the node and are read from the mesh), which keeps the
 /// top levels' scratch at about 4 bytes per triangle; clipped ones carry their box.
@@ -561,14 +570,43 @@ BinnedSplit find_binned_split(const Context& ctx, const TopJob& job) {
         const float t = (x - box.lower[k]) * scale[k];
         return t >= float(bins) ? bins - 1 : (t > 0.0f ? int(t) : 0);  // NaN -> 0
     };
-    auto add = [&](const Bounds3f& b) {
-        for (int k = 0; k < 3; ++k) {
-            ++starts[size_t(k * bins + bin(b.lower[k], k))];
-            ++ends[size_t(k * bins + bin(b.upper[k], k))];
+    // Counts of references [begin, end) of the node (whole ones first).
+    auto count = [&](size_t begin, size_t end, uint32_t* st, uint32_t* en) {
+        auto add = [&](const Bounds3f& b) {
+            for (int k = 0; k < 3; ++k) {
+                ++st[size_t(k * bins + bin(b.lower[k], k))];
+                ++en[size_t(k * bins + bin(b.upper[k], k))];
+            }
+        };
+        const size_t n_whole = job.whole.size();
+        for (size_t i = begin; i < std::min(end, n_whole); ++i) {
+            add(ctx.mesh->triangle_bounds(job.whole[i]));
         }
+        for (size_t i = std::max(begin, n_whole); i < end; ++i) add(job.clipped[i - n_whole].box);
     };
-    for (uint32_t t : job.whole) add(ctx.mesh->triangle_bounds(t));
-    for (const Ref& r : job.clipped) add(r.box);
+    if (job.size() >= kParallelTopRefs) {
+        // The top node would keep the other threads waiting: count in chunks on tasks.
+        // Integer sums, so the result does not depend on which thread counted what.
+        std::vector<uint32_t> part(size_t(kTopChunks * 6 * bins), 0);
+        const size_t chunk = (job.size() + kTopChunks - 1) / kTopChunks;
+        for (int c = 0; c < kTopChunks; ++c) {
+            uint32_t* st = part.data() + size_t(c * 6 * bins);
+            const size_t begin = std::min(job.size(), size_t(c) * chunk);
+            const size_t end = std::min(job.size(), begin + chunk);
+#pragma omp task default(shared) firstprivate(st, begin, end)
+            count(begin, end, st, st + 3 * bins);
+        }
+#pragma omp taskwait
+        for (int c = 0; c < kTopChunks; ++c) {
+            const uint32_t* st = part.data() + size_t(c * 6 * bins);
+            for (size_t j = 0; j < size_t(3 * bins); ++j) {
+                starts[j] += st[j];
+                ends[j] += st[size_t(3 * bins) + j];
+            }
+        }
+    } else {
+        count(0, job.size(), starts.data(), ends.data());
+    }
     const float inv_area = 1.0f / area;
     const size_t n = job.size();
     for (int k = 0; k < 3; ++k) {
@@ -625,13 +663,35 @@ public:
         const size_t n_whole = job->whole.size();
         MeteredVector<uint8_t> side(n, kBoth, MeteredAllocator<uint8_t>(&ctx.meter));
         size_t whole_count[3] = {0, 0, 0}, clipped_count[3] = {0, 0, 0};
-        for (size_t i = 0; i < n_whole; ++i) {
-            side[i] = classify(mesh.triangle_bounds(job->whole[i]), s.axis, s.pos, kLeft);
-            ++whole_count[side[i]];
-        }
-        for (size_t i = 0; i < job->clipped.size(); ++i) {
-            side[n_whole + i] = classify(job->clipped[i].box, s.axis, s.pos, kLeft);
-            ++clipped_count[side[n_whole + i]];
+        auto classify_range = [&](size_t begin, size_t end, size_t* wc, size_t* cc) {
+            for (size_t i = begin; i < std::min(end, n_whole); ++i) {
+                side[i] = classify(mesh.triangle_bounds(job->whole[i]), s.axis, s.pos, kLeft);
+                ++wc[side[i]];
+            }
+            for (size_t i = std::max(begin, n_whole); i < end; ++i) {
+                side[i] = classify(job->clipped[i - n_whole].box, s.axis, s.pos, kLeft);
+                ++cc[side[i]];
+            }
+        };
+        if (n >= kParallelTopRefs) {
+            size_t counts[kTopChunks][6] = {};
+            const size_t chunk = (n + kTopChunks - 1) / kTopChunks;
+            for (int c = 0; c < kTopChunks; ++c) {
+                size_t* wc = counts[c];
+                const size_t begin = std::min(n, size_t(c) * chunk);
+                const size_t end = std::min(n, begin + chunk);
+#pragma omp task default(shared) firstprivate(wc, begin, end)
+                classify_range(begin, end, wc, wc + 3);
+            }
+#pragma omp taskwait
+            for (int c = 0; c < kTopChunks; ++c) {
+                for (int j = 0; j < 3; ++j) {
+                    whole_count[j] += counts[c][j];
+                    clipped_count[j] += counts[c][3 + j];
+                }
+            }
+        } else {
+            classify_range(0, n, whole_count, clipped_count);
         }
         const size_t straddlers = whole_count[kBoth] + clipped_count[kBoth];
         child[0]->whole.reserve(whole_count[kLeft]);
