@@ -129,7 +129,8 @@ struct Context {
     KdTreeParams params;
     SahTuning tuning;
     int max_depth = 0;
-    std::vector<float> f_table;  // thesis_f(n) for small n
+    std::vector<float> f_table;   // thesis_f(n) for small n
+    size_t workspace_budget = 0;  // bytes a thread's workspace keeps between subtrees
     ScratchMeter meter;
 
     float f(size_t n) const {
@@ -255,8 +256,10 @@ struct Workspace {
     SweepNode fresh[2];           // events of clipped straddlers for the left and right child
 };
 
-// Scratch bytes a thread's workspace may keep between two subtrees.
+// Scratch bytes a thread's workspace may keep between two subtrees: 1 MB, or 8 bytes per
+// triangle for small meshes.
 constexpr size_t kWorkspaceBudget = size_t(1) << 20;
+constexpr size_t kWorkspaceBytesPerTriangle = 8;
 
 struct SweepSplit {
     float cost = kInfinity;
@@ -756,7 +759,7 @@ private:
             own->node.sub.indices.shrink_to_fit();
             // Buffers reused from subtree to subtree grow towards the largest slot ever seen
             // at every level; bound what a thread keeps between subtrees.
-            if (ws->bytes() > kWorkspaceBudget) ws->trim();
+            if (ws->bytes() > ctx.workspace_budget) ws->trim();
         }
     }
 
@@ -950,6 +953,7 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
         const double auto_depth = 8.0 + 1.3 * std::log2(double(std::max<size_t>(tri_count, 1)));
         ctx.max_depth = std::min(64, int(auto_depth));
     }
+    ctx.workspace_budget = std::min(kWorkspaceBudget, kWorkspaceBytesPerTriangle * tri_count);
     // f(n) tabulated for the node sizes that dominate the build (pow() is slow).
     const size_t table = std::min<size_t>(tri_count, 1u << 16) + 1;
     ctx.f_table.resize(table);

@@ -62,10 +62,10 @@ struct Work {
     uint64_t budget = 0;  // references this subtree may hold, >= tris.size()
 };
 
-// Nodes up to this many triangles keep their extents and vertex coordinates along the
-// evaluated axis in the per-thread scratch (20 bytes each, so at most 1.25 MB per thread);
-// larger ones, the few top levels, read the vertices again instead of holding 20 bytes per
-// triangle at the root.
+// Nodes up to this many triangles, and up to 1/16 of the mesh, keep their extents and
+// vertex coordinates along the evaluated axis in the per-thread scratch (20 bytes each, so
+// at most 1.25 MB or 1.25 bytes per triangle per thread); larger ones, the few top levels,
+// read the vertices again instead of holding 20 bytes per triangle at the root.
 constexpr size_t kMaxStoredExtents = size_t(1) << 16;
 
 // Per-thread scratch reused from node to node: the histogram of the median selection, the
@@ -91,6 +91,7 @@ struct Context {
     const KdTreeParams& params;
     int max_depth = 0;
     bool parallel = false;
+    size_t max_stored = 0;  // nodes up to this size keep extents in the scratch
     ScratchMeter meter;
     std::vector<std::unique_ptr<Scratch>> scratch;  // one per OpenMP thread
 
@@ -159,7 +160,7 @@ void evaluate_axis(Context& ctx, const Work& w, int axis, Choice& best) {
     const bool use_center = ctx.params.use_center_split && center > box_lo && center < box_hi;
 
     Scratch& s = ctx.thread_scratch();
-    const bool store = n <= kMaxStoredExtents;
+    const bool store = n <= ctx.max_stored;
     s.axis = -1;
     if (store) {
         s.lo.resize(n);
@@ -472,6 +473,7 @@ KdBuildOutput build_thesis_tree(const TriangleMesh& mesh, const KdTreeParams& pa
     ctx.max_depth =
         params.max_depth > 0 ? params.max_depth : std::min(64, int(8.0 + 1.3 * std::log2(n)));
     root.budget = kMaxReferencesPerTriangle * root.tris.size();
+    ctx.max_stored = std::min(kMaxStoredExtents, root.tris.size() / 16);
     out.bounds = root.box;
 
     const int threads = params.threads > 0 ? params.threads : omp_get_max_threads();
