@@ -416,7 +416,9 @@ def main():
     ap.add_argument("--width", type=int, default=160)
     ap.add_argument("--height", type=int, default=120)
     ap.add_argument("--upsample", type=int, default=16, help="probe upsampling factor")
-    ap.add_argument("--variant", default="scalar_rgb")
+    ap.add_argument("--variant", default="scalar_rgb",
+                    help="Mitsuba variant; llvm_ad_rgb fails to compile its kernels with "
+                    "Debian bookworm's LLVM 14/15 (Dr.Jit 1.5)")
     ap.add_argument("--z-max", type=float, default=4.0,
                     help="|z| of the image mean (and of the block chi2/dof) above which the "
                     "renders are said to differ")
