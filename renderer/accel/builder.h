@@ -2,7 +2,10 @@
 // Builders see triangle bounds and clipping only; they never trace rays.
 #pragma once
 
+#include <atomic>
 #include <cmath>
+#include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "renderer/accel/kdtree.h"
@@ -17,6 +20,57 @@ struct KdBuildOutput {
     std::vector<uint32_t> indices;
     KdTreeStats stats;
 };
+
+/// Scratch memory accounting shared by the builders: every buffer a builder holds goes
+/// through MeteredAllocator (or is added by hand), so KdTreeStats::peak_build_bytes is the
+/// measured peak of the bytes allocated at once (capacities, not sizes), not a guess.
+class ScratchMeter {
+public:
+    void add(int64_t bytes) {
+        const int64_t now = current_.fetch_add(bytes, std::memory_order_relaxed) + bytes;
+        int64_t peak = peak_.load(std::memory_order_relaxed);
+        while (now > peak && !peak_.compare_exchange_weak(peak, now, std::memory_order_relaxed)) {
+        }
+    }
+    int64_t current() const { return current_.load(std::memory_order_relaxed); }
+    int64_t peak() const { return peak_.load(std::memory_order_relaxed); }
+
+private:
+    std::atomic<int64_t> current_{0};
+    std::atomic<int64_t> peak_{0};
+};
+
+template <class T>
+struct MeteredAllocator {
+    using value_type = T;
+    ScratchMeter* meter = nullptr;
+
+    explicit MeteredAllocator(ScratchMeter* m) : meter(m) {}
+    template <class U>
+    MeteredAllocator(const MeteredAllocator<U>& other) : meter(other.meter) {}  // NOLINT
+
+    T* allocate(size_t n) {
+        meter->add(int64_t(n * sizeof(T)));
+        return std::allocator<T>{}.allocate(n);
+    }
+    void deallocate(T* p, size_t n) {
+        meter->add(-int64_t(n * sizeof(T)));
+        std::allocator<T>{}.deallocate(p, n);
+    }
+    template <class U>
+    bool operator==(const MeteredAllocator<U>& other) const {
+        return meter == other.meter;
+    }
+};
+
+template <class T>
+using MeteredVector = std::vector<T, MeteredAllocator<T>>;
+
+/// Frees v's memory (clear() keeps the capacity).
+template <class T>
+void release(MeteredVector<T>& v) {
+    MeteredVector<T>(v.get_allocator()).swap(v);
+}
 
 /// The thesis's builder (section 5.2.2): candidates cut-off left/right, spatial middle,
 /// median vertex and terminate, under the Szécsi cost with the f(n) correction.

@@ -6,6 +6,7 @@
 // on its own OpenMP task. Depends on core, geometry and the builder interface.
 #include "renderer/accel/sah_builder.h"
 
+#include <malloc.h>
 #include <omp.h>
 
 #include <algorithm>
@@ -24,56 +25,6 @@
 
 namespace kdt {
 namespace {
-
-// ---------------------------------------------------------------------------------------
-// Scratch memory accounting: every builder buffer goes through MeteredAllocator, so the
-// peak reported in KdTreeStats::peak_build_bytes is measured, not guessed.
-
-class ScratchMeter {
-public:
-    void add(int64_t bytes) {
-        const int64_t now = current_.fetch_add(bytes, std::memory_order_relaxed) + bytes;
-        int64_t peak = peak_.load(std::memory_order_relaxed);
-        while (now > peak && !peak_.compare_exchange_weak(peak, now, std::memory_order_relaxed)) {
-        }
-    }
-    int64_t peak() const { return peak_.load(std::memory_order_relaxed); }
-
-private:
-    std::atomic<int64_t> current_{0};
-    std::atomic<int64_t> peak_{0};
-};
-
-template <class T>
-struct MeteredAllocator {
-    using value_type = T;
-    ScratchMeter* meter = nullptr;
-
-    explicit MeteredAllocator(ScratchMeter* m) : meter(m) {}
-    template <class U>
-    MeteredAllocator(const MeteredAllocator<U>& other) : meter(other.meter) {}  // NOLINT
-
-    T* allocate(size_t n) {
-        meter->add(int64_t(n * sizeof(T)));
-        return std::allocator<T>{}.allocate(n);
-    }
-    void deallocate(T* p, size_t n) {
-        meter->add(-int64_t(n * sizeof(T)));
-        std::allocator<T>{}.deallocate(p, n);
-    }
-    template <class U>
-    bool operator==(const MeteredAllocator<U>& other) const {
-        return meter == other.meter;
-    }
-};
-
-template <class T>
-using MeteredVector = std::vector<T, MeteredAllocator<T>>;
-
-template <class T>
-void release(MeteredVector<T>& v) {
-    MeteredVector<T>(v.get_allocator()).swap(v);
-}
 
 // ---------------------------------------------------------------------------------------
 // References and events.
@@ -135,6 +86,41 @@ inline Side classify(const Bounds3f& box, int axis, float split, Side planar_sid
     return kBoth;
 }
 
+/// Sorts event keys (ordered position << 32 | type << 30 | index) that were generated in
+/// increasing index order. A stable LSD radix sort on the 34 bits of position and type gives
+/// exactly the order of sorting the full keys, since keys equal in those bits come from
+/// different references, already in index order. 8-bit digits; a digit that is the same in
+/// every key (the exponent, within a small node) costs one histogram and no pass.
+template <class Vec>
+void radix_sort_keys(Vec& keys, Vec& tmp) {
+    const size_t n = keys.size();
+    if (n < 64) {
+        std::sort(keys.begin(), keys.end());
+        return;
+    }
+    constexpr int kDigits = 5;  // bits 30-37, 38-45, 46-53, 54-61, 62-63
+    uint32_t count[kDigits][256] = {};
+    for (const uint64_t key : keys) {
+        for (int d = 0; d < kDigits; ++d) ++count[d][(key >> (30 + 8 * d)) & 0xffu];
+    }
+    tmp.resize(n);
+    uint64_t* src = keys.data();
+    uint64_t* dst = tmp.data();
+    for (int d = 0; d < kDigits; ++d) {
+        const int shift = 30 + 8 * d;
+        if (count[d][(src[0] >> shift) & 0xffu] == n) continue;  // one bucket: order kept
+        uint32_t offset[256];
+        uint32_t sum = 0;
+        for (int b = 0; b < 256; ++b) {
+            offset[b] = sum;
+            sum += count[d][b];
+        }
+        for (size_t i = 0; i < n; ++i) dst[offset[(src[i] >> shift) & 0xffu]++] = src[i];
+        std::swap(src, dst);
+    }
+    if (src != keys.data()) std::copy(src, src + n, keys.data());
+}
+
 // ---------------------------------------------------------------------------------------
 // Build context shared by all tasks.
 
@@ -143,7 +129,8 @@ struct Context {
     KdTreeParams params;
     SahTuning tuning;
     int max_depth = 0;
-    std::vector<float> f_table;  // thesis_f(n) for small n
+    std::vector<float> f_table;   // thesis_f(n) for small n
+    size_t workspace_budget = 0;  // bytes a thread's workspace keeps between subtrees
     ScratchMeter meter;
 
     float f(size_t n) const {
@@ -220,6 +207,7 @@ struct Workspace {
           remap(MeteredAllocator<uint32_t>(m)),
           both(MeteredAllocator<uint32_t>(m)),
           keys(MeteredAllocator<uint64_t>(m)),
+          keys_tmp(MeteredAllocator<uint64_t>(m)),
           tmp{MeteredVector<Event>(MeteredAllocator<Event>(m)),
               MeteredVector<Event>(MeteredAllocator<Event>(m))},
           fresh{SweepNode(m), SweepNode(m)} {}
@@ -230,15 +218,48 @@ struct Workspace {
         }
         return levels[size_t(2 * level + which)];
     }
+    /// Bytes held, by capacity.
+    size_t bytes() const {
+        size_t b =
+            side.capacity() + 4 * (remap.capacity() + both.capacity()) +
+            8 * (keys.capacity() + keys_tmp.capacity() + tmp[0].capacity() + tmp[1].capacity());
+        auto node_bytes = [](const SweepNode& s) {
+            return s.refs.capacity() * sizeof(Ref) +
+                   (s.events[0].capacity() + s.events[1].capacity() + s.events[2].capacity()) *
+                       sizeof(Event);
+        };
+        for (const SweepNode& s : levels) b += node_bytes(s);
+        return b + node_bytes(fresh[0]) + node_bytes(fresh[1]);
+    }
+    /// Frees every buffer (between subtrees only: slots must keep their address within one).
+    void trim() {
+        levels.clear();
+        release(side);
+        release(remap);
+        release(both);
+        release(keys);
+        release(keys_tmp);
+        for (auto& t : tmp) release(t);
+        for (auto& f : fresh) {
+            release(f.refs);
+            for (auto& e : f.events) release(e);
+        }
+    }
     ScratchMeter* meter;
     std::deque<SweepNode> levels;  // deque: slots keep their address as levels are added
     MeteredVector<uint8_t> side;
     MeteredVector<uint32_t> remap;
     MeteredVector<uint32_t> both;  // straddling references of the node being split
     MeteredVector<uint64_t> keys;  // sort keys of a subtree's first events
-    MeteredVector<Event> tmp[2];   // spliced one-sided events before the merge
-    SweepNode fresh[2];            // events of clipped straddlers for the left and right child
+    MeteredVector<uint64_t> keys_tmp;
+    MeteredVector<Event> tmp[2];  // spliced one-sided events before the merge
+    SweepNode fresh[2];           // events of clipped straddlers for the left and right child
 };
+
+// Scratch bytes a thread's workspace may keep between two subtrees: 1 MB, or 8 bytes per
+// triangle for small meshes.
+constexpr size_t kWorkspaceBudget = size_t(1) << 20;
+constexpr size_t kWorkspaceBytesPerTriangle = 8;
 
 struct SweepSplit {
     float cost = kInfinity;
@@ -274,7 +295,7 @@ public:
                     keys.push_back(uint64_t(ordered_bits(hi)) << 32 | uint64_t(kEnd) << 30 | index);
                 }
             }
-            std::sort(keys.begin(), keys.end());
+            radix_sort_keys(keys, ws_.keys_tmp);
             auto& ev = root.events[k];
             ev.resize(keys.size());
             for (size_t i = 0; i < keys.size(); ++i) {
@@ -346,7 +367,11 @@ private:
     void recurse(SweepNode& node, const Bounds3f& box, int depth, int level, uint32_t slot) {
         const size_t n = node.refs.size();
         SweepSplit best;
-        if (n > 0 && depth < ctx_.max_depth) best = find_split(node, box);
+        // Every split costs at least traversal_cost, so a node whose leaf is no dearer
+        // stays a leaf without a sweep (the sweep could not find a cheaper split).
+        if (n > 0 && depth < ctx_.max_depth && ctx_.leaf_cost(n) > ctx_.params.traversal_cost) {
+            best = find_split(node, box);
+        }
         if (best.axis < 0 || !(best.cost < ctx_.leaf_cost(n))) {
             make_leaf(node, slot);
             node.clear();
@@ -509,6 +534,11 @@ struct BinnedSplit {
     float pos = 0.0f;
 };
 
+/// Binned nodes with at least this many references count and classify them in
+/// kTopChunks tasks (the root would otherwise keep the other threads waiting).
+constexpr size_t kParallelTopRefs = size_t(1) << 18;
+constexpr int kTopChunks = 8;
+
 /// A node of the binned phase. References never clipped so far are stored as bare triangle
 /// indices (their bounds lie inside the node and are read from the mesh), which keeps the
 /// top levels' scratch at about 4 bytes per triangle; clipped ones carry their box.
@@ -543,14 +573,43 @@ BinnedSplit find_binned_split(const Context& ctx, const TopJob& job) {
         const float t = (x - box.lower[k]) * scale[k];
         return t >= float(bins) ? bins - 1 : (t > 0.0f ? int(t) : 0);  // NaN -> 0
     };
-    auto add = [&](const Bounds3f& b) {
-        for (int k = 0; k < 3; ++k) {
-            ++starts[size_t(k * bins + bin(b.lower[k], k))];
-            ++ends[size_t(k * bins + bin(b.upper[k], k))];
+    // Counts of references [begin, end) of the node (whole ones first).
+    auto count = [&](size_t begin, size_t end, uint32_t* st, uint32_t* en) {
+        auto add = [&](const Bounds3f& b) {
+            for (int k = 0; k < 3; ++k) {
+                ++st[size_t(k * bins + bin(b.lower[k], k))];
+                ++en[size_t(k * bins + bin(b.upper[k], k))];
+            }
+        };
+        const size_t n_whole = job.whole.size();
+        for (size_t i = begin; i < std::min(end, n_whole); ++i) {
+            add(ctx.mesh->triangle_bounds(job.whole[i]));
         }
+        for (size_t i = std::max(begin, n_whole); i < end; ++i) add(job.clipped[i - n_whole].box);
     };
-    for (uint32_t t : job.whole) add(ctx.mesh->triangle_bounds(t));
-    for (const Ref& r : job.clipped) add(r.box);
+    if (job.size() >= kParallelTopRefs) {
+        // The top node would keep the other threads waiting: count in chunks on tasks.
+        // Integer sums, so the result does not depend on which thread counted what.
+        std::vector<uint32_t> part(size_t(kTopChunks * 6 * bins), 0);
+        const size_t chunk = (job.size() + kTopChunks - 1) / kTopChunks;
+        for (int c = 0; c < kTopChunks; ++c) {
+            uint32_t* st = part.data() + size_t(c * 6 * bins);
+            const size_t begin = std::min(job.size(), size_t(c) * chunk);
+            const size_t end = std::min(job.size(), begin + chunk);
+#pragma omp task default(shared) firstprivate(st, begin, end)
+            count(begin, end, st, st + 3 * bins);
+        }
+#pragma omp taskwait
+        for (int c = 0; c < kTopChunks; ++c) {
+            const uint32_t* st = part.data() + size_t(c * 6 * bins);
+            for (size_t j = 0; j < size_t(3 * bins); ++j) {
+                starts[j] += st[j];
+                ends[j] += st[size_t(3 * bins) + j];
+            }
+        }
+    } else {
+        count(0, job.size(), starts.data(), ends.data());
+    }
     const float inv_area = 1.0f / area;
     const size_t n = job.size();
     for (int k = 0; k < 3; ++k) {
@@ -607,13 +666,35 @@ public:
         const size_t n_whole = job->whole.size();
         MeteredVector<uint8_t> side(n, kBoth, MeteredAllocator<uint8_t>(&ctx.meter));
         size_t whole_count[3] = {0, 0, 0}, clipped_count[3] = {0, 0, 0};
-        for (size_t i = 0; i < n_whole; ++i) {
-            side[i] = classify(mesh.triangle_bounds(job->whole[i]), s.axis, s.pos, kLeft);
-            ++whole_count[side[i]];
-        }
-        for (size_t i = 0; i < job->clipped.size(); ++i) {
-            side[n_whole + i] = classify(job->clipped[i].box, s.axis, s.pos, kLeft);
-            ++clipped_count[side[n_whole + i]];
+        auto classify_range = [&](size_t begin, size_t end, size_t* wc, size_t* cc) {
+            for (size_t i = begin; i < std::min(end, n_whole); ++i) {
+                side[i] = classify(mesh.triangle_bounds(job->whole[i]), s.axis, s.pos, kLeft);
+                ++wc[side[i]];
+            }
+            for (size_t i = std::max(begin, n_whole); i < end; ++i) {
+                side[i] = classify(job->clipped[i - n_whole].box, s.axis, s.pos, kLeft);
+                ++cc[side[i]];
+            }
+        };
+        if (n >= kParallelTopRefs) {
+            size_t counts[kTopChunks][6] = {};
+            const size_t chunk = (n + kTopChunks - 1) / kTopChunks;
+            for (int c = 0; c < kTopChunks; ++c) {
+                size_t* wc = counts[c];
+                const size_t begin = std::min(n, size_t(c) * chunk);
+                const size_t end = std::min(n, begin + chunk);
+#pragma omp task default(shared) firstprivate(wc, begin, end)
+                classify_range(begin, end, wc, wc + 3);
+            }
+#pragma omp taskwait
+            for (int c = 0; c < kTopChunks; ++c) {
+                for (int j = 0; j < 3; ++j) {
+                    whole_count[j] += counts[c][j];
+                    clipped_count[j] += counts[c][3 + j];
+                }
+            }
+        } else {
+            classify_range(0, n, whole_count, clipped_count);
         }
         const size_t straddlers = whole_count[kBoth] + clipped_count[kBoth];
         child[0]->whole.reserve(whole_count[kLeft]);
@@ -676,6 +757,9 @@ private:
             // Drop the growth slack: the subtrees together are as large as the final tree.
             own->node.sub.nodes.shrink_to_fit();
             own->node.sub.indices.shrink_to_fit();
+            // Buffers reused from subtree to subtree grow towards the largest slot ever seen
+            // at every level; bound what a thread keeps between subtrees.
+            if (ws->bytes() > ctx.workspace_budget) ws->trim();
         }
     }
 
@@ -699,32 +783,61 @@ void count_output(const TopNode& t, size_t& nodes, size_t& indices, uint64_t& sp
     }
 }
 
-void emit(TopNode& t, uint32_t slot, KdBuildOutput& out) {
+// Two passes so that only one of the two arrays exists twice at a time: first every
+// subtree's nodes (relocated; leaf offsets from the running index count), then every
+// subtree's indices in the same depth-first order. Each array is freed once copied, and
+// glibc is asked every kTrimBytes to hand the freed pages back, so that the final arrays
+// replace the subtrees in memory instead of adding to them.
+constexpr size_t kTrimBytes = size_t(1) << 20;
+
+void return_free_pages() { malloc_trim(0); }
+
+void emit_nodes(TopNode& t, uint32_t slot, std::vector<KdNode>& out, size_t& index_base,
+                size_t& freed) {
     if (t.axis >= 0) {
-        const auto first_child = uint32_t(out.nodes.size());
-        out.nodes.resize(first_child + 2);
-        out.nodes[slot] = KdNode::make_inner(t.axis, t.split, first_child);
-        emit(*t.child[0], first_child, out);
+        const auto first_child = uint32_t(out.size());
+        out.resize(first_child + 2);
+        out[slot] = KdNode::make_inner(t.axis, t.split, first_child);
+        emit_nodes(*t.child[0], first_child, out, index_base, freed);
+        emit_nodes(*t.child[1], first_child + 1, out, index_base, freed);
+        return;
+    }
+    const auto index_offset = uint32_t(index_base);
+    const auto base = uint32_t(out.size());  // local node i >= 1 goes to base + i - 1
+    for (size_t i = 0; i < t.sub.nodes.size(); ++i) {
+        KdNode nd = t.sub.nodes[i];
+        nd = nd.is_leaf() ? KdNode::make_leaf(nd.count(), nd.first + index_offset)
+                          : KdNode::make_inner(nd.axis(), nd.split, base + nd.child() - 1);
+        if (i == 0) {
+            out[slot] = nd;
+        } else {
+            out.push_back(nd);
+        }
+    }
+    index_base += t.sub.indices.size();
+    freed += t.sub.nodes.capacity() * sizeof(KdNode);
+    release(t.sub.nodes);
+    if (freed >= kTrimBytes) {
+        return_free_pages();
+        freed = 0;
+    }
+}
+
+void emit_indices(TopNode& t, std::vector<uint32_t>& out, size_t& freed) {
+    if (t.axis >= 0) {
+        emit_indices(*t.child[0], out, freed);
         t.child[0].reset();
-        emit(*t.child[1], first_child + 1, out);
+        emit_indices(*t.child[1], out, freed);
         t.child[1].reset();
         return;
     }
-    const auto index_base = uint32_t(out.indices.size());
-    out.indices.insert(out.indices.end(), t.sub.indices.begin(), t.sub.indices.end());
-    const auto base = uint32_t(out.nodes.size());  // local node i >= 1 goes to base + i - 1
-    for (size_t i = 0; i < t.sub.nodes.size(); ++i) {
-        KdNode nd = t.sub.nodes[i];
-        nd = nd.is_leaf() ? KdNode::make_leaf(nd.count(), nd.first + index_base)
-                          : KdNode::make_inner(nd.axis(), nd.split, base + nd.child() - 1);
-        if (i == 0) {
-            out.nodes[slot] = nd;
-        } else {
-            out.nodes.push_back(nd);
-        }
-    }
-    release(t.sub.nodes);
+    out.insert(out.end(), t.sub.indices.begin(), t.sub.indices.end());
+    freed += t.sub.indices.capacity() * sizeof(uint32_t);
     release(t.sub.indices);
+    if (freed >= kTrimBytes) {
+        return_free_pages();
+        freed = 0;
+    }
 }
 
 /// The next float towards -infinity / +infinity (finite, non-NaN input).
@@ -840,10 +953,12 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
         const double auto_depth = 8.0 + 1.3 * std::log2(double(std::max<size_t>(tri_count, 1)));
         ctx.max_depth = std::min(64, int(auto_depth));
     }
+    ctx.workspace_budget = std::min(kWorkspaceBudget, kWorkspaceBytesPerTriangle * tri_count);
     // f(n) tabulated for the node sizes that dominate the build (pow() is slow).
     const size_t table = std::min<size_t>(tri_count, 1u << 16) + 1;
     ctx.f_table.resize(table);
     for (size_t i = 0; i < table; ++i) ctx.f_table[i] = thesis_f(float(i), params.q, params.n0);
+    ctx.meter.add(int64_t(ctx.f_table.capacity() * sizeof(float)));
 
     // Every triangle with finite vertices; the others are never referenced.
     TopNode top(&ctx.meter);
@@ -890,10 +1005,18 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
     uint64_t splits = 0;
     count_output(top, node_count, index_count, splits);
     KDT_CHECK(node_count < kMaxRefs);  // child indices have 30 bits
+    // The final arrays count towards the peak from the moment they are reserved.
+    return_free_pages();
+    size_t freed = 0, index_base = 0;
     out.nodes.reserve(node_count);
-    out.indices.reserve(index_count);
+    ctx.meter.add(int64_t(out.nodes.capacity() * sizeof(KdNode)));
     out.nodes.emplace_back();
-    emit(top, 0, out);
+    emit_nodes(top, 0, out.nodes, index_base, freed);
+    return_free_pages();
+    freed = 0;
+    out.indices.reserve(index_count);
+    ctx.meter.add(int64_t(out.indices.capacity() * sizeof(uint32_t)));
+    emit_indices(top, out.indices, freed);
     KDT_CHECK(out.nodes.size() == node_count && out.indices.size() == index_count);
     finalize_stats(out, tri_count);
     out.stats.sah_splits = splits;

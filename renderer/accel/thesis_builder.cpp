@@ -14,6 +14,7 @@
 #include <utility>
 #include <vector>
 
+#include <malloc.h>
 #include <omp.h>
 
 #include "renderer/accel/builder.h"
@@ -41,19 +42,48 @@ constexpr size_t kTaskMinTriangles = 4096;
 constexpr uint64_t kMaxReferencesPerTriangle = 5;
 
 // A part of the tree built by one task: node 0 is the part's root. Leaves listed in `links`
-// are placeholders for subtrees built by other tasks, spliced in by flatten().
+// are placeholders for subtrees built by other tasks, spliced in by the assembly. Children
+// of kTaskMinTriangles or more triangles always get their own part, whatever the thread
+// count, so every part stays small and the tree never exists twice while it grows.
 struct Subtree {
-    std::vector<KdNode> nodes;
-    std::vector<uint32_t> indices;
+    explicit Subtree(ScratchMeter* m)
+        : nodes(MeteredAllocator<KdNode>(m)), indices(MeteredAllocator<uint32_t>(m)) {}
+    MeteredVector<KdNode> nodes;
+    MeteredVector<uint32_t> indices;
     std::vector<std::pair<uint32_t, std::unique_ptr<Subtree>>> links;
     uint64_t median_splits = 0, center_splits = 0, cutoff_splits = 0;
 };
 
 struct Work {
-    std::vector<uint32_t> tris;
+    explicit Work(ScratchMeter* m) : tris(MeteredAllocator<uint32_t>(m)) {}
+    MeteredVector<uint32_t> tris;
     Bounds3f box;
     int depth = 0;
     uint64_t budget = 0;  // references this subtree may hold, >= tris.size()
+};
+
+// Nodes up to this many triangles, and up to 1/16 of the mesh, keep their extents and
+// vertex coordinates along the evaluated axis in the per-thread scratch (20 bytes each, so
+// at most 1.25 MB or 1.25 bytes per triangle per thread); larger ones, the few top levels,
+// read the vertices again instead of holding 20 bytes per triangle at the root.
+constexpr size_t kMaxStoredExtents = size_t(1) << 16;
+
+// Per-thread scratch reused from node to node: the histogram of the median selection, the
+// values of the one bin that holds the median, and the extents of small nodes.
+struct Scratch {
+    explicit Scratch(ScratchMeter* m)
+        : hist(MeteredAllocator<uint32_t>(m)),
+          bucket(MeteredAllocator<float>(m)),
+          bucket_lo(MeteredAllocator<float>(m)),
+          bucket_hi(MeteredAllocator<float>(m)),
+          lo(MeteredAllocator<float>(m)),
+          hi(MeteredAllocator<float>(m)),
+          coords(MeteredAllocator<float>(m)) {}
+    MeteredVector<uint32_t> hist;
+    MeteredVector<float> bucket, bucket_lo, bucket_hi;
+    MeteredVector<float> lo, hi;  // extents along `axis` of the node's triangles
+    MeteredVector<float> coords;  // their vertex coordinates along `axis`
+    int axis = -1;                // -1: lo/hi hold nothing valid
 };
 
 struct Context {
@@ -61,56 +91,16 @@ struct Context {
     const KdTreeParams& params;
     int max_depth = 0;
     bool parallel = false;
-    std::atomic<int64_t> live_bytes{0};
-    std::atomic<int64_t> peak_bytes{0};
+    size_t max_stored = 0;  // nodes up to this size keep extents in the scratch
+    ScratchMeter meter;
+    std::vector<std::unique_ptr<Scratch>> scratch;  // one per OpenMP thread
 
-    void add_bytes(int64_t delta) {
-        int64_t now = live_bytes.fetch_add(delta, std::memory_order_relaxed) + delta;
-        int64_t peak = peak_bytes.load(std::memory_order_relaxed);
-        while (now > peak && !peak_bytes.compare_exchange_weak(peak, now)) {
-        }
+    Scratch& thread_scratch() {
+        auto& s = scratch[size_t(omp_get_thread_num())];
+        if (!s) s = std::make_unique<Scratch>(&meter);
+        return *s;
     }
 };
-
-// Per-thread scratch reused from node to node (the parent's is dead once it has split), so
-// the build does not fault in fresh pages at every level.
-struct Scratch {
-    std::vector<float> coords;  // 3 vertex coordinates per triangle, for the median
-    std::vector<float> lo, hi;  // per-triangle extent along `axis`
-    int axis = -1;              // axis of lo/hi
-    std::vector<uint32_t> histogram;
-    std::vector<float> bucket;
-    size_t counted = 0;  // bytes reported to Context for these buffers
-};
-thread_local Scratch tls_scratch;
-
-// The k-th smallest of v (all in [lo, hi]), exactly: one histogram pass over about n / 4
-// bins of the range, then nth_element on the one bin holding rank k. Binning is monotone,
-// so the k-th value lies in the bin where the cumulative count passes k. Faster than
-// nth_element on all 3N coordinates, whose partition loop mispredicts branches.
-float select_kth(std::vector<float>& v, size_t k, float lo, float hi, Scratch& s) {
-    const int kBins =
-        int(std::min<size_t>(4096, std::bit_floor(std::max<size_t>(v.size() / 4, 1))));
-    const float scale = float(kBins) / (hi - lo);
-    if (v.size() < 64 || !std::isfinite(scale) || !(scale > 0.0f)) {
-        std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(k), v.end());
-        return v[k];
-    }
-    auto bin = [&](float x) {
-        return int(std::min(std::max((x - lo) * scale, 0.0f), float(kBins - 1)));
-    };
-    s.histogram.assign(kBins, 0);
-    for (float x : v) ++s.histogram[size_t(bin(x))];
-    size_t before = 0;
-    int b = 0;
-    while (before + s.histogram[size_t(b)] <= k) before += s.histogram[size_t(b++)];
-    s.bucket.clear();
-    for (float x : v)
-        if (bin(x) == b) s.bucket.push_back(x);
-    const size_t r = k - before;
-    std::nth_element(s.bucket.begin(), s.bucket.begin() + std::ptrdiff_t(r), s.bucket.end());
-    return s.bucket[r];
-}
 
 struct Choice {
     SplitKind kind = SplitKind::none;
@@ -125,38 +115,93 @@ double box_area(const Bounds3f& b) {
     return 2.0 * (d.x * d.y + d.y * d.z + d.z * d.x);
 }
 
+// The k-th smallest of v (all in [lo, hi]), exactly: one histogram pass over about n / 4
+// bins of the range, then nth_element on the one bin holding rank k. Binning is monotone,
+// so the k-th value lies in the bin where the cumulative count passes k. Faster than
+// nth_element on all 3N coordinates, whose partition loop mispredicts branches.
+float select_kth(MeteredVector<float>& v, size_t k, float lo, float hi, Scratch& s) {
+    const int bins = int(std::min<size_t>(4096, std::bit_floor(std::max<size_t>(v.size() / 4, 1))));
+    const float scale = float(bins) / (hi - lo);
+    if (v.size() < 64 || !std::isfinite(scale) || !(scale > 0.0f)) {
+        std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(k), v.end());
+        return v[k];
+    }
+    auto bin = [&](float x) {
+        return int(std::min(std::max((x - lo) * scale, 0.0f), float(bins - 1)));
+    };
+    s.hist.assign(size_t(bins), 0);
+    for (float x : v) ++s.hist[size_t(bin(x))];
+    size_t before = 0;
+    int b = 0;
+    while (before + s.hist[size_t(b)] <= k) before += s.hist[size_t(b++)];
+    s.bucket.clear();
+    for (float x : v)
+        if (bin(x) == b) s.bucket.push_back(x);
+    const size_t r = k - before;
+    std::nth_element(s.bucket.begin(), s.bucket.begin() + std::ptrdiff_t(r), s.bucket.end());
+    return s.bucket[r];
+}
+
 // Evaluates the thesis's candidates on one axis, keeping the cheapest in `best`.
-void evaluate_axis(Context& ctx, const Work& w, int axis, Scratch& s, Choice& best) {
+// The first pass reads the vertices, counts the spatial-middle sides and histograms the
+// vertex coordinates over the node's range for the median vertex (the k-th smallest of all
+// 3N). Binning is monotone, so rank k lies in the bin where the cumulative count passes k,
+// every triangle whose extent ends in a lower bin is left of the median and every one
+// starting in a higher bin right of it. The second pass counts those and collects the
+// values in the median's bin; nth_element on them gives the exact median and the extents in
+// that bin settle the remaining side counts exactly.
+void evaluate_axis(Context& ctx, const Work& w, int axis, Choice& best) {
     const size_t n = w.tris.size();
+    const float box_lo = w.box.lower[axis], box_hi = w.box.upper[axis];
     const Vec3f* pos = ctx.mesh.positions.data();
     const Vec3u* tri = ctx.mesh.triangles.data();
     const bool want_median = ctx.params.use_median_split;
-    s.lo.resize(n);
-    s.hi.resize(n);
-    s.axis = axis;
-    if (want_median) s.coords.resize(3 * n);
+    const float center = 0.5f * (box_lo + box_hi);
+    const bool use_center = ctx.params.use_center_split && center > box_lo && center < box_hi;
+
+    Scratch& s = ctx.thread_scratch();
+    const bool store = n <= ctx.max_stored;
+    s.axis = -1;
+    if (store) {
+        s.lo.resize(n);
+        s.hi.resize(n);
+    }
+    // About 4 coordinates per bin; small nodes use one bin, that is, plain nth_element.
+    int bins = n < 64 ? 1 : int(std::min<size_t>(4096, std::bit_floor(3 * n / 4)));
+    float scale = box_hi > box_lo ? float(bins) / (box_hi - box_lo) : 0.0f;
+    if (!std::isfinite(scale) || !(scale > 0.0f)) bins = 1;
+    if (bins == 1) scale = 0.0f;
+    auto bin = [&](float x) {
+        return int(std::min(std::max((x - box_lo) * scale, 0.0f), float(bins - 1)));
+    };
+    if (want_median && !store) s.hist.assign(size_t(bins), 0);
+    if (store && want_median) s.coords.resize(3 * n);
     float tmin = kInfinity, tmax = -kInfinity;
+    size_t c_left = 0, c_right = 0;
     for (size_t i = 0; i < n; ++i) {
         const Vec3u& t = tri[w.tris[i]];
         const float a = pos[t.x][axis], b = pos[t.y][axis], c = pos[t.z][axis];
         const float l = std::min(a, std::min(b, c)), h = std::max(a, std::max(b, c));
-        s.lo[i] = l;
-        s.hi[i] = h;
         tmin = std::min(tmin, l);
         tmax = std::max(tmax, h);
-        if (want_median) {
+        c_left += h < center;
+        c_right += l >= center;
+        if (store) {
+            s.lo[i] = l;
+            s.hi[i] = h;
+        }
+        if (store && want_median) {
             s.coords[3 * i] = a;
             s.coords[3 * i + 1] = b;
             s.coords[3 * i + 2] = c;
+        } else if (want_median) {
+            ++s.hist[size_t(bin(a))];
+            ++s.hist[size_t(bin(b))];
+            ++s.hist[size_t(bin(c))];
         }
     }
-    size_t bytes = s.lo.capacity() * 8 + s.coords.capacity() * 4 + s.bucket.capacity() * 4;
-    if (bytes > s.counted) {
-        ctx.add_bytes(int64_t(bytes - s.counted));
-        s.counted = bytes;
-    }
+    if (store) s.axis = axis;
 
-    const float box_lo = w.box.lower[axis], box_hi = w.box.upper[axis];
     const double inv_area = 1.0 / box_area(w.box);
     const float q = ctx.params.q;
     const int n0 = ctx.params.n0;
@@ -180,30 +225,67 @@ void evaluate_axis(Context& ctx, const Work& w, int axis, Scratch& s, Choice& be
         consider(SplitKind::cutoff, tmin, 0, n, 0);
         consider(SplitKind::cutoff, std::nextafter(tmax, kInfinity), n, 0, 0);
     }
-    // Spatial middle and median vertex, counted in one pass.
-    const float center = 0.5f * (box_lo + box_hi);
-    const bool use_center = ctx.params.use_center_split && center > box_lo && center < box_hi;
-    float median = 0.0f;
-    bool use_median = false;
-    if (want_median) {
-        median = select_kth(s.coords, s.coords.size() / 2, tmin, tmax, s);
-        use_median = median > box_lo && median < box_hi;
-    }
-    if (!use_center && !use_median) return;
-    size_t c_left = 0, c_right = 0, m_left = 0, m_right = 0;
-    for (size_t i = 0; i < n; ++i) {
-        c_left += s.hi[i] < center;
-        c_right += s.lo[i] >= center;
-        m_left += s.hi[i] < median;
-        m_right += s.lo[i] >= median;
-    }
     if (use_center) consider(SplitKind::center, center, c_left, c_right, n - c_left - c_right);
-    if (use_median) consider(SplitKind::median, median, m_left, m_right, n - m_left - m_right);
+    // A median strictly inside the box needs a box with extent on this axis.
+    if (!want_median || !(box_hi > box_lo)) return;
+
+    // The median vertex: rank k = 3N / 2 of the 3N coordinates, in bin mb.
+    const size_t k = 3 * n / 2;
+    if (store) {
+        // Small nodes: select among the stored coordinates, count over the stored extents.
+        const float median = select_kth(s.coords, k, tmin, tmax, s);
+        if (!(median > box_lo && median < box_hi)) return;
+        size_t m_left = 0, m_right = 0;
+        for (size_t i = 0; i < n; ++i) {
+            m_left += s.hi[i] < median;
+            m_right += s.lo[i] >= median;
+        }
+        consider(SplitKind::median, median, m_left, m_right, n - m_left - m_right);
+        return;
+    }
+    size_t before = 0;
+    int mb = 0;
+    while (before + s.hist[size_t(mb)] <= k) before += s.hist[size_t(mb++)];
+    s.bucket.clear();
+    s.bucket_lo.clear();
+    s.bucket_hi.clear();
+    size_t m_left = 0, m_right = 0;
+    for (size_t i = 0; i < n; ++i) {
+        float l, h;
+        if (store) {
+            l = s.lo[i];
+            h = s.hi[i];
+        } else {
+            const Vec3u& t = tri[w.tris[i]];
+            const float a = pos[t.x][axis], b = pos[t.y][axis], c = pos[t.z][axis];
+            l = std::min(a, std::min(b, c));
+            h = std::max(a, std::max(b, c));
+        }
+        const int bl = bin(l), bh = bin(h);
+        m_left += bh < mb;
+        m_right += bl > mb;
+        if (bl > mb || bh < mb) continue;
+        // The extent covers the median's bin: its vertices may lie in it.
+        const Vec3u& t = tri[w.tris[i]];
+        const float v[3] = {pos[t.x][axis], pos[t.y][axis], pos[t.z][axis]};
+        for (float x : v) {
+            if (bin(x) == mb) s.bucket.push_back(x);
+        }
+        if (bl == mb) s.bucket_lo.push_back(l);
+        if (bh == mb) s.bucket_hi.push_back(h);
+    }
+    const size_t r = k - before;
+    std::nth_element(s.bucket.begin(), s.bucket.begin() + std::ptrdiff_t(r), s.bucket.end());
+    const float median = s.bucket[r];
+    if (!(median > box_lo && median < box_hi)) return;
+    for (float h : s.bucket_hi) m_left += h < median;
+    for (float l : s.bucket_lo) m_right += l >= median;
+    consider(SplitKind::median, median, m_left, m_right, n - m_left - m_right);
 }
 
 void build_node(Context& ctx, Subtree& st, uint32_t slot, Work w);
 
-void make_leaf(Subtree& st, uint32_t slot, const std::vector<uint32_t>& tris) {
+void make_leaf(Subtree& st, uint32_t slot, const MeteredVector<uint32_t>& tris) {
     st.nodes[slot] = KdNode::make_leaf(uint32_t(tris.size()), uint32_t(st.indices.size()));
     st.indices.insert(st.indices.end(), tris.begin(), tris.end());
 }
@@ -212,26 +294,28 @@ void build_child_task(Context& ctx, Subtree* sub, Work* w) {
     std::unique_ptr<Work> owned(w);
     sub->nodes.resize(1);
     build_node(ctx, *sub, 0, std::move(*owned));
+    owned.reset();
+    // The part is finished: drop the growth slack of its arrays.
+    sub->nodes.shrink_to_fit();
+    sub->indices.shrink_to_fit();
 }
 
 void build_node(Context& ctx, Subtree& st, uint32_t slot, Work w) {
     const size_t n = w.tris.size();
     if (n <= size_t(ctx.params.n0) || w.depth >= ctx.max_depth || !(box_area(w.box) > 0.0)) {
         make_leaf(st, slot, w.tris);
-        ctx.add_bytes(-int64_t(n) * 4);
         return;
     }
-    Scratch& s = tls_scratch;
     Choice best;
     best.cost = double(n);  // "terminate": every triangle tested in this leaf
     if (ctx.params.thesis_all_axes) {
-        for (int axis = 0; axis < 3; ++axis) evaluate_axis(ctx, w, axis, s, best);
+        for (int axis = 0; axis < 3; ++axis) evaluate_axis(ctx, w, axis, best);
     } else {
-        evaluate_axis(ctx, w, w.depth % 3, s, best);  // the thesis alternates x, y, z
+        evaluate_axis(ctx, w, w.depth % 3, best);  // the thesis alternates x, y, z
     }
+    const Scratch& s = ctx.thread_scratch();
     if (best.kind == SplitKind::none || best.n_left + best.n_right > w.budget) {
         make_leaf(st, slot, w.tris);
-        ctx.add_bytes(-int64_t(n) * 4);
         return;
     }
     switch (best.kind) {
@@ -248,21 +332,21 @@ void build_node(Context& ctx, Subtree& st, uint32_t slot, Work w) {
             break;
     }
 
-    // Partition against exactly the float stored in the node.
+    // Partition against exactly the float stored in the node, into exactly sized lists.
     const int axis = best.axis;
     const float p = best.pos;
-    auto left = std::make_unique<Work>();
-    auto right = std::make_unique<Work>();
+    auto left = std::make_unique<Work>(&ctx.meter);
+    auto right = std::make_unique<Work>(&ctx.meter);
     left->tris.reserve(best.n_left);
     right->tris.reserve(best.n_right);
-    const Vec3f* pos = ctx.mesh.positions.data();
-    const Vec3u* tri = ctx.mesh.triangles.data();
     if (s.axis == axis) {  // the extents along this axis are still in the scratch
         for (size_t i = 0; i < n; ++i) {
             if (s.lo[i] < p) left->tris.push_back(w.tris[i]);
             if (s.hi[i] >= p) right->tris.push_back(w.tris[i]);
         }
     } else {
+        const Vec3f* pos = ctx.mesh.positions.data();
+        const Vec3u* tri = ctx.mesh.triangles.data();
         for (uint32_t id : w.tris) {
             const Vec3u& t = tri[id];
             const float a = pos[t.x][axis], b = pos[t.y][axis], c = pos[t.z][axis];
@@ -270,9 +354,7 @@ void build_node(Context& ctx, Subtree& st, uint32_t slot, Work w) {
             if (std::max(a, std::max(b, c)) >= p) right->tris.push_back(id);
         }
     }
-    const int64_t child_bytes = int64_t(left->tris.size() + right->tris.size()) * 4;
-    ctx.add_bytes(child_bytes - int64_t(n) * 4);
-    std::vector<uint32_t>().swap(w.tris);
+    release(w.tris);
     left->box = right->box = w.box;
     left->box.upper[axis] = p;
     right->box.lower[axis] = p;
@@ -288,12 +370,16 @@ void build_node(Context& ctx, Subtree& st, uint32_t slot, Work w) {
     Work* children[2] = {left.release(), right.release()};
     for (int k = 0; k < 2; ++k) {
         Work* c = children[k];
-        if (ctx.parallel && c->tris.size() >= kTaskMinTriangles) {
-            auto sub = std::make_unique<Subtree>();
+        if (c->tris.size() >= kTaskMinTriangles) {
+            auto sub = std::make_unique<Subtree>(&ctx.meter);
             Subtree* sp = sub.get();
             st.links.emplace_back(first + uint32_t(k), std::move(sub));
+            if (ctx.parallel) {
 #pragma omp task default(none) firstprivate(sp, c) shared(ctx)
-            build_child_task(ctx, sp, c);
+                build_child_task(ctx, sp, c);
+            } else {
+                build_child_task(ctx, sp, c);
+            }
         } else {
             std::unique_ptr<Work> owned(c);
             build_node(ctx, st, first + uint32_t(k), std::move(*owned));
@@ -301,32 +387,52 @@ void build_node(Context& ctx, Subtree& st, uint32_t slot, Work w) {
     }
 }
 
-// Appends `st` to `out` with its root stored at out.nodes[root_slot], relocating child and
-// index offsets and splicing in linked subtrees. Frees `st` as it goes.
-void flatten(Subtree& st, uint32_t root_slot, KdBuildOutput& out, KdTreeStats& stats) {
+// Assembly in two passes so that only one of the two arrays exists twice at a time:
+// first every part's nodes (relocated; leaf offsets from the running index count), then
+// every part's indices, in the same depth-first order. Each part is freed once copied.
+void count_parts(const Subtree& st, size_t& nodes, size_t& indices) {
+    nodes += st.nodes.size() - 1;
+    indices += st.indices.size();
+    for (const auto& link : st.links) count_parts(*link.second, nodes, indices);
+}
+
+void flatten_nodes(Subtree& st, uint32_t root_slot, std::vector<KdNode>& out, size_t& index_base,
+                   KdTreeStats& stats) {
     stats.median_splits += st.median_splits;
     stats.center_splits += st.center_splits;
     stats.cutoff_splits += st.cutoff_splits;
-    const size_t base = out.nodes.size();  // local node k >= 1 goes to base + k - 1
-    const size_t index_base = out.indices.size();
-    if (base + st.nodes.size() > (size_t(1) << 30) ||
-        index_base + st.indices.size() > (size_t(1) << 32) - 1) {
-        throw Error("kd-tree too large: more than 2^30 nodes or 2^32 references");
-    }
+    const size_t base = out.size();  // local node k >= 1 goes to base + k - 1
     auto global = [&](uint32_t k) { return k == 0 ? size_t(root_slot) : base + k - 1; };
-    out.nodes.resize(base + st.nodes.size() - 1);
+    out.resize(base + st.nodes.size() - 1);
     for (size_t k = 0; k < st.nodes.size(); ++k) {
         const KdNode& n = st.nodes[k];
         KdNode g = n.is_leaf() ? KdNode::make_leaf(n.count(), uint32_t(n.first + index_base))
                                : KdNode::make_inner(n.axis(), n.split, uint32_t(global(n.child())));
-        out.nodes[global(uint32_t(k))] = g;
+        out[global(uint32_t(k))] = g;
     }
-    out.indices.insert(out.indices.end(), st.indices.begin(), st.indices.end());
-    std::vector<KdNode>().swap(st.nodes);
-    std::vector<uint32_t>().swap(st.indices);
-    for (auto& [slot, sub] : st.links) {
-        flatten(*sub, uint32_t(global(slot)), out, stats);
-        sub.reset();
+    index_base += st.indices.size();
+    release(st.nodes);
+    for (auto& [slot, sub] : st.links)
+        flatten_nodes(*sub, uint32_t(global(slot)), out, index_base, stats);
+}
+
+// glibc keeps freed heap memory resident; the assembly hands the parts' pages back every
+// kTrimBytes so that the arrays it fills replace them instead of adding to them.
+constexpr size_t kTrimBytes = size_t(1) << 20;
+
+void return_free_pages() { malloc_trim(0); }
+
+void flatten_indices(Subtree& st, std::vector<uint32_t>& out, size_t& freed) {
+    out.insert(out.end(), st.indices.begin(), st.indices.end());
+    freed += st.indices.capacity() * sizeof(uint32_t);
+    release(st.indices);
+    if (freed >= kTrimBytes) {
+        return_free_pages();
+        freed = 0;
+    }
+    for (auto& link : st.links) {
+        flatten_indices(*link.second, out, freed);
+        link.second.reset();
     }
 }
 
@@ -339,58 +445,77 @@ KdBuildOutput build_thesis_tree(const TriangleMesh& mesh, const KdTreeParams& pa
         throw Error("mesh has " + std::to_string(mesh.triangles.size()) +
                     " triangles; the kd-tree supports fewer than 2^30");
     }
+    Context ctx{mesh, params};
     // Triangles that cannot be hit are left out: out-of-range indices, repeated vertices
     // (zero area), non-finite coordinates.
-    Work root;
-    root.tris.reserve(mesh.triangles.size());
-    for (size_t i = 0; i < mesh.triangles.size(); ++i) {
-        const Vec3u& t = mesh.triangles[i];
-        if (t.x >= vertex_count || t.y >= vertex_count || t.z >= vertex_count) continue;
-        if (t.x == t.y || t.y == t.z || t.z == t.x) continue;
-        const Vec3f &a = mesh.positions[t.x], &b = mesh.positions[t.y], &c = mesh.positions[t.z];
-        if (!is_finite(a) || !is_finite(b) || !is_finite(c)) continue;
-        root.box.extend(a);
-        root.box.extend(b);
-        root.box.extend(c);
-        root.tris.push_back(uint32_t(i));
+    Work root(&ctx.meter);
+    size_t valid = 0;
+    for (size_t pass = 0; pass < 2; ++pass) {  // count, then fill an exactly sized list
+        if (pass == 1) root.tris.reserve(valid);
+        for (size_t i = 0; i < mesh.triangles.size(); ++i) {
+            const Vec3u& t = mesh.triangles[i];
+            if (t.x >= vertex_count || t.y >= vertex_count || t.z >= vertex_count) continue;
+            if (t.x == t.y || t.y == t.z || t.z == t.x) continue;
+            const Vec3f &a = mesh.positions[t.x], &b = mesh.positions[t.y],
+                        &c = mesh.positions[t.z];
+            if (!is_finite(a) || !is_finite(b) || !is_finite(c)) continue;
+            if (pass == 0) {
+                ++valid;
+                continue;
+            }
+            root.box.extend(a);
+            root.box.extend(b);
+            root.box.extend(c);
+            root.tris.push_back(uint32_t(i));
+        }
     }
-    Context ctx{mesh, params};
     const double n = double(std::max<size_t>(root.tris.size(), 1));
     ctx.max_depth =
         params.max_depth > 0 ? params.max_depth : std::min(64, int(8.0 + 1.3 * std::log2(n)));
-    ctx.add_bytes(int64_t(root.tris.capacity()) * 4);
     root.budget = kMaxReferencesPerTriangle * root.tris.size();
+    ctx.max_stored = std::min(kMaxStoredExtents, root.tris.size() / 16);
     out.bounds = root.box;
 
-    auto top = std::make_unique<Subtree>();
+    const int threads = params.threads > 0 ? params.threads : omp_get_max_threads();
+    ctx.scratch.resize(size_t(std::max(threads, 1)));
+    auto top = std::make_unique<Subtree>(&ctx.meter);
     top->nodes.resize(1);
     if (root.tris.empty()) {
         top->nodes[0] = KdNode::make_leaf(0, 0);
     } else {
-        const int threads = params.threads > 0 ? params.threads : omp_get_max_threads();
         ctx.parallel = threads > 1 && root.tris.size() >= 2 * kTaskMinTriangles;
         if (ctx.parallel) {
 #pragma omp parallel num_threads(threads)
-            {
 #pragma omp single
-                build_node(ctx, *top, 0, std::move(root));
-                // After the barrier every task is done: free this thread's scratch.
-                tls_scratch = Scratch{};
-            }
+            build_node(ctx, *top, 0, std::move(root));
         } else {
             build_node(ctx, *top, 0, std::move(root));
-            tls_scratch = Scratch{};
         }
     }
+    ctx.scratch.clear();
+    release(root.tris);
+    return_free_pages();
+
+    size_t node_count = 1, index_count = 0;
+    count_parts(*top, node_count, index_count);
+    if (node_count > (size_t(1) << 30) || index_count > (size_t(1) << 32) - 1) {
+        throw Error("kd-tree too large: more than 2^30 nodes or 2^32 references");
+    }
+    // The final arrays count towards the peak from the moment they are reserved.
     KdTreeStats stats;
-    out.nodes.reserve(1);
+    out.nodes.reserve(node_count);
+    ctx.meter.add(int64_t(out.nodes.capacity() * sizeof(KdNode)));
     out.nodes.resize(1);
-    flatten(*top, 0, out, stats);
+    size_t index_base = 0;
+    flatten_nodes(*top, 0, out.nodes, index_base, stats);
+    return_free_pages();
+    out.indices.reserve(index_count);
+    ctx.meter.add(int64_t(out.indices.capacity() * sizeof(uint32_t)));
+    size_t freed = 0;
+    flatten_indices(*top, out.indices, freed);
+    top.reset();
     out.stats = stats;
-    // Scratch peak, or the finished arrays plus the subtrees being spliced, if larger.
-    out.stats.peak_build_bytes =
-        uint64_t(std::max<int64_t>(ctx.peak_bytes.load(), 0)) +
-        uint64_t(out.nodes.size() * sizeof(KdNode) + out.indices.size() * 4);
+    out.stats.peak_build_bytes = uint64_t(std::max<int64_t>(ctx.meter.peak(), 0));
     finalize_stats(out, mesh.triangles.size());
     return out;
 }

@@ -269,6 +269,48 @@ TEST(ThesisBuilder, ThreadCountDoesNotChangeTheTree) {
     }
 }
 
+// A big blob next to a small one: the root's children are built as parts of very
+// different sizes, which once changed the node order with the thread count.
+TEST(ThesisBuilder, ThreadCountDoesNotChangeAnUnbalancedTree) {
+    auto mesh = std::make_shared<TriangleMesh>(test::make_blob(6, 1.0f, 9));  // 32k triangles
+    const TriangleMesh small = test::make_blob(3, 0.3f, 4);                   // 512 triangles
+    const auto offset = uint32_t(mesh->positions.size());
+    for (const Vec3f& v : small.positions) mesh->positions.push_back(v + Vec3f(3.0f, 0.5f, 0.0f));
+    for (const Vec3u& t : small.triangles) mesh->triangles.push_back(t + Vec3u(offset));
+    KdTreeParams p;
+    p.builder = KdBuilder::thesis;
+    p.max_depth = 20;
+    p.threads = 1;
+    auto a = build_kdtree(mesh, p);
+    p.threads = 2;
+    auto b = build_kdtree(mesh, p);
+    ASSERT_EQ(a->nodes().size(), b->nodes().size());
+    ASSERT_EQ(a->indices(), b->indices());
+    for (size_t i = 0; i < a->nodes().size(); ++i) {
+        ASSERT_EQ(a->nodes()[i].word, b->nodes()[i].word) << i;
+        ASSERT_EQ(a->nodes()[i].first, b->nodes()[i].first) << i;
+    }
+}
+
+// The builder's peak counts every buffer it holds, the final arrays included, and stays
+// within twice the tree for the thesis's parameters (table 6.1: depth 20, n0 = 5).
+TEST(ThesisBuilder, PeakBuildMemoryIsAtMostTwiceTheTree) {
+    auto mesh = std::make_shared<TriangleMesh>(test::make_blob(6, 1.0f, 9));  // 32k triangles
+    for (const float q : {0.9f, 0.98f, 1.0f}) {
+        for (const bool median : {false, true}) {
+            KdTreeParams p;
+            p.builder = KdBuilder::thesis;
+            p.q = q;
+            p.use_median_split = median;
+            p.max_depth = 20;
+            p.threads = 2;
+            const KdTreeStats s = build_kdtree(mesh, p)->stats();
+            EXPECT_GE(s.peak_build_bytes, s.bytes) << "q " << q << ", median " << median;
+            EXPECT_LE(s.peak_build_bytes, 2 * s.bytes) << "q " << q << ", median " << median;
+        }
+    }
+}
+
 TEST(KdTree, ConstructorRejectsCorruptTrees) {
     auto mesh = std::make_shared<TriangleMesh>(test::make_soup(10, 0.3f, 1));
     auto make = [&](std::vector<KdNode> nodes, std::vector<uint32_t> indices) {

@@ -514,6 +514,23 @@ TEST(SahBuilder, ReportsScratchMemory) {
     EXPECT_GT(out.stats.peak_build_bytes, 28u * mesh.triangle_count());
 }
 
+// The peak counts every buffer the builder holds, the final arrays included, and stays
+// within twice the tree once the mesh is large next to the per-thread sweep buffers (those
+// scale with the sweep threshold, not with the mesh: the dragon needs the default 2048, a
+// 40k-triangle sphere a smaller one).
+TEST(SahBuilder, PeakBuildMemoryIsAtMostTwiceTheTree) {
+    const TriangleMesh mesh = uv_sphere(100, 200);  // 40k triangles
+    SahTuning tuning;
+    tuning.sweep_threshold = 256;
+    for (const int threads : {1, 2}) {
+        KdTreeParams params;
+        params.threads = threads;
+        const KdBuildOutput out = build_sah_tree(mesh, params, tuning);
+        EXPECT_GE(out.stats.peak_build_bytes, out.stats.bytes) << threads << " threads";
+        EXPECT_LE(out.stats.peak_build_bytes, 2 * out.stats.bytes) << threads << " threads";
+    }
+}
+
 TEST(SahBuilder, OutOfRangeIndexThrows) {
     TriangleMesh mesh = random_soup(10, 1, 0.1f);
     mesh.triangles[4].y = 1000;
