@@ -30,7 +30,7 @@ struct BenchLoadArgs {
     std::string csv;
     std::string make_binary;
     bool no_assimp = false;
-    int threads = 1;
+    int threads = MeshLoadOptions{}.threads;  // load_mesh's default unless --threads says
 };
 
 // CPU seconds of this process (user + system): steadier than wall time on a shared machine,
@@ -209,7 +209,8 @@ void add_bench_load_command(CLI::App& bench) {
         "and benchmark them too");
     cmd->add_flag("--no-assimp", args->no_assimp, "Time our reader only");
     cmd->add_option("--threads", args->threads,
-                    "Threads for our ascii PLY parsing (1 = one core, 2 = two, 0 = auto)")
+                    "Threads for our ascii PLY parsing (1 = one core, 2 = two, 0 = two when "
+                    "the machine has them; default: load_mesh's default)")
         ->check(CLI::Range(0, 64));
     cmd->callback([args] { run_bench_load(*args); });
 }

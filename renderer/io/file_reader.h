@@ -35,6 +35,9 @@ public:
     /// compressed size times deflate's maximal ratio (1032:1). Used to reject element
     /// counts that the file cannot hold before allocating for them.
     uint64_t size_bound() const { return size_bound_; }
+    /// The descriptor of a plain (not gzip) file, so callers may map it instead of calling
+    /// read(); -1 for gzip and memory input. Mapping callers read from offset 0 themselves.
+    int plain_fd() const { return gz_ ? -1 : fd_; }
 
 private:
     FileReader() = default;

@@ -1,16 +1,37 @@
 #include "renderer/io/ply_reader.h"
 
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <charconv>
 #include <cmath>
+#include <condition_variable>
 #include <cstdlib>
 #include <cstring>
+#include <functional>
 #include <limits>
+#include <memory>
+#include <mutex>
 #include <string_view>
 #include <system_error>
 #include <thread>
 #include <vector>
+
+#include <sys/mman.h>
+#include <unistd.h>
+
+#if defined(__SSE2__)
+// GCC 12 warns about the deliberately undefined vectors inside its own AVX-512 intrinsics
+// (GCC PR 105593); the pragma covers the header's lines only.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+#include <immintrin.h>
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
+#endif
 
 #include "renderer/core/error.h"
 #include "renderer/core/timer.h"
@@ -146,30 +167,42 @@ inline bool is_digit(char c) { return unsigned(c - '0') < 10u; }
 
 class Input {
 public:
-    // kPad zero bytes after the usable capacity let the digit parser load 8 bytes at once
-    // near the end of the data without leaving the allocation.
-    static constexpr size_t kPad = 16;
+    // kPad bytes after the usable capacity let the parsers load 64 bytes of a line (and 8
+    // more for a digit run inside it) near the end of the data without leaving the
+    // allocation; bytes at or past end() never count.
+    static constexpr size_t kPad = 80;
 
-    // Small inputs get a buffer of their own size instead of a whole block.
-    explicit Input(FileReader& reader)
-        : reader_(reader),
-          buf_(size_t(
-                   std::min<uint64_t>(kBlockBytes, std::max<uint64_t>(reader.size_bound(), 4096))) +
-               kPad) {
+    // Plain files of at least kMapBytes are mapped: no copy, no buffer to fault in.
+    // Small files and gzip/memory input get a buffer, small inputs one of their own size.
+    explicit Input(FileReader& reader) : reader_(reader) {
+        if (map_file()) return;
+        buf_.resize(
+            size_t(std::min<uint64_t>(kBlockBytes, std::max<uint64_t>(reader.size_bound(), 4096))) +
+            kPad);
         pos_ = end_ = buf_.data();
+    }
+    Input(const Input&) = delete;
+    Input& operator=(const Input&) = delete;
+    ~Input() {
+        if (map_) ::munmap(map_, map_bytes_);
     }
 
     const char* pos() const { return pos_; }
     const char* end() const { return end_; }
     bool eof() const { return eof_; }
     size_t avail() const { return size_t(end_ - pos_); }
+    /// Bytes the buffer holds without growing.
+    size_t capacity() const { return map_ ? kBlockBytes : buf_.size() - kPad; }
     void advance(size_t n) { pos_ += n; }
     /// Stream offset of pos().
-    uint64_t offset() const { return base_ + uint64_t(pos_ - buf_.data()); }
+    uint64_t offset() const {
+        return map_ ? uint64_t(pos_ - map_) : base_ + uint64_t(pos_ - buf_.data());
+    }
 
     /// Makes at least n bytes available at pos(); false when the data ends first.
     bool fill(size_t n) {
         if (avail() >= n) return true;
+        if (map_) return slide(n);
         size_t have = avail();
         if (pos_ != buf_.data()) {
             base_ += uint64_t(pos_ - buf_.data());
@@ -231,12 +264,68 @@ public:
     }
 
 private:
+    // Maps the whole file read-only over a reservation one padding page longer, so loads
+    // past the end read zeros; the parser then sees the file through a window of
+    // kBlockBytes that slide() moves on. (A file truncated by another process while it is
+    // read would fault, as with any mapped file.)
+    bool map_file() {
+        const int fd = reader_.plain_fd();
+        const uint64_t size = reader_.file_bytes();
+        if (fd < 0 || size < kMapBytes || size > uint64_t(SIZE_MAX) / 2) return false;
+        const size_t page = size_t(::sysconf(_SC_PAGESIZE));
+        const size_t bytes = (size_t(size) + kPad + 2 * page - 1) / page * page;
+        void* base = ::mmap(nullptr, bytes, PROT_READ, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+        if (base == MAP_FAILED) return false;
+        if (::mmap(base, size_t(size), PROT_READ, MAP_PRIVATE | MAP_FIXED, fd, 0) == MAP_FAILED) {
+            ::munmap(base, bytes);
+            return false;
+        }
+        ::madvise(base, size_t(size), MADV_SEQUENTIAL);
+        map_ = static_cast<char*>(base);
+        map_bytes_ = bytes;
+        map_end_ = map_ + size;
+        page_ = page;
+        released_ = map_;
+        pos_ = end_ = map_;
+        return true;
+    }
+
+    // Moves the window of a mapped file to [pos, pos + max(n, kBlockBytes)) and unmaps the
+    // pages before it, so resident memory stays about one window whatever the file size.
+    bool slide(size_t n) {
+        char* done = map_ + size_t(pos_ - map_) / page_ * page_;
+        if (size_t(done - released_) >= kReleaseBytes) {
+            ::madvise(released_, size_t(done - released_), MADV_DONTNEED);
+            released_ = done;
+        }
+        const char* old_end = end_;
+        end_ = pos_ + std::min(size_t(map_end_ - pos_), std::max(n, kBlockBytes));
+        eof_ = end_ == map_end_;
+        // Map the window's pages in one call rather than one fault per 16 pages.
+        char* from = map_ + size_t(std::max(old_end, pos_) - map_) / page_ * page_;
+        if (end_ > from) ::madvise(from, size_t(end_ - from), kPopulateRead);
+        return avail() >= n;
+    }
+
+    static constexpr uint64_t kMapBytes = uint64_t(1) << 20;
+    // MADV_POPULATE_READ (Linux 5.14); older kernels reject it and fault pages in as read.
+#ifdef MADV_POPULATE_READ
+    static constexpr int kPopulateRead = MADV_POPULATE_READ;
+#else
+    static constexpr int kPopulateRead = 22;
+#endif
+    static constexpr size_t kReleaseBytes = size_t(1) << 20;
+
     FileReader& reader_;
     std::vector<char> buf_;
-    const char* pos_;
-    const char* end_;
+    const char* pos_ = nullptr;
+    const char* end_ = nullptr;
     uint64_t base_ = 0;
     bool eof_ = false;
+    char* map_ = nullptr;  // mapped file, or null for buffered input
+    const char* map_end_ = nullptr;
+    char* released_ = nullptr;  // pages before it are unmapped again
+    size_t map_bytes_ = 0, page_ = 4096;
 };
 
 // ---------------------------------------------------------------------------------------
@@ -443,38 +532,44 @@ constexpr double kInvPow10[] = {1e0,   1e-1,  1e-2,  1e-3,  1e-4,  1e-5,  1e-6, 
                                 1e-8,  1e-9,  1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15,
                                 1e-16, 1e-17, 1e-18, 1e-19, 1e-20, 1e-21, 1e-22};
 
+// Rounds m * 10^exp10 (m < 2^53 exact, |exp10| <= 22) to T; false when the float result could
+// round twice (the caller then asks from_chars).
+template <typename T>
+[[gnu::always_inline]] inline bool decimal_to_real(double m, int exp10, bool neg, T& out) {
+    if constexpr (sizeof(T) == 8) {
+        double d = exp10 < 0 ? m / kPow10[-exp10] : m * kPow10[exp10];
+        // The sign as a bit, not a branch: signs of coordinates are random.
+        out = std::bit_cast<double>(std::bit_cast<uint64_t>(d) | (uint64_t(neg) << 63));
+        return true;
+    } else {
+        // For a float result, multiplying by a rounded 10^-k (no division latency) is
+        // within 2 double ulps of m / 10^k. Rounding that to float gives the correctly
+        // rounded float unless a float midpoint lies within those ulps; such rare
+        // values take the exact division, and a result exactly on a midpoint (where
+        // rounding twice could differ) goes to from_chars.
+        double d;
+        if (exp10 >= 0) {
+            d = m * kPow10[exp10];
+        } else {
+            d = m * kInvPow10[-exp10];
+            uint64_t low = std::bit_cast<uint64_t>(d) & 0x1fffffffu;
+            if (low - 0x10000000u + 4u <= 8u) d = m / kPow10[-exp10];
+        }
+        if ((std::bit_cast<uint64_t>(d) & 0x1fffffffu) == 0x10000000u) return false;
+        out = std::bit_cast<float>(std::bit_cast<uint32_t>(float(d)) | (uint32_t(neg) << 31));
+        return true;
+    }
+}
+
 template <typename T>
 inline bool parse_real(const char*& p, const char* e, T& out) {
     double m;
     int exp10;
     bool neg;
     const char* fp = p;
-    if (fast_decimal(fp, e, m, exp10, neg)) {
-        if constexpr (sizeof(T) == 8) {
-            double d = exp10 < 0 ? m / kPow10[-exp10] : m * kPow10[exp10];
-            out = neg ? -d : d;
-            p = fp;
-            return true;
-        } else {
-            // For a float result, multiplying by a rounded 10^-k (no division latency) is
-            // within 2 double ulps of m / 10^k. Rounding that to float gives the correctly
-            // rounded float unless a float midpoint lies within those ulps; such rare
-            // values take the exact division, and a result exactly on a midpoint (where
-            // rounding twice could differ) goes to from_chars.
-            double d;
-            if (exp10 >= 0) {
-                d = m * kPow10[exp10];
-            } else {
-                d = m * kInvPow10[-exp10];
-                uint64_t low = std::bit_cast<uint64_t>(d) & 0x1fffffffu;
-                if (low - 0x10000000u + 4u <= 8u) d = m / kPow10[-exp10];
-            }
-            if ((std::bit_cast<uint64_t>(d) & 0x1fffffffu) != 0x10000000u) {
-                out = float(neg ? -d : d);
-                p = fp;
-                return true;
-            }
-        }
+    if (fast_decimal(fp, e, m, exp10, neg) && decimal_to_real(m, exp10, neg, out)) {
+        p = fp;
+        return true;
     }
     const char* q = p;
     if (q < e && *q == '+') ++q;
@@ -493,12 +588,433 @@ inline bool parse_real(const char*& p, const char* e, T& out) {
     return true;
 }
 
+// ---------------------------------------------------------------------------------------
+// Whole-line parsing by byte classes. One pass over the 64 bytes at a line start gives bit
+// masks of its digits, blanks, dots, minus signs and newlines; every token's start and end
+// then follow by bit arithmetic, so the tokens of a line are converted independently
+// instead of each one waiting for the end of the one before. Lines longer than 64 bytes,
+// exponents, '+' signs and anything else unusual go to the per-token parsers.
+
+struct LineClasses {
+    uint64_t digit = 0, blank = 0, dot = 0, minus = 0, newline = 0;
+};
+
+#if defined(__SSE2__)
+constexpr bool kHaveLineClasses = true;
+
+// Bit i of each mask describes p[i]; reads 64 bytes at p (the Input padding keeps them
+// inside the buffer).
+[[gnu::always_inline]] inline LineClasses classify_line(const char* p) {
+    LineClasses c;
+#if defined(__AVX512BW__)
+    const __m512i x = _mm512_loadu_si512(p);
+    c.digit =
+        _mm512_cmplt_epu8_mask(_mm512_sub_epi8(x, _mm512_set1_epi8('0')), _mm512_set1_epi8(10));
+    c.blank = _mm512_cmpeq_epi8_mask(x, _mm512_set1_epi8(' ')) |
+              _mm512_cmpeq_epi8_mask(x, _mm512_set1_epi8('\t')) |
+              _mm512_cmpeq_epi8_mask(x, _mm512_set1_epi8('\r'));
+    c.dot = _mm512_cmpeq_epi8_mask(x, _mm512_set1_epi8('.'));
+    c.minus = _mm512_cmpeq_epi8_mask(x, _mm512_set1_epi8('-'));
+    c.newline = _mm512_cmpeq_epi8_mask(x, _mm512_set1_epi8('\n'));
+#else
+    for (int k = 0; k < 4; ++k) {
+        const __m128i x = _mm_loadu_si128(reinterpret_cast<const __m128i*>(p + 16 * k));
+        const __m128i t = _mm_sub_epi8(x, _mm_set1_epi8('0'));
+        auto bits = [k](__m128i m) { return uint64_t(uint32_t(_mm_movemask_epi8(m))) << (16 * k); };
+        c.digit |= bits(_mm_cmpeq_epi8(_mm_min_epu8(t, _mm_set1_epi8(9)), t));
+        c.blank |= bits(_mm_or_si128(_mm_or_si128(_mm_cmpeq_epi8(x, _mm_set1_epi8(' ')),
+                                                  _mm_cmpeq_epi8(x, _mm_set1_epi8('\t'))),
+                                     _mm_cmpeq_epi8(x, _mm_set1_epi8('\r'))));
+        c.dot |= bits(_mm_cmpeq_epi8(x, _mm_set1_epi8('.')));
+        c.minus |= bits(_mm_cmpeq_epi8(x, _mm_set1_epi8('-')));
+        c.newline |= bits(_mm_cmpeq_epi8(x, _mm_set1_epi8('\n')));
+    }
+#endif
+    return c;
+}
+#else
+constexpr bool kHaveLineClasses = false;
+inline LineClasses classify_line(const char*) { return {}; }
+#endif
+
+// Length of the line at p (bytes before its '\n'), when the '\n' lies within the 64 classified
+// bytes and before e; else -1.
+[[gnu::always_inline]] inline int line_length(const LineClasses& c, const char* p, const char* e) {
+    uint64_t nl = c.newline;
+    if (e - p < 64) nl &= (uint64_t(1) << (e - p)) - 1;
+    return nl ? __builtin_ctzll(nl) : -1;
+}
+
+// Value of the first n bytes of x (0 < n <= 8, all digits, first digit in the low byte), by
+// multiply-shift as in digits8.
+[[gnu::always_inline]] inline uint64_t digits_word_value(uint64_t x, int n) {
+    uint64_t d = (x & 0x0f0f0f0f0f0f0f0full) << (8 * (8 - n));
+    d = (d * 10 + (d >> 8)) & 0x00ff00ff00ff00ffull;
+    d = (d * 100 + (d >> 16)) & 0x0000ffff0000ffffull;
+    d = (d * 10000 + (d >> 32)) & 0xffffffffull;
+    return d;
+}
+
+// Value of the n decimal digits at q (0 <= n <= 8). Loads 8 bytes at q when n > 0.
+[[gnu::always_inline]] inline uint64_t digits_value(const char* q, int n) {
+    if (n == 0) return 0;
+    uint64_t x;
+    std::memcpy(&x, q, 8);
+    return digits_word_value(x, n);
+}
+
+#if defined(__SSSE3__) && defined(__SSE4_1__)
+// Value of the `digits` decimal digits (1 to 16) in the 16 bytes at q, skipping the byte at
+// `dot` (127 when there is none): one shuffle right-aligns the digits without the dot, then
+// multiply-adds combine pairs, quads and octets (Lemire's SIMD digit parsing). No branch, so
+// no misprediction however the digit counts vary from token to token.
+[[gnu::always_inline]] inline uint64_t digits16_value(const char* q, int digits, int dot) {
+    const __m128i x =
+        _mm_sub_epi8(_mm_loadu_si128(reinterpret_cast<const __m128i*>(q)), _mm_set1_epi8('0'));
+    const __m128i iota = _mm_setr_epi8(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    // Output byte i takes digit i - (16 - digits), one byte further on from the dot.
+    __m128i src = _mm_sub_epi8(iota, _mm_set1_epi8(char(16 - digits)));
+    src = _mm_sub_epi8(src, _mm_cmpgt_epi8(src, _mm_set1_epi8(char(dot - 1))));
+    src = _mm_or_si128(src, _mm_cmpgt_epi8(_mm_setzero_si128(), src));  // leading zeros
+    __m128i d = _mm_shuffle_epi8(x, src);
+    d = _mm_maddubs_epi16(d, _mm_setr_epi8(10, 1, 10, 1, 10, 1, 10, 1, 10, 1, 10, 1, 10, 1, 10, 1));
+    d = _mm_madd_epi16(d, _mm_setr_epi16(100, 1, 100, 1, 100, 1, 100, 1));
+    d = _mm_packus_epi32(d, d);
+    d = _mm_madd_epi16(d, _mm_setr_epi16(10000, 1, 10000, 1, 10000, 1, 10000, 1));
+    return uint64_t(uint32_t(_mm_cvtsi128_si32(d))) * 100000000u +
+           uint32_t(_mm_extract_epi32(d, 1));
+}
+
+// The token of n bytes at t, made of digits, dots and minus signs only (`dots` and `minus`
+// mark them, bit i for t[i]): a plain decimal "-ddd.ddd" of at most 16 bytes after the sign is
+// m / 10^k with m <= 2^53 (checked) and k <= 15, which Clinger's fast path converts exactly
+// (decimal_to_real). False for anything else, which the caller hands to parse_real.
+template <typename T>
+[[gnu::always_inline]] inline bool parse_plain_decimal(const char* t, int n, uint64_t dots,
+                                                       uint64_t minus, T& out) {
+    if (minus > 1 || (dots & (dots - 1))) return false;
+    const int a = int(minus);  // the sign as a number, not a branch: signs are random
+    const int body = n - a;
+    const int dot = dots ? __builtin_ctzll(dots) - a : 127;
+    const int digits = body - (dots != 0);
+    if (digits == 0 || body > 16) return false;
+    const uint64_t m = digits16_value(t + a, digits, dot);
+    if (m > (uint64_t(1) << 53)) return false;
+    return decimal_to_real(double(m), dots ? dot + 1 - body : 0, a != 0, out);
+}
+#else
+// The token of n bytes at t, made of digits, dots and minus signs only (`dots` and `minus`
+// mark them, bit i for t[i]): a plain decimal "-ddd.ddd" with up to 8 digits on either side
+// of the dot is m / 10^k with m < 10^16 < 2^53 and k <= 8, which Clinger's fast path converts
+// exactly (decimal_to_real). False for anything else, which the caller hands to parse_real.
+template <typename T>
+[[gnu::always_inline]] inline bool parse_plain_decimal(const char* t, int n, uint64_t dots,
+                                                       uint64_t minus, T& out) {
+    if (minus > 1) return false;
+    const int a = int(minus);
+    int int_digits = n - a, frac_digits = 0;
+    if (dots) {
+        if (dots & (dots - 1)) return false;
+        const int dot = __builtin_ctzll(dots);
+        int_digits = dot - a;
+        frac_digits = n - dot - 1;
+    }
+    if (int_digits + frac_digits == 0 || int_digits > 8 || frac_digits > 8) return false;
+    const uint64_t m = digits_value(t + a, int_digits) * kPow10Int[frac_digits] +
+                       digits_value(t + a + int_digits + 1, frac_digits);
+    return decimal_to_real(double(m), -frac_digits, a != 0, out);
+}
+#endif
+
+inline uint64_t low_bits(int n) { return n >= 64 ? ~uint64_t(0) : (uint64_t(1) << n) - 1; }
+
+// Counts '\n' in [b, e).
+inline uint64_t count_newlines(const char* b, const char* e) {
+    uint64_t n = 0;
+    if constexpr (kHaveLineClasses) {
+        // classify_line reads 64 bytes: stop one block early and count the rest bytewise.
+        for (; e - b >= 64; b += 64) n += uint64_t(__builtin_popcountll(classify_line(b).newline));
+    }
+    return n + uint64_t(std::count(b, e, '\n'));
+}
+
+// The line of len bytes at p (len > 0, its newline at p[len]), whose byte classes c holds
+// with bit 0 for p[0]: "x y z" as plain floats into pos. False for anything else (the caller
+// then parses the line token by token).
+[[gnu::always_inline]] inline bool xyz_from_classes(const LineClasses& c, const char* p, int len,
+                                                    Vec3f& pos) {
+    const uint64_t tok = low_bits(len) & ~c.blank;
+    if (tok & ~(c.digit | c.dot | c.minus)) return false;
+    uint64_t starts = tok & ~(tok << 1);
+    uint64_t ends = tok & ~(tok >> 1);  // last byte of each token
+    if (__builtin_popcountll(starts) != 3) return false;
+    const char* le = p + len;
+    int s[3], n[3];
+    for (int k = 0; k < 3; ++k) {
+        s[k] = __builtin_ctzll(starts);
+        n[k] = __builtin_ctzll(ends) - s[k] + 1;
+        starts &= starts - 1;
+        ends &= ends - 1;
+    }
+    // f[] stays in registers: only the rare from_chars path writes through memory (a float
+    // array in memory read back as a vector would stall store forwarding every line).
+    float f[3];
+    for (int k = 0; k < 3; ++k) {
+        const uint64_t m = low_bits(n[k]);
+        const char* t = p + s[k];
+        if (!parse_plain_decimal(t, n[k], (c.dot >> s[k]) & m, (c.minus >> s[k]) & m, f[k])) {
+            float slow;
+            if (!parse_real(t, le, slow)) return false;
+            f[k] = slow;
+        }
+    }
+    pos = Vec3f(f[0], f[1], f[2]);
+    return true;
+}
+
+// Same for a face line "3 a b c" with indices of up to 8 digits.
+[[gnu::always_inline]] inline bool triangle_from_classes(const LineClasses& c, const char* p,
+                                                         int len, int64_t* idx) {
+    const uint64_t tok = low_bits(len) & ~c.blank;
+    if (tok & ~c.digit) return false;
+    uint64_t starts = tok & ~(tok << 1);
+    uint64_t ends = tok & ~(tok >> 1);  // last byte of each token
+    if (__builtin_popcountll(starts) != 4 || (starts & -starts) != (ends & -ends) ||
+        p[__builtin_ctzll(starts)] != '3')
+        return false;
+    starts &= starts - 1;
+    ends &= ends - 1;
+    int s[3], n[3];
+    for (int k = 0; k < 3; ++k) {
+        s[k] = __builtin_ctzll(starts);
+        n[k] = __builtin_ctzll(ends) - s[k] + 1;
+        starts &= starts - 1;
+        ends &= ends - 1;
+    }
+    if (n[0] > 8 || n[1] > 8 || n[2] > 8) return false;
+    for (int k = 0; k < 3; ++k) idx[k] = int64_t(digits_value(p + s[k], n[k]));
+    return true;
+}
+
+#if defined(__AVX512VBMI__) && defined(__AVX512DQ__) && defined(__AVX512VL__)
+#define KDT_PLY_VBMI 1
+
+// The 64 bytes at p less '0': digit values for the vbmi paths below.
+[[gnu::always_inline]] inline __m512i window_digits(const char* p) {
+    return _mm512_sub_epi8(_mm512_loadu_si512(p), _mm512_set1_epi8('0'));
+}
+
+// Byte v in every byte of a 64-bit lane.
+inline long long bytes8(int v) { return (long long)(uint64_t(uint8_t(v)) * 0x0101010101010101ull); }
+
+// Bytes 0..7 in every 64-bit lane, and 0..15 in every 128-bit lane.
+inline __m512i iota8() { return _mm512_set1_epi64(0x0706050403020100ll); }
+inline __m512i iota16() {
+    return _mm512_set4_epi64(0x0f0e0d0c0b0a0908ll, 0x0706050403020100ll, 0x0f0e0d0c0b0a0908ll,
+                             0x0706050403020100ll);
+}
+
+// Pairs, quads and octets of digit bytes combined by multiply-adds: each 64-bit lane of the
+// result holds the value of its 8 digit bytes (first byte most significant).
+[[gnu::always_inline]] inline __m512i octets_value(__m512i d) {
+    d = _mm512_maddubs_epi16(d, _mm512_set1_epi16(0x010a));   // bytes (10, 1)
+    d = _mm512_madd_epi16(d, _mm512_set1_epi32(0x00010064));  // words (100, 1)
+    return _mm512_add_epi64(_mm512_mul_epu32(d, _mm512_set1_epi64(10000)),
+                            _mm512_srli_epi64(d, 32));
+}
+
+// The face line "3 a b c" of len bytes at `off` in the window whose digit values are wd and
+// whose classes (shifted to the line) are c: the three indices (up to 8 digits) gathered by
+// one byte permute and converted together.
+[[gnu::always_inline]] inline bool triangle_vbmi(const LineClasses& c, __m512i wd, int off,
+                                                 const char* p, int len, int64_t* idx) {
+    const uint64_t tok = low_bits(len) & ~c.blank;
+    if (tok & ~c.digit) return false;
+    uint64_t starts = tok & ~(tok << 1);
+    uint64_t ends = tok & ~(tok >> 1);  // last byte of each token
+    if (__builtin_popcountll(starts) != 4 || (starts & -starts) != (ends & -ends) ||
+        p[__builtin_ctzll(starts)] != '3')
+        return false;
+    starts &= starts - 1;
+    ends &= ends - 1;
+    int s[3], n[3];
+    for (int k = 0; k < 3; ++k) {
+        s[k] = __builtin_ctzll(starts);
+        n[k] = __builtin_ctzll(ends) - s[k] + 1;
+        starts &= starts - 1;
+        ends &= ends - 1;
+    }
+    if (n[0] > 8 || n[1] > 8 || n[2] > 8) return false;
+    // Lane k takes the 8 bytes ending at index k's last digit, the bytes before it zeroed.
+    const __m512i base =
+        _mm512_set_epi64(0, 0, 0, 0, 0, bytes8(off + s[2] + n[2] - 8),
+                         bytes8(off + s[1] + n[1] - 8), bytes8(off + s[0] + n[0] - 8));
+    const __m512i lead =
+        _mm512_set_epi64(-1, -1, -1, -1, -1, bytes8(8 - n[2]), bytes8(8 - n[1]), bytes8(8 - n[0]));
+    const __mmask64 keep = _mm512_cmpge_epu8_mask(iota8(), lead);
+    const __m512i d = _mm512_maskz_permutexvar_epi8(keep, _mm512_add_epi8(base, iota8()), wd);
+    alignas(64) uint64_t v[8];
+    _mm512_store_si512(v, octets_value(d));
+    idx[0] = int64_t(v[0]);
+    idx[1] = int64_t(v[1]);
+    idx[2] = int64_t(v[2]);
+    return true;
+}
+
+constexpr double kInvPow10Lo[8] = {1e0, 1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7};
+constexpr double kInvPow10Hi[8] = {1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15};
+
+// The vertex line "x y z" of len bytes at `off` in the window (see triangle_vbmi): plain
+// decimals of at most 16 bytes after the sign, their digits gathered without the dot into
+// one 128-bit lane each, converted together, then scaled and rounded to float as
+// decimal_to_real does. Lines where a value lies near a float midpoint (or anything
+// unusual) return false and take the scalar path, which decides those exactly.
+[[gnu::always_inline]] inline bool xyz_vbmi(const LineClasses& c, __m512i wd, int off, int len,
+                                            Vec3f& pos) {
+    const uint64_t tok = low_bits(len) & ~c.blank;
+    if (tok & ~(c.digit | c.dot | c.minus)) return false;
+    uint64_t starts = tok & ~(tok << 1);
+    uint64_t ends = tok & ~(tok >> 1);
+    if (__builtin_popcountll(starts) != 3) return false;
+    long long base[3], lead[3], after[3], scale[3];
+    int sign[3];
+    for (int k = 0; k < 3; ++k) {
+        const int s = __builtin_ctzll(starts);
+        const int n = __builtin_ctzll(ends) - s + 1;
+        starts &= starts - 1;
+        ends &= ends - 1;
+        const uint64_t in = low_bits(n);
+        const uint64_t minus = (c.minus >> s) & in, dots = (c.dot >> s) & in;
+        if (minus > 1 || (dots & (dots - 1))) return false;
+        const int a = int(minus);
+        const int body = n - a;
+        const int digits = body - (dots != 0);
+        if (digits == 0 || body > 16) return false;
+        const int dot = dots ? __builtin_ctzll(dots) - a : 64;
+        // Output byte j (of 16) takes byte j - (16 - digits) of the body, one further on from
+        // the dot; bytes j < 16 - digits are zero.
+        base[k] = bytes8(off + s + a - (16 - digits));
+        lead[k] = bytes8(16 - digits);
+        after[k] = bytes8(std::min(dot + 16 - digits, 255));
+        scale[k] = dots ? body - dot - 1 : 0;
+        sign[k] = a;
+    }
+    const __m512i vbase =
+        _mm512_set_epi64(0, 0, base[2], base[2], base[1], base[1], base[0], base[0]);
+    const __m512i vlead =
+        _mm512_set_epi64(-1, -1, lead[2], lead[2], lead[1], lead[1], lead[0], lead[0]);
+    const __m512i vafter =
+        _mm512_set_epi64(-1, -1, after[2], after[2], after[1], after[1], after[0], after[0]);
+    const __mmask64 keep = _mm512_cmpge_epu8_mask(iota16(), vlead);
+    const __mmask64 past_dot = _mm512_cmpge_epu8_mask(iota16(), vafter);
+    __m512i ctrl = _mm512_add_epi8(vbase, iota16());
+    ctrl = _mm512_mask_add_epi8(ctrl, past_dot, ctrl, _mm512_set1_epi8(1));
+    const __m512i oct = octets_value(_mm512_maskz_permutexvar_epi8(keep, ctrl, wd));
+    // Even 64-bit lanes: high octet * 10^8 + low octet = the token's digits as an integer.
+    const __m512i m = _mm512_add_epi64(_mm512_mul_epu32(oct, _mm512_set1_epi64(100000000)),
+                                       _mm512_bsrli_epi128(oct, 8));
+    constexpr __mmask8 kLanes = 0x15;  // lanes 0, 2, 4
+    if (_mm512_mask_cmpgt_epu64_mask(kLanes, m, _mm512_set1_epi64(int64_t(1) << 53))) return false;
+    const __m512i which = _mm512_set_epi64(0, 0, 0, scale[2], 0, scale[1], 0, scale[0]);
+    const __m512d inv =
+        _mm512_permutex2var_pd(_mm512_loadu_pd(kInvPow10Lo), which, _mm512_loadu_pd(kInvPow10Hi));
+    const __m512d d = _mm512_mul_pd(_mm512_cvtepu64_pd(m), inv);
+    // Within 4 double ulps of a float midpoint: let the scalar path decide (as in
+    // decimal_to_real, which then divides exactly or asks from_chars).
+    const __m512i low = _mm512_and_si512(_mm512_castpd_si512(d), _mm512_set1_epi64(0x1fffffff));
+    const __m512i dist = _mm512_add_epi64(_mm512_sub_epi64(low, _mm512_set1_epi64(0x10000000)),
+                                          _mm512_set1_epi64(4));
+    if (_mm512_mask_cmple_epu64_mask(kLanes, dist, _mm512_set1_epi64(8))) return false;
+    __m256i f = _mm256_castps_si256(_mm512_cvtpd_ps(d));
+    f = _mm256_or_si256(
+        f, _mm256_set_epi32(0, 0, 0, sign[2] << 31, 0, sign[1] << 31, 0, sign[0] << 31));
+    alignas(32) float out[8];
+    _mm256_store_si256(reinterpret_cast<__m256i*>(out), f);
+    pos = Vec3f(out[0], out[2], out[4]);
+    return true;
+}
+#endif
+
 std::string token_text(const char* p, const char* e) {
     const char* t = skip_token(p, e);
     std::string s(p, size_t(t - p));
     if (s.size() > 40) s = s.substr(0, 40) + "...";
     return s;
 }
+
+// ---------------------------------------------------------------------------------------
+// A second parsing thread that takes work when it gets a core: parallel_for(n, fn) runs
+// fn(0), ..., fn(n - 1) on the calling thread and the helper, each taking the next index,
+// and returns once all are done. A helper that wakes late (the machine is shared) finds
+// little or nothing left and holds no one up, unlike a fixed split in halves.
+
+class Helper {
+public:
+    Helper() : thread_([this] { loop(); }) {}
+    Helper(const Helper&) = delete;
+    Helper& operator=(const Helper&) = delete;
+    ~Helper() {
+        {
+            std::lock_guard<std::mutex> lock(mutex_);
+            quit_ = true;
+        }
+        wake_.notify_one();
+        thread_.join();
+    }
+
+    /// fn must not throw.
+    template <typename F>
+    void parallel_for(size_t n, F&& fn) {
+        Job job;
+        job.n = n;
+        job.fn = [&fn](size_t k) { fn(k); };
+        {
+            std::lock_guard<std::mutex> lock(mutex_);
+            job_ = &job;
+            ++generation_;
+        }
+        wake_.notify_one();
+        work(job);
+        std::unique_lock<std::mutex> lock(mutex_);
+        job_ = nullptr;  // the helper can no longer join this job...
+        done_.wait(lock, [&] { return job.active == 0; });  // ...and has left it
+    }
+
+private:
+    struct Job {
+        size_t n = 0;
+        std::function<void(size_t)> fn;
+        std::atomic<size_t> next{0};
+        int active = 0;  // helpers inside work(); guarded by mutex_
+    };
+
+    static void work(Job& job) {
+        for (size_t k; (k = job.next.fetch_add(1, std::memory_order_relaxed)) < job.n;) job.fn(k);
+    }
+
+    void loop() {
+        std::unique_lock<std::mutex> lock(mutex_);
+        uint64_t seen = 0;
+        for (;;) {
+            wake_.wait(lock, [&] { return quit_ || (job_ && generation_ != seen); });
+            if (quit_) return;
+            seen = generation_;
+            Job* job = job_;
+            ++job->active;
+            lock.unlock();
+            work(*job);
+            lock.lock();
+            if (--job->active == 0) done_.notify_all();
+        }
+    }
+
+    std::mutex mutex_;
+    std::condition_variable wake_, done_;
+    Job* job_ = nullptr;
+    uint64_t generation_ = 0;
+    bool quit_ = false;
+    std::thread thread_;  // last: starts once the members above exist
+};
 
 // ---------------------------------------------------------------------------------------
 // The parser
@@ -560,12 +1076,14 @@ private:
     void read_ascii_element(Element& el);
     bool fast_ascii_scalars(const Element& el, const char*& p, const char* e, float* v) const;
     bool fast_ascii_triangle(const char*& p, const char* e, int64_t* idx) const;
+    bool line_ascii_scalars(const Element& el, const char*& p, const char* e, float* v) const;
+    bool line_ascii_triangle(const char*& p, const char* e, int64_t* idx) const;
     struct LinesResult {
         uint64_t lines = 0;
         const char* end = nullptr;
     };
     LinesResult parse_lines(const Element& el, bool faces, bool is_vertex, const char* p,
-                            const char* e, uint64_t first);
+                            const char* e, uint64_t first, uint64_t max_lines, bool append);
     uint64_t parallel_chunk(const Element& el, uint64_t i, bool faces, bool is_vertex, bool& poor);
     bool next_data_line(const char*& b, const char*& e);
 
@@ -587,6 +1105,7 @@ private:
     std::vector<Element> elements_;
     int vertex_el_ = -1, face_el_ = -1;
     bool has_normals_ = false, has_colors_ = false;
+    bool xyz_only_ = false;  // vertex properties: float x, y, z and nothing else
     bool vertices_read_ = false;
     uint64_t vertex_count_ = 0;
 
@@ -597,6 +1116,7 @@ private:
     std::vector<int64_t> poly_;    // indices of the face being read
     std::vector<int64_t> sorted_;  // scratch for the degenerate test of big polygons
     int threads_ = 1;
+    std::unique_ptr<Helper> helper_;  // created by the first two-thread chunk
 };
 
 void PlyParser::parse_header() {
@@ -777,6 +1297,9 @@ void PlyParser::plan_elements() {
         if (p.slot >= kColR && p.slot <= kColB && is_integer(p.type))
             p.scale = float(1.0 / double(type_max(p.type)));
     }
+    xyz_only_ = v.props.size() == 3;
+    for (size_t k = 0; k < v.props.size() && xyz_only_; ++k)
+        xyz_only_ = v.props[k].slot == int(k) && v.props[k].type == PlyType::f32;
     if (v.count > uint64_t(UINT32_MAX))
         fail_header("element vertex: " + std::to_string(v.count) +
                     " vertices exceed the 32-bit index limit");
@@ -1072,8 +1595,66 @@ bool PlyParser::next_data_line(const char*& b, const char*& e) {
 // first; a newline ends the last token. They return false, consuming nothing, on anything
 // unusual (blank line, line cut by the buffer end, bad value, extra values), and the
 // caller then takes the line-based general path, which also reports the errors.
+// Line-at-once versions of the fast paths (see classify_line): the same results, false on
+// anything they do not take (the fast paths then try token by token).
+[[gnu::always_inline]] inline bool PlyParser::line_ascii_scalars(const Element& el, const char*& p,
+                                                                 const char* e, float* v) const {
+    if constexpr (!kHaveLineClasses) return false;
+    const LineClasses c = classify_line(p);
+    const int len = line_length(c, p, e);
+    if (len <= 0) return false;
+    const uint64_t line = low_bits(len);
+    const uint64_t tok = line & ~c.blank;
+    if (tok & ~(c.digit | c.dot | c.minus)) return false;
+    uint64_t starts = tok & ~(tok << 1);
+    uint64_t ends = tok & ~(tok >> 1);  // last byte of each token
+    if (size_t(__builtin_popcountll(starts)) != el.props.size()) return false;
+    const char* le = p + len;
+    for (const Property& prop : el.props) {
+        const int s = __builtin_ctzll(starts);
+        const int n = __builtin_ctzll(ends) - s + 1;
+        starts &= starts - 1;
+        ends &= ends - 1;
+        if (prop.slot < 0) continue;
+        const char* t = p + s;
+        if (prop.type == PlyType::f32) {
+            const uint64_t m = low_bits(n);
+            if (!parse_plain_decimal(t, n, (c.dot >> s) & m, (c.minus >> s) & m, v[prop.slot]) &&
+                !parse_real(t, le, v[prop.slot]))
+                return false;
+        } else if (prop.type == PlyType::f64) {
+            const uint64_t m = low_bits(n);
+            double d;
+            if (!parse_plain_decimal(t, n, (c.dot >> s) & m, (c.minus >> s) & m, d) &&
+                !parse_real(t, le, d))
+                return false;
+            v[prop.slot] = float(d);
+        } else {
+            int64_t x;
+            if (parse_int(t, le, x) != IntResult::ok || x < type_min(prop.type) ||
+                x > type_max(prop.type))
+                return false;
+            v[prop.slot] = float(x) * prop.scale;
+        }
+    }
+    p = le + 1;
+    return true;
+}
+
+// "3 a b c" with indices of up to 8 digits.
+[[gnu::always_inline]] inline bool PlyParser::line_ascii_triangle(const char*& p, const char* e,
+                                                                  int64_t* idx) const {
+    if constexpr (!kHaveLineClasses) return false;
+    const LineClasses c = classify_line(p);
+    const int len = line_length(c, p, e);
+    if (len <= 0 || !triangle_from_classes(c, p, len, idx)) return false;
+    p += len + 1;
+    return true;
+}
+
 bool PlyParser::fast_ascii_scalars(const Element& el, const char*& p, const char* e,
                                    float* v) const {
+    if (line_ascii_scalars(el, p, e, v)) return true;
     for (const Property& prop : el.props) {
         p = skip_blanks(p, e);
         if (p == e || *p == '\n') return false;
@@ -1102,6 +1683,7 @@ bool PlyParser::fast_ascii_scalars(const Element& el, const char*& p, const char
 }
 
 bool PlyParser::fast_ascii_triangle(const char*& p, const char* e, int64_t* idx) const {
+    if (line_ascii_triangle(p, e, idx)) return true;
     p = skip_blanks(p, e);
     if (e - p < 2 || p[0] != '3' || !is_blank(p[1])) return false;
     ++p;
@@ -1117,34 +1699,117 @@ bool PlyParser::fast_ascii_triangle(const char*& p, const char* e, int64_t* idx)
     return p == e && in_.eof();
 }
 
-// Whole lines [p, e) (e just past a newline) of an all-scalar element, or "3 a b c" faces,
-// stored as elements first, first + 1, ...; stops at the first line the fast path cannot
-// take (including non-finite vertices and invalid or degenerate faces) and never throws.
-// Threads call it on disjoint line ranges, so they write disjoint array entries.
+// Lines from p (up to e) of an all-scalar element, or "3 a b c" faces, stored as elements
+// first, first + 1, ..., at most max_lines of them; stops at the first line the fast path
+// cannot take (including a line cut by e, non-finite vertices and invalid or degenerate
+// faces) and never throws. Faces are written to their entries of a sized array, or appended
+// when `append` (one thread). Threads call it on disjoint line ranges, so they write disjoint
+// array entries.
 PlyParser::LinesResult PlyParser::parse_lines(const Element& el, bool faces, bool is_vertex,
-                                              const char* p, const char* e, uint64_t first) {
+                                              const char* p, const char* e, uint64_t first,
+                                              uint64_t max_lines, bool append) {
     LinesResult r;
     r.end = p;
     float v[9] = {};
     int64_t idx[3];
-    while (p < e) {
+    const bool xyz = is_vertex && xyz_only_;
+    // Byte classes of the window [p, p + have): one classification serves every line that
+    // ends inside it, so finding the next line is a shift, not a dependent 64-byte load.
+    LineClasses c;
+    int have = 0;
+#ifdef KDT_PLY_VBMI
+    __m512i wd = _mm512_setzero_si512();  // digit values of the window
+    int off = 0;                          // p's offset in the window
+#endif
+    while (p < e && r.lines < max_lines) {
         const char* q = p;
         const size_t k = size_t(first + r.lines);
+        int len = -1;
+        if (kHaveLineClasses && (faces || xyz)) {
+            if (have == 0 || (c.newline == 0 && have < 64)) {
+                c = classify_line(p);
+                have = int(std::min<ptrdiff_t>(64, e - p));
+                c.newline &= low_bits(have);
+#ifdef KDT_PLY_VBMI
+                wd = window_digits(p);
+                off = 0;
+#endif
+            }
+            if (c.newline) len = __builtin_ctzll(c.newline);
+        }
         if (faces) {
-            if (!fast_ascii_triangle(q, e, idx)) break;
-            if (uint64_t(idx[0]) >= vertex_count_ || uint64_t(idx[1]) >= vertex_count_ ||
-                uint64_t(idx[2]) >= vertex_count_ || idx[0] == idx[1] || idx[1] == idx[2] ||
-                idx[0] == idx[2])
+            int64_t ix[3];  // registers; idx[] is the token path's, in memory
+#ifdef KDT_PLY_VBMI
+            const bool line_ok = len > 0 && triangle_vbmi(c, wd, off, p, len, ix);
+#else
+            const bool line_ok = len > 0 && triangle_from_classes(c, p, len, ix);
+#endif
+            if (line_ok) {
+                q = p + len + 1;
+            } else {
+                if (!fast_ascii_triangle(q, e, idx)) break;
+                ix[0] = idx[0], ix[1] = idx[1], ix[2] = idx[2];
+                have = 0;
+            }
+            if (uint64_t(ix[0]) >= vertex_count_ || uint64_t(ix[1]) >= vertex_count_ ||
+                uint64_t(ix[2]) >= vertex_count_ || ix[0] == ix[1] || ix[1] == ix[2] ||
+                ix[0] == ix[2])
                 break;
-            mesh_.triangles[k] = Vec3u(uint32_t(idx[0]), uint32_t(idx[1]), uint32_t(idx[2]));
+            const Vec3u t{uint32_t(ix[0]), uint32_t(ix[1]), uint32_t(ix[2])};
+            if (append)
+                mesh_.triangles.push_back(t);
+            else
+                mesh_.triangles[k] = t;
+        } else if (xyz) {
+            Vec3f pos;
+#ifdef KDT_PLY_VBMI
+            const bool line_ok =
+                len > 0 && (xyz_vbmi(c, wd, off, len, pos) || xyz_from_classes(c, p, len, pos));
+#else
+            const bool line_ok = len > 0 && xyz_from_classes(c, p, len, pos);
+#endif
+            if (line_ok) {
+                q = p + len + 1;
+            } else {
+                if (!fast_ascii_scalars(el, q, e, v)) break;
+                pos = Vec3f(v[kPosX], v[kPosY], v[kPosZ]);
+                have = 0;
+            }
+            if (!is_finite(pos)) break;
+            mesh_.positions[k] = pos;
         } else {
-            if (!fast_ascii_scalars(el, q, e, v)) break;
+            if (!line_ascii_scalars(el, q, e, v) && !fast_ascii_scalars(el, q, e, v)) break;
             if (is_vertex) {
-                Vec3f pos(v[kPosX], v[kPosY], v[kPosZ]);
-                if (!is_finite(pos)) break;
-                mesh_.positions[k] = pos;
+                // Exponent bits per coordinate, read back one float at a time: a wider load of
+                // v[] would wait for the three separate stores (no store forwarding).
+                const uint32_t bx = std::bit_cast<uint32_t>(v[kPosX]);
+                const uint32_t by = std::bit_cast<uint32_t>(v[kPosY]);
+                const uint32_t bz = std::bit_cast<uint32_t>(v[kPosZ]);
+                constexpr uint32_t kExp = 0x7f800000u;
+                if ((bx & kExp) == kExp || (by & kExp) == kExp || (bz & kExp) == kExp) break;
+                Vec3f& pos = mesh_.positions[k];
+                pos.x = std::bit_cast<float>(bx);
+                pos.y = std::bit_cast<float>(by);
+                pos.z = std::bit_cast<float>(bz);
                 if (has_normals_) mesh_.normals[k] = Vec3f(v[kNormX], v[kNormY], v[kNormZ]);
                 if (has_colors_) mesh_.colors[k] = Vec3f(v[kColR], v[kColG], v[kColB]);
+            }
+        }
+        if (have > 0) {
+            // Move the window's classes on to the next line (or drop them at its end).
+            const int shift = int(q - p);
+            if (shift >= have) {
+                have = 0;
+            } else {
+                c.digit >>= shift;
+                c.blank >>= shift;
+                c.dot >>= shift;
+                c.minus >>= shift;
+                c.newline >>= shift;
+                have -= shift;
+#ifdef KDT_PLY_VBMI
+                off += shift;
+#endif
             }
         }
         p = q;
@@ -1154,68 +1819,86 @@ PlyParser::LinesResult PlyParser::parse_lines(const Element& el, bool faces, boo
     return r;
 }
 
-// Parses the complete lines in the buffer (up to the element's end) in one tight loop, or
-// on two threads, each half of the bytes, split at a newline; the second half's first
-// element index comes from counting newlines in the first. Returns how many elements were
-// committed; 0 means "take the serial path for the next line" (small input, partial state, or a
-// line the fast path cannot take, which the serial path then parses or reports). `poor` tells the
-// caller to stay serial for the rest of the element (nothing or under half the chunk committed).
+// Parses the complete lines in the buffer (up to the element's end) in one tight loop. One
+// thread runs it straight over the buffer. Two threads take half of the bytes each, split at
+// a newline; the second half's first element index comes from counting newlines in the
+// first. Returns how many elements were committed; 0 means "take the serial path for the
+// next line" (small input, partial state, or a line the fast path cannot take, which the
+// serial path then parses or reports). `poor` tells the caller to stay serial for the rest of
+// the element (two threads: nothing or under half the chunk committed).
 uint64_t PlyParser::parallel_chunk(const Element& el, uint64_t i, bool faces, bool is_vertex,
                                    bool& poor) {
     constexpr size_t kMinChunk = size_t(256) << 10;
+    const uint64_t remaining = el.count - i;
+    if (in_.avail() < kMinChunk && !in_.eof()) in_.fill(in_.capacity());
+    if (threads_ == 1) {
+        // No newline count: the loop stops at the element's end, the first line it cannot
+        // take, or the line cut by the buffer end, and costs nothing when it stops at once.
+        poor = false;
+        if (faces && (mesh_.triangles.size() != i || !bad_vertex_.empty())) {
+            poor = true;
+            return 0;
+        }
+        LinesResult r =
+            parse_lines(el, faces, is_vertex, in_.pos(), in_.end(), i, remaining, faces);
+        if (faces) source_faces_ += r.lines;
+        in_.advance(size_t(r.end - in_.pos()));
+        line_ += int64_t(r.lines);
+        return r.lines;
+    }
     // Every early exit turns the parallel path off for the rest of the element, so no
     // buffer is ever scanned once per line.
     poor = true;
-    if (in_.avail() < kMinChunk && !in_.eof()) in_.fill(kBlockBytes);
+    if (faces && (mesh_.triangles.size() != i || !bad_vertex_.empty())) return 0;
     const char* b = in_.pos();
     const char* e = in_.end();
     if (size_t(e - b) < kMinChunk) return 0;
     const void* last = memrchr(b, '\n', size_t(e - b));
     if (!last) return 0;
     e = static_cast<const char*>(last) + 1;
-    const uint64_t remaining = el.count - i;
-    uint64_t total = uint64_t(std::count(b, e, '\n'));
-    if (total > remaining) {
-        // The element ends inside the buffer: stop after its last line.
-        const char* q = b;
-        for (uint64_t k = 0; k < remaining; ++k)
-            q = static_cast<const char*>(std::memchr(q, '\n', size_t(e - q))) + 1;
-        e = q;
-        total = remaining;
-    }
-    if (size_t(e - b) < kMinChunk) return 0;
-    const char* mid = e;
-    uint64_t na = total;
-    if (threads_ > 1) {
-        const char* half = b + (e - b) / 2;
-        mid = static_cast<const char*>(std::memchr(half, '\n', size_t(e - half))) + 1;
-        na = uint64_t(std::count(b, mid, '\n'));
-    }
-    if (faces) {
-        // Only while every face so far became exactly one triangle at its own index.
-        if (mesh_.triangles.size() != i || !bad_vertex_.empty()) return 0;
-        mesh_.triangles.resize(size_t(i + total));
-    }
-    LinesResult ra, rb;
-    if (threads_ > 1) {
+    if (!helper_) {
         try {
-            std::thread helper([&] { rb = parse_lines(el, faces, is_vertex, mid, e, i + na); });
-            ra = parse_lines(el, faces, is_vertex, b, mid, i);
-            helper.join();
+            helper_ = std::make_unique<Helper>();
         } catch (const std::system_error&) {
-            if (faces) mesh_.triangles.resize(size_t(i));
+            threads_ = 1;  // no second thread to be had: one thread from now on
+            poor = false;
             return 0;
         }
-    } else {
-        // One thread: the same tight loop over the whole chunk.
-        ra = parse_lines(el, faces, is_vertex, b, e, i);
-        rb.end = ra.end;
     }
-    uint64_t done = ra.lines;
-    const char* end = ra.end;
-    if (ra.lines == na) {
-        done += rb.lines;
-        end = rb.end;
+    // Pieces of about kPieceBytes, cut after a newline; the threads count each piece's
+    // lines, the prefix sums give each piece its first element index, and the threads
+    // parse the pieces.
+    constexpr size_t kPieceBytes = size_t(64) << 10;
+    std::vector<const char*> cut{b};
+    while (size_t(e - cut.back()) > kPieceBytes) {
+        const char* q = cut.back() + kPieceBytes;
+        cut.push_back(static_cast<const char*>(std::memchr(q, '\n', size_t(e - q))) + 1);
+    }
+    if (cut.back() != e) cut.push_back(e);
+    const size_t pieces = cut.size() - 1;
+    std::vector<uint64_t> lines(pieces), first(pieces);
+    helper_->parallel_for(pieces, [&](size_t k) { lines[k] = count_newlines(cut[k], cut[k + 1]); });
+    uint64_t total = 0;
+    size_t used = 0;
+    for (; used < pieces && total < remaining; ++used) {
+        first[used] = total;
+        // The element ends inside this piece: parse only its own lines.
+        lines[used] = std::min(lines[used], remaining - total);
+        total += lines[used];
+    }
+    if (faces) mesh_.triangles.resize(size_t(i + total));
+    std::vector<LinesResult> result(used);
+    helper_->parallel_for(used, [&](size_t k) {
+        result[k] =
+            parse_lines(el, faces, is_vertex, cut[k], cut[k + 1], i + first[k], lines[k], false);
+    });
+    // Commit the pieces up to and including the first one the fast path stopped in.
+    uint64_t done = 0;
+    const char* end = b;
+    for (size_t k = 0; k < used; ++k) {
+        done += result[k].lines;
+        end = result[k].end;
+        if (result[k].lines != lines[k]) break;
     }
     if (faces) {
         mesh_.triangles.resize(size_t(i + done));
@@ -1235,15 +1918,18 @@ void PlyParser::read_ascii_element(Element& el) {
     const char* e;
     float v[9] = {};
     const bool scalars_fast = !el.has_lists;
-    // One thread gains nothing from chunks (the newline count costs what the tight loop
-    // saves), so chunks are for two threads only.
-    bool parallel = threads_ > 1 && (scalars_fast || face_fast);
+    // The tight loop over whole buffers, on one thread or two.
+    bool parallel = scalars_fast || face_fast;
+    uint64_t misses = 0, hits = 0;
     for (uint64_t i = 0; i < el.count; ++i) {
         if (parallel) {
             uint64_t before = i;
             bool poor = false;
             uint64_t done = parallel_chunk(el, i, face_fast, is_vertex, poor);
-            // Inputs the fast path keeps rejecting (say, blank lines everywhere) go serial.
+            hits += done;
+            // Inputs the fast path keeps rejecting (say, blank lines or quads everywhere) go
+            // serial, so no line is tried twice for long.
+            if (done == 0 && ++misses > 64 && misses * 16 > hits) poor = true;
             if (poor) parallel = false;
             if (done > 0) {
                 i = before + done - 1;

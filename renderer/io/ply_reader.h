@@ -1,8 +1,10 @@
 // Our own PLY reader: ascii, binary_little_endian and binary_big_endian, every scalar type
 // and alias, any property order, unknown elements and properties skipped, polygons
-// triangulated as fans, gzip read transparently. One pass over large blocks; bad input
-// throws kdt::Error with file, element, index and line or byte offset. Depends on core,
-// geometry and io/file_reader.
+// triangulated as fans, gzip read transparently. One pass: plain files of 1 MiB and more are
+// mapped and read through a sliding window, other input through a block buffer; ascii lines
+// are parsed whole from byte-class masks, on one thread or two. Bad input throws kdt::Error
+// with file, element, index and line or byte offset. Depends on core, geometry and
+// io/file_reader.
 #pragma once
 
 #include <array>
