@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "app/bench_rays.h"
 #include "app/commands.h"
 #include "renderer/core/error.h"
 #include "renderer/core/timer.h"
@@ -26,7 +27,7 @@ namespace kdt::app {
 namespace {
 
 struct ConvergeArgs {
-    std::string scene, env, reference, out_dir = "converge";
+    std::string scene, env, reference, out_dir = "converge", view, views;
     int width = 256, height = 192, reference_spp = 4096, max_spp = 256, threads = 0;
     uint64_t seed = 0;
     std::string configs = "uniform,bsdf,mis,mis+adaptive";
@@ -212,6 +213,7 @@ void run(const ConvergeArgs& a) {
     po.height = a.height;
     po.tree.threads = a.threads;
     po.use_cache = !a.no_cache;
+    if (!a.view.empty()) po.camera = find_view(a.views, a.view);
     const Prepared prep = prepare_render(po);
     std::printf("bench converge: %s%s%s, %dx%d, tree %.2f s\n",
                 a.scene.empty() ? "default scene" : a.scene.c_str(), a.env.empty() ? "" : " under ",
@@ -356,6 +358,9 @@ void add_bench_converge_command(CLI::App& parent) {
         parent.add_subcommand("converge", "Error against time for several sampling strategies");
     cmd->add_option("SCENE", a.scene, "Scene or model; omitted = built-in default scene");
     cmd->add_option("--env", a.env, "Environment map replacing the scene's");
+    cmd->add_option("--view", a.view,
+                    "Camera of this view of the views file (the kd-tree bench's views A-D)");
+    cmd->add_option("--views", a.views, "Views file for --view (default assets/views/dragon.json)");
     cmd->add_option("--reference", a.reference,
                     "Reference image (.exr/.pfm); rendered and written there when missing");
     cmd->add_option("--reference-spp", a.reference_spp, "Samples per pixel of a new reference")

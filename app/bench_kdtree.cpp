@@ -643,6 +643,34 @@ void run(const Options& opt) {
     }
     tables.push_back(t2);
 
+    // ---- where our traversal time goes: work per ray from the compiled-in counters ----
+    {
+        Table tc;
+        tc.name = "cost";
+        tc.title = "Work per ray of the best tree (row " + best->config.id +
+                   "), from the traversal counters (one extra untimed pass)";
+        tc.header = {"rays",  "nodes visited / ray",        "triangles tested / ray",
+                     "hit %", "ns / ray (1 thread equiv.)", "ns / node visited"};
+        auto add = [&](const char* name, const std::vector<Ray>& rays, double seconds) {
+            TraversalCounters c;
+            uint64_t hits = 0;
+            for (const Ray& r : rays) {
+                Hit h;
+                hits += tree.intersect(r, h, &c);
+            }
+            const double n = double(std::max<size_t>(rays.size(), 1));
+            const double ns = seconds * double(threads) / n * 1e9;
+            const double nodes = double(c.nodes_visited) / n;
+            tc.rows.push_back({name, fmt("%.1f", nodes),
+                               fmt("%.1f", double(c.triangles_tested) / n),
+                               fmt("%.1f", 100.0 * double(hits) / n), fmt("%.0f", ns),
+                               fmt("%.2f", nodes > 0.0 ? ns / nodes : 0.0)});
+        };
+        add("primary", primary, median(engines[0].primary_s));
+        add("diffuse", diffuse, median(engines[0].diffuse_s));
+        tables.push_back(tc);
+    }
+
     // ---- robustness: aimed rays and NaN/Inf rays ----
     if (opt.robustness) {
         AimedRays aimed = make_aimed_rays(*mesh, opt.robust_rays, views.seed);

@@ -134,6 +134,17 @@ BenchViewSet load_views(const std::string& path) {
     return set;
 }
 
+CameraDesc find_view(const std::string& views_path, const std::string& name) {
+    const std::string path = views_path.empty() ? find_asset("views/dragon.json") : views_path;
+    const BenchViewSet set = load_views(path);
+    std::string names;
+    for (const BenchView& v : set.views) {
+        if (v.name == name) return v.camera;
+        names += (names.empty() ? "" : ", ") + v.name;
+    }
+    throw Error(ErrorLocation{path}, "no view named \"" + name + "\" (views: " + names + ")");
+}
+
 std::string find_asset(const std::string& relative) {
     std::vector<fs::path> roots;
     if (const char* env = std::getenv("KDT_ASSETS_DIR"); env && *env) roots.emplace_back(env);

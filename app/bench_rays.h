@@ -38,6 +38,10 @@ struct BenchViewSet {
 /// the file and the key (a JSON pointer).
 BenchViewSet load_views(const std::string& path);
 
+/// The camera of view `name` in a views file (empty path = assets/views/dragon.json).
+/// Throws kdt::Error naming the file and the views it has when there is no such view.
+CameraDesc find_view(const std::string& views_path, const std::string& name);
+
 /// Finds a file under the assets directory: $KDT_ASSETS_DIR, ./assets, then assets/ relative
 /// to the executable (build/bin/../../assets, bin/../share/kdtrace/assets). Throws kdt::Error
 /// when none exists.

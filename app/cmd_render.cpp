@@ -10,6 +10,7 @@
 #include <functional>
 #include <string>
 
+#include "app/bench_rays.h"
 #include "app/commands.h"
 #include "renderer/core/error.h"
 #include "renderer/io/image_io.h"
@@ -22,7 +23,7 @@ namespace kdt::app {
 namespace {
 
 struct RenderArgs {
-    std::string scene, output = "out.png", env, env_mapping;
+    std::string scene, output = "out.png", env, env_mapping, view, views;
     float env_intensity = -1.0f, env_rotation = 0.0f;
     int spp = 0;
     double seconds = 0.0;
@@ -145,6 +146,7 @@ void run(const RenderArgs& a) {
     po.use_cache = !a.no_cache;
     po.cache_dir = a.cache_dir;
     po.drop_invalid = a.drop_invalid;
+    if (!a.view.empty()) po.camera = find_view(a.views, a.view);
     po.log = [&](const std::string& line) {
         if (!a.quiet) std::fprintf(stderr, "kdtrace: %s\n", line.c_str());
     };
@@ -215,6 +217,8 @@ void add_render_command(CLI::App& parent) {
     cmd->add_option("--error", a.error,
                     "Stop when every pixel's relative error is below E (adaptive)");
     cmd->add_option("--env", a.env, "Environment map (.hdr, .exr, .pfm) replacing the scene's");
+    cmd->add_option("--view", a.view, "Camera of this view of the views file (A-D for the dragon)");
+    cmd->add_option("--views", a.views, "Views file for --view (default assets/views/dragon.json)");
     cmd->add_option("--env-mapping", a.env_mapping, "latlong or angular")->capture_default_str();
     cmd->add_option("--env-intensity", a.env_intensity, "Scale of the environment radiance");
     cmd->add_option("--env-rotation", a.env_rotation,

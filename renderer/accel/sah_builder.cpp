@@ -31,7 +31,11 @@ namespace {
 
 /// A triangle reference: its conservative box inside the current node, and the triangle.
 struct Ref {
-    Bounds3f box;
+    Ref() {}  // left uninitialised: reference buffers are resized before being written
+    Ref(const Bounds3f& b, uint32_t t) : box(b), tri(t) {}
+    union {  // no default member initialisers run on resize
+        Bounds3f box;
+    };
     uint32_t tri;
 };
 
@@ -953,35 +957,71 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
         const double auto_depth = 8.0 + 1.3 * std::log2(double(std::max<size_t>(tri_count, 1)));
         ctx.max_depth = std::min(64, int(auto_depth));
     }
+    const int threads = params.threads > 0 ? params.threads : omp_get_max_threads();
     ctx.workspace_budget = std::min(kWorkspaceBudget, kWorkspaceBytesPerTriangle * tri_count);
     // f(n) tabulated for the node sizes that dominate the build (pow() is slow).
     const size_t table = std::min<size_t>(tri_count, 1u << 16) + 1;
     ctx.f_table.resize(table);
+#pragma omp parallel for num_threads(threads) schedule(static)
     for (size_t i = 0; i < table; ++i) ctx.f_table[i] = thesis_f(float(i), params.q, params.n0);
     ctx.meter.add(int64_t(ctx.f_table.capacity() * sizeof(float)));
 
-    // Every triangle with finite vertices; the others are never referenced.
+    // Every triangle with finite vertices; the others are never referenced. Checked in
+    // chunks on all threads: flags, counts and bounds per chunk, then the indices are
+    // written at each chunk's offset, so the order is the mesh's whatever the threads.
     TopNode top(&ctx.meter);
     auto root = std::make_unique<TopJob>(ctx, top, Bounds3f{}, 0);
-    root->whole.reserve(tri_count);
-    Bounds3f valid_bounds;
     const size_t vertex_count = mesh.vertex_count();
-    for (size_t i = 0; i < tri_count; ++i) {
-        const Vec3u& t = mesh.triangles[i];
-        for (int j = 0; j < 3; ++j) {
-            if (t[j] >= vertex_count) {
-                throw Error(ErrorLocation{"", "triangle", int64_t(i), -1, -1},
-                            "vertex index " + std::to_string(t[j]) + " out of range (" +
-                                std::to_string(vertex_count) + " vertices)");
+    constexpr int kSetupChunks = 16;
+    struct Chunk {
+        size_t begin = 0, end = 0, valid = 0, offset = 0;
+        size_t bad = std::numeric_limits<size_t>::max();  // first triangle out of range
+        Bounds3f bounds;
+    };
+    Chunk chunks[kSetupChunks];
+    const size_t chunk_size = (tri_count + kSetupChunks - 1) / kSetupChunks;
+    MeteredVector<uint8_t> usable(tri_count, MeteredAllocator<uint8_t>(&ctx.meter));
+#pragma omp parallel for num_threads(threads) schedule(static)
+    for (int c = 0; c < kSetupChunks; ++c) {
+        Chunk& ch = chunks[c];
+        ch.begin = std::min(tri_count, size_t(c) * chunk_size);
+        ch.end = std::min(tri_count, ch.begin + chunk_size);
+        for (size_t i = ch.begin; i < ch.end; ++i) {
+            const Vec3u& t = mesh.triangles[i];
+            if (t.x >= vertex_count || t.y >= vertex_count || t.z >= vertex_count) {
+                ch.bad = i;
+                break;
             }
+            usable[i] = is_finite(mesh.positions[t.x]) && is_finite(mesh.positions[t.y]) &&
+                        is_finite(mesh.positions[t.z]);
+            if (!usable[i]) continue;
+            ++ch.valid;
+            ch.bounds.extend(mesh.triangle_bounds(i));
         }
-        if (!is_finite(mesh.positions[t.x]) || !is_finite(mesh.positions[t.y]) ||
-            !is_finite(mesh.positions[t.z])) {
-            continue;
-        }
-        root->whole.push_back(uint32_t(i));
-        valid_bounds.extend(mesh.triangle_bounds(i));
     }
+    Bounds3f valid_bounds;
+    size_t valid_count = 0;
+    for (Chunk& ch : chunks) {
+        if (ch.bad != std::numeric_limits<size_t>::max()) {
+            const Vec3u& t = mesh.triangles[ch.bad];
+            const uint32_t v = t.x >= vertex_count ? t.x : t.y >= vertex_count ? t.y : t.z;
+            throw Error(ErrorLocation{"", "triangle", int64_t(ch.bad), -1, -1},
+                        "vertex index " + std::to_string(v) + " out of range (" +
+                            std::to_string(vertex_count) + " vertices)");
+        }
+        ch.offset = valid_count;
+        valid_count += ch.valid;
+        valid_bounds.extend(ch.bounds);
+    }
+    root->whole.resize(valid_count);
+#pragma omp parallel for num_threads(threads) schedule(static)
+    for (int c = 0; c < kSetupChunks; ++c) {
+        uint32_t* w = root->whole.data() + chunks[c].offset;
+        for (size_t i = chunks[c].begin; i < chunks[c].end; ++i) {
+            if (usable[i]) *w++ = uint32_t(i);
+        }
+    }
+    release(usable);
 
     KdBuildOutput out;
     Bounds3f mesh_bounds = mesh.bounds();
@@ -993,7 +1033,6 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
 
     root->box = root_box;
     {
-        int threads = params.threads > 0 ? params.threads : omp_get_max_threads();
         std::vector<std::unique_ptr<Workspace>> workspaces(size_t(std::max(threads, 1)));
         TopBuilder builder(ctx, workspaces);
 #pragma omp parallel num_threads(threads)

@@ -22,10 +22,12 @@ inline float exact_fmsub(float a, float b, float c) {
 }
 
 /// Per-ray constants of the watertight test: the ray is translated to the origin, its
-/// dominant axis becomes z and a shear maps the direction to (0, 0, 1).
+/// dominant axis becomes z and a shear maps the direction to (0, 0, 1). The origin is
+/// kept in the permuted order (ox = origin[kx], ...) so the test indexes each vertex once.
 struct WatertightRay {
     Vec3f origin{0.0f};
     int kx = 0, ky = 1, kz = 2;
+    float ox = 0.0f, oy = 0.0f, oz = 0.0f;
     float sx = 0.0f, sy = 0.0f, sz = 1.0f;
 
     WatertightRay() = default;
@@ -36,14 +38,17 @@ struct WatertightRay {
         kx = kz == 2 ? 0 : kz + 1;
         ky = kx == 2 ? 0 : kx + 1;
         // Swap to keep the winding; the test is two-sided, but u, v keep their meaning.
-        if (dir[kz] < 0.0f) {
+        if (component(dir, kz) < 0.0f) {
             int tmp = kx;
             kx = ky;
             ky = tmp;
         }
-        sx = dir[kx] / dir[kz];
-        sy = dir[ky] / dir[kz];
-        sz = 1.0f / dir[kz];
+        ox = component(org, kx);
+        oy = component(org, ky);
+        oz = component(org, kz);
+        sx = component(dir, kx) / component(dir, kz);
+        sy = component(dir, ky) / component(dir, kz);
+        sz = 1.0f / component(dir, kz);
     }
 };
 
@@ -56,13 +61,15 @@ struct WatertightRay {
 inline bool intersect_triangle(const WatertightRay& r, const Vec3f& a, const Vec3f& b,
                                const Vec3f& c, float tmin, float tmax, float& t, float& u,
                                float& v) {
-    const Vec3f A = a - r.origin, B = b - r.origin, C = c - r.origin;
-    const float ax = exact_fmsub(A[r.kx], r.sx, A[r.kz]);
-    const float ay = exact_fmsub(A[r.ky], r.sy, A[r.kz]);
-    const float bx = exact_fmsub(B[r.kx], r.sx, B[r.kz]);
-    const float by = exact_fmsub(B[r.ky], r.sy, B[r.kz]);
-    const float cx = exact_fmsub(C[r.kx], r.sx, C[r.kz]);
-    const float cy = exact_fmsub(C[r.ky], r.sy, C[r.kz]);
+    const float az = component(a, r.kz) - r.oz;
+    const float bz = component(b, r.kz) - r.oz;
+    const float cz = component(c, r.kz) - r.oz;
+    const float ax = exact_fmsub(component(a, r.kx) - r.ox, r.sx, az);
+    const float ay = exact_fmsub(component(a, r.ky) - r.oy, r.sy, az);
+    const float bx = exact_fmsub(component(b, r.kx) - r.ox, r.sx, bz);
+    const float by = exact_fmsub(component(b, r.ky) - r.oy, r.sy, bz);
+    const float cx = exact_fmsub(component(c, r.kx) - r.ox, r.sx, cz);
+    const float cy = exact_fmsub(component(c, r.ky) - r.oy, r.sy, cz);
     // Products of floats are exact in double; one rounding per difference keeps the sign.
     const double U = double(cx) * double(by) - double(cy) * double(bx);
     const double V = double(ax) * double(cy) - double(ay) * double(cx);
@@ -70,8 +77,7 @@ inline bool intersect_triangle(const WatertightRay& r, const Vec3f& a, const Vec
     if ((U < 0.0 || V < 0.0 || W < 0.0) && (U > 0.0 || V > 0.0 || W > 0.0)) return false;
     const double det = U + V + W;
     if (det == 0.0) return false;
-    const double T =
-        U * double(r.sz * A[r.kz]) + V * double(r.sz * B[r.kz]) + W * double(r.sz * C[r.kz]);
+    const double T = U * double(r.sz * az) + V * double(r.sz * bz) + W * double(r.sz * cz);
     const double inv_det = 1.0 / det;
     const float tt = float(T * inv_det);
     if (!(tt >= tmin && tt <= tmax)) return false;

@@ -32,9 +32,37 @@ Vec3f offset_ray_origin(const Vec3f& p, const Vec3f& n) {
     return out;
 }
 
+EmitterTable build_emitter_table(const TraceScene& scene) {
+    EmitterTable table;
+    if (!scene.mesh) return table;
+    const TriangleMesh& mesh = *scene.mesh;
+    std::vector<float> weights;
+    for (size_t i = 0; i < mesh.triangles.size() && i < scene.triangle_instance.size(); ++i) {
+        const uint32_t inst = scene.triangle_instance[i];
+        if (inst >= scene.instances.size()) continue;
+        const Vec3f& e = scene.instances[inst].material.emission;
+        const float mean = (e.x + e.y + e.z) / 3.0f;
+        if (!(mean > 0.0f)) continue;
+        const Vec3u& t = mesh.triangles[i];
+        const Vec3f& p0 = mesh.positions[t.x];
+        const float area =
+            0.5f * glm::length(glm::cross(mesh.positions[t.y] - p0, mesh.positions[t.z] - p0));
+        const float w = area * mean;
+        if (!(area > 0.0f) || !std::isfinite(w)) continue;
+        table.triangles.push_back(uint32_t(i));
+        weights.push_back(w);
+    }
+    if (table.triangles.empty()) return table;
+    table.dist = Distribution1D(std::move(weights));
+    table.total = table.dist.sum();
+    return table;
+}
+
 namespace {
 
 constexpr float kInv4Pi = 0.25f * kInvPi;
+
+float mean_component(const Vec3f& v) { return (v.x + v.y + v.z) / 3.0f; }
 
 float max_component(const Vec3f& v) { return std::max(v.x, std::max(v.y, v.z)); }
 
@@ -114,6 +142,7 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
     TraversalCounters* tcp = params.count_traversal ? &tc : nullptr;
     const bool use_nee = params.light_sampling != LightSampling::bsdf;
     const bool use_mis = params.light_sampling == LightSampling::mis;
+    const bool sample_emitters = use_nee && params.sample_emitters && !scene.emitters.empty();
 
     Vec3f radiance(0.0f), beta(1.0f);
     Ray ray = camera_ray;
@@ -134,9 +163,20 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
         // Surface hit after `depth` scattering events; scattering here makes depth + 1.
         const SurfacePoint sp = make_surface(scene, ray, hit);
         const Material& mat = *sp.material;
-        // Emitters are not sampled by NEE (only the environment is), so emission found by
-        // any ray counts fully.
-        if (mat.emission != Vec3f(0.0f)) radiance += beta * mat.emission;
+        // Emission found by a BSDF ray: counts fully unless emitter NEE also estimates it
+        // (then weighted by MIS, or left to NEE alone without MIS). Bounce rays have unit
+        // directions, so hit.t is the distance.
+        if (mat.emission != Vec3f(0.0f)) {
+            if (specular_bounce || !sample_emitters) {
+                radiance += beta * mat.emission;
+            } else if (use_mis) {
+                const float cos_l = std::fabs(glm::dot(sp.ng, ray.dir));
+                const float light_pdf =
+                    float(double(mean_component(mat.emission)) / scene.emitters.total) * hit.t *
+                    hit.t / cos_l;
+                radiance += beta * mat.emission * power_heuristic(prev_bsdf_pdf, light_pdf);
+            }
+        }
         if (depth + 1 > params.max_depth || is_black(mat)) break;
 
         const Vec2f u_light = sampler.next_2d();
@@ -172,6 +212,53 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
                                                   bsdf_pdf(mat, wo, wi, params.diffuse_sampling))
                                 : 1.0f;
                         radiance += beta * f * ls.radiance * (w / ls.pdf_solid_angle);
+                    }
+                }
+            }
+        }
+
+        // Next-event estimation of the emissive triangles: a uniform point on a triangle
+        // picked by power; the shadow ray ends a few ULPs before the emitter's surface.
+        if (sample_emitters && !is_delta(mat)) {
+            const Vec2f u_pick = sampler.next_2d();
+            size_t cell = 0;
+            scene.emitters.dist.sample_continuous(u_pick.x, &cell);
+            const uint32_t prim = scene.emitters.triangles[cell];
+            const Vec3u& tri = scene.mesh->triangles[prim];
+            const Vec3f& p0 = scene.mesh->positions[tri.x];
+            const Vec3f& p1 = scene.mesh->positions[tri.y];
+            const Vec3f& p2 = scene.mesh->positions[tri.z];
+            const float su = std::sqrt(u_pick.y);
+            const Vec2f u_pt = sampler.next_2d();
+            const float b1 = su * (1.0f - u_pt.x), b2 = su * u_pt.x;
+            const Vec3f pl = (1.0f - b1 - b2) * p0 + b1 * p1 + b2 * p2;
+            Vec3f nl = glm::cross(p1 - p0, p2 - p0);
+            nl /= glm::length(nl);
+            const Vec3f d = pl - sp.p;
+            const float dist2 = glm::dot(d, d);
+            const Vec3f wi_l = d / std::sqrt(dist2);
+            const float cos_l = std::fabs(glm::dot(nl, wi_l));
+            const Material& lm = scene.instances[scene.triangle_instance[prim]].material;
+            const float pdf =
+                float(double(mean_component(lm.emission)) / scene.emitters.total) * dist2 / cos_l;
+            if (dist2 > 0.0f && cos_l > 0.0f && std::isfinite(pdf) && pdf > 0.0f &&
+                glm::dot(wi_l, sp.ng) > 0.0f) {
+                const Vec3f wi = sp.frame.to_local(wi_l);
+                const Vec3f f = bsdf_eval(mat, wo, wi, params.diffuse_sampling);
+                if (max_component(f) > 0.0f) {
+                    Ray shadow;
+                    shadow.origin = offset_ray_origin(sp.p, sp.ng);
+                    const Vec3f end = offset_ray_origin(pl, glm::dot(nl, wi_l) < 0.0f ? nl : -nl);
+                    shadow.dir = end - shadow.origin;
+                    shadow.tmax = 1.0f;
+                    ++counters.shadow_rays;
+                    recorder.any(shadow);
+                    if (!tree.occluded(shadow, tcp)) {
+                        const float w =
+                            use_mis ? power_heuristic(
+                                          pdf, bsdf_pdf(mat, wo, wi, params.diffuse_sampling))
+                                    : 1.0f;
+                        radiance += beta * f * lm.emission * (w / pdf);
                     }
                 }
             }

@@ -1,5 +1,6 @@
-// Unidirectional path tracing with next-event estimation of the environment light and
-// multiple importance sampling (power heuristic), Russian roulette after a minimum depth.
+// Unidirectional path tracing with next-event estimation of the environment light and of
+// emissive triangles, multiple importance sampling (power heuristic), Russian roulette after a
+// minimum depth.
 // One sample is a pure function of (scene, camera, params, pixel, sample index); the hot
 // path never allocates or throws. Depends on accel, light, material, camera, core.
 #pragma once
@@ -14,7 +15,7 @@
 
 namespace kdt {
 
-/// How direct light from the environment is estimated.
+/// How direct light from the environment (and from emissive triangles) is estimated.
 /// bsdf: BSDF sampling only (paths count the environment when they escape);
 /// nee: next-event estimation only at non-delta vertices (escaping rays after them add nothing);
 /// mis: both, combined with the power heuristic (Veach 1997).
@@ -32,6 +33,9 @@ struct TraceParams {
     int rr_min_depth = 3;          ///< bounces before roulette may end a path
     LightSampling light_sampling = LightSampling::mis;
     bool env_importance = true;  ///< NEE samples the env map's distribution, else uniform sphere
+    /// With nee or mis, also sample emissive triangles (scene.emitters) at each non-delta
+    /// vertex; false: emitters are found by BSDF rays only.
+    bool sample_emitters = true;
     DiffuseSampling diffuse_sampling = DiffuseSampling::cosine;
     PixelFilter filter = PixelFilter::box;
     int samples_per_pass = 1;     ///< per active pixel and pass

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "renderer/accel/kdtree.h"
+#include "renderer/light/distribution.h"
 #include "renderer/light/environment.h"
 #include "renderer/material/material.h"
 
@@ -19,6 +20,16 @@ struct ShadingInstance {
     bool smooth = true;  ///< interpolate TraceScene::normals (else the geometric normal)
 };
 
+/// The emissive triangles, for next-event estimation of area lights: a triangle is picked in
+/// proportion to its area times its mean emitted radiance, then a uniform point on it, so the
+/// area density of a point on triangle i is mean(emission_i) / total.
+struct EmitterTable {
+    std::vector<uint32_t> triangles;  ///< emissive triangles of non-zero, finite area
+    Distribution1D dist;              ///< over `triangles`
+    double total = 0.0;               ///< sum of area * mean(emission)
+    bool empty() const { return triangles.empty() || !(total > 0.0); }
+};
+
 struct TraceScene {
     std::shared_ptr<const TriangleMesh> mesh;  ///< world space, all instances merged
     std::vector<Vec3f> normals;  ///< per vertex (unit); meaningful for smooth instances
@@ -26,6 +37,10 @@ struct TraceScene {
     std::vector<ShadingInstance> instances;
     std::shared_ptr<const KdTree> tree;  ///< built over *mesh
     std::shared_ptr<const EnvironmentLight> env;
+    EmitterTable emitters;  ///< built by build_emitter_table(); empty = no area-light NEE
 };
+
+/// The emitter table of a scene whose mesh, triangle_instance and instances are set.
+EmitterTable build_emitter_table(const TraceScene& scene);
 
 }  // namespace kdt

@@ -23,6 +23,7 @@ Prepared prepare_render(const PrepareOptions& o) {
     }
     if (o.env_intensity > 0.0f) out.scene.environment.intensity = o.env_intensity;
     out.scene.environment.rotation_degrees += o.env_rotation_degrees;
+    if (o.camera) out.scene.camera = *o.camera;
     out.load_seconds = timer.seconds();
 
     auto log =

@@ -5,6 +5,7 @@
 
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "renderer/render/snapshot.h"
@@ -17,6 +18,7 @@ struct PrepareOptions {
     std::string env_mapping;            ///< "latlong" or "angular" (with env_file); empty = latlong
     float env_intensity = -1.0f;        ///< > 0 replaces the intensity
     float env_rotation_degrees = 0.0f;  ///< added to the scene's rotation
+    std::optional<CameraDesc> camera;   ///< replaces the scene's camera when set
     int width = 640, height = 480;
     KdTreeParams tree;
     bool use_cache = true;  ///< kd-tree cache (get_or_build_kdtree)

@@ -19,6 +19,7 @@ std::string params_to_json(const TraceParams& t, const FilmParams& f, const KdTr
     j["rr_min_depth"] = t.rr_min_depth;
     j["light_sampling"] = kLightSamplingNames[size_t(t.light_sampling)];
     j["env_importance"] = t.env_importance;
+    j["sample_emitters"] = t.sample_emitters;
     j["diffuse_sampling"] = kDiffuseSamplingNames[size_t(t.diffuse_sampling)];
     j["filter"] = kPixelFilterNames[size_t(t.filter)];
     j["samples_per_pass"] = t.samples_per_pass;
@@ -69,6 +70,8 @@ void params_from_json(const std::string& text, TraceParams& t, FilmParams& f, Kd
                     LightSampling(parse_name(kLightSamplingNames, v.get<std::string>(), key));
             else if (key == "env_importance")
                 t.env_importance = v.get<bool>();
+            else if (key == "sample_emitters")
+                t.sample_emitters = v.get<bool>();
             else if (key == "diffuse_sampling")
                 t.diffuse_sampling =
                     DiffuseSampling(parse_name(kDiffuseSamplingNames, v.get<std::string>(), key));

@@ -26,6 +26,17 @@ if(EXISTS ${_cube})
            COMMAND ${_kdt} render ${_cube} --no-cache --width 8 --height 8 --spp 1 -o ${_tmp}/x.bmp)
   set_tests_properties(smoke.render_bad_extension PROPERTIES
     PASS_REGULAR_EXPRESSION "x.bmp: unknown image format .\.bmp.")
+  # --view takes the camera from the views file; the metadata records the view's eye.
+  add_test(NAME smoke.render_cube_view
+           COMMAND ${_kdt} render ${_cube} --no-cache --width 8 --height 6 --spp 1 --view B
+                   --views ${CMAKE_SOURCE_DIR}/assets/views/dragon.json -o ${_tmp}/view.pfm)
+  set_tests_properties(smoke.render_cube_view PROPERTIES
+    PASS_REGULAR_EXPRESSION "render: .*cube.ply: 8x6, .* -> .*view.pfm")
+  add_test(NAME smoke.render_unknown_view
+           COMMAND ${_kdt} render ${_cube} --no-cache --view Z
+                   --views ${CMAKE_SOURCE_DIR}/assets/views/dragon.json -o ${_tmp}/x.png)
+  set_tests_properties(smoke.render_unknown_view PROPERTIES
+    PASS_REGULAR_EXPRESSION "dragon.json: no view named .Z. \\(views: A, B, C, D\\)")
   add_test(NAME smoke.bench_converge_cube
            COMMAND ${_kdt} bench converge ${_cube} --width 16 --height 12 --reference-spp 64
                    --max-spp 4 --no-plot --no-cache -o ${_tmp}/converge)
