@@ -20,15 +20,14 @@ using Vec3u = glm::uvec3;
 using Mat3f = glm::mat3;
 using Mat4f = glm::mat4;
 
-/// Component k (0, 1, 2) of v by address arithmetic. GLM's operator[] is a switch on k,
-/// which costs a chain of compare-and-branch in hot loops where k is not a constant
-/// (split axes, the watertight test's permuted axes); copying to an array is well defined
-/// and compiles to one indexed load.
+/// Component k (0, 1, 2) of v as one indexed load. GLM's operator[] is a switch on k,
+/// which costs a chain of compare-and-branch in hot loops where k is not a constant (split
+/// axes, the watertight test's permuted axes), and copying v to an array first costs three
+/// stores per call. glm::vec3 is three packed floats (checked below), indexed from x as
+/// pbrt and GLM's own value_ptr do.
 inline float component(const Vec3f& v, int k) {
     static_assert(sizeof(Vec3f) == 3 * sizeof(float), "glm::vec3 is three packed floats");
-    float a[3];
-    std::memcpy(a, &v, sizeof a);
-    return a[k];
+    return reinterpret_cast<const float*>(&v)[k];
 }
 
 constexpr float kPi = 3.14159265358979323846f;

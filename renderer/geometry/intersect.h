@@ -77,7 +77,9 @@ inline bool intersect_triangle(const WatertightRay& r, const Vec3f& a, const Vec
     if ((U < 0.0 || V < 0.0 || W < 0.0) && (U > 0.0 || V > 0.0 || W > 0.0)) return false;
     const double det = U + V + W;
     if (det == 0.0) return false;
-    const double T = U * double(r.sz * az) + V * double(r.sz * bz) + W * double(r.sz * cz);
+    // Explicit FMAs: the same rounding in every inlined copy and in the SIMD packet test.
+    const double T =
+        std::fma(W, double(r.sz * cz), std::fma(V, double(r.sz * bz), U * double(r.sz * az)));
     const double inv_det = 1.0 / det;
     const float tt = float(T * inv_det);
     if (!(tt >= tmin && tt <= tmax)) return false;
