@@ -83,6 +83,9 @@ void add_build_command(CLI::App& parent) {
                         mesh->triangle_count(), t.seconds());
             model_key += ".sub" + std::to_string(subdivide);
         }
+        // The renderer builds its trees over the mesh in spatial order (compile_snapshot);
+        // so does this command, so that `kdtrace render` finds the cached tree.
+        apply_order(*mesh, spatial_order(*mesh));
         std::shared_ptr<const TriangleMesh> shared = mesh;
         std::shared_ptr<const KdTree> tree;
         if (!output.empty()) {

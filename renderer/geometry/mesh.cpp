@@ -43,6 +43,104 @@ uint64_t TriangleMesh::content_hash() const {
     return h;
 }
 
+namespace {
+
+// Spreads the low 10 bits of v to every third bit (bit i goes to bit 3i).
+uint32_t spread_bits(uint32_t v) {
+    v &= 0x3ffu;
+    v = (v | (v << 16)) & 0x030000ffu;
+    v = (v | (v << 8)) & 0x0300f00fu;
+    v = (v | (v << 4)) & 0x030c30c3u;
+    v = (v | (v << 2)) & 0x09249249u;
+    return v;
+}
+
+}  // namespace
+
+MeshOrder spatial_order(const TriangleMesh& mesh) {
+    const size_t nt = mesh.triangles.size(), nv = mesh.positions.size();
+    MeshOrder order;
+    // Centres on a 1024^3 grid over the bounds of the finite vertices.
+    Bounds3f b;
+    for (const Vec3f& p : mesh.positions)
+        if (is_finite(p)) b.extend(p);
+    const Vec3f lower = b.empty() ? Vec3f(0.0f) : b.lower;
+    const Vec3f ext = b.empty() ? Vec3f(0.0f) : b.extent();
+    Vec3f scale;
+    for (int k = 0; k < 3; ++k) scale[k] = ext[k] > 0.0f ? 1023.0f / ext[k] : 0.0f;
+    std::vector<uint32_t> code(nt);
+    for (size_t i = 0; i < nt; ++i) {
+        const Vec3u& t = mesh.triangles[i];
+        uint32_t c = 0;
+        if (t.x < nv && t.y < nv && t.z < nv) {
+            const Vec3f lo =
+                glm::min(mesh.positions[t.x], glm::min(mesh.positions[t.y], mesh.positions[t.z]));
+            const Vec3f hi =
+                glm::max(mesh.positions[t.x], glm::max(mesh.positions[t.y], mesh.positions[t.z]));
+            const Vec3f g = (0.5f * (lo + hi) - lower) * scale;
+            uint32_t q[3];
+            for (int k = 0; k < 3; ++k) {
+                // NaN and out-of-range values clamp to the grid (a NaN compares false).
+                const float v = g[k] >= 0.0f ? std::min(g[k], 1023.0f) : 0.0f;
+                q[k] = uint32_t(v);
+            }
+            c = (spread_bits(q[0]) << 2) | (spread_bits(q[1]) << 1) | spread_bits(q[2]);
+        }
+        code[i] = c;
+    }
+    // Stable LSD radix sort of the 30-bit codes in two 15-bit passes.
+    std::vector<uint32_t> a(nt), tmp(nt);
+    for (size_t i = 0; i < nt; ++i) a[i] = uint32_t(i);
+    std::vector<uint32_t> count(1u << 15);
+    for (int pass = 0; pass < 2; ++pass) {
+        const int shift = 15 * pass;
+        std::fill(count.begin(), count.end(), 0u);
+        for (size_t i = 0; i < nt; ++i) ++count[(code[a[i]] >> shift) & 0x7fffu];
+        uint32_t sum = 0;
+        for (uint32_t& c : count) {
+            const uint32_t n = c;
+            c = sum;
+            sum += n;
+        }
+        for (size_t i = 0; i < nt; ++i) tmp[count[(code[a[i]] >> shift) & 0x7fffu]++] = a[i];
+        a.swap(tmp);
+    }
+    order.triangles = std::move(a);
+    // Vertices in order of first use.
+    constexpr uint32_t kUnset = 0xffffffffu;
+    std::vector<uint32_t> new_index(nv, kUnset);
+    order.vertices.reserve(nv);
+    for (uint32_t ti : order.triangles) {
+        const Vec3u& t = mesh.triangles[ti];
+        for (int k = 0; k < 3; ++k) {
+            if (t[k] < nv && new_index[t[k]] == kUnset) {
+                new_index[t[k]] = uint32_t(order.vertices.size());
+                order.vertices.push_back(t[k]);
+            }
+        }
+    }
+    for (uint32_t v = 0; v < nv; ++v)
+        if (new_index[v] == kUnset) order.vertices.push_back(v);
+    return order;
+}
+
+void apply_order(TriangleMesh& mesh, const MeshOrder& order) {
+    const size_t nv = mesh.positions.size();
+    std::vector<uint32_t> new_index(nv);
+    for (size_t i = 0; i < order.vertices.size(); ++i) new_index[order.vertices[i]] = uint32_t(i);
+    mesh.positions = permuted(mesh.positions, order.vertices);
+    if (!mesh.normals.empty()) mesh.normals = permuted(mesh.normals, order.vertices);
+    if (!mesh.colors.empty()) mesh.colors = permuted(mesh.colors, order.vertices);
+    std::vector<Vec3u> tris(order.triangles.size());
+    for (size_t i = 0; i < tris.size(); ++i) {
+        const Vec3u& t = mesh.triangles[order.triangles[i]];
+        // Out-of-range indices (possible only for unchecked meshes) stay out of range.
+        auto map = [&](uint32_t v) { return v < nv ? new_index[v] : v; };
+        tris[i] = Vec3u(map(t.x), map(t.y), map(t.z));
+    }
+    mesh.triangles = std::move(tris);
+}
+
 void append_mesh(TriangleMesh& dst, const TriangleMesh& src) {
     const bool dst_empty = dst.positions.empty();
     const bool keep_normals = (dst_empty || !dst.normals.empty()) && !src.normals.empty();

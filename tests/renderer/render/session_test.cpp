@@ -211,9 +211,26 @@ TEST(RenderSnapshot, CompilesAScene) {
     const TraceScene& ts = snap->scene;
     EXPECT_EQ(ts.mesh->triangle_count(), 12u + 80u);
     EXPECT_EQ(ts.normals.size(), ts.mesh->vertex_count());
-    EXPECT_EQ(ts.triangle_instance.front(), 0u);
-    EXPECT_EQ(ts.triangle_instance.back(), 1u);
-    EXPECT_EQ(ts.mesh->positions[0], Vec3f(2, 0, 0));  // transformed to world space
+    // Triangles are in spatial order (spatial_order), each still with its instance: the
+    // box's 12 in world space [2, 3] x [0, 1]^2, the sphere's 80 on the unit sphere.
+    ASSERT_EQ(ts.triangle_instance.size(), ts.mesh->triangle_count());
+    size_t box = 0;
+    for (size_t i = 0; i < ts.mesh->triangle_count(); ++i) {
+        const Vec3u t = ts.mesh->triangles[i];
+        for (int k = 0; k < 3; ++k) {
+            const Vec3f p = ts.mesh->positions[t[k]];
+            if (ts.triangle_instance[i] == 0) {
+                EXPECT_TRUE(p.x >= 2.0f && p.x <= 3.0f && p.y >= 0.0f && p.y <= 1.0f &&
+                            p.z >= 0.0f && p.z <= 1.0f)
+                    << "box triangle " << i;
+            } else {
+                EXPECT_EQ(ts.triangle_instance[i], 1u);
+                EXPECT_NEAR(glm::length(p), 1.0f, 1e-5f) << "sphere triangle " << i;
+            }
+        }
+        box += ts.triangle_instance[i] == 0;
+    }
+    EXPECT_EQ(box, 12u);
     EXPECT_FALSE(ts.instances[0].smooth);
     EXPECT_EQ(ts.instances[1].material.type, MaterialType::mirror);
     EXPECT_EQ(snap->camera.width, 20);

@@ -1,0 +1,119 @@
+// Mesh utilities: the spatial triangle order used by render snapshots (a permutation that
+// keeps every triangle and its attributes, deterministic, spatially coherent).
+#include <algorithm>
+#include <array>
+#include <random>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "renderer/geometry/mesh.h"
+
+namespace kdt {
+namespace {
+
+// Random soup with shared vertices, normals and colours, and one unused vertex.
+TriangleMesh make_mesh(size_t nv, size_t nt, uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(-5.0f, 5.0f);
+    TriangleMesh m;
+    for (size_t i = 0; i < nv; ++i) {
+        m.positions.emplace_back(u(rng), u(rng), u(rng));
+        m.normals.emplace_back(float(i), 0.0f, 1.0f);
+        m.colors.emplace_back(0.0f, float(i), 0.5f);
+    }
+    std::uniform_int_distribution<uint32_t> vi(0, uint32_t(nv - 2));  // nv - 1 unused
+    for (size_t i = 0; i < nt; ++i) m.triangles.emplace_back(vi(rng), vi(rng), vi(rng));
+    return m;
+}
+
+using Corners = std::array<float, 9>;
+Corners corners(const TriangleMesh& m, size_t i) {
+    const Vec3u t = m.triangles[i];
+    Corners c;
+    for (int k = 0; k < 3; ++k)
+        for (int j = 0; j < 3; ++j) c[size_t(3 * k + j)] = m.positions[t[k]][j];
+    return c;
+}
+
+TEST(SpatialOrder, IsAPermutationKeepingEveryTriangleAndAttribute) {
+    const TriangleMesh m = make_mesh(2000, 5000, 1);
+    const MeshOrder order = spatial_order(m);
+    ASSERT_EQ(order.triangles.size(), m.triangles.size());
+    ASSERT_EQ(order.vertices.size(), m.positions.size());
+    std::vector<uint32_t> t = order.triangles, v = order.vertices;
+    std::sort(t.begin(), t.end());
+    std::sort(v.begin(), v.end());
+    for (size_t i = 0; i < t.size(); ++i) ASSERT_EQ(t[i], i);
+    for (size_t i = 0; i < v.size(); ++i) ASSERT_EQ(v[i], i);
+
+    TriangleMesh r = m;
+    apply_order(r, order);
+    for (size_t i = 0; i < r.triangles.size(); ++i) {
+        // New triangle i is old triangle order.triangles[i], corner by corner.
+        ASSERT_EQ(corners(r, i), corners(m, order.triangles[i])) << i;
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t nv = r.triangles[i][k], ov = m.triangles[order.triangles[i]][k];
+            ASSERT_EQ(r.normals[nv], m.normals[ov]);
+            ASSERT_EQ(r.colors[nv], m.colors[ov]);
+        }
+    }
+    // Vertices in order of first use; the unused one last.
+    EXPECT_EQ(order.vertices.back(), uint32_t(m.positions.size() - 1));
+    EXPECT_EQ(r.triangles[0].x, 0u);
+    // Deterministic.
+    const MeshOrder again = spatial_order(m);
+    EXPECT_EQ(again.triangles, order.triangles);
+    EXPECT_EQ(again.vertices, order.vertices);
+    EXPECT_EQ(permuted(std::vector<int>{10, 20, 30}, {2, 0, 1}), (std::vector<int>{30, 10, 20}));
+}
+
+TEST(SpatialOrder, NeighboursInMemoryAreNeighboursInSpace) {
+    TriangleMesh m = make_mesh(30000, 30000, 2);
+    // Small triangles: each near its first vertex.
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<float> u(-0.01f, 0.01f);
+    const std::vector<Vec3f> centres = m.positions;
+    m.positions.resize(3 * m.triangles.size());
+    for (size_t i = 0; i < m.triangles.size(); ++i) {
+        const Vec3f c = centres[i];
+        m.positions[3 * i] = c;
+        m.positions[3 * i + 1] = c + Vec3f(u(rng), u(rng), u(rng));
+        m.positions[3 * i + 2] = c + Vec3f(u(rng), u(rng), u(rng));
+        m.triangles[i] = Vec3u(uint32_t(3 * i), uint32_t(3 * i + 1), uint32_t(3 * i + 2));
+    }
+    m.normals.clear();
+    m.colors.clear();
+    auto mean_step = [](const TriangleMesh& mesh) {
+        double sum = 0.0;
+        for (size_t i = 1; i < mesh.triangles.size(); ++i)
+            sum += glm::length(mesh.positions[mesh.triangles[i].x] -
+                               mesh.positions[mesh.triangles[i - 1].x]);
+        return sum / double(mesh.triangles.size() - 1);
+    };
+    const double before = mean_step(m);
+    apply_order(m, spatial_order(m));
+    const double after = mean_step(m);
+    EXPECT_LT(after, 0.1 * before) << "before " << before << " after " << after;
+}
+
+TEST(SpatialOrder, EmptyDegenerateAndNonFiniteMeshes) {
+    TriangleMesh empty;
+    const MeshOrder e = spatial_order(empty);
+    EXPECT_TRUE(e.triangles.empty());
+    EXPECT_TRUE(e.vertices.empty());
+    apply_order(empty, e);
+
+    TriangleMesh flat;  // all vertices at one point, plus a NaN and an infinite vertex
+    flat.positions = {Vec3f(1.0f), Vec3f(1.0f), Vec3f(1.0f), Vec3f(std::nanf("")),
+                      Vec3f(INFINITY, 0.0f, 0.0f)};
+    flat.triangles = {{0, 1, 2}, {2, 3, 4}, {4, 1, 0}};
+    const MeshOrder f = spatial_order(flat);
+    ASSERT_EQ(f.triangles.size(), 3u);
+    ASSERT_EQ(f.vertices.size(), 5u);
+    apply_order(flat, f);
+    EXPECT_EQ(flat.triangles.size(), 3u);
+}
+
+}  // namespace
+}  // namespace kdt
