@@ -386,6 +386,8 @@ void run(const Options& opt) {
         *mesh_rw = subdivide_mesh(*mesh_rw, opt.subdivide);
         model_key += ".sub" + std::to_string(opt.subdivide);
     }
+    // The renderer's spatial triangle order (compile_snapshot), for every engine alike.
+    apply_order(*mesh_rw, spatial_order(*mesh_rw));
     std::shared_ptr<const TriangleMesh> mesh = mesh_rw;
     const double tris = double(mesh->triangle_count());
     std::fprintf(stderr, "%zu triangles; %d threads; %d repeats; %zu views of %dx%d x %d spp\n",
@@ -531,6 +533,7 @@ void run(const Options& opt) {
 #ifdef KDT_HAVE_EMBREE
         const EmbreePeer* peer = nullptr;
 #endif
+        bool batch = false;  ///< batch queries (ours) / rtcIntersect1M streams (Embree)
         double build_seconds = 0.0, bytes_per_triangle = 0.0, peak_mb = 0.0;
         std::vector<double> primary_s, diffuse_s, shadow_s;
         std::vector<Hit> primary_hits, diffuse_hits;
@@ -545,7 +548,11 @@ void run(const Options& opt) {
         ours.build_seconds = best->build_seconds;
         ours.bytes_per_triangle = double(tree_size(tree).bytes) / tris;
         ours.peak_mb = double(tree.stats().peak_build_bytes) / (1024.0 * 1024.0);
+        Engine ours_batch = ours;
+        ours_batch.name += ", batch";
+        ours_batch.batch = true;
         engines.push_back(std::move(ours));
+        engines.push_back(std::move(ours_batch));
     }
 #ifdef KDT_HAVE_EMBREE
     std::vector<std::unique_ptr<EmbreePeer>> peers;
@@ -570,7 +577,11 @@ void run(const Options& opt) {
             e.bytes_per_triangle = double(p->bvh_bytes()) / tris;
             e.peak_mb = double(p->peak_build_bytes()) / (1024.0 * 1024.0);
             peers.push_back(std::move(peer));
+            Engine stream = e;
+            stream.name += robust ? ", rtcIntersect1M" : " rtcIntersect1M";
+            stream.batch = true;
             engines.push_back(std::move(e));
+            engines.push_back(std::move(stream));
         }
     }
 #endif
@@ -589,9 +600,36 @@ void run(const Options& opt) {
         body([t](const Ray& r, Hit& h) { t->intersect(r, h); },
              [t](const Ray& r) { return t->occluded(r); });
     };
+    // Batch queries: (coherent closest, incoherent closest, incoherent any-hit) per chunk.
+    auto with_batch_queries = [](const Engine& e, const auto& body) {
+#ifdef KDT_HAVE_EMBREE
+        if (e.peer) {
+            const EmbreePeer* p = e.peer;
+            body([p](const Ray* r, size_t n, Hit* h) { p->intersect(r, n, h, true); },
+                 [p](const Ray* r, size_t n, Hit* h) { p->intersect(r, n, h, false); },
+                 [p](const Ray* r, size_t n, uint8_t* o) { p->occluded(r, n, o, false); });
+            return;
+        }
+#endif
+        const KdTree* t = e.tree;
+        auto isect = [t](const Ray* r, size_t n, Hit* h) { t->intersect(r, n, h); };
+        body(isect, isect, [t](const Ray* r, size_t n, uint8_t* o) { t->occluded(r, n, o); });
+    };
     // Interleave engines within each repeat so drift (thermal, other load) hits all alike.
     for (int k = 0; k < repeat; ++k) {
         for (Engine& e : engines) {
+            if (e.batch) {
+                with_batch_queries(
+                    e, [&](const auto& coherent, const auto& incoherent, const auto& occ) {
+                        e.primary_s.push_back(
+                            trace_closest_batch(primary, e.primary_hits, threads, coherent));
+                        e.diffuse_s.push_back(
+                            trace_closest_batch(diffuse, e.diffuse_hits, threads, incoherent));
+                        e.shadow_s.push_back(
+                            trace_occluded_batch(diffuse, threads, occ, &e.diffuse_occluded));
+                    });
+                continue;
+            }
             with_queries(e, [&](const auto& isect, const auto& occ) {
                 e.primary_s.push_back(trace_closest(primary, e.primary_hits, threads, isect));
                 e.diffuse_s.push_back(trace_closest(diffuse, e.diffuse_hits, threads, isect));
@@ -602,9 +640,11 @@ void run(const Options& opt) {
     Table t2;
     t2.name = "embree";
     t2.title = "Best tree (row " + best->config.id +
-               ") against Embree rtcIntersect1/rtcOccluded1: " + std::to_string(primary.size()) +
-               " primary rays, " + std::to_string(diffuse.size()) + " one-bounce diffuse rays, " +
-               std::to_string(threads) + " threads, medians of " + std::to_string(repeat);
+               ") against Embree (single rays: rtcIntersect1/rtcOccluded1; batch: "
+               "rtcIntersect1M/rtcOccluded1M, ratios against single-ray Embree): " +
+               std::to_string(primary.size()) + " primary rays, " + std::to_string(diffuse.size()) +
+               " one-bounce diffuse rays, " + std::to_string(threads) + " threads, medians of " +
+               std::to_string(repeat);
     t2.header = {"engine",
                  "build s",
                  "bytes/tri",
@@ -617,7 +657,15 @@ void run(const Options& opt) {
                  "occluded x Embree",
                  "primary hit diffs",
                  "diffuse hit diffs"};
-    const Engine* ref = engines.size() > 1 ? &engines[1] : nullptr;
+    const Engine* ref = nullptr;
+    for (const Engine& e : engines) {
+#ifdef KDT_HAVE_EMBREE
+        if (e.peer && !e.batch) {
+            ref = &e;
+            break;
+        }
+#endif
+    }
     auto mr = [](size_t n, double s) { return double(n) / s * 1e-6; };
     for (const Engine& e : engines) {
         const double p = mr(primary.size(), median(e.primary_s));

@@ -78,6 +78,15 @@ double trace_closest(const std::vector<Ray>& rays, std::vector<Hit>& hits, int t
 template <class Occluded>
 double trace_occluded(const std::vector<Ray>& rays, int threads, const Occluded& occluded,
                       uint64_t* occluded_count);
+/// Same as trace_closest, with `intersect(rays, n, hits)` called once per chunk of
+/// kRayChunk consecutive rays (batch queries).
+template <class IntersectBatch>
+double trace_closest_batch(const std::vector<Ray>& rays, std::vector<Hit>& hits, int threads,
+                           const IntersectBatch& intersect);
+/// Same as trace_occluded, with `occluded(rays, n, flags)` once per chunk.
+template <class OccludedBatch>
+double trace_occluded_batch(const std::vector<Ray>& rays, int threads,
+                            const OccludedBatch& occluded, uint64_t* occluded_count);
 
 // ---- implementation of the templates ----
 
@@ -109,6 +118,42 @@ double trace_occluded(const std::vector<Ray>& rays, int threads, const Occluded&
         for (size_t i = size_t(c) * kRayChunk; i < end; ++i) count += occluded(rays[i]) ? 1 : 0;
     }
     const double seconds = timer.seconds();
+    if (occluded_count) *occluded_count = count;
+    return seconds;
+}
+
+template <class IntersectBatch>
+double trace_closest_batch(const std::vector<Ray>& rays, std::vector<Hit>& hits, int threads,
+                           const IntersectBatch& intersect) {
+    hits.assign(rays.size(), Hit{});
+    const int64_t chunks = int64_t((rays.size() + kRayChunk - 1) / kRayChunk);
+    const int nthreads = threads > 0 ? threads : omp_get_max_threads();
+    Timer timer;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
+    for (int64_t c = 0; c < chunks; ++c) {
+        const size_t begin = size_t(c) * kRayChunk;
+        const size_t end = std::min(rays.size(), begin + kRayChunk);
+        intersect(rays.data() + begin, end - begin, hits.data() + begin);
+    }
+    return timer.seconds();
+}
+
+template <class OccludedBatch>
+double trace_occluded_batch(const std::vector<Ray>& rays, int threads,
+                            const OccludedBatch& occluded, uint64_t* occluded_count) {
+    const int64_t chunks = int64_t((rays.size() + kRayChunk - 1) / kRayChunk);
+    const int nthreads = threads > 0 ? threads : omp_get_max_threads();
+    std::vector<uint8_t> flags(rays.size(), 0);
+    Timer timer;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
+    for (int64_t c = 0; c < chunks; ++c) {
+        const size_t begin = size_t(c) * kRayChunk;
+        const size_t end = std::min(rays.size(), begin + kRayChunk);
+        occluded(rays.data() + begin, end - begin, flags.data() + begin);
+    }
+    const double seconds = timer.seconds();
+    uint64_t count = 0;
+    for (uint8_t f : flags) count += f;
     if (occluded_count) *occluded_count = count;
     return seconds;
 }

@@ -2,6 +2,7 @@
 
 #ifdef KDT_HAVE_EMBREE
 
+#include <algorithm>
 #include <atomic>
 #include <cstring>
 #include <string>
@@ -39,6 +40,24 @@ void check_device(RTCDevice device, const char* what) {
                     ")");
     }
 }
+
+void to_embree(const Ray& ray, RTCRay& r) {
+    r.org_x = ray.origin.x;
+    r.org_y = ray.origin.y;
+    r.org_z = ray.origin.z;
+    r.tnear = ray.tmin;
+    r.dir_x = ray.dir.x;
+    r.dir_y = ray.dir.y;
+    r.dir_z = ray.dir.z;
+    r.time = 0.0f;
+    r.tfar = ray.tmax;
+    r.mask = 0xffffffffu;
+    r.id = 0;
+    r.flags = 0;
+}
+
+// Rays per rtcIntersect1M call: Embree's stream code works on small groups anyway.
+constexpr size_t kStream = 64;
 
 }  // namespace
 
@@ -139,6 +158,48 @@ bool EmbreePeer::occluded(const Ray& ray) const {
     rtcOccluded1(static_cast<RTCScene>(scene_), &context, &r);
     // Embree marks an occluded ray by setting tfar to -inf.
     return r.tfar < 0.0f;
+}
+
+void EmbreePeer::intersect(const Ray* rays, size_t n, Hit* hits, bool coherent) const {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    context.flags =
+        coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+    RTCRayHit rh[kStream];
+    for (size_t begin = 0; begin < n; begin += kStream) {
+        const size_t m = std::min(kStream, n - begin);
+        for (size_t i = 0; i < m; ++i) {
+            to_embree(rays[begin + i], rh[i].ray);
+            rh[i].hit.geomID = RTC_INVALID_GEOMETRY_ID;
+            rh[i].hit.primID = RTC_INVALID_GEOMETRY_ID;
+        }
+        rtcIntersect1M(static_cast<RTCScene>(scene_), &context, rh, unsigned(m), sizeof(RTCRayHit));
+        for (size_t i = 0; i < m; ++i) {
+            Hit& h = hits[begin + i];
+            if (rh[i].hit.geomID == RTC_INVALID_GEOMETRY_ID) {
+                h = Hit{};
+                continue;
+            }
+            h.t = rh[i].ray.tfar;
+            h.u = rh[i].hit.u;
+            h.v = rh[i].hit.v;
+            h.prim = rh[i].hit.primID;
+        }
+    }
+}
+
+void EmbreePeer::occluded(const Ray* rays, size_t n, uint8_t* occluded, bool coherent) const {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    context.flags =
+        coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+    RTCRay r[kStream];
+    for (size_t begin = 0; begin < n; begin += kStream) {
+        const size_t m = std::min(kStream, n - begin);
+        for (size_t i = 0; i < m; ++i) to_embree(rays[begin + i], r[i]);
+        rtcOccluded1M(static_cast<RTCScene>(scene_), &context, r, unsigned(m), sizeof(RTCRay));
+        for (size_t i = 0; i < m; ++i) occluded[begin + i] = r[i].tfar < 0.0f ? 1 : 0;
+    }
 }
 
 }  // namespace kdt::app

@@ -32,6 +32,10 @@ public:
 
     bool intersect(const Ray& ray, Hit& hit) const;
     bool occluded(const Ray& ray) const;
+    /// Stream queries (rtcIntersect1M / rtcOccluded1M) over n rays; `coherent` sets
+    /// RTC_INTERSECT_CONTEXT_FLAG_COHERENT (camera rays), else the incoherent flag.
+    void intersect(const Ray* rays, size_t n, Hit* hits, bool coherent) const;
+    void occluded(const Ray* rays, size_t n, uint8_t* occluded, bool coherent) const;
 
     /// Wall time of rtcCommitScene (the BVH build), seconds.
     double build_seconds() const { return build_seconds_; }

@@ -128,6 +128,14 @@ public:
     bool intersect(const Ray& ray, Hit& hit, TraversalCounters* counters = nullptr) const;
     /// Any hit in [ray.tmin, ray.tmax] (shadow rays).
     bool occluded(const Ray& ray, TraversalCounters* counters = nullptr) const;
+    /// Batch closest hits: hits[i] is exactly what intersect(rays[i], hits[i]) gives. The
+    /// rays are traced interleaved, so the memory latency of one overlaps the work of
+    /// others: faster than one call per ray, above all for incoherent rays.
+    void intersect(const Ray* rays, size_t count, Hit* hits,
+                   TraversalCounters* counters = nullptr) const;
+    /// Batch any-hit queries: occluded[i] = 1 exactly when occluded(rays[i]) is true.
+    void occluded(const Ray* rays, size_t count, uint8_t* occluded,
+                  TraversalCounters* counters = nullptr) const;
 
 private:
     std::shared_ptr<const TriangleMesh> mesh_;

@@ -8,172 +8,206 @@
 // classification (triangles touching a plane are on both sides) no hit can slip between
 // leaves. A hit beyond the current leaf does not end the search (the thesis's figure 3):
 // the search ends when every remaining node starts beyond the closest hit.
+//
+// Speed: the hot state of a ray (node, interval, stack pointer) lives in locals so it stays
+// in registers, and the stack push and interval update of the descent are branch-free. The
+// batch queries trace coherent groups of rays as SIMD packets (traversal_packet.cpp).
 #include <cmath>
 
+#include <immintrin.h>
+
 #include "renderer/accel/kdtree.h"
+#include "renderer/accel/traversal_detail.h"
 #include "renderer/geometry/intersect.h"
 
 namespace kdt {
 namespace {
 
-constexpr int kStackSize = 68;  // one entry per level; trees are at most 64 deep
+using detail::kStackSize;
+using detail::lower_slack;
+using detail::RayState;
+using detail::setup_ray;
+using detail::StackItem;
+using detail::TreeView;
+using detail::upper_slack;
 
-struct StackItem {
-    uint32_t node;
-    float t0, t1;
-};
-
-inline float lower_slack(float t) { return t - kIntervalSlack * std::fabs(t); }
-inline float upper_slack(float t) { return t + kIntervalSlack * std::fabs(t); }
-
-// Per-ray constants of the traversal and of the triangle test.
-struct RayState {
-    Vec3f origin, dir, inv_dir;
-    uint32_t dir_neg[3];   // 1 if the ray runs toward -axis: then the right child is near
-    float t_scale = 1.0f;  // internal t times t_scale = caller's t
-    WatertightRay wr;
-};
-
-// Rejects non-finite or zero-direction rays and clips the interval to the root box.
-// Directions with extreme magnitudes are rescaled by a power of two (exact), so
-// 1 / d and the distances stay finite. Returns false on a certain miss.
-inline bool setup_ray(const Ray& ray, const Bounds3f& bounds, RayState& rs, float& t0, float& t1) {
-    if (!is_finite(ray.origin) || !is_finite(ray.dir) || std::isnan(ray.tmin) ||
-        std::isnan(ray.tmax) || !(ray.tmin <= ray.tmax) || bounds.empty())
-        return false;
-    // Zero components become -0 so that 1/d = -inf and dir_neg agree on the sign.
-    Vec3f d = ray.dir;
-    const float m = std::max(std::fabs(d.x), std::max(std::fabs(d.y), std::fabs(d.z)));
-    if (!(m > 0.0f)) return false;
-    t0 = ray.tmin;
-    t1 = ray.tmax;
-    if (m < 0x1p-40f || m > 0x1p40f) {
-        int e;
-        std::frexp(m, &e);
-        d = Vec3f(std::ldexp(d.x, -e), std::ldexp(d.y, -e), std::ldexp(d.z, -e));
-        rs.t_scale = std::ldexp(1.0f, -e);
-        t0 = std::ldexp(t0, e);
-        t1 = std::ldexp(t1, e);
-    }
-    for (int k = 0; k < 3; ++k)
-        if (d[k] == 0.0f) d[k] = -0.0f;
-    rs.origin = ray.origin;
-    rs.dir = d;
-    rs.inv_dir = 1.0f / d;
-    for (int k = 0; k < 3; ++k) rs.dir_neg[k] = std::signbit(d[k]) ? 1u : 0u;
-    if (!intersect_box(rs.origin, d, rs.inv_dir, bounds, t0, t1)) return false;
-    rs.wr = WatertightRay(rs.origin, d);
-    return true;
+// One step down from inner node `node`; returns the next node. Written without
+// data-dependent branches: the far child is always written to the stack and kept only when
+// both children are visited; the next node is a select. lo0 = lower_slack(t0); t0 itself
+// never changes on the way down (going only to the far side means the plane lies before
+// t0). A ray lying in the plane (origin on it, d = 0: t = 0 * inf = NaN) visits both
+// sides, since a builder may reference a triangle that only touches the plane from either
+// side; comparisons are written so that NaN means "visit". The stack cannot overflow: a
+// tree's depth is checked to be at most 64 when it is made, and each level pushes at most
+// one entry.
+inline uint32_t descend(const KdNode node, const RayState& rs, float t0, float lo0, float& t1,
+                        StackItem* stack, int& sp) {
+    const int axis = node.axis();
+    const float ts = (node.split - rs.org[axis]) * rs.inv[axis];
+    const uint32_t near_child = node.child() + rs.neg[axis];
+    const uint32_t far_child = node.child() + 1u - rs.neg[axis];
+    const bool visit_near = !(ts < lo0);
+    const bool visit_far = !(ts > upper_slack(t1));
+    // max and min as SSE's maxss/minss: the second operand when either is NaN.
+    const __m128 vts = _mm_set_ss(ts), vt1 = _mm_set_ss(t1);
+    stack[sp] = {far_child, _mm_cvtss_f32(_mm_max_ss(vts, _mm_set_ss(t0))), t1};
+    sp += int(visit_near & visit_far);
+    // t1 = visit_near ? min(ts, t1) : t1 and the next node as a blend and arithmetic:
+    // compilers turn plain selects into branches, and these are unpredictable.
+#ifdef __SSE4_1__
+    const __m128 near_mask = _mm_castsi128_ps(_mm_set1_epi32(-int(visit_near)));
+    t1 = _mm_cvtss_f32(_mm_blendv_ps(vt1, _mm_min_ss(vts, vt1), near_mask));
+#else
+    t1 = visit_near ? _mm_cvtss_f32(_mm_min_ss(vts, vt1)) : t1;
+#endif
+    return visit_near ? near_child : far_child;
 }
 
+// Closest hit so far (the caller's tmax until something is hit).
+struct BestHit {
+    float t, u = 0.0f, v = 0.0f;
+    uint32_t prim = Hit::kNoHit;
+};
+
+// Tests the triangles of a leaf; true when kAnyHit and one is hit. `tested` counts tests.
+template <bool kAnyHit>
+inline bool test_leaf(const KdNode node, const uint32_t* indices, const Vec3f* positions,
+                      const Vec3u* triangles, const RayState& rs, BestHit& best, uint64_t& tested) {
+    const uint32_t count = node.count();
+    const uint32_t* ids = indices + node.first;
+    for (uint32_t i = 0; i < count; ++i) {
+        const uint32_t prim = ids[i];
+        const Vec3u tri = triangles[prim];
+        float t, u, v;
+        if (intersect_triangle(rs.wr, positions[tri.x], positions[tri.y], positions[tri.z], rs.tmin,
+                               best.t, t, u, v)) {
+            if (kAnyHit) {
+                tested += i + 1;
+                return true;
+            }
+            best.t = t;
+            best.u = u;
+            best.v = v;
+            best.prim = prim;
+        }
+    }
+    tested += count;
+    return false;
+}
+
+// Next node front to back, skipping those that start beyond the closest hit. A hit beyond
+// the current leaf does not end the search (the thesis's figure 3). False when none is left.
+inline bool pop(const StackItem* stack, int& sp, float best_t, uint32_t& idx, float& t0,
+                float& t1) {
+    while (sp > 0) {
+        const StackItem& s = stack[--sp];
+        if (lower_slack(s.t0) <= best_t) {
+            idx = s.node;
+            t0 = s.t0;
+            t1 = std::min(s.t1, best_t);
+            return true;
+        }
+    }
+    return false;
+}
+
+inline void write_hit(const BestHit& best, float t_scale, Hit& hit) {
+    hit.t = best.t * t_scale;
+    hit.u = best.u;
+    hit.v = best.v;
+    hit.prim = best.prim;
+}
+
+// One ray to the end. Returns true on an any-hit (kAnyHit) or when a closest hit exists.
 template <bool kAnyHit, bool kCount>
-bool traverse(const KdNode* nodes, const uint32_t* indices, const Vec3f* positions,
-              const Vec3u* triangles, const RayState& rs, float t0, float t1, float tmin,
-              float tmax, Hit* hit, TraversalCounters* counters) {
+bool trace_one(const TreeView& tv, const Ray& ray, Hit* hit, TraversalCounters* counters) {
+    RayState rs;
+    float t0, t1;
+    BestHit best;
+    if (!setup_ray(ray, tv.bounds, rs, t0, t1, best.t)) return false;
     StackItem stack[kStackSize];
     int sp = 0;
     uint32_t idx = 0;
-    float best_t = tmax, best_u = 0.0f, best_v = 0.0f;
-    uint32_t best_prim = Hit::kNoHit;
     uint64_t visited = 0, tested = 0;
+    bool any = false;
     for (;;) {
-        KdNode node = nodes[idx];
+        KdNode node = tv.nodes[idx];
         if (kCount) ++visited;
+        const float lo0 = lower_slack(t0);
         while (!node.is_leaf()) {
-            const int axis = node.axis();
-            const float ts = (node.split - rs.origin[axis]) * rs.inv_dir[axis];
-            const uint32_t first = node.child();
-            const uint32_t near_child = first + rs.dir_neg[axis];
-            const uint32_t far_child = first + 1 - rs.dir_neg[axis];
-            // A ray lying in the plane (origin on it, d = 0: t = 0 * inf = NaN) visits both
-            // sides: a builder may reference a triangle that only touches the plane from
-            // either side. Comparisons are written so that NaN means "visit".
-            const bool visit_near = !(ts < lower_slack(t0));
-            const bool visit_far = !(ts > upper_slack(t1));
-            if (visit_near && visit_far) {
-                if (sp < kStackSize) stack[sp++] = {far_child, ts > t0 ? ts : t0, t1};
-                idx = near_child;
-                t1 = ts < t1 ? ts : t1;
-            } else {
-                idx = visit_near ? near_child : far_child;
-            }
-            node = nodes[idx];
+            idx = descend(node, rs, t0, lo0, t1, stack, sp);
+            node = tv.nodes[idx];
             if (kCount) ++visited;
         }
-        const uint32_t count = node.count();
-        const uint32_t* ids = indices + node.first;
-        for (uint32_t i = 0; i < count; ++i) {
-            const uint32_t prim = ids[i];
-            const Vec3u& tri = triangles[prim];
-            float t, u, v;
-            if (kCount) ++tested;
-            if (intersect_triangle(rs.wr, positions[tri.x], positions[tri.y], positions[tri.z],
-                                   tmin, best_t, t, u, v)) {
-                if (kAnyHit) {
-                    if (kCount) {
-                        counters->nodes_visited += visited;
-                        counters->triangles_tested += tested;
-                    }
-                    return true;
-                }
-                best_t = t;
-                best_u = u;
-                best_v = v;
-                best_prim = prim;
-            }
+        if (test_leaf<kAnyHit>(node, tv.indices, tv.positions, tv.triangles, rs, best, tested)) {
+            any = true;
+            break;
         }
-        // Next node front to back; skip those starting beyond the closest hit.
-        bool next = false;
-        while (sp > 0) {
-            const StackItem& s = stack[--sp];
-            if (lower_slack(s.t0) <= best_t) {
-                idx = s.node;
-                t0 = s.t0;
-                t1 = std::min(s.t1, best_t);
-                next = true;
-                break;
-            }
-        }
-        if (!next) break;
+        if (!pop(stack, sp, best.t, idx, t0, t1)) break;
     }
     if (kCount) {
         counters->nodes_visited += visited;
         counters->triangles_tested += tested;
     }
-    if (kAnyHit || best_prim == Hit::kNoHit) return false;
-    hit->t = best_t * rs.t_scale;
-    hit->u = best_u;
-    hit->v = best_v;
-    hit->prim = best_prim;
+    if (kAnyHit) return any;
+    if (best.prim == Hit::kNoHit) return false;
+    write_hit(best, rs.t_scale, *hit);
     return true;
 }
 
-// Sets up the ray and dispatches to the traversal with or without cost counters.
-template <bool kAnyHit>
-bool query(const TriangleMesh* mesh, const Bounds3f& bounds, const std::vector<KdNode>& nodes,
-           const std::vector<uint32_t>& indices, const Ray& ray, Hit* hit,
-           TraversalCounters* counters) {
-    RayState rs;
-    float t0, t1;
-    if (!mesh || !setup_ray(ray, bounds, rs, t0, t1)) return false;
-    const float tmin = ray.tmin / rs.t_scale, tmax = ray.tmax / rs.t_scale;
-    if (counters)
-        return traverse<kAnyHit, true>(nodes.data(), indices.data(), mesh->positions.data(),
-                                       mesh->triangles.data(), rs, t0, t1, tmin, tmax, hit,
-                                       counters);
-    return traverse<kAnyHit, false>(nodes.data(), indices.data(), mesh->positions.data(),
-                                    mesh->triangles.data(), rs, t0, t1, tmin, tmax, hit, nullptr);
+TreeView view_of(const TriangleMesh* mesh, const Bounds3f& bounds, const std::vector<KdNode>& nodes,
+                 const std::vector<uint32_t>& indices) {
+    return {nodes.data(), indices.data(), mesh->positions.data(), mesh->triangles.data(), bounds};
 }
 
 }  // namespace
 
 bool KdTree::intersect(const Ray& ray, Hit& hit, TraversalCounters* counters) const {
     hit = Hit{};
-    return query<false>(mesh_.get(), bounds_, nodes_, indices_, ray, &hit, counters);
+    if (!mesh_) return false;
+    const TreeView tv = view_of(mesh_.get(), bounds_, nodes_, indices_);
+    return counters ? trace_one<false, true>(tv, ray, &hit, counters)
+                    : trace_one<false, false>(tv, ray, &hit, nullptr);
 }
 
 bool KdTree::occluded(const Ray& ray, TraversalCounters* counters) const {
-    return query<true>(mesh_.get(), bounds_, nodes_, indices_, ray, nullptr, counters);
+    if (!mesh_) return false;
+    const TreeView tv = view_of(mesh_.get(), bounds_, nodes_, indices_);
+    return counters ? trace_one<true, true>(tv, ray, nullptr, counters)
+                    : trace_one<true, false>(tv, ray, nullptr, nullptr);
+}
+
+void KdTree::intersect(const Ray* rays, size_t count, Hit* hits,
+                       TraversalCounters* counters) const {
+    for (size_t i = 0; i < count; ++i) hits[i] = Hit{};
+    if (!mesh_) return;
+    const TreeView tv = view_of(mesh_.get(), bounds_, nodes_, indices_);
+    for (size_t i = 0; i < count; i += detail::kPacketSize) {
+        const int m = int(std::min<size_t>(detail::kPacketSize, count - i));
+        if (detail::trace_packet(tv, rays + i, m, false, hits + i, nullptr, counters)) continue;
+        for (int j = 0; j < m; ++j) {
+            if (counters)
+                trace_one<false, true>(tv, rays[i + j], &hits[i + j], counters);
+            else
+                trace_one<false, false>(tv, rays[i + j], &hits[i + j], nullptr);
+        }
+    }
+}
+
+void KdTree::occluded(const Ray* rays, size_t count, uint8_t* occluded,
+                      TraversalCounters* counters) const {
+    for (size_t i = 0; i < count; ++i) occluded[i] = 0;
+    if (!mesh_) return;
+    const TreeView tv = view_of(mesh_.get(), bounds_, nodes_, indices_);
+    for (size_t i = 0; i < count; i += detail::kPacketSize) {
+        const int m = int(std::min<size_t>(detail::kPacketSize, count - i));
+        if (detail::trace_packet(tv, rays + i, m, true, nullptr, occluded + i, counters)) continue;
+        for (int j = 0; j < m; ++j) {
+            const bool hit = counters ? trace_one<true, true>(tv, rays[i + j], nullptr, counters)
+                                      : trace_one<true, false>(tv, rays[i + j], nullptr, nullptr);
+            occluded[i + j] = hit ? 1 : 0;
+        }
+    }
 }
 
 }  // namespace kdt

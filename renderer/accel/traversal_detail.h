@@ -1,0 +1,106 @@
+// Internal to the kd-tree queries (traversal.cpp, traversal_packet.cpp): per-ray setup
+// shared by the single-ray and the packet traversal, so both take exactly the same steps.
+// Depends on accel/kdtree.h and geometry/intersect.h.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+
+#include "renderer/accel/kdtree.h"
+#include "renderer/geometry/intersect.h"
+
+namespace kdt::detail {
+
+constexpr int kStackSize = 68;  // one entry per level; trees are at most 64 deep
+
+struct StackItem {
+    uint32_t node;
+    float t0, t1;
+};
+
+inline float lower_slack(float t) { return t - kIntervalSlack * std::fabs(t); }
+inline float upper_slack(float t) { return t + kIntervalSlack * std::fabs(t); }
+
+// Per-ray constants of the traversal and of the triangle test.
+struct RayState {
+    float org[3], inv[3];
+    uint32_t neg[3];       // 1 if the ray runs toward -axis: then the second child is near
+    float t_scale = 1.0f;  // internal t times t_scale = caller's t
+    float tmin = 0.0f;     // the caller's tmin in internal units
+    WatertightRay wr;
+};
+
+// Rejects non-finite or zero-direction rays and clips the interval to the root box.
+// Directions with extreme magnitudes are rescaled by a power of two (exact), so
+// 1 / d and the distances stay finite. Returns false on a certain miss; otherwise sets
+// [t0, t1] (root box, internal units) and tmax (the caller's, internal units).
+inline bool setup_ray(const Ray& ray, const Bounds3f& bounds, RayState& rs, float& t0, float& t1,
+                      float& tmax) {
+    if (!is_finite(ray.origin) || !is_finite(ray.dir) || std::isnan(ray.tmin) ||
+        std::isnan(ray.tmax) || !(ray.tmin <= ray.tmax) || bounds.empty())
+        return false;
+    float d[3] = {ray.dir.x, ray.dir.y, ray.dir.z};
+    const float m = std::max(std::fabs(d[0]), std::max(std::fabs(d[1]), std::fabs(d[2])));
+    if (!(m > 0.0f)) return false;
+    t0 = ray.tmin;
+    t1 = ray.tmax;
+    if (m < 0x1p-40f || m > 0x1p40f) [[unlikely]] {
+        int e;
+        std::frexp(m, &e);
+        for (float& dk : d) dk = std::ldexp(dk, -e);
+        rs.t_scale = std::ldexp(1.0f, -e);
+        t0 = std::ldexp(t0, e);
+        t1 = std::ldexp(t1, e);
+    }
+    rs.tmin = t0;
+    tmax = t1;
+    const float org[3] = {ray.origin.x, ray.origin.y, ray.origin.z};
+    const float lower[3] = {bounds.lower.x, bounds.lower.y, bounds.lower.z};
+    const float upper[3] = {bounds.upper.x, bounds.upper.y, bounds.upper.z};
+    bool hit = true;
+    for (int k = 0; k < 3; ++k) {
+        // Zero components become -0 so that 1/d = -inf and neg agree on the sign.
+        const float dk = d[k] == 0.0f ? -0.0f : d[k];
+        d[k] = dk;
+        rs.org[k] = org[k];
+        rs.inv[k] = 1.0f / dk;
+        rs.neg[k] = std::signbit(dk) ? 1u : 0u;
+        // Slab test against the root box, conservative as intersect_box(); a zero
+        // component hits iff the origin lies in the closed slab.
+        if (dk == 0.0f) {
+            hit &= org[k] >= lower[k] && org[k] <= upper[k];
+            continue;
+        }
+        const float a = (lower[k] - org[k]) * rs.inv[k];
+        const float b = (upper[k] - org[k]) * rs.inv[k];
+        const float tn = lower_slack(std::min(a, b)), tf = upper_slack(std::max(a, b));
+        t0 = tn > t0 ? tn : t0;
+        t1 = tf < t1 ? tf : t1;
+    }
+    if (!hit || !(t0 <= t1)) return false;
+    rs.wr = WatertightRay(ray.origin, Vec3f(d[0], d[1], d[2]));
+    return true;
+}
+
+// Tree arrays of a query.
+struct TreeView {
+    const KdNode* nodes;
+    const uint32_t* indices;
+    const Vec3f* positions;
+    const Vec3u* triangles;
+    Bounds3f bounds;
+};
+
+/// Rays per packet.
+inline constexpr int kPacketSize = 8;
+
+/// Traces rays[0, m), 1 <= m <= kPacketSize, as one SIMD packet when they are coherent
+/// (same direction signs and dominant axis, nearly parallel, nearby origins) and returns
+/// true; returns false, having traced nothing, otherwise (and always on builds without
+/// AVX2). Closest hits go to hits (any_hit false), any-hit results to occluded (any_hit
+/// true). Every result is exactly the single-ray query's: each ray visits the same nodes
+/// in the same order and runs the same triangle test.
+bool trace_packet(const TreeView& tv, const Ray* rays, int m, bool any_hit, Hit* hits,
+                  uint8_t* occluded, TraversalCounters* counters);
+
+}  // namespace kdt::detail

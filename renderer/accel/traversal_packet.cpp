@@ -1,0 +1,331 @@
+// SIMD packet traversal (AVX2): eight coherent rays walk the kd-tree together (Wald 2004,
+// "Realtime Ray Tracing and Interactive Global Illumination", ch. 7), one node fetch and one
+// decision per packet instead of per ray, and the watertight triangle test runs on all
+// eight lanes at once.
+//
+// Exactness: each lane takes exactly the steps of the single-ray traversal (traversal.cpp)
+// and computes the same floating-point operations in the same order, so its hit is
+// bitwise the single-ray hit. A lane visits a child exactly when the single-ray decision
+// would; a node is visited when any active lane needs it, the other lanes are masked. The
+// descent: visit_near = !(ts < lower_slack(t0)), visit_far = !(ts > upper_slack(t1)), the
+// far child pushed with [max(ts, t0), t1] when both are visited, the near child taken with
+// t1 = min(ts, t1). The pop: an entry is taken by a lane when lower_slack(t0) <= its
+// closest hit, with t1 = min(t1, closest hit). The triangle test mirrors
+// intersect_triangle() operation by operation (float shear with explicit FMAs, edge
+// functions and t in double, explicit FMAs for t).
+#include "renderer/accel/traversal_detail.h"
+
+#ifdef __AVX2__
+#include <immintrin.h>
+#endif
+
+namespace kdt::detail {
+
+#ifndef __AVX2__
+
+bool trace_packet(const TreeView&, const Ray*, int, bool, Hit*, uint8_t*, TraversalCounters*) {
+    return false;
+}
+
+#else
+
+namespace {
+
+// Rays form a packet when their directions are within about 1.1 degrees of the first
+// ray's and their origins within 1e-3 of the scene diagonal of its origin: camera rays
+// through one pixel or neighbouring pixels, not diffuse bounces.
+constexpr float kCoherentCos = 0.9998f;
+constexpr float kCoherentOrigin = 1e-3f;
+
+// Per-lane constants of a packet (structure of arrays) and the constants all lanes share.
+struct Packet {
+    __m256 org[3], inv[3];
+    __m256 ox, oy, oz, sx, sy, sz;  // watertight test: permuted origin and shear
+    __m256 tmin;
+    int kx, ky, kz;
+    uint32_t neg[3];
+};
+
+inline __m256 abs8(__m256 v) { return _mm256_andnot_ps(_mm256_set1_ps(-0.0f), v); }
+inline __m256 lower_slack8(__m256 t) {
+    // t - k |t|: k is a power of two, so the product is exact and an FMA rounds alike.
+    return _mm256_fnmadd_ps(_mm256_set1_ps(kIntervalSlack), abs8(t), t);
+}
+inline __m256 upper_slack8(__m256 t) {
+    return _mm256_fmadd_ps(_mm256_set1_ps(kIntervalSlack), abs8(t), t);
+}
+
+// Cheap pre-check on the raw rays (no setup): nearly parallel, nearby origins.
+bool roughly_coherent(const Ray* rays, int m, const Bounds3f& bounds) {
+    const Vec3f d0 = rays[0].dir, o0 = rays[0].origin;
+    const float l0 = glm::dot(d0, d0);
+    const Vec3f ext = bounds.extent();
+    const float max_dist2 = kCoherentOrigin * kCoherentOrigin * glm::dot(ext, ext);
+    for (int i = 1; i < m; ++i) {
+        const Vec3f d = rays[i].dir;
+        const float c = glm::dot(d, d0);
+        // Written so that NaN fails: such rays go the single-ray way.
+        if (!(c > 0.0f && c * c >= kCoherentCos * kCoherentCos * l0 * glm::dot(d, d))) return false;
+        const Vec3f o = rays[i].origin - o0;
+        if (!(glm::dot(o, o) <= max_dist2)) return false;
+    }
+    return true;
+}
+
+// The watertight test of intersect_triangle() on eight lanes. Returns the mask of lanes in
+// `active` that hit in [tmin, best_t], with their t, u, v.
+inline int intersect8(const Packet& p, const Vec3f& a, const Vec3f& b, const Vec3f& c, int active,
+                      __m256 best_t, __m256& t_out, __m256& u_out, __m256& v_out) {
+    const __m256 az = _mm256_sub_ps(_mm256_set1_ps(component(a, p.kz)), p.oz);
+    const __m256 bz = _mm256_sub_ps(_mm256_set1_ps(component(b, p.kz)), p.oz);
+    const __m256 cz = _mm256_sub_ps(_mm256_set1_ps(component(c, p.kz)), p.oz);
+    // exact_fmsub(x - o, s, z) = fma(-s, z, x - o)
+    auto shear = [](float x, __m256 o, __m256 s, __m256 z) {
+        return _mm256_fnmadd_ps(s, z, _mm256_sub_ps(_mm256_set1_ps(x), o));
+    };
+    const __m256 ax = shear(component(a, p.kx), p.ox, p.sx, az);
+    const __m256 ay = shear(component(a, p.ky), p.oy, p.sy, az);
+    const __m256 bx = shear(component(b, p.kx), p.ox, p.sx, bz);
+    const __m256 by = shear(component(b, p.ky), p.oy, p.sy, bz);
+    const __m256 cx = shear(component(c, p.kx), p.ox, p.sx, cz);
+    const __m256 cy = shear(component(c, p.ky), p.oy, p.sy, cz);
+    // Edge functions in double, four lanes per half; products of floats are exact there.
+    __m256d U[2], V[2], W[2];
+    int pass = 0;
+    for (int h = 0; h < 2; ++h) {
+        auto half = [h](__m256 v) {
+            return _mm256_cvtps_pd(h == 0 ? _mm256_castps256_ps128(v)
+                                          : _mm256_extractf128_ps(v, 1));
+        };
+        const __m256d dax = half(ax), day = half(ay), dbx = half(bx), dby = half(by);
+        const __m256d dcx = half(cx), dcy = half(cy);
+        U[h] = _mm256_fmsub_pd(dcx, dby, _mm256_mul_pd(dcy, dbx));
+        V[h] = _mm256_fmsub_pd(dax, dcy, _mm256_mul_pd(day, dcx));
+        W[h] = _mm256_fmsub_pd(dbx, day, _mm256_mul_pd(dby, dax));
+        const __m256d zero = _mm256_setzero_pd();
+        const __m256d any_neg = _mm256_or_pd(_mm256_or_pd(_mm256_cmp_pd(U[h], zero, _CMP_LT_OQ),
+                                                          _mm256_cmp_pd(V[h], zero, _CMP_LT_OQ)),
+                                             _mm256_cmp_pd(W[h], zero, _CMP_LT_OQ));
+        const __m256d any_pos = _mm256_or_pd(_mm256_or_pd(_mm256_cmp_pd(U[h], zero, _CMP_GT_OQ),
+                                                          _mm256_cmp_pd(V[h], zero, _CMP_GT_OQ)),
+                                             _mm256_cmp_pd(W[h], zero, _CMP_GT_OQ));
+        pass |= (~_mm256_movemask_pd(_mm256_and_pd(any_neg, any_pos)) & 0xf) << (4 * h);
+    }
+    pass &= active;
+    if (!pass) return 0;
+    __m128 t4[2], u4[2], v4[2];
+    int ok = 0;
+    for (int h = 0; h < 2; ++h) {
+        auto half = [h](__m256 v) {
+            return _mm256_cvtps_pd(h == 0 ? _mm256_castps256_ps128(v)
+                                          : _mm256_extractf128_ps(v, 1));
+        };
+        const __m256d det = _mm256_add_pd(_mm256_add_pd(U[h], V[h]), W[h]);
+        ok |= (~_mm256_movemask_pd(_mm256_cmp_pd(det, _mm256_setzero_pd(), _CMP_EQ_OQ)) & 0xf)
+              << (4 * h);
+        const __m256d za = half(_mm256_mul_ps(p.sz, az));
+        const __m256d zb = half(_mm256_mul_ps(p.sz, bz));
+        const __m256d zc = half(_mm256_mul_ps(p.sz, cz));
+        const __m256d T =
+            _mm256_fmadd_pd(W[h], zc, _mm256_fmadd_pd(V[h], zb, _mm256_mul_pd(U[h], za)));
+        const __m256d inv_det = _mm256_div_pd(_mm256_set1_pd(1.0), det);
+        t4[h] = _mm256_cvtpd_ps(_mm256_mul_pd(T, inv_det));
+        u4[h] = _mm256_cvtpd_ps(_mm256_mul_pd(V[h], inv_det));
+        v4[h] = _mm256_cvtpd_ps(_mm256_mul_pd(W[h], inv_det));
+    }
+    t_out = _mm256_set_m128(t4[1], t4[0]);
+    u_out = _mm256_set_m128(u4[1], u4[0]);
+    v_out = _mm256_set_m128(v4[1], v4[0]);
+    const __m256 in_range = _mm256_and_ps(_mm256_cmp_ps(t_out, p.tmin, _CMP_GE_OQ),
+                                          _mm256_cmp_ps(t_out, best_t, _CMP_LE_OQ));
+    return pass & ok & _mm256_movemask_ps(in_range);
+}
+
+inline __m256 lanes_mask(int m) {
+    const __m256i bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+    return _mm256_castsi256_ps(
+        _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(m), bits), bits));
+}
+
+template <bool kAnyHit>
+void run_packet(const TreeView& tv, const Packet& p, int active, __m256 t0, __m256 t1,
+                __m256& best_t, __m256& best_u, __m256& best_v, __m256i& best_prim, int& hit_lanes,
+                uint64_t& visited, uint64_t& tested) {
+    alignas(32) __m256 stack_t0[kStackSize];
+    alignas(32) __m256 stack_t1[kStackSize];
+    uint32_t stack_node[kStackSize];
+    int stack_mask[kStackSize];
+    int sp = 0;
+    uint32_t idx = 0;
+    int done = 0;  // any-hit lanes that are finished
+    for (;;) {
+        KdNode node = tv.nodes[idx];
+        visited += uint64_t(__builtin_popcount(unsigned(active)));
+        while (!node.is_leaf()) {
+            const int axis = node.axis();
+            const __m256 ts =
+                _mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(node.split), p.org[axis]), p.inv[axis]);
+            const int vn = _mm256_movemask_ps(_mm256_cmp_ps(ts, lower_slack8(t0), _CMP_NLT_UQ));
+            const int vf = _mm256_movemask_ps(_mm256_cmp_ps(ts, upper_slack8(t1), _CMP_NGT_UQ));
+            const int near_lanes = active & vn;
+            const int far_lanes = active & (vf | ~vn);
+            const uint32_t near_child = node.child() + p.neg[axis];
+            const uint32_t far_child = node.child() + 1u - p.neg[axis];
+            if (!far_lanes) {
+                // Every lane goes near only; for those min(ts, t1) = t1.
+                idx = near_child;
+            } else if (!near_lanes) {
+                idx = far_child;
+            } else {
+                stack_node[sp] = far_child;
+                stack_mask[sp] = far_lanes;
+                stack_t0[sp] = _mm256_max_ps(ts, t0);
+                stack_t1[sp] = t1;
+                ++sp;
+                t1 = _mm256_min_ps(ts, t1);
+                active = near_lanes;
+                idx = near_child;
+            }
+            node = tv.nodes[idx];
+            visited += uint64_t(__builtin_popcount(unsigned(active)));
+        }
+        const uint32_t count = node.count();
+        const uint32_t* ids = tv.indices + node.first;
+        for (uint32_t i = 0; i < count && active; ++i) {
+            tested += uint64_t(__builtin_popcount(unsigned(active)));
+            const uint32_t prim = ids[i];
+            const Vec3u tri = tv.triangles[prim];
+            __m256 t, u, v;
+            const int hit = intersect8(p, tv.positions[tri.x], tv.positions[tri.y],
+                                       tv.positions[tri.z], active, best_t, t, u, v);
+            if (!hit) continue;
+            if (kAnyHit) {
+                done |= hit;
+                active &= ~hit;
+                continue;
+            }
+            const __m256 m = lanes_mask(hit);
+            best_t = _mm256_blendv_ps(best_t, t, m);
+            best_u = _mm256_blendv_ps(best_u, u, m);
+            best_v = _mm256_blendv_ps(best_v, v, m);
+            best_prim = _mm256_castps_si256(
+                _mm256_blendv_ps(_mm256_castsi256_ps(best_prim),
+                                 _mm256_castsi256_ps(_mm256_set1_epi32(int(prim))), m));
+        }
+        // Next entry that some lane still needs.
+        bool next = false;
+        while (sp > 0) {
+            --sp;
+            const __m256 s0 = stack_t0[sp];
+            const int lanes =
+                stack_mask[sp] & ~done &
+                _mm256_movemask_ps(_mm256_cmp_ps(lower_slack8(s0), best_t, _CMP_LE_OQ));
+            if (!lanes) continue;
+            idx = stack_node[sp];
+            t0 = s0;
+            t1 = _mm256_min_ps(best_t, stack_t1[sp]);
+            active = lanes;
+            next = true;
+            break;
+        }
+        if (!next) break;
+    }
+    hit_lanes = done;
+}
+
+}  // namespace
+
+bool trace_packet(const TreeView& tv, const Ray* rays, int m, bool any_hit, Hit* hits,
+                  uint8_t* occluded, TraversalCounters* counters) {
+    if (m < 2 || !roughly_coherent(rays, m, tv.bounds)) return false;
+    alignas(32) float org[3][8], inv[3][8], wo[3][8], sh[3][8], tmin[8], t0[8], t1[8], tmax[8];
+    float t_scale[8];
+    int active = 0;
+    int ref = -1;
+    RayState first;
+    for (int i = 0; i < kPacketSize; ++i) {
+        RayState rs;
+        float a = 0.0f, b = -1.0f, tm = 0.0f;
+        const bool ok = i < m && setup_ray(rays[i], tv.bounds, rs, a, b, tm);
+        if (ok) {
+            if (ref < 0) {
+                ref = i;
+                first = rs;
+            } else if (rs.wr.kx != first.wr.kx || rs.wr.ky != first.wr.ky ||
+                       rs.wr.kz != first.wr.kz || rs.neg[0] != first.neg[0] ||
+                       rs.neg[1] != first.neg[1] || rs.neg[2] != first.neg[2]) {
+                return false;  // the lanes would need different child orders or shears
+            }
+            active |= 1 << i;
+        }
+        for (int k = 0; k < 3; ++k) {
+            org[k][i] = rs.org[k];
+            inv[k][i] = rs.inv[k];
+        }
+        wo[0][i] = rs.wr.ox;
+        wo[1][i] = rs.wr.oy;
+        wo[2][i] = rs.wr.oz;
+        sh[0][i] = rs.wr.sx;
+        sh[1][i] = rs.wr.sy;
+        sh[2][i] = rs.wr.sz;
+        tmin[i] = rs.tmin;
+        t0[i] = a;
+        t1[i] = b;
+        tmax[i] = tm;
+        t_scale[i] = rs.t_scale;
+    }
+    if (!active) return true;  // every ray misses the root box (outputs are misses)
+    Packet p;
+    for (int k = 0; k < 3; ++k) {
+        p.org[k] = _mm256_load_ps(org[k]);
+        p.inv[k] = _mm256_load_ps(inv[k]);
+        p.neg[k] = first.neg[k];
+    }
+    p.ox = _mm256_load_ps(wo[0]);
+    p.oy = _mm256_load_ps(wo[1]);
+    p.oz = _mm256_load_ps(wo[2]);
+    p.sx = _mm256_load_ps(sh[0]);
+    p.sy = _mm256_load_ps(sh[1]);
+    p.sz = _mm256_load_ps(sh[2]);
+    p.tmin = _mm256_load_ps(tmin);
+    p.kx = first.wr.kx;
+    p.ky = first.wr.ky;
+    p.kz = first.wr.kz;
+    __m256 best_t = _mm256_load_ps(tmax), best_u = _mm256_setzero_ps(),
+           best_v = _mm256_setzero_ps();
+    __m256i best_prim = _mm256_set1_epi32(int(Hit::kNoHit));
+    int hit_lanes = 0;
+    uint64_t visited = 0, tested = 0;
+    if (any_hit)
+        run_packet<true>(tv, p, active, _mm256_load_ps(t0), _mm256_load_ps(t1), best_t, best_u,
+                         best_v, best_prim, hit_lanes, visited, tested);
+    else
+        run_packet<false>(tv, p, active, _mm256_load_ps(t0), _mm256_load_ps(t1), best_t, best_u,
+                          best_v, best_prim, hit_lanes, visited, tested);
+    if (counters) {
+        counters->nodes_visited += visited;
+        counters->triangles_tested += tested;
+    }
+    if (any_hit) {
+        for (int i = 0; i < m; ++i) occluded[i] = (hit_lanes >> i) & 1;
+        return true;
+    }
+    alignas(32) float bt[8], bu[8], bv[8];
+    alignas(32) uint32_t bp[8];
+    _mm256_store_ps(bt, best_t);
+    _mm256_store_ps(bu, best_u);
+    _mm256_store_ps(bv, best_v);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(bp), best_prim);
+    for (int i = 0; i < m; ++i) {
+        if (bp[i] == Hit::kNoHit) continue;
+        hits[i].t = bt[i] * t_scale[i];
+        hits[i].u = bu[i];
+        hits[i].v = bv[i];
+        hits[i].prim = bp[i];
+    }
+    return true;
+}
+
+#endif  // __AVX2__
+
+}  // namespace kdt::detail
