@@ -31,36 +31,56 @@ using detail::StackItem;
 using detail::TreeView;
 using detail::upper_slack;
 
-// One step down from inner node `node`; returns the next node. Written without
-// data-dependent branches: the far child is always written to the stack and kept only when
-// both children are visited; the next node is a select. lo0 = lower_slack(t0); t0 itself
-// never changes on the way down (going only to the far side means the plane lies before
-// t0). A ray lying in the plane (origin on it, d = 0: t = 0 * inf = NaN) visits both
-// sides, since a builder may reference a triangle that only touches the plane from either
-// side; comparisons are written so that NaN means "visit". The stack cannot overflow: a
-// tree's depth is checked to be at most 64 when it is made, and each level pushes at most
-// one entry.
-inline uint32_t descend(const KdNode node, const RayState& rs, float t0, float lo0, float& t1,
-                        StackItem* stack, int& sp) {
-    const int axis = node.axis();
-    const float ts = (node.split - rs.org[axis]) * rs.inv[axis];
-    const uint32_t near_child = node.child() + rs.neg[axis];
-    const uint32_t far_child = node.child() + 1u - rs.neg[axis];
-    const bool visit_near = !(ts < lo0);
-    const bool visit_far = !(ts > upper_slack(t1));
-    // max and min as SSE's maxss/minss: the second operand when either is NaN.
-    const __m128 vts = _mm_set_ss(ts), vt1 = _mm_set_ss(t1);
-    stack[sp] = {far_child, _mm_cvtss_f32(_mm_max_ss(vts, _mm_set_ss(t0))), t1};
-    sp += int(visit_near & visit_far);
-    // t1 = visit_near ? min(ts, t1) : t1 and the next node as a blend and arithmetic:
-    // compilers turn plain selects into branches, and these are unpredictable.
+// Descends from node idx to a leaf, pushing far children; returns the leaf and leaves idx
+// at it. At each inner node: visit_near = !(ts < lower_slack(t0)), visit_far =
+// !(ts > upper_slack(t1)); both: push the far child with [max(ts, t0), t1] and go near
+// with t1 = min(ts, t1); else go to the one visited with the interval unchanged. t0 never
+// changes on the way down (going only to the far side means the plane lies before t0). A
+// ray lying in the plane (origin on it, d = 0: t = 0 * inf = NaN) visits both sides, since
+// a builder may reference a triangle that only touches the plane from either side:
+// comparisons are written so that NaN means "visit", and max/min are SSE's maxss/minss,
+// which return the second operand on NaN (so the interval stays [t0, t1]). The push is
+// branch-free (the far child is always written, kept only when both sides are visited)
+// and so is the update of t1 (a blend: the select is unpredictable); the choice of the
+// next node stays a branch, whose prediction lets the next fetch start before ts is known.
+// The stack cannot overflow: a tree is checked to be at most 64 deep when it is made, and
+// each level pushes at most one entry.
+template <bool kCount>
+inline KdNode descend(const KdNode* nodes, uint32_t& idx, const RayState& rs, float t0, float& t1,
+                      StackItem*& top, uint64_t& visited) {
+    KdNode node = nodes[idx];
+    if (kCount) ++visited;
+    const __m128 vt0 = _mm_set_ss(t0);
+    const __m128 lo0 = _mm_set_ss(lower_slack(t0));
+    __m128 vt1 = _mm_set_ss(t1);
+    const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
+    const __m128 slack = _mm_set_ss(kIntervalSlack);
+    while (!node.is_leaf()) {
+        const int axis = node.axis();
+        const __m128 ts =
+            _mm_mul_ss(_mm_sub_ss(_mm_load_ss(&node.split), _mm_load_ss(&rs.org[axis])),
+                       _mm_load_ss(&rs.inv[axis]));
+        // t1 + k |t1|: k is a power of two, so the product is exact and an FMA rounds alike.
+        const __m128 hi1 = _mm_add_ss(vt1, _mm_mul_ss(slack, _mm_and_ps(vt1, abs_mask)));
+        const __m128 near_mask = _mm_cmpnlt_ss(ts, lo0);
+        const bool visit_near = _mm_cvtsi128_si32(_mm_castps_si128(near_mask)) != 0;
+        const bool visit_far = !_mm_comigt_ss(ts, hi1);
+        const uint32_t first = node.child();
+        top->node = first + 1u - rs.neg[axis];
+        _mm_store_ss(&top->t0, _mm_max_ss(ts, vt0));
+        _mm_store_ss(&top->t1, vt1);
+        top += int(visit_near & visit_far);
 #ifdef __SSE4_1__
-    const __m128 near_mask = _mm_castsi128_ps(_mm_set1_epi32(-int(visit_near)));
-    t1 = _mm_cvtss_f32(_mm_blendv_ps(vt1, _mm_min_ss(vts, vt1), near_mask));
+        vt1 = _mm_blendv_ps(vt1, _mm_min_ss(ts, vt1), near_mask);
 #else
-    t1 = visit_near ? _mm_cvtss_f32(_mm_min_ss(vts, vt1)) : t1;
+        vt1 = _mm_or_ps(_mm_and_ps(near_mask, _mm_min_ss(ts, vt1)), _mm_andnot_ps(near_mask, vt1));
 #endif
-    return visit_near ? near_child : far_child;
+        idx = visit_near ? first + rs.neg[axis] : first + 1u - rs.neg[axis];
+        node = nodes[idx];
+        if (kCount) ++visited;
+    }
+    t1 = _mm_cvtss_f32(vt1);
+    return node;
 }
 
 // Closest hit so far (the caller's tmax until something is hit).
@@ -97,10 +117,10 @@ inline bool test_leaf(const KdNode node, const uint32_t* indices, const Vec3f* p
 
 // Next node front to back, skipping those that start beyond the closest hit. A hit beyond
 // the current leaf does not end the search (the thesis's figure 3). False when none is left.
-inline bool pop(const StackItem* stack, int& sp, float best_t, uint32_t& idx, float& t0,
+inline bool pop(const StackItem* stack, StackItem*& top, float best_t, uint32_t& idx, float& t0,
                 float& t1) {
-    while (sp > 0) {
-        const StackItem& s = stack[--sp];
+    while (top > stack) {
+        const StackItem& s = *--top;
         if (lower_slack(s.t0) <= best_t) {
             idx = s.node;
             t0 = s.t0;
@@ -126,24 +146,17 @@ bool trace_one(const TreeView& tv, const Ray& ray, Hit* hit, TraversalCounters* 
     BestHit best;
     if (!setup_ray(ray, tv.bounds, rs, t0, t1, best.t)) return false;
     StackItem stack[kStackSize];
-    int sp = 0;
+    StackItem* top = stack;
     uint32_t idx = 0;
     uint64_t visited = 0, tested = 0;
     bool any = false;
     for (;;) {
-        KdNode node = tv.nodes[idx];
-        if (kCount) ++visited;
-        const float lo0 = lower_slack(t0);
-        while (!node.is_leaf()) {
-            idx = descend(node, rs, t0, lo0, t1, stack, sp);
-            node = tv.nodes[idx];
-            if (kCount) ++visited;
-        }
+        const KdNode node = descend<kCount>(tv.nodes, idx, rs, t0, t1, top, visited);
         if (test_leaf<kAnyHit>(node, tv.indices, tv.positions, tv.triangles, rs, best, tested)) {
             any = true;
             break;
         }
-        if (!pop(stack, sp, best.t, idx, t0, t1)) break;
+        if (!pop(stack, top, best.t, idx, t0, t1)) break;
     }
     if (kCount) {
         counters->nodes_visited += visited;

@@ -16,6 +16,7 @@ constexpr int kStackSize = 68;  // one entry per level; trees are at most 64 dee
 struct StackItem {
     uint32_t node;
     float t0, t1;
+    uint32_t pad;  // 16 bytes: one shift to index
 };
 
 inline float lower_slack(float t) { return t - kIntervalSlack * std::fabs(t); }

@@ -233,14 +233,148 @@ void run_packet(const TreeView& tv, const Packet& p, int active, __m256 t0, __m2
     hit_lanes = done;
 }
 
-}  // namespace
+// Eight consecutive rays (struct Ray is 32 bytes: origin, tmin, dir, tmax) as eight
+// vectors: ox, oy, oz, tmin, dx, dy, dz, tmax.
+inline void load_transposed(const Ray* rays, __m256 out[8]) {
+    static_assert(sizeof(Ray) == 8 * sizeof(float), "Ray is origin, tmin, dir, tmax");
+    __m256 r[8], t[8], u[8];
+    const float* base = reinterpret_cast<const float*>(rays);
+    for (int i = 0; i < 8; ++i) r[i] = _mm256_loadu_ps(base + 8 * i);
+    for (int i = 0; i < 8; i += 2) {
+        t[i] = _mm256_unpacklo_ps(r[i], r[i + 1]);
+        t[i + 1] = _mm256_unpackhi_ps(r[i], r[i + 1]);
+    }
+    for (int i = 0; i < 8; i += 4) {
+        u[i] = _mm256_shuffle_ps(t[i], t[i + 2], 0x44);
+        u[i + 1] = _mm256_shuffle_ps(t[i], t[i + 2], 0xee);
+        u[i + 2] = _mm256_shuffle_ps(t[i + 1], t[i + 3], 0x44);
+        u[i + 3] = _mm256_shuffle_ps(t[i + 1], t[i + 3], 0xee);
+    }
+    for (int i = 0; i < 4; ++i) {
+        out[i] = _mm256_permute2f128_ps(u[i], u[i + 4], 0x20);
+        out[i + 4] = _mm256_permute2f128_ps(u[i], u[i + 4], 0x31);
+    }
+}
 
-bool trace_packet(const TreeView& tv, const Ray* rays, int m, bool any_hit, Hit* hits,
-                  uint8_t* occluded, TraversalCounters* counters) {
-    if (m < 2 || !roughly_coherent(rays, m, tv.bounds)) return false;
+// setup_ray() on eight lanes at once, operation by operation, for a full packet of rays.
+// Returns false when the packet must go the single-ray way (a lane needs the rescaling of
+// extreme directions, the lanes differ in direction signs or dominant axis, or they are
+// not coherent); otherwise fills p, the lanes' intervals and tmax, and `active` (the lanes
+// whose setup succeeded).
+bool setup_packet8(const Ray* rays, const Bounds3f& bounds, Packet& p, __m256& t0, __m256& t1,
+                   __m256& tmax, int& active) {
+    __m256 v[8];
+    load_transposed(rays, v);
+    __m256 org[3] = {v[0], v[1], v[2]}, d[3] = {v[4], v[5], v[6]};
+    const __m256 inf = _mm256_set1_ps(kInfinity), zero = _mm256_setzero_ps();
+    // Finite origin and direction, tmin <= tmax (neither NaN).
+    __m256 ok = _mm256_cmp_ps(v[3], v[7], _CMP_LE_OQ);
+    for (int k = 0; k < 3; ++k) {
+        ok = _mm256_and_ps(ok, _mm256_cmp_ps(abs8(org[k]), inf, _CMP_LT_OQ));
+        ok = _mm256_and_ps(ok, _mm256_cmp_ps(abs8(d[k]), inf, _CMP_LT_OQ));
+    }
+    const __m256 mag = _mm256_max_ps(abs8(d[0]), _mm256_max_ps(abs8(d[1]), abs8(d[2])));
+    ok = _mm256_and_ps(ok, _mm256_cmp_ps(mag, zero, _CMP_GT_OQ));
+    int valid = _mm256_movemask_ps(ok);
+    if (!valid) {
+        active = 0;
+        return true;
+    }
+    const __m256 extreme = _mm256_or_ps(_mm256_cmp_ps(mag, _mm256_set1_ps(0x1p-40f), _CMP_LT_OQ),
+                                        _mm256_cmp_ps(mag, _mm256_set1_ps(0x1p40f), _CMP_GT_OQ));
+    if (valid & _mm256_movemask_ps(extreme)) return false;
+    // Coherence against the first valid lane.
+    const __m256i ref = _mm256_set1_epi32(__builtin_ctz(unsigned(valid)));
+    __m256 rd[3], ro[3];
+    for (int k = 0; k < 3; ++k) {
+        rd[k] = _mm256_permutevar8x32_ps(d[k], ref);
+        ro[k] = _mm256_permutevar8x32_ps(org[k], ref);
+    }
+    auto dot3 = [](const __m256* a, const __m256* b) {
+        return _mm256_fmadd_ps(a[2], b[2], _mm256_fmadd_ps(a[1], b[1], _mm256_mul_ps(a[0], b[0])));
+    };
+    const __m256 c = dot3(d, rd);
+    const __m256 need = _mm256_mul_ps(_mm256_set1_ps(kCoherentCos * kCoherentCos),
+                                      _mm256_mul_ps(dot3(rd, rd), dot3(d, d)));
+    __m256 coherent = _mm256_and_ps(_mm256_cmp_ps(c, zero, _CMP_GT_OQ),
+                                    _mm256_cmp_ps(_mm256_mul_ps(c, c), need, _CMP_GE_OQ));
+    __m256 od[3];
+    for (int k = 0; k < 3; ++k) od[k] = _mm256_sub_ps(org[k], ro[k]);
+    const Vec3f ext = bounds.extent();
+    const float max_dist2 = kCoherentOrigin * kCoherentOrigin * glm::dot(ext, ext);
+    coherent =
+        _mm256_and_ps(coherent, _mm256_cmp_ps(dot3(od, od), _mm256_set1_ps(max_dist2), _CMP_LE_OQ));
+    if ((_mm256_movemask_ps(coherent) & valid) != valid) return false;
+    // Zero components become -0 (so 1/d = -inf and the sign agree); common signs.
+    for (int k = 0; k < 3; ++k) {
+        d[k] = _mm256_blendv_ps(d[k], _mm256_set1_ps(-0.0f), _mm256_cmp_ps(d[k], zero, _CMP_EQ_OQ));
+        const int signs = _mm256_movemask_ps(d[k]) & valid;
+        if (signs != 0 && signs != valid) return false;
+        p.neg[k] = signs ? 1u : 0u;
+        p.org[k] = org[k];
+        p.inv[k] = _mm256_div_ps(_mm256_set1_ps(1.0f), d[k]);
+    }
+    // Slab test against the root box, as setup_ray(): std::min(a, b) = b < a ? b : a.
+    t0 = v[3];
+    t1 = v[7];
+    p.tmin = v[3];
+    tmax = v[7];
+    const float lower[3] = {bounds.lower.x, bounds.lower.y, bounds.lower.z};
+    const float upper[3] = {bounds.upper.x, bounds.upper.y, bounds.upper.z};
+    for (int k = 0; k < 3; ++k) {
+        const __m256 lo = _mm256_set1_ps(lower[k]), hi = _mm256_set1_ps(upper[k]);
+        const __m256 is_zero = _mm256_cmp_ps(d[k], zero, _CMP_EQ_OQ);
+        const __m256 in_slab = _mm256_and_ps(_mm256_cmp_ps(org[k], lo, _CMP_GE_OQ),
+                                             _mm256_cmp_ps(org[k], hi, _CMP_LE_OQ));
+        ok = _mm256_and_ps(ok, _mm256_or_ps(_mm256_andnot_ps(is_zero, ok), in_slab));
+        const __m256 a = _mm256_mul_ps(_mm256_sub_ps(lo, org[k]), p.inv[k]);
+        const __m256 b = _mm256_mul_ps(_mm256_sub_ps(hi, org[k]), p.inv[k]);
+        const __m256 mn = _mm256_blendv_ps(a, b, _mm256_cmp_ps(b, a, _CMP_LT_OQ));
+        const __m256 mx = _mm256_blendv_ps(a, b, _mm256_cmp_ps(a, b, _CMP_LT_OQ));
+        const __m256 tn = lower_slack8(mn), tf = upper_slack8(mx);
+        t0 = _mm256_blendv_ps(_mm256_max_ps(tn, t0), t0, is_zero);
+        t1 = _mm256_blendv_ps(_mm256_min_ps(tf, t1), t1, is_zero);
+    }
+    ok = _mm256_and_ps(ok, _mm256_cmp_ps(t0, t1, _CMP_LE_OQ));
+    active = _mm256_movemask_ps(ok);
+    if (!active) return true;
+    // The watertight test's permutation: kz = the dominant axis (ties as WatertightRay).
+    const __m256 ax = abs8(d[0]), ay = abs8(d[1]), az = abs8(d[2]);
+    const int xy = _mm256_movemask_ps(_mm256_cmp_ps(ax, ay, _CMP_GE_OQ));
+    const int xz = _mm256_movemask_ps(_mm256_cmp_ps(ax, az, _CMP_GE_OQ));
+    const int yz = _mm256_movemask_ps(_mm256_cmp_ps(ay, az, _CMP_GE_OQ));
+    const int z0 = xy & xz, z1 = ~xy & yz;
+    int kz;
+    if ((z0 & active) == active)
+        kz = 0;
+    else if ((z1 & active) == active)
+        kz = 1;
+    else if (((z0 | z1) & active) == 0)
+        kz = 2;
+    else
+        return false;
+    int kx = kz == 2 ? 0 : kz + 1;
+    int ky = kx == 2 ? 0 : kx + 1;
+    if (p.neg[kz]) std::swap(kx, ky);
+    p.kx = kx;
+    p.ky = ky;
+    p.kz = kz;
+    p.ox = org[kx];
+    p.oy = org[ky];
+    p.oz = org[kz];
+    p.sx = _mm256_div_ps(d[kx], d[kz]);
+    p.sy = _mm256_div_ps(d[ky], d[kz]);
+    p.sz = _mm256_div_ps(_mm256_set1_ps(1.0f), d[kz]);
+    return true;
+}
+
+// Setup of a partial packet (m < 8 rays, the end of a batch) lane by lane with
+// setup_ray(); false when the rays are not coherent or differ in signs or dominant axis.
+bool setup_packet_lanes(const TreeView& tv, const Ray* rays, int m, Packet& p, __m256& t0v,
+                        __m256& t1v, __m256& tmaxv, int& active, float* t_scale) {
+    if (!roughly_coherent(rays, m, tv.bounds)) return false;
     alignas(32) float org[3][8], inv[3][8], wo[3][8], sh[3][8], tmin[8], t0[8], t1[8], tmax[8];
-    float t_scale[8];
-    int active = 0;
+    active = 0;
     int ref = -1;
     RayState first;
     for (int i = 0; i < kPacketSize; ++i) {
@@ -274,8 +408,6 @@ bool trace_packet(const TreeView& tv, const Ray* rays, int m, bool any_hit, Hit*
         tmax[i] = tm;
         t_scale[i] = rs.t_scale;
     }
-    if (!active) return true;  // every ray misses the root box (outputs are misses)
-    Packet p;
     for (int k = 0; k < 3; ++k) {
         p.org[k] = _mm256_load_ps(org[k]);
         p.inv[k] = _mm256_load_ps(inv[k]);
@@ -291,17 +423,37 @@ bool trace_packet(const TreeView& tv, const Ray* rays, int m, bool any_hit, Hit*
     p.kx = first.wr.kx;
     p.ky = first.wr.ky;
     p.kz = first.wr.kz;
-    __m256 best_t = _mm256_load_ps(tmax), best_u = _mm256_setzero_ps(),
-           best_v = _mm256_setzero_ps();
+    t0v = _mm256_load_ps(t0);
+    t1v = _mm256_load_ps(t1);
+    tmaxv = _mm256_load_ps(tmax);
+    return true;
+}
+
+}  // namespace
+
+bool trace_packet(const TreeView& tv, const Ray* rays, int m, bool any_hit, Hit* hits,
+                  uint8_t* occluded, TraversalCounters* counters) {
+    if (m < 2 || tv.bounds.empty()) return false;
+    Packet p;
+    __m256 t0, t1, tmax;
+    int active = 0;
+    float t_scale[8] = {1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f};
+    if (m == kPacketSize) {
+        if (!setup_packet8(rays, tv.bounds, p, t0, t1, tmax, active)) return false;
+    } else if (!setup_packet_lanes(tv, rays, m, p, t0, t1, tmax, active, t_scale)) {
+        return false;
+    }
+    if (!active) return true;  // every ray misses the root box (outputs are misses)
+    __m256 best_t = tmax, best_u = _mm256_setzero_ps(), best_v = _mm256_setzero_ps();
     __m256i best_prim = _mm256_set1_epi32(int(Hit::kNoHit));
     int hit_lanes = 0;
     uint64_t visited = 0, tested = 0;
     if (any_hit)
-        run_packet<true>(tv, p, active, _mm256_load_ps(t0), _mm256_load_ps(t1), best_t, best_u,
-                         best_v, best_prim, hit_lanes, visited, tested);
+        run_packet<true>(tv, p, active, t0, t1, best_t, best_u, best_v, best_prim, hit_lanes,
+                         visited, tested);
     else
-        run_packet<false>(tv, p, active, _mm256_load_ps(t0), _mm256_load_ps(t1), best_t, best_u,
-                          best_v, best_prim, hit_lanes, visited, tested);
+        run_packet<false>(tv, p, active, t0, t1, best_t, best_u, best_v, best_prim, hit_lanes,
+                          visited, tested);
     if (counters) {
         counters->nodes_visited += visited;
         counters->triangles_tested += tested;

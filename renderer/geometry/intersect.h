@@ -74,7 +74,9 @@ inline bool intersect_triangle(const WatertightRay& r, const Vec3f& a, const Vec
     const double U = double(cx) * double(by) - double(cy) * double(bx);
     const double V = double(ax) * double(cy) - double(ay) * double(cx);
     const double W = double(bx) * double(ay) - double(by) * double(ax);
-    if ((U < 0.0 || V < 0.0 || W < 0.0) && (U > 0.0 || V > 0.0 || W > 0.0)) return false;
+    // Outside when the signs differ: (U < 0 || V < 0 || W < 0) && (U > 0 || V > 0 || W > 0),
+    // written with min and max so it costs one (mostly taken) branch. U, V, W are finite.
+    if (std::min(std::min(U, V), W) < 0.0 && std::max(std::max(U, V), W) > 0.0) return false;
     const double det = U + V + W;
     if (det == 0.0) return false;
     // Explicit FMAs: the same rounding in every inlined copy and in the SIMD packet test.
