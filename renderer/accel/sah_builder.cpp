@@ -392,16 +392,35 @@ private:
         right_box.lower[best.axis] = best.pos;
         SweepNode& left = ws_.slot(level + 1, 0);
         SweepNode& right = ws_.slot(level + 1, 1);
-        split(node, best, left_box, right_box, left, right);
+        const int full = split(node, best, left_box, right_box, left, right);
+        if (full >= 0) {
+            // An empty-space cut-off: the full child goes on with this level's lists (no
+            // copy, and the workspace does not grow a level per cut-off); the other child is
+            // an empty leaf, made in the same depth-first order as any leaf.
+            if (full == 0) {
+                recurse(node, left_box, depth + 1, level, first_child);
+                make_empty_leaf(first_child + 1);
+            } else {
+                make_empty_leaf(first_child);
+                recurse(node, right_box, depth + 1, level, first_child + 1);
+            }
+            return;
+        }
         node.clear();
         recurse(left, left_box, depth + 1, level + 1, first_child);
         recurse(right, right_box, depth + 1, level + 1, first_child + 1);
     }
 
+    void make_empty_leaf(uint32_t slot) {
+        out_.nodes[slot] = KdNode::make_leaf(0, uint32_t(out_.indices.size()));
+    }
+
     /// Wald & Havran 2006, section 4.4: classify by the events of the split axis, splice the
     /// sorted event lists of one-sided references, clip straddlers and merge their events.
-    void split(SweepNode& node, const SweepSplit& s, const Bounds3f& left_box,
-               const Bounds3f& right_box, SweepNode& left, SweepNode& right) {
+    /// Returns 0 or 1 when every reference lies on that side (left and right untouched; the
+    /// node keeps its lists), -1 when left and right were filled.
+    int split(SweepNode& node, const SweepSplit& s, const Bounds3f& left_box,
+              const Bounds3f& right_box, SweepNode& left, SweepNode& right) {
         const size_t n = node.refs.size();
         auto& side = ws_.side;
         auto& remap = ws_.remap;
@@ -438,14 +457,8 @@ private:
             n_left += side[i] == kLeft;
             n_right += side[i] == kRight;
         }
-        if (n_left == n || n_right == n) {
-            SweepNode& full = n_left == n ? left : right;
-            SweepNode& empty = n_left == n ? right : left;
-            full.refs.swap(node.refs);
-            for (int k = 0; k < 3; ++k) full.events[k].swap(node.events[k]);
-            empty.clear();
-            return;
-        }
+        if (n_left == n) return 0;
+        if (n_right == n) return 1;
         // One-sided references keep their order; straddlers are appended after them.
         auto& both = ws_.both;
         left.refs.resize(n);
@@ -522,6 +535,7 @@ private:
                 }
             }
         }
+        return -1;
     }
 
     const Context& ctx_;
