@@ -557,6 +557,30 @@ struct BinnedSplit {
 constexpr size_t kParallelTopRefs = size_t(1) << 18;
 constexpr int kTopChunks = 8;
 
+/// Start and end bins of reference boxes over one node's box (the same float arithmetic
+/// wherever a node's bins are counted, so the counts do not depend on who counted them).
+struct Binner {
+    Binner(const Bounds3f& box, int bins_per_axis) : lower(box.lower), bins(bins_per_axis) {
+        const Vec3f ext = box.extent();
+        for (int k = 0; k < 3; ++k) scale[k] = ext[k] > 0.0f ? float(bins) / ext[k] : 0.0f;
+    }
+    int bin(float x, int k) const {
+        const float t = (x - lower[k]) * scale[k];
+        return t >= float(bins) ? bins - 1 : (t > 0.0f ? int(t) : 0);  // NaN -> 0
+    }
+    /// counts: 3 * bins starts (axis-major), then 3 * bins ends.
+    void add(const Bounds3f& b, uint32_t* counts) const {
+        uint32_t* ends = counts + 3 * bins;
+        for (int k = 0; k < 3; ++k) {
+            ++counts[k * bins + bin(b.lower[k], k)];
+            ++ends[k * bins + bin(b.upper[k], k)];
+        }
+    }
+    Vec3f lower;
+    float scale[3];
+    int bins;
+};
+
 /// A node of the binned phase. References never clipped so far are stored as bare triangle
 /// indices (their bounds lie inside the node and are read from the mesh), which keeps the
 /// top levels' scratch at about 4 bytes per triangle; clipped ones carry their box.
@@ -566,6 +590,7 @@ struct TopJob {
           node(t),
           whole(MeteredAllocator<uint32_t>(&c.meter)),
           clipped(MeteredAllocator<Ref>(&c.meter)),
+          counts(MeteredAllocator<uint32_t>(&c.meter)),
           box(b),
           depth(d) {}
     size_t size() const { return whole.size() + clipped.size(); }
@@ -573,61 +598,56 @@ struct TopJob {
     TopNode& node;
     MeteredVector<uint32_t> whole;
     MeteredVector<Ref> clipped;
+    /// Bin counts of the references over `box` (Binner::add layout), when the parent
+    /// counted them while classifying; empty otherwise.
+    MeteredVector<uint32_t> counts;
     Bounds3f box;
     int depth;
 };
 
-BinnedSplit find_binned_split(const Context& ctx, const TopJob& job) {
+/// Counts references [begin, end) of the node (whole ones first) into counts.
+void count_bins(const Context& ctx, const TopJob& job, const Binner& binner, size_t begin,
+                size_t end, uint32_t* counts) {
+    const size_t n_whole = job.whole.size();
+    for (size_t i = begin; i < std::min(end, n_whole); ++i) {
+        binner.add(ctx.mesh->triangle_bounds(job.whole[i]), counts);
+    }
+    for (size_t i = std::max(begin, n_whole); i < end; ++i) {
+        binner.add(job.clipped[i - n_whole].box, counts);
+    }
+}
+
+BinnedSplit find_binned_split(const Context& ctx, TopJob& job) {
     BinnedSplit best;
     const Bounds3f& box = job.box;
     const float area = box.surface_area();
     if (!(area > 0.0f) || !std::isfinite(area)) return best;
     const int bins = std::max(2, ctx.tuning.bins);
-    std::vector<uint32_t> starts(size_t(3 * bins), 0), ends(size_t(3 * bins), 0);
-    const Vec3f ext = box.extent();
-    float scale[3];
-    for (int k = 0; k < 3; ++k) scale[k] = ext[k] > 0.0f ? float(bins) / ext[k] : 0.0f;
-    auto bin = [&](float x, int k) {
-        const float t = (x - box.lower[k]) * scale[k];
-        return t >= float(bins) ? bins - 1 : (t > 0.0f ? int(t) : 0);  // NaN -> 0
-    };
-    // Counts of references [begin, end) of the node (whole ones first).
-    auto count = [&](size_t begin, size_t end, uint32_t* st, uint32_t* en) {
-        auto add = [&](const Bounds3f& b) {
-            for (int k = 0; k < 3; ++k) {
-                ++st[size_t(k * bins + bin(b.lower[k], k))];
-                ++en[size_t(k * bins + bin(b.upper[k], k))];
+    const auto stride = size_t(6 * bins);
+    if (job.counts.empty()) {
+        job.counts.assign(stride, 0);
+        const Binner binner(box, bins);
+        if (job.size() >= kParallelTopRefs) {
+            // The top node would keep the other threads waiting: count in chunks on tasks.
+            // Integer sums, so the result does not depend on which thread counted what.
+            std::vector<uint32_t> part(kTopChunks * stride, 0);
+            const size_t chunk = (job.size() + kTopChunks - 1) / kTopChunks;
+            for (int c = 0; c < kTopChunks; ++c) {
+                uint32_t* counts = part.data() + size_t(c) * stride;
+                const size_t begin = std::min(job.size(), size_t(c) * chunk);
+                const size_t end = std::min(job.size(), begin + chunk);
+#pragma omp task default(shared) firstprivate(counts, begin, end)
+                count_bins(ctx, job, binner, begin, end, counts);
             }
-        };
-        const size_t n_whole = job.whole.size();
-        for (size_t i = begin; i < std::min(end, n_whole); ++i) {
-            add(ctx.mesh->triangle_bounds(job.whole[i]));
-        }
-        for (size_t i = std::max(begin, n_whole); i < end; ++i) add(job.clipped[i - n_whole].box);
-    };
-    if (job.size() >= kParallelTopRefs) {
-        // The top node would keep the other threads waiting: count in chunks on tasks.
-        // Integer sums, so the result does not depend on which thread counted what.
-        std::vector<uint32_t> part(size_t(kTopChunks * 6 * bins), 0);
-        const size_t chunk = (job.size() + kTopChunks - 1) / kTopChunks;
-        for (int c = 0; c < kTopChunks; ++c) {
-            uint32_t* st = part.data() + size_t(c * 6 * bins);
-            const size_t begin = std::min(job.size(), size_t(c) * chunk);
-            const size_t end = std::min(job.size(), begin + chunk);
-#pragma omp task default(shared) firstprivate(st, begin, end)
-            count(begin, end, st, st + 3 * bins);
-        }
 #pragma omp taskwait
-        for (int c = 0; c < kTopChunks; ++c) {
-            const uint32_t* st = part.data() + size_t(c * 6 * bins);
-            for (size_t j = 0; j < size_t(3 * bins); ++j) {
-                starts[j] += st[j];
-                ends[j] += st[size_t(3 * bins) + j];
-            }
+            for (size_t j = 0; j < part.size(); ++j) job.counts[j % stride] += part[j];
+        } else {
+            count_bins(ctx, job, binner, 0, job.size(), job.counts.data());
         }
-    } else {
-        count(0, job.size(), starts.data(), ends.data());
     }
+    const uint32_t* starts = job.counts.data();
+    const uint32_t* ends = starts + 3 * bins;
+    const Vec3f ext = box.extent();
     const float inv_area = 1.0f / area;
     const size_t n = job.size();
     for (int k = 0; k < 3; ++k) {
@@ -637,8 +657,8 @@ BinnedSplit find_binned_split(const Context& ctx, const TopJob& job) {
         const float cross = d1 * d2, sum = d1 + d2;
         size_t n_left = 0, n_right = n;
         for (int j = 1; j < bins; ++j) {
-            n_left += starts[size_t(k * bins + j - 1)];
-            n_right -= ends[size_t(k * bins + j - 1)];
+            n_left += starts[k * bins + j - 1];
+            n_right -= ends[k * bins + j - 1];
             const float p = lo + ext[k] * (float(j) / float(bins));
             if (!(p > lo && p < hi)) continue;
             const float p_left = 2.0f * (cross + (p - lo) * sum) * inv_area;
@@ -669,6 +689,7 @@ public:
             sweep_task(std::move(job));
             return;
         }
+        release(job->counts);
         TopNode& node = job->node;
         node.axis = s.axis;
         node.split = s.pos;
@@ -679,30 +700,50 @@ public:
             (c == 0 ? b.upper : b.lower)[s.axis] = s.pos;
             child[c] = std::make_unique<TopJob>(ctx, *node.child[c], b, job->depth + 1);
         }
+        // Children that will likely be binned too get their bins counted here, while each
+        // reference's bounds are at hand: one pass over the mesh per level instead of two.
+        const int bins = std::max(2, ctx.tuning.bins);
+        const auto stride = size_t(6 * bins);
+        const bool bin_children =
+            n > 2 * size_t(ctx.tuning.sweep_threshold) && job->depth + 1 < ctx.max_depth;
+        const Binner binner[2] = {Binner(child[0]->box, bins), Binner(child[1]->box, bins)};
+        if (bin_children) {
+            for (auto& c : child) c->counts.assign(stride, 0);
+        }
 
         // Two passes: classify and count, then fill exactly sized child arrays.
         const size_t n_whole = job->whole.size();
         MeteredVector<uint8_t> side(n, kBoth, MeteredAllocator<uint8_t>(&ctx.meter));
         size_t whole_count[3] = {0, 0, 0}, clipped_count[3] = {0, 0, 0};
-        auto classify_range = [&](size_t begin, size_t end, size_t* wc, size_t* cc) {
+        // counts: the left child's bins, then the right child's (null: no binning).
+        auto classify_range = [&](size_t begin, size_t end, size_t* wc, size_t* cc,
+                                  uint32_t* counts) {
             for (size_t i = begin; i < std::min(end, n_whole); ++i) {
-                side[i] = classify(mesh.triangle_bounds(job->whole[i]), s.axis, s.pos, kLeft);
-                ++wc[side[i]];
+                const Bounds3f b = mesh.triangle_bounds(job->whole[i]);
+                const Side sd = classify(b, s.axis, s.pos, kLeft);
+                side[i] = sd;
+                ++wc[sd];
+                if (counts && sd != kBoth) binner[sd - 1].add(b, counts + (sd - 1) * stride);
             }
             for (size_t i = std::max(begin, n_whole); i < end; ++i) {
-                side[i] = classify(job->clipped[i - n_whole].box, s.axis, s.pos, kLeft);
-                ++cc[side[i]];
+                const Bounds3f& b = job->clipped[i - n_whole].box;
+                const Side sd = classify(b, s.axis, s.pos, kLeft);
+                side[i] = sd;
+                ++cc[sd];
+                if (counts && sd != kBoth) binner[sd - 1].add(b, counts + (sd - 1) * stride);
             }
         };
         if (n >= kParallelTopRefs) {
             size_t counts[kTopChunks][6] = {};
+            std::vector<uint32_t> part(bin_children ? kTopChunks * 2 * stride : 0, 0);
             const size_t chunk = (n + kTopChunks - 1) / kTopChunks;
             for (int c = 0; c < kTopChunks; ++c) {
                 size_t* wc = counts[c];
+                uint32_t* bc = bin_children ? part.data() + size_t(c) * 2 * stride : nullptr;
                 const size_t begin = std::min(n, size_t(c) * chunk);
                 const size_t end = std::min(n, begin + chunk);
-#pragma omp task default(shared) firstprivate(wc, begin, end)
-                classify_range(begin, end, wc, wc + 3);
+#pragma omp task default(shared) firstprivate(wc, bc, begin, end)
+                classify_range(begin, end, wc, wc + 3, bc);
             }
 #pragma omp taskwait
             for (int c = 0; c < kTopChunks; ++c) {
@@ -711,8 +752,18 @@ public:
                     clipped_count[j] += counts[c][3 + j];
                 }
             }
+            // Integer sums: the same bins whichever thread counted which chunk.
+            for (size_t j = 0; j < part.size(); ++j) {
+                const size_t in_pair = j % (2 * stride);
+                child[in_pair / stride]->counts[in_pair % stride] += part[j];
+            }
         } else {
-            classify_range(0, n, whole_count, clipped_count);
+            std::vector<uint32_t> both_counts(bin_children ? 2 * stride : 0, 0);
+            classify_range(0, n, whole_count, clipped_count,
+                           bin_children ? both_counts.data() : nullptr);
+            for (size_t j = 0; j < both_counts.size(); ++j) {
+                child[j / stride]->counts[j % stride] = both_counts[j];
+            }
         }
         const size_t straddlers = whole_count[kBoth] + clipped_count[kBoth];
         child[0]->whole.reserve(whole_count[kLeft]);
@@ -722,7 +773,9 @@ public:
         auto clip_both = [&](const Ref& r) {
             for (int c = 0; c < 2; ++c) {
                 Ref part;
-                if (ctx.clip(r, child[c]->box, part)) child[c]->clipped.push_back(part);
+                if (!ctx.clip(r, child[c]->box, part)) continue;
+                child[c]->clipped.push_back(part);
+                if (bin_children) binner[c].add(part.box, child[c]->counts.data());
             }
         };
         for (size_t i = 0; i < n_whole; ++i) {
