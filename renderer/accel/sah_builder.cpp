@@ -581,6 +581,22 @@ struct Binner {
     int bins;
 };
 
+/// Bounds of the mesh triangle whole[i], with the triangles and vertices of later
+/// references prefetched: the binned levels walk bare indices whose vertices lie all over
+/// the mesh, and the dependent loads (index, triangle, vertex) would otherwise dominate.
+inline Bounds3f whole_bounds(const TriangleMesh& mesh, const uint32_t* whole, size_t i,
+                             size_t end) {
+    constexpr size_t kAhead = 8;
+    if (i + 2 * kAhead < end) __builtin_prefetch(&mesh.triangles[whole[i + 2 * kAhead]]);
+    if (i + kAhead < end) {
+        const Vec3u& t = mesh.triangles[whole[i + kAhead]];
+        __builtin_prefetch(&mesh.positions[t.x]);
+        __builtin_prefetch(&mesh.positions[t.y]);
+        __builtin_prefetch(&mesh.positions[t.z]);
+    }
+    return mesh.triangle_bounds(whole[i]);
+}
+
 /// A node of the binned phase. References never clipped so far are stored as bare triangle
 /// indices (their bounds lie inside the node and are read from the mesh), which keeps the
 /// top levels' scratch at about 4 bytes per triangle; clipped ones carry their box.
@@ -609,8 +625,9 @@ struct TopJob {
 void count_bins(const Context& ctx, const TopJob& job, const Binner& binner, size_t begin,
                 size_t end, uint32_t* counts) {
     const size_t n_whole = job.whole.size();
-    for (size_t i = begin; i < std::min(end, n_whole); ++i) {
-        binner.add(ctx.mesh->triangle_bounds(job.whole[i]), counts);
+    const size_t whole_end = std::min(end, n_whole);
+    for (size_t i = begin; i < whole_end; ++i) {
+        binner.add(whole_bounds(*ctx.mesh, job.whole.data(), i, whole_end), counts);
     }
     for (size_t i = std::max(begin, n_whole); i < end; ++i) {
         binner.add(job.clipped[i - n_whole].box, counts);
@@ -718,8 +735,9 @@ public:
         // counts: the left child's bins, then the right child's (null: no binning).
         auto classify_range = [&](size_t begin, size_t end, size_t* wc, size_t* cc,
                                   uint32_t* counts) {
-            for (size_t i = begin; i < std::min(end, n_whole); ++i) {
-                const Bounds3f b = mesh.triangle_bounds(job->whole[i]);
+            const size_t whole_end = std::min(end, n_whole);
+            for (size_t i = begin; i < whole_end; ++i) {
+                const Bounds3f b = whole_bounds(mesh, job->whole.data(), i, whole_end);
                 const Side sd = classify(b, s.axis, s.pos, kLeft);
                 side[i] = sd;
                 ++wc[sd];
@@ -819,7 +837,11 @@ private:
             // Full references (box + triangle) only now, for this subtree.
             MeteredVector<Ref> refs(MeteredAllocator<Ref>(&ctx.meter));
             refs.reserve(own->size());
-            for (uint32_t t : own->whole) refs.push_back({ctx.mesh->triangle_bounds(t), t});
+            const size_t n_whole = own->whole.size();
+            for (size_t i = 0; i < n_whole; ++i) {
+                refs.push_back(
+                    {whole_bounds(*ctx.mesh, own->whole.data(), i, n_whole), own->whole[i]});
+            }
             refs.insert(refs.end(), own->clipped.begin(), own->clipped.end());
             release(own->whole);
             release(own->clipped);
