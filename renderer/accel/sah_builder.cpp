@@ -270,6 +270,9 @@ struct SweepSplit {
     int axis = -1;
     float pos = 0.0f;
     Side planar_side = kLeft;
+    // Sweep counts at the split: references with a part left / right of the plane
+    // (Wald & Havran's N_L and N_R, planars in the plane counted on planar_side).
+    uint32_t n_left = 0, n_right = 0;
 };
 
 class SweepBuilder {
@@ -350,11 +353,16 @@ private:
                 const float p_left = 2.0f * (cross + (p - lo) * sum) * inv_area;
                 const float p_right = 2.0f * (cross + (hi - p) * sum) * inv_area;
                 const float c_left = ctx_.split_cost(p_left, p_right, n_left + in_plane, n_right);
-                if (c_left < best.cost) best = {c_left, k, p, kLeft};
+                if (c_left < best.cost) {
+                    best = {c_left, k, p, kLeft, uint32_t(n_left + in_plane), uint32_t(n_right)};
+                }
                 if (in_plane > 0) {
                     const float c_right =
                         ctx_.split_cost(p_left, p_right, n_left, n_right + in_plane);
-                    if (c_right < best.cost) best = {c_right, k, p, kRight};
+                    if (c_right < best.cost) {
+                        best = {
+                            c_right, k, p, kRight, uint32_t(n_left), uint32_t(n_right + in_plane)};
+                    }
                 }
             }
         }
@@ -424,6 +432,10 @@ private:
         const size_t n = node.refs.size();
         auto& side = ws_.side;
         auto& remap = ws_.remap;
+        // No reference reaches across the plane on one side: an empty-space cut-off (most
+        // splits of a perfect-split tree are these), known without classifying.
+        if (s.n_right == 0) return 0;
+        if (s.n_left == 0) return 1;
         side.assign(n, kBoth);
         remap.resize(n);
         {
@@ -450,15 +462,10 @@ private:
                 side[r] = (e->code & 3u) == kEnd ? side[r] : uint8_t(kRight);
             }
         }
-        // An empty-space cut-off leaves every reference on one side: the child inherits
-        // the node's sorted lists unchanged (most splits of a perfect-split tree are these).
-        size_t n_left = 0, n_right = 0;
-        for (size_t i = 0; i < n; ++i) {
-            n_left += side[i] == kLeft;
-            n_right += side[i] == kRight;
-        }
-        if (n_left == n) return 0;
-        if (n_right == n) return 1;
+        // The sweep counts the same boxes against the same float: classification finds
+        // references on both sides, or the cut-off would have been caught above.
+        KDT_DCHECK(std::count(side.begin(), side.end(), uint8_t(kLeft)) != std::ptrdiff_t(n) &&
+                   std::count(side.begin(), side.end(), uint8_t(kRight)) != std::ptrdiff_t(n));
         // One-sided references keep their order; straddlers are appended after them.
         auto& both = ws_.both;
         left.refs.resize(n);
