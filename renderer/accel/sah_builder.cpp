@@ -958,65 +958,77 @@ bool clip_triangle_to_box(const Vec3f& a, const Vec3f& b, const Vec3f& c, const 
     // coordinate is exact (an input vertex, the clipping plane itself, or an edge parallel
     // to that axis); only interpolated coordinates get a safety margin.
     struct V {
-        Vec3d p;
+        double p[3];
         unsigned exact;  // bit k: coordinate k is exact
     };
     V poly[2][9];
     int count = 3;
     int cur = 0;
-    poly[0][0] = {Vec3d(a), 7u};
-    poly[0][1] = {Vec3d(b), 7u};
-    poly[0][2] = {Vec3d(c), 7u};
+    const Vec3f* input[3] = {&a, &b, &c};
+    for (int i = 0; i < 3; ++i) {
+        poly[0][i] = {{double((*input[i])[0]), double((*input[i])[1]), double((*input[i])[2])}, 7u};
+    }
     for (int k = 0; k < 3; ++k) {
         for (int upper = 0; upper < 2; ++upper) {
             const double plane = upper ? double(box.upper[k]) : double(box.lower[k]);
-            auto inside = [&](const V& v) { return upper ? v.p[k] <= plane : v.p[k] >= plane; };
+            const V* in = poly[cur];
+            bool inside[9];
             int n_inside = 0;
-            for (int i = 0; i < count; ++i) n_inside += inside(poly[cur][i]) ? 1 : 0;
+            for (int i = 0; i < count; ++i) {
+                inside[i] = upper ? in[i].p[k] <= plane : in[i].p[k] >= plane;
+                n_inside += inside[i];
+            }
             if (n_inside == 0) return false;
             if (n_inside == count) continue;
-            const V* in = poly[cur];
             V* out = poly[1 - cur];
             int m = 0;
             for (int i = 0; i < count; ++i) {
+                const int next = i + 1 == count ? 0 : i + 1;
                 const V& p = in[i];
-                const V& q = in[(i + 1) % count];
-                const bool p_in = inside(p), q_in = inside(q);
-                if (p_in) out[m++] = p;
-                if (p_in != q_in) {
-                    const double t = (plane - p.p[k]) / (q.p[k] - p.p[k]);
-                    if (t <= 0.0 || t >= 1.0) {  // the edge meets the plane in a vertex
-                        out[m++] = t <= 0.0 ? p : q;
-                        continue;
+                const V& q = in[next];
+                if (inside[i]) out[m++] = p;
+                if (inside[i] == inside[next]) continue;
+                const double t = (plane - p.p[k]) / (q.p[k] - p.p[k]);
+                if (t <= 0.0 || t >= 1.0) {  // the edge meets the plane in a vertex
+                    out[m++] = t <= 0.0 ? p : q;
+                    continue;
+                }
+                V& x = out[m++];
+                x.exact = 1u << k;
+                for (int j = 0; j < 3; ++j) {
+                    if (j == k) {
+                        x.p[j] = plane;  // exactly on the plane
+                    } else if (p.p[j] == q.p[j] && (p.exact & q.exact & (1u << j))) {
+                        x.p[j] = p.p[j];
+                        x.exact |= 1u << j;
+                    } else {
+                        x.p[j] = p.p[j] + t * (q.p[j] - p.p[j]);
                     }
-                    V x{p.p + t * (q.p - p.p), 1u << k};
-                    x.p[k] = plane;  // exactly on the plane
-                    for (int j = 0; j < 3; ++j) {
-                        if (j != k && p.p[j] == q.p[j] && (p.exact & q.exact & (1u << j))) {
-                            x.p[j] = p.p[j];
-                            x.exact |= 1u << j;
-                        }
-                    }
-                    out[m++] = x;
                 }
             }
             count = m;
             cur = 1 - cur;
         }
     }
-    double magnitude = 0.0;
-    for (int k = 0; k < 3; ++k) {
-        magnitude =
-            std::max({magnitude, std::abs(double(box.lower[k])), std::abs(double(box.upper[k])),
-                      std::abs(double(a[k])), std::abs(double(b[k])), std::abs(double(c[k]))});
+    const V* poly_out = poly[cur];
+    unsigned all_exact = 7u;
+    for (int i = 0; i < count; ++i) all_exact &= poly_out[i].exact;
+    double margin = 0.0;
+    if (all_exact != 7u) {
+        double magnitude = 0.0;
+        for (int k = 0; k < 3; ++k) {
+            magnitude =
+                std::max({magnitude, std::abs(double(box.lower[k])), std::abs(double(box.upper[k])),
+                          std::abs(double(a[k])), std::abs(double(b[k])), std::abs(double(c[k]))});
+        }
+        // Interpolated coordinates carry a few double ulps of error relative to the largest
+        // coordinate involved; widen them by far more than that before rounding to float.
+        margin = magnitude * 1e-13;
     }
-    // Interpolated coordinates carry a few double ulps of error relative to the largest
-    // coordinate involved; widen them by far more than that before rounding to float.
-    const double margin = magnitude * 1e-13;
     for (int k = 0; k < 3; ++k) {
         double lo = kInfinity, hi = -kInfinity;
         for (int i = 0; i < count; ++i) {
-            const V& v = poly[cur][i];
+            const V& v = poly_out[i];
             const double e = (v.exact >> k) & 1u ? 0.0 : margin;
             lo = std::min(lo, v.p[k] - e);
             hi = std::max(hi, v.p[k] + e);
