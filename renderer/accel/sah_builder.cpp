@@ -260,9 +260,11 @@ struct Workspace {
     SweepNode fresh[2];           // events of clipped straddlers for the left and right child
 };
 
-// Scratch bytes a thread's workspace may keep between two subtrees: 1 MB, or 8 bytes per
-// triangle for small meshes.
-constexpr size_t kWorkspaceBudget = size_t(1) << 20;
+// Scratch bytes a thread's workspace may keep between two subtrees: 4 MB, or 8 bytes per
+// triangle for small meshes. A sweep of 2048 references fills about 1-3 MB of slots; below
+// that every other subtree re-allocated them all. The build's peak is at assembly, after the
+// workspaces are gone.
+constexpr size_t kWorkspaceBudget = size_t(4) << 20;
 constexpr size_t kWorkspaceBytesPerTriangle = 8;
 
 struct SweepSplit {
