@@ -326,13 +326,27 @@ private:
         const float inv_area = 1.0f / area;
         const size_t n = node.refs.size();
         const Vec3f ext = box.extent();
+        // Context::split_cost() with its inputs in locals: the loop below evaluates it at
+        // every event, and the compiler would reload them from the context each time.
+        const float* f_table = ctx_.f_table.data();
+        const size_t f_size = ctx_.f_table.size();
+        const float traversal = ctx_.params.traversal_cost;
+        const float intersect = ctx_.params.intersect_cost;
+        const float bonus = 1.0f - ctx_.params.empty_bonus;
+        auto f = [&](size_t count) { return count < f_size ? f_table[count] : ctx_.f(count); };
+        auto cost = [&](float p_left, float p_right, size_t n_left, size_t n_right) {
+            float c = intersect * (p_left * f(n_left) + p_right * f(n_right));
+            if (n_left == 0 || n_right == 0) c *= bonus;
+            return traversal + c;
+        };
+        float best_cost = kInfinity;
         for (int k = 0; k < 3; ++k) {
             const float lo = box.lower[k], hi = box.upper[k];
             if (!(hi > lo)) continue;
             const float d1 = ext[(k + 1) % 3], d2 = ext[(k + 2) % 3];
             const float cross = d1 * d2, sum = d1 + d2;
-            const auto& ev = node.events[k];
-            const size_t m = ev.size();
+            const Event* ev = node.events[k].data();
+            const size_t m = node.events[k].size();
             // Counters of the events seen so far (branch-free), and their values at the
             // start of the current group of equal positions.
             size_t ends = 0, planars = 0, starts = 0;
@@ -354,14 +368,15 @@ private:
                 if (!(p > lo && p < hi)) continue;
                 const float p_left = 2.0f * (cross + (p - lo) * sum) * inv_area;
                 const float p_right = 2.0f * (cross + (hi - p) * sum) * inv_area;
-                const float c_left = ctx_.split_cost(p_left, p_right, n_left + in_plane, n_right);
-                if (c_left < best.cost) {
+                const float c_left = cost(p_left, p_right, n_left + in_plane, n_right);
+                if (c_left < best_cost) {
+                    best_cost = c_left;
                     best = {c_left, k, p, kLeft, uint32_t(n_left + in_plane), uint32_t(n_right)};
                 }
                 if (in_plane > 0) {
-                    const float c_right =
-                        ctx_.split_cost(p_left, p_right, n_left, n_right + in_plane);
-                    if (c_right < best.cost) {
+                    const float c_right = cost(p_left, p_right, n_left, n_right + in_plane);
+                    if (c_right < best_cost) {
+                        best_cost = c_right;
                         best = {
                             c_right, k, p, kRight, uint32_t(n_left), uint32_t(n_right + in_plane)};
                     }
