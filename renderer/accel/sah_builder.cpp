@@ -588,17 +588,20 @@ struct Binner {
         const Vec3f ext = box.extent();
         for (int k = 0; k < 3; ++k) scale[k] = ext[k] > 0.0f ? float(bins) / ext[k] : 0.0f;
     }
-    int bin(float x, int k) const {
-        const float t = (x - lower[k]) * scale[k];
-        return t >= float(bins) ? bins - 1 : (t > 0.0f ? int(t) : 0);  // NaN -> 0
-    }
     /// counts: 3 * bins starts (axis-major), then 3 * bins ends.
     void add(const Bounds3f& b, uint32_t* counts) const {
-        uint32_t* ends = counts + 3 * bins;
+        // Bins below 0 (and NaN) go to 0, at or above `bins` to the last one. `bins` in a
+        // local: an int may alias the counts, so it would be reloaded after every increment.
+        const int n = bins;
+        const float last = float(n - 1);
+        int index[6];
         for (int k = 0; k < 3; ++k) {
-            ++counts[k * bins + bin(b.lower[k], k)];
-            ++ends[k * bins + bin(b.upper[k], k)];
+            const float lo = (b.lower[k] - lower[k]) * scale[k];
+            const float hi = (b.upper[k] - lower[k]) * scale[k];
+            index[k] = k * n + (lo > 0.0f ? int(std::min(lo, last)) : 0);
+            index[3 + k] = (3 + k) * n + (hi > 0.0f ? int(std::min(hi, last)) : 0);
         }
+        for (const int i : index) ++counts[i];
     }
     Vec3f lower;
     float scale[3];
