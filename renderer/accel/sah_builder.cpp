@@ -260,9 +260,11 @@ struct Workspace {
     SweepNode fresh[2];           // events of clipped straddlers for the left and right child
 };
 
-// Scratch bytes a thread's workspace may keep between two subtrees: 1 MB, or 8 bytes per
-// triangle for small meshes.
-constexpr size_t kWorkspaceBudget = size_t(1) << 20;
+// Scratch bytes a thread's workspace may keep between two subtrees: 4 MB, or 8 bytes per
+// triangle for small meshes. A sweep of 2048 references fills about 1-3 MB of slots; below
+// that every other subtree re-allocated them all. The build's peak is at assembly, after the
+// workspaces are gone.
+constexpr size_t kWorkspaceBudget = size_t(4) << 20;
 constexpr size_t kWorkspaceBytesPerTriangle = 8;
 
 struct SweepSplit {
@@ -270,6 +272,9 @@ struct SweepSplit {
     int axis = -1;
     float pos = 0.0f;
     Side planar_side = kLeft;
+    // Sweep counts at the split: references with a part left / right of the plane
+    // (Wald & Havran's N_L and N_R, planars in the plane counted on planar_side).
+    uint32_t n_left = 0, n_right = 0;
 };
 
 class SweepBuilder {
@@ -321,13 +326,27 @@ private:
         const float inv_area = 1.0f / area;
         const size_t n = node.refs.size();
         const Vec3f ext = box.extent();
+        // Context::split_cost() with its inputs in locals: the loop below evaluates it at
+        // every event, and the compiler would reload them from the context each time.
+        const float* f_table = ctx_.f_table.data();
+        const size_t f_size = ctx_.f_table.size();
+        const float traversal = ctx_.params.traversal_cost;
+        const float intersect = ctx_.params.intersect_cost;
+        const float bonus = 1.0f - ctx_.params.empty_bonus;
+        auto f = [&](size_t count) { return count < f_size ? f_table[count] : ctx_.f(count); };
+        auto cost = [&](float p_left, float p_right, size_t n_left, size_t n_right) {
+            float c = intersect * (p_left * f(n_left) + p_right * f(n_right));
+            if (n_left == 0 || n_right == 0) c *= bonus;
+            return traversal + c;
+        };
+        float best_cost = kInfinity;
         for (int k = 0; k < 3; ++k) {
             const float lo = box.lower[k], hi = box.upper[k];
             if (!(hi > lo)) continue;
             const float d1 = ext[(k + 1) % 3], d2 = ext[(k + 2) % 3];
             const float cross = d1 * d2, sum = d1 + d2;
-            const auto& ev = node.events[k];
-            const size_t m = ev.size();
+            const Event* ev = node.events[k].data();
+            const size_t m = node.events[k].size();
             // Counters of the events seen so far (branch-free), and their values at the
             // start of the current group of equal positions.
             size_t ends = 0, planars = 0, starts = 0;
@@ -349,12 +368,18 @@ private:
                 if (!(p > lo && p < hi)) continue;
                 const float p_left = 2.0f * (cross + (p - lo) * sum) * inv_area;
                 const float p_right = 2.0f * (cross + (hi - p) * sum) * inv_area;
-                const float c_left = ctx_.split_cost(p_left, p_right, n_left + in_plane, n_right);
-                if (c_left < best.cost) best = {c_left, k, p, kLeft};
+                const float c_left = cost(p_left, p_right, n_left + in_plane, n_right);
+                if (c_left < best_cost) {
+                    best_cost = c_left;
+                    best = {c_left, k, p, kLeft, uint32_t(n_left + in_plane), uint32_t(n_right)};
+                }
                 if (in_plane > 0) {
-                    const float c_right =
-                        ctx_.split_cost(p_left, p_right, n_left, n_right + in_plane);
-                    if (c_right < best.cost) best = {c_right, k, p, kRight};
+                    const float c_right = cost(p_left, p_right, n_left, n_right + in_plane);
+                    if (c_right < best_cost) {
+                        best_cost = c_right;
+                        best = {
+                            c_right, k, p, kRight, uint32_t(n_left), uint32_t(n_right + in_plane)};
+                    }
                 }
             }
         }
@@ -392,19 +417,42 @@ private:
         right_box.lower[best.axis] = best.pos;
         SweepNode& left = ws_.slot(level + 1, 0);
         SweepNode& right = ws_.slot(level + 1, 1);
-        split(node, best, left_box, right_box, left, right);
+        const int full = split(node, best, left_box, right_box, left, right);
+        if (full >= 0) {
+            // An empty-space cut-off: the full child goes on with this level's lists (no
+            // copy, and the workspace does not grow a level per cut-off); the other child is
+            // an empty leaf, made in the same depth-first order as any leaf.
+            if (full == 0) {
+                recurse(node, left_box, depth + 1, level, first_child);
+                make_empty_leaf(first_child + 1);
+            } else {
+                make_empty_leaf(first_child);
+                recurse(node, right_box, depth + 1, level, first_child + 1);
+            }
+            return;
+        }
         node.clear();
         recurse(left, left_box, depth + 1, level + 1, first_child);
         recurse(right, right_box, depth + 1, level + 1, first_child + 1);
     }
 
+    void make_empty_leaf(uint32_t slot) {
+        out_.nodes[slot] = KdNode::make_leaf(0, uint32_t(out_.indices.size()));
+    }
+
     /// Wald & Havran 2006, section 4.4: classify by the events of the split axis, splice the
     /// sorted event lists of one-sided references, clip straddlers and merge their events.
-    void split(SweepNode& node, const SweepSplit& s, const Bounds3f& left_box,
-               const Bounds3f& right_box, SweepNode& left, SweepNode& right) {
+    /// Returns 0 or 1 when every reference lies on that side (left and right untouched; the
+    /// node keeps its lists), -1 when left and right were filled.
+    int split(SweepNode& node, const SweepSplit& s, const Bounds3f& left_box,
+              const Bounds3f& right_box, SweepNode& left, SweepNode& right) {
         const size_t n = node.refs.size();
         auto& side = ws_.side;
         auto& remap = ws_.remap;
+        // No reference reaches across the plane on one side: an empty-space cut-off (most
+        // splits of a perfect-split tree are these), known without classifying.
+        if (s.n_right == 0) return 0;
+        if (s.n_left == 0) return 1;
         side.assign(n, kBoth);
         remap.resize(n);
         {
@@ -431,21 +479,10 @@ private:
                 side[r] = (e->code & 3u) == kEnd ? side[r] : uint8_t(kRight);
             }
         }
-        // An empty-space cut-off leaves every reference on one side: the child inherits
-        // the node's sorted lists unchanged (most splits of a perfect-split tree are these).
-        size_t n_left = 0, n_right = 0;
-        for (size_t i = 0; i < n; ++i) {
-            n_left += side[i] == kLeft;
-            n_right += side[i] == kRight;
-        }
-        if (n_left == n || n_right == n) {
-            SweepNode& full = n_left == n ? left : right;
-            SweepNode& empty = n_left == n ? right : left;
-            full.refs.swap(node.refs);
-            for (int k = 0; k < 3; ++k) full.events[k].swap(node.events[k]);
-            empty.clear();
-            return;
-        }
+        // The sweep counts the same boxes against the same float: classification finds
+        // references on both sides, or the cut-off would have been caught above.
+        KDT_DCHECK(std::count(side.begin(), side.end(), uint8_t(kLeft)) != std::ptrdiff_t(n) &&
+                   std::count(side.begin(), side.end(), uint8_t(kRight)) != std::ptrdiff_t(n));
         // One-sided references keep their order; straddlers are appended after them.
         auto& both = ws_.both;
         left.refs.resize(n);
@@ -522,6 +559,7 @@ private:
                 }
             }
         }
+        return -1;
     }
 
     const Context& ctx_;
@@ -543,6 +581,49 @@ struct BinnedSplit {
 constexpr size_t kParallelTopRefs = size_t(1) << 18;
 constexpr int kTopChunks = 8;
 
+/// Start and end bins of reference boxes over one node's box (the same float arithmetic
+/// wherever a node's bins are counted, so the counts do not depend on who counted them).
+struct Binner {
+    Binner(const Bounds3f& box, int bins_per_axis) : lower(box.lower), bins(bins_per_axis) {
+        const Vec3f ext = box.extent();
+        for (int k = 0; k < 3; ++k) scale[k] = ext[k] > 0.0f ? float(bins) / ext[k] : 0.0f;
+    }
+    /// counts: 3 * bins starts (axis-major), then 3 * bins ends.
+    void add(const Bounds3f& b, uint32_t* counts) const {
+        // Bins below 0 (and NaN) go to 0, at or above `bins` to the last one. `bins` in a
+        // local: an int may alias the counts, so it would be reloaded after every increment.
+        const int n = bins;
+        const float last = float(n - 1);
+        int index[6];
+        for (int k = 0; k < 3; ++k) {
+            const float lo = (b.lower[k] - lower[k]) * scale[k];
+            const float hi = (b.upper[k] - lower[k]) * scale[k];
+            index[k] = k * n + (lo > 0.0f ? int(std::min(lo, last)) : 0);
+            index[3 + k] = (3 + k) * n + (hi > 0.0f ? int(std::min(hi, last)) : 0);
+        }
+        for (const int i : index) ++counts[i];
+    }
+    Vec3f lower;
+    float scale[3];
+    int bins;
+};
+
+/// Bounds of the mesh triangle whole[i], with the triangles and vertices of later
+/// references prefetched: the binned levels walk bare indices whose vertices lie all over
+/// the mesh, and the dependent loads (index, triangle, vertex) would otherwise dominate.
+inline Bounds3f whole_bounds(const TriangleMesh& mesh, const uint32_t* whole, size_t i,
+                             size_t end) {
+    constexpr size_t kAhead = 8;
+    if (i + 2 * kAhead < end) __builtin_prefetch(&mesh.triangles[whole[i + 2 * kAhead]]);
+    if (i + kAhead < end) {
+        const Vec3u& t = mesh.triangles[whole[i + kAhead]];
+        __builtin_prefetch(&mesh.positions[t.x]);
+        __builtin_prefetch(&mesh.positions[t.y]);
+        __builtin_prefetch(&mesh.positions[t.z]);
+    }
+    return mesh.triangle_bounds(whole[i]);
+}
+
 /// A node of the binned phase. References never clipped so far are stored as bare triangle
 /// indices (their bounds lie inside the node and are read from the mesh), which keeps the
 /// top levels' scratch at about 4 bytes per triangle; clipped ones carry their box.
@@ -552,6 +633,7 @@ struct TopJob {
           node(t),
           whole(MeteredAllocator<uint32_t>(&c.meter)),
           clipped(MeteredAllocator<Ref>(&c.meter)),
+          counts(MeteredAllocator<uint32_t>(&c.meter)),
           box(b),
           depth(d) {}
     size_t size() const { return whole.size() + clipped.size(); }
@@ -559,61 +641,57 @@ struct TopJob {
     TopNode& node;
     MeteredVector<uint32_t> whole;
     MeteredVector<Ref> clipped;
+    /// Bin counts of the references over `box` (Binner::add layout), when the parent
+    /// counted them while classifying; empty otherwise.
+    MeteredVector<uint32_t> counts;
     Bounds3f box;
     int depth;
 };
 
-BinnedSplit find_binned_split(const Context& ctx, const TopJob& job) {
+/// Counts references [begin, end) of the node (whole ones first) into counts.
+void count_bins(const Context& ctx, const TopJob& job, const Binner& binner, size_t begin,
+                size_t end, uint32_t* counts) {
+    const size_t n_whole = job.whole.size();
+    const size_t whole_end = std::min(end, n_whole);
+    for (size_t i = begin; i < whole_end; ++i) {
+        binner.add(whole_bounds(*ctx.mesh, job.whole.data(), i, whole_end), counts);
+    }
+    for (size_t i = std::max(begin, n_whole); i < end; ++i) {
+        binner.add(job.clipped[i - n_whole].box, counts);
+    }
+}
+
+BinnedSplit find_binned_split(const Context& ctx, TopJob& job) {
     BinnedSplit best;
     const Bounds3f& box = job.box;
     const float area = box.surface_area();
     if (!(area > 0.0f) || !std::isfinite(area)) return best;
     const int bins = std::max(2, ctx.tuning.bins);
-    std::vector<uint32_t> starts(size_t(3 * bins), 0), ends(size_t(3 * bins), 0);
-    const Vec3f ext = box.extent();
-    float scale[3];
-    for (int k = 0; k < 3; ++k) scale[k] = ext[k] > 0.0f ? float(bins) / ext[k] : 0.0f;
-    auto bin = [&](float x, int k) {
-        const float t = (x - box.lower[k]) * scale[k];
-        return t >= float(bins) ? bins - 1 : (t > 0.0f ? int(t) : 0);  // NaN -> 0
-    };
-    // Counts of references [begin, end) of the node (whole ones first).
-    auto count = [&](size_t begin, size_t end, uint32_t* st, uint32_t* en) {
-        auto add = [&](const Bounds3f& b) {
-            for (int k = 0; k < 3; ++k) {
-                ++st[size_t(k * bins + bin(b.lower[k], k))];
-                ++en[size_t(k * bins + bin(b.upper[k], k))];
+    const auto stride = size_t(6 * bins);
+    if (job.counts.empty()) {
+        job.counts.assign(stride, 0);
+        const Binner binner(box, bins);
+        if (job.size() >= kParallelTopRefs) {
+            // The top node would keep the other threads waiting: count in chunks on tasks.
+            // Integer sums, so the result does not depend on which thread counted what.
+            std::vector<uint32_t> part(kTopChunks * stride, 0);
+            const size_t chunk = (job.size() + kTopChunks - 1) / kTopChunks;
+            for (int c = 0; c < kTopChunks; ++c) {
+                uint32_t* counts = part.data() + size_t(c) * stride;
+                const size_t begin = std::min(job.size(), size_t(c) * chunk);
+                const size_t end = std::min(job.size(), begin + chunk);
+#pragma omp task default(shared) firstprivate(counts, begin, end)
+                count_bins(ctx, job, binner, begin, end, counts);
             }
-        };
-        const size_t n_whole = job.whole.size();
-        for (size_t i = begin; i < std::min(end, n_whole); ++i) {
-            add(ctx.mesh->triangle_bounds(job.whole[i]));
-        }
-        for (size_t i = std::max(begin, n_whole); i < end; ++i) add(job.clipped[i - n_whole].box);
-    };
-    if (job.size() >= kParallelTopRefs) {
-        // The top node would keep the other threads waiting: count in chunks on tasks.
-        // Integer sums, so the result does not depend on which thread counted what.
-        std::vector<uint32_t> part(size_t(kTopChunks * 6 * bins), 0);
-        const size_t chunk = (job.size() + kTopChunks - 1) / kTopChunks;
-        for (int c = 0; c < kTopChunks; ++c) {
-            uint32_t* st = part.data() + size_t(c * 6 * bins);
-            const size_t begin = std::min(job.size(), size_t(c) * chunk);
-            const size_t end = std::min(job.size(), begin + chunk);
-#pragma omp task default(shared) firstprivate(st, begin, end)
-            count(begin, end, st, st + 3 * bins);
-        }
 #pragma omp taskwait
-        for (int c = 0; c < kTopChunks; ++c) {
-            const uint32_t* st = part.data() + size_t(c * 6 * bins);
-            for (size_t j = 0; j < size_t(3 * bins); ++j) {
-                starts[j] += st[j];
-                ends[j] += st[size_t(3 * bins) + j];
-            }
+            for (size_t j = 0; j < part.size(); ++j) job.counts[j % stride] += part[j];
+        } else {
+            count_bins(ctx, job, binner, 0, job.size(), job.counts.data());
         }
-    } else {
-        count(0, job.size(), starts.data(), ends.data());
     }
+    const uint32_t* starts = job.counts.data();
+    const uint32_t* ends = starts + 3 * bins;
+    const Vec3f ext = box.extent();
     const float inv_area = 1.0f / area;
     const size_t n = job.size();
     for (int k = 0; k < 3; ++k) {
@@ -623,8 +701,8 @@ BinnedSplit find_binned_split(const Context& ctx, const TopJob& job) {
         const float cross = d1 * d2, sum = d1 + d2;
         size_t n_left = 0, n_right = n;
         for (int j = 1; j < bins; ++j) {
-            n_left += starts[size_t(k * bins + j - 1)];
-            n_right -= ends[size_t(k * bins + j - 1)];
+            n_left += starts[k * bins + j - 1];
+            n_right -= ends[k * bins + j - 1];
             const float p = lo + ext[k] * (float(j) / float(bins));
             if (!(p > lo && p < hi)) continue;
             const float p_left = 2.0f * (cross + (p - lo) * sum) * inv_area;
@@ -655,6 +733,7 @@ public:
             sweep_task(std::move(job));
             return;
         }
+        release(job->counts);
         TopNode& node = job->node;
         node.axis = s.axis;
         node.split = s.pos;
@@ -665,30 +744,51 @@ public:
             (c == 0 ? b.upper : b.lower)[s.axis] = s.pos;
             child[c] = std::make_unique<TopJob>(ctx, *node.child[c], b, job->depth + 1);
         }
+        // Children that will likely be binned too get their bins counted here, while each
+        // reference's bounds are at hand: one pass over the mesh per level instead of two.
+        const int bins = std::max(2, ctx.tuning.bins);
+        const auto stride = size_t(6 * bins);
+        const bool bin_children =
+            n > 2 * size_t(ctx.tuning.sweep_threshold) && job->depth + 1 < ctx.max_depth;
+        const Binner binner[2] = {Binner(child[0]->box, bins), Binner(child[1]->box, bins)};
+        if (bin_children) {
+            for (auto& c : child) c->counts.assign(stride, 0);
+        }
 
         // Two passes: classify and count, then fill exactly sized child arrays.
         const size_t n_whole = job->whole.size();
         MeteredVector<uint8_t> side(n, kBoth, MeteredAllocator<uint8_t>(&ctx.meter));
         size_t whole_count[3] = {0, 0, 0}, clipped_count[3] = {0, 0, 0};
-        auto classify_range = [&](size_t begin, size_t end, size_t* wc, size_t* cc) {
-            for (size_t i = begin; i < std::min(end, n_whole); ++i) {
-                side[i] = classify(mesh.triangle_bounds(job->whole[i]), s.axis, s.pos, kLeft);
-                ++wc[side[i]];
+        // counts: the left child's bins, then the right child's (null: no binning).
+        auto classify_range = [&](size_t begin, size_t end, size_t* wc, size_t* cc,
+                                  uint32_t* counts) {
+            const size_t whole_end = std::min(end, n_whole);
+            for (size_t i = begin; i < whole_end; ++i) {
+                const Bounds3f b = whole_bounds(mesh, job->whole.data(), i, whole_end);
+                const Side sd = classify(b, s.axis, s.pos, kLeft);
+                side[i] = sd;
+                ++wc[sd];
+                if (counts && sd != kBoth) binner[sd - 1].add(b, counts + (sd - 1) * stride);
             }
             for (size_t i = std::max(begin, n_whole); i < end; ++i) {
-                side[i] = classify(job->clipped[i - n_whole].box, s.axis, s.pos, kLeft);
-                ++cc[side[i]];
+                const Bounds3f& b = job->clipped[i - n_whole].box;
+                const Side sd = classify(b, s.axis, s.pos, kLeft);
+                side[i] = sd;
+                ++cc[sd];
+                if (counts && sd != kBoth) binner[sd - 1].add(b, counts + (sd - 1) * stride);
             }
         };
         if (n >= kParallelTopRefs) {
             size_t counts[kTopChunks][6] = {};
+            std::vector<uint32_t> part(bin_children ? kTopChunks * 2 * stride : 0, 0);
             const size_t chunk = (n + kTopChunks - 1) / kTopChunks;
             for (int c = 0; c < kTopChunks; ++c) {
                 size_t* wc = counts[c];
+                uint32_t* bc = bin_children ? part.data() + size_t(c) * 2 * stride : nullptr;
                 const size_t begin = std::min(n, size_t(c) * chunk);
                 const size_t end = std::min(n, begin + chunk);
-#pragma omp task default(shared) firstprivate(wc, begin, end)
-                classify_range(begin, end, wc, wc + 3);
+#pragma omp task default(shared) firstprivate(wc, bc, begin, end)
+                classify_range(begin, end, wc, wc + 3, bc);
             }
 #pragma omp taskwait
             for (int c = 0; c < kTopChunks; ++c) {
@@ -697,8 +797,18 @@ public:
                     clipped_count[j] += counts[c][3 + j];
                 }
             }
+            // Integer sums: the same bins whichever thread counted which chunk.
+            for (size_t j = 0; j < part.size(); ++j) {
+                const size_t in_pair = j % (2 * stride);
+                child[in_pair / stride]->counts[in_pair % stride] += part[j];
+            }
         } else {
-            classify_range(0, n, whole_count, clipped_count);
+            std::vector<uint32_t> both_counts(bin_children ? 2 * stride : 0, 0);
+            classify_range(0, n, whole_count, clipped_count,
+                           bin_children ? both_counts.data() : nullptr);
+            for (size_t j = 0; j < both_counts.size(); ++j) {
+                child[j / stride]->counts[j % stride] = both_counts[j];
+            }
         }
         const size_t straddlers = whole_count[kBoth] + clipped_count[kBoth];
         child[0]->whole.reserve(whole_count[kLeft]);
@@ -708,7 +818,9 @@ public:
         auto clip_both = [&](const Ref& r) {
             for (int c = 0; c < 2; ++c) {
                 Ref part;
-                if (ctx.clip(r, child[c]->box, part)) child[c]->clipped.push_back(part);
+                if (!ctx.clip(r, child[c]->box, part)) continue;
+                child[c]->clipped.push_back(part);
+                if (bin_children) binner[c].add(part.box, child[c]->counts.data());
             }
         };
         for (size_t i = 0; i < n_whole; ++i) {
@@ -752,7 +864,11 @@ private:
             // Full references (box + triangle) only now, for this subtree.
             MeteredVector<Ref> refs(MeteredAllocator<Ref>(&ctx.meter));
             refs.reserve(own->size());
-            for (uint32_t t : own->whole) refs.push_back({ctx.mesh->triangle_bounds(t), t});
+            const size_t n_whole = own->whole.size();
+            for (size_t i = 0; i < n_whole; ++i) {
+                refs.push_back(
+                    {whole_bounds(*ctx.mesh, own->whole.data(), i, n_whole), own->whole[i]});
+            }
             refs.insert(refs.end(), own->clipped.begin(), own->clipped.end());
             release(own->whole);
             release(own->clipped);
@@ -862,65 +978,77 @@ bool clip_triangle_to_box(const Vec3f& a, const Vec3f& b, const Vec3f& c, const 
     // coordinate is exact (an input vertex, the clipping plane itself, or an edge parallel
     // to that axis); only interpolated coordinates get a safety margin.
     struct V {
-        Vec3d p;
+        double p[3];
         unsigned exact;  // bit k: coordinate k is exact
     };
     V poly[2][9];
     int count = 3;
     int cur = 0;
-    poly[0][0] = {Vec3d(a), 7u};
-    poly[0][1] = {Vec3d(b), 7u};
-    poly[0][2] = {Vec3d(c), 7u};
+    const Vec3f* input[3] = {&a, &b, &c};
+    for (int i = 0; i < 3; ++i) {
+        poly[0][i] = {{double((*input[i])[0]), double((*input[i])[1]), double((*input[i])[2])}, 7u};
+    }
     for (int k = 0; k < 3; ++k) {
         for (int upper = 0; upper < 2; ++upper) {
             const double plane = upper ? double(box.upper[k]) : double(box.lower[k]);
-            auto inside = [&](const V& v) { return upper ? v.p[k] <= plane : v.p[k] >= plane; };
+            const V* in = poly[cur];
+            bool inside[9];
             int n_inside = 0;
-            for (int i = 0; i < count; ++i) n_inside += inside(poly[cur][i]) ? 1 : 0;
+            for (int i = 0; i < count; ++i) {
+                inside[i] = upper ? in[i].p[k] <= plane : in[i].p[k] >= plane;
+                n_inside += inside[i];
+            }
             if (n_inside == 0) return false;
             if (n_inside == count) continue;
-            const V* in = poly[cur];
             V* out = poly[1 - cur];
             int m = 0;
             for (int i = 0; i < count; ++i) {
+                const int next = i + 1 == count ? 0 : i + 1;
                 const V& p = in[i];
-                const V& q = in[(i + 1) % count];
-                const bool p_in = inside(p), q_in = inside(q);
-                if (p_in) out[m++] = p;
-                if (p_in != q_in) {
-                    const double t = (plane - p.p[k]) / (q.p[k] - p.p[k]);
-                    if (t <= 0.0 || t >= 1.0) {  // the edge meets the plane in a vertex
-                        out[m++] = t <= 0.0 ? p : q;
-                        continue;
+                const V& q = in[next];
+                if (inside[i]) out[m++] = p;
+                if (inside[i] == inside[next]) continue;
+                const double t = (plane - p.p[k]) / (q.p[k] - p.p[k]);
+                if (t <= 0.0 || t >= 1.0) {  // the edge meets the plane in a vertex
+                    out[m++] = t <= 0.0 ? p : q;
+                    continue;
+                }
+                V& x = out[m++];
+                x.exact = 1u << k;
+                for (int j = 0; j < 3; ++j) {
+                    if (j == k) {
+                        x.p[j] = plane;  // exactly on the plane
+                    } else if (p.p[j] == q.p[j] && (p.exact & q.exact & (1u << j))) {
+                        x.p[j] = p.p[j];
+                        x.exact |= 1u << j;
+                    } else {
+                        x.p[j] = p.p[j] + t * (q.p[j] - p.p[j]);
                     }
-                    V x{p.p + t * (q.p - p.p), 1u << k};
-                    x.p[k] = plane;  // exactly on the plane
-                    for (int j = 0; j < 3; ++j) {
-                        if (j != k && p.p[j] == q.p[j] && (p.exact & q.exact & (1u << j))) {
-                            x.p[j] = p.p[j];
-                            x.exact |= 1u << j;
-                        }
-                    }
-                    out[m++] = x;
                 }
             }
             count = m;
             cur = 1 - cur;
         }
     }
-    double magnitude = 0.0;
-    for (int k = 0; k < 3; ++k) {
-        magnitude =
-            std::max({magnitude, std::abs(double(box.lower[k])), std::abs(double(box.upper[k])),
-                      std::abs(double(a[k])), std::abs(double(b[k])), std::abs(double(c[k]))});
+    const V* poly_out = poly[cur];
+    unsigned all_exact = 7u;
+    for (int i = 0; i < count; ++i) all_exact &= poly_out[i].exact;
+    double margin = 0.0;
+    if (all_exact != 7u) {
+        double magnitude = 0.0;
+        for (int k = 0; k < 3; ++k) {
+            magnitude =
+                std::max({magnitude, std::abs(double(box.lower[k])), std::abs(double(box.upper[k])),
+                          std::abs(double(a[k])), std::abs(double(b[k])), std::abs(double(c[k]))});
+        }
+        // Interpolated coordinates carry a few double ulps of error relative to the largest
+        // coordinate involved; widen them by far more than that before rounding to float.
+        margin = magnitude * 1e-13;
     }
-    // Interpolated coordinates carry a few double ulps of error relative to the largest
-    // coordinate involved; widen them by far more than that before rounding to float.
-    const double margin = magnitude * 1e-13;
     for (int k = 0; k < 3; ++k) {
         double lo = kInfinity, hi = -kInfinity;
         for (int i = 0; i < count; ++i) {
-            const V& v = poly[cur][i];
+            const V& v = poly_out[i];
             const double e = (v.exact >> k) & 1u ? 0.0 : margin;
             lo = std::min(lo, v.p[k] - e);
             hi = std::max(hi, v.p[k] + e);
