@@ -716,6 +716,9 @@ void run(const Options& opt) {
         };
         add("primary", primary, median(engines[0].primary_s));
         add("diffuse", diffuse, median(engines[0].diffuse_s));
+        // The batch queries visit exactly the same nodes per ray (counted per lane).
+        add("primary, batch", primary, median(engines[1].primary_s));
+        add("diffuse, batch", diffuse, median(engines[1].diffuse_s));
         tables.push_back(tc);
     }
 
@@ -742,14 +745,26 @@ void run(const Options& opt) {
             // Debian's Embree is built with assertions: a NaN/Inf ray aborts in
             // BVHNIntersector1 (assert ray.valid()), so only kdtrace runs that set.
             const bool nonfinite_ok = e.tree != nullptr;
-            with_queries(e, [&](const auto& isect, const auto&) {
-                trace_closest(aimed.vertex, hv, threads, isect);
-                trace_closest(aimed.edge, he, threads, isect);
-                for (int k = 0; k < repeat && nonfinite_ok; ++k) {
-                    tn.push_back(trace_closest(normal, hn, threads, isect));
-                    tb.push_back(trace_closest(nonfinite, hn, threads, isect));
-                }
-            });
+            if (e.batch) {
+                with_batch_queries(
+                    e, [&](const auto& coherent, const auto& incoherent, const auto&) {
+                        trace_closest_batch(aimed.vertex, hv, threads, incoherent);
+                        trace_closest_batch(aimed.edge, he, threads, incoherent);
+                        for (int k = 0; k < repeat && nonfinite_ok; ++k) {
+                            tn.push_back(trace_closest_batch(normal, hn, threads, coherent));
+                            tb.push_back(trace_closest_batch(nonfinite, hn, threads, coherent));
+                        }
+                    });
+            } else {
+                with_queries(e, [&](const auto& isect, const auto&) {
+                    trace_closest(aimed.vertex, hv, threads, isect);
+                    trace_closest(aimed.edge, he, threads, isect);
+                    for (int k = 0; k < repeat && nonfinite_ok; ++k) {
+                        tn.push_back(trace_closest(normal, hn, threads, isect));
+                        tb.push_back(trace_closest(nonfinite, hn, threads, isect));
+                    }
+                });
+            }
             const uint64_t nonfinite_hits = uint64_t(
                 std::count_if(hn.begin(), hn.end(), [](const Hit& h) { return h.valid(); }));
             const uint64_t ve = count_escapes(aimed.vertex, hv), ee = count_escapes(aimed.edge, he);
