@@ -34,6 +34,7 @@
 #endif
 
 #include "renderer/core/error.h"
+#include "renderer/core/huge_pages.h"
 #include "renderer/core/timer.h"
 
 namespace kdt {
@@ -2084,10 +2085,19 @@ TriangleMesh PlyParser::parse(MeshLoadInfo* info) {
     plan_elements();
     check_counts();
 
+    // Huge pages for the output arrays before anything touches them: first-touch faults of
+    // 4 KiB pages would cost more than parsing a binary file.
+    reserve_huge(mesh_.positions, vertex_count_);
     mesh_.positions.resize(vertex_count_);
-    if (has_normals_) mesh_.normals.resize(vertex_count_);
-    if (has_colors_) mesh_.colors.resize(vertex_count_);
-    if (face_el_ >= 0) mesh_.triangles.reserve(elements_[size_t(face_el_)].count);
+    if (has_normals_) {
+        reserve_huge(mesh_.normals, vertex_count_);
+        mesh_.normals.resize(vertex_count_);
+    }
+    if (has_colors_) {
+        reserve_huge(mesh_.colors, vertex_count_);
+        mesh_.colors.resize(vertex_count_);
+    }
+    if (face_el_ >= 0) reserve_huge(mesh_.triangles, elements_[size_t(face_el_)].count);
 
     line_ = header_lines_;
     for (Element& el : elements_) {
