@@ -1521,39 +1521,56 @@ void PlyParser::read_binary_record(Element& el, uint64_t i) {
 }
 
 // Face element holding only the index list with uchar count: the layout of nearly every
-// scanned mesh. Decoded straight from the buffer.
+// scanned mesh. Decoded straight from the buffer: runs of valid triangles with 4-byte indices
+// are collected in a small array (in L1) and appended by one insert each, so the loop keeps
+// its state in registers and checks no capacity per triangle; any other record (a polygon,
+// an invalid or degenerate face, one cut by the window end, other index types) takes the
+// record-by-record path.
 template <bool Swap>
 void PlyParser::read_binary_faces_fast(Element& el) {
     const Property& p = el.props[0];
     const size_t isz = type_size(p.type);
+    constexpr size_t kRecord = 1 + 3 * 4;
+    constexpr size_t kRun = 1024;  // 12 KiB of triangles
+    Vec3u run[kRun];
+    // Signed indices are valid below 2^31 however many vertices the header declares.
+    const uint64_t limit = p.type == PlyType::i32
+                               ? std::min<uint64_t>(vertex_count_, uint64_t(INT32_MAX) + 1)
+                               : vertex_count_;
+    const bool runs = isz == 4;
     int64_t idx[3];
-    for (uint64_t i = 0; i < el.count; ++i) {
+    for (uint64_t i = 0; i < el.count;) {
+        if (runs && bad_vertex_.empty()) {
+            const size_t n = size_t(std::min<uint64_t>(
+                {el.count - i, uint64_t(in_.avail() / kRecord), uint64_t(kRun)}));
+            const char* r = in_.pos();
+            size_t k = 0;
+            for (; k < n; ++k, r += kRecord) {
+                const uint64_t a = load_uint<Swap, uint32_t>(r + 1);
+                const uint64_t b = load_uint<Swap, uint32_t>(r + 5);
+                const uint64_t c = load_uint<Swap, uint32_t>(r + 9);
+                if ((uint8_t(r[0]) != 3) | (a >= limit) | (b >= limit) | (c >= limit) | (a == b) |
+                    (b == c) | (a == c))
+                    break;
+                run[k] = Vec3u(uint32_t(a), uint32_t(b), uint32_t(c));
+            }
+            mesh_.triangles.insert(mesh_.triangles.end(), run, run + k);
+            source_faces_ += k;
+            in_.advance(k * kRecord);
+            i += k;
+            if (k == kRun) continue;
+            if (i == el.count) break;
+        }
         record_offset_ = in_.offset();
         if (in_.avail() < 1 + 3 * isz) need(el, i, 1 + 3 * isz);
         const char* r = in_.pos();
-        unsigned count = uint8_t(*r);
-        if (count == 3) [[likely]] {
-            if (isz == 4) {
-                for (int k = 0; k < 3; ++k)
-                    idx[k] = p.type == PlyType::i32
-                                 ? int64_t(int32_t(load_uint<Swap, uint32_t>(r + 1 + 4 * k)))
-                                 : int64_t(load_uint<Swap, uint32_t>(r + 1 + 4 * k));
-            } else {
-                for (int k = 0; k < 3; ++k) idx[k] = load_int<Swap>(r + 1 + isz * k, p.type);
-            }
-            in_.advance(1 + 3 * isz);
-            // Inline the common path of emit_face: valid, finite, non-degenerate triangle.
-            if (uint64_t(idx[0]) < vertex_count_ && uint64_t(idx[1]) < vertex_count_ &&
-                uint64_t(idx[2]) < vertex_count_ && bad_vertex_.empty() && idx[0] != idx[1] &&
-                idx[1] != idx[2] && idx[0] != idx[2]) {
-                ++source_faces_;
-                mesh_.triangles.emplace_back(uint32_t(idx[0]), uint32_t(idx[1]), uint32_t(idx[2]));
-            } else {
-                emit_face(el, i, idx, 3);
-            }
+        if (uint8_t(*r) != 3) {
+            read_binary_record<Swap>(el, i++);
             continue;
         }
-        read_binary_record<Swap>(el, i);
+        for (int k = 0; k < 3; ++k) idx[k] = load_int<Swap>(r + 1 + isz * k, p.type);
+        in_.advance(1 + 3 * isz);
+        emit_face(el, i++, idx, 3);
     }
 }
 
