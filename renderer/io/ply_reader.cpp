@@ -401,6 +401,45 @@ inline int64_t load_int(const char* p, PlyType t) {
     }
 }
 
+// How far ahead the binary decoders prefetch: the hardware prefetchers stop at 4 KiB page
+// boundaries, and the file's pages lie anywhere in memory.
+constexpr size_t kPrefetchBytes = 1024;
+
+// Decodes the float x, y, z at r, r + rec, r + 2 rec, ... (up to n records) into out while
+// they are finite; returns how many it took. With SSSE3 one 16-byte load per record,
+// byte-swapped by a shuffle for big-endian input; it reads 4 bytes past the last z (inside
+// the record or the Input padding) and writes 4 bytes past out[n - 1], so out must hold
+// n + 1 positions.
+template <bool Swap>
+[[gnu::always_inline]] inline size_t decode_positions(const char* r, size_t n, size_t rec,
+                                                      Vec3f* out) {
+#if defined(__SSSE3__)
+    const __m128i order = Swap
+                              ? _mm_setr_epi8(3, 2, 1, 0, 7, 6, 5, 4, 11, 10, 9, 8, -1, -1, -1, -1)
+                              : _mm_setr_epi8(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, -1, -1, -1, -1);
+    const __m128i exponent = _mm_set1_epi32(0x7f800000);
+    for (size_t k = 0; k < n; ++k, r += rec) {
+        _mm_prefetch(r + kPrefetchBytes, _MM_HINT_T0);
+        const __m128i xyz =
+            _mm_shuffle_epi8(_mm_loadu_si128(reinterpret_cast<const __m128i*>(r)), order);
+        // Infinities and NaNs have every exponent bit set.
+        const __m128i inf_nan = _mm_cmpeq_epi32(_mm_and_si128(xyz, exponent), exponent);
+        if (_mm_movemask_ps(_mm_castsi128_ps(inf_nan)) & 7) return k;
+        _mm_storeu_si128(reinterpret_cast<__m128i*>(out + k), xyz);
+    }
+    return n;
+#else
+    for (size_t k = 0; k < n; ++k, r += rec) {
+        const Vec3f p(std::bit_cast<float>(load_uint<Swap, uint32_t>(r)),
+                      std::bit_cast<float>(load_uint<Swap, uint32_t>(r + 4)),
+                      std::bit_cast<float>(load_uint<Swap, uint32_t>(r + 8)));
+        if (!is_finite(p)) return k;
+        out[k] = p;
+    }
+    return n;
+#endif
+}
+
 // ---------------------------------------------------------------------------------------
 // ASCII token parsing, bounded by the line end.
 
@@ -1413,7 +1452,8 @@ void PlyParser::emit_face(const Element& el, uint64_t i, const int64_t* idx, siz
 
 // ---- binary -------------------------------------------------------------------------------
 
-// Vertex element of scalars only: fixed-size records, decoded in whole-buffer batches.
+// Vertex element of scalars only: fixed-size records, decoded in whole-buffer batches and
+// appended to the positions (reserved, not sized: no zero fill before the real values).
 template <bool Swap>
 void PlyParser::read_binary_vertices_fixed(Element& el) {
     struct Plan {
@@ -1434,6 +1474,8 @@ void PlyParser::read_binary_vertices_fixed(Element& el) {
                           plan[2].slot == kPosZ && plan[0].offset + 4 == plan[1].offset &&
                           plan[1].offset + 4 == plan[2].offset && plan[0].type == PlyType::f32 &&
                           plan[1].type == PlyType::f32 && plan[2].type == PlyType::f32;
+    constexpr size_t kRun = 1024;  // 12 KiB of positions, in L1
+    Vec3f run[kRun + 1];           // + 1: decode_positions writes past the last
     uint64_t i = 0;
     float v[9] = {};
     while (i < el.count) {
@@ -1442,21 +1484,25 @@ void PlyParser::read_binary_vertices_fixed(Element& el) {
         uint64_t n = std::min<uint64_t>(el.count - i, in_.avail() / rec);
         const char* base = in_.pos();
         if (xyz_only && bad_vertex_.empty()) {
-            const size_t o = plan[0].offset;
-            for (uint64_t k = 0; k < n; ++k) {
-                const char* r = base + k * rec + o;
-                Vec3f p(std::bit_cast<float>(load_uint<Swap, uint32_t>(r)),
-                        std::bit_cast<float>(load_uint<Swap, uint32_t>(r + 4)),
-                        std::bit_cast<float>(load_uint<Swap, uint32_t>(r + 8)));
-                if (!is_finite(p)) [[unlikely]] {
-                    record_offset_ = in_.offset() + k * rec;
-                    v[0] = p.x, v[1] = p.y, v[2] = p.z;
-                    store_vertex(el, i + k, v);
-                    continue;
-                }
-                mesh_.positions[i + k] = p;
+            // Runs of finite positions through a small array and one insert each; a
+            // non-finite one goes to store_vertex (an error, or flagged with drop_invalid).
+            n = std::min<uint64_t>(n, kRun);
+            const char* r = base + plan[0].offset;
+            uint64_t k = decode_positions<Swap>(r, size_t(n), rec, run);
+            mesh_.positions.insert(mesh_.positions.end(), run, run + k);
+            if (k < n) {
+                r += k * rec;
+                record_offset_ = in_.offset() + k * rec;
+                v[0] = std::bit_cast<float>(load_uint<Swap, uint32_t>(r));
+                v[1] = std::bit_cast<float>(load_uint<Swap, uint32_t>(r + 4));
+                v[2] = std::bit_cast<float>(load_uint<Swap, uint32_t>(r + 8));
+                mesh_.positions.emplace_back();
+                store_vertex(el, i + k, v);
+                ++k;
             }
+            n = k;
         } else {
+            mesh_.positions.resize(size_t(i + n));
             for (uint64_t k = 0; k < n; ++k) {
                 const char* r = base + k * rec;
                 for (const Plan& pl : plan)
@@ -2105,7 +2151,8 @@ TriangleMesh PlyParser::parse(MeshLoadInfo* info) {
     // Huge pages for the output arrays before anything touches them: first-touch faults of
     // 4 KiB pages would cost more than parsing a binary file.
     reserve_huge(mesh_.positions, vertex_count_);
-    mesh_.positions.resize(vertex_count_);
+    // read_binary_vertices_fixed appends the positions; other layouts write them by index.
+    if (ascii_ || elements_[size_t(vertex_el_)].has_lists) mesh_.positions.resize(vertex_count_);
     if (has_normals_) {
         reserve_huge(mesh_.normals, vertex_count_);
         mesh_.normals.resize(vertex_count_);

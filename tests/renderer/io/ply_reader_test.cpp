@@ -4,6 +4,7 @@
 #include "renderer/io/ply_reader.h"
 
 #include <zlib.h>
+#include <algorithm>
 #include <bit>
 #include <charconv>
 #include <cmath>
@@ -423,6 +424,68 @@ TEST(PlyReader, BinaryFaceRunsMatchRecordByRecord) {
                                    " out of range (5000 vertices)");
             if (std::string(type) == "int")
                 EXPECT_ERROR(file(4095, -3), "face 4095: vertex index -3 out of range");
+        }
+    }
+}
+
+// Binary vertices of float x, y, z are decoded in runs; a non-finite one anywhere (at a run's
+// start, end or middle) goes to the record-by-record path: the same error, or with
+// drop_invalid the same dropped vertices and faces, in both byte orders, with the
+// coordinates alone in the record or after another property.
+TEST(PlyReader, BinaryVertexRunsMatchRecordByRecord) {
+    const int nv = 5000;
+    const std::vector<int> bad = {1023, 1024, 3002};  // NaN in x, y, z (i % 3)
+    auto is_bad = [&](int i) { return std::find(bad.begin(), bad.end(), i) != bad.end(); };
+    for (bool big : {false, true}) {
+        for (bool leading : {false, true}) {
+            SCOPED_TRACE(std::string(big ? "big endian" : "little endian") +
+                         (leading ? ", after another property" : ""));
+            // NaN in the vertices `nan_at` (x, y or z by i % 3).
+            auto file = [&](const std::vector<int>& nan_at) {
+                Bytes b;
+                b.big = big;
+                for (int i = 0; i < nv; ++i) {
+                    if (leading) b.put(float(-i));
+                    const bool bad_i = std::find(nan_at.begin(), nan_at.end(), i) != nan_at.end();
+                    const int nan_in = bad_i ? int(i % 3) : -1;
+                    b.put(nan_in == 0 ? NAN : float(i))
+                        .put(nan_in == 1 ? NAN : 0.25f * float(i))
+                        .put(nan_in == 2 ? NAN : -1.0f);
+                }
+                for (int f = 0; f + 2 < nv; ++f)
+                    b.put(uint8_t(3)).put(uint32_t(f)).put(uint32_t(f + 1)).put(uint32_t(f + 2));
+                return std::string("ply\nformat ") +
+                       (big ? "binary_big_endian" : "binary_little_endian") +
+                       " 1.0\nelement vertex " + std::to_string(nv) +
+                       (leading ? "\nproperty float confidence" : "") +
+                       "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
+                       std::to_string(nv - 2) +
+                       "\nproperty list uchar uint vertex_indices\nend_header\n" + b.s;
+            };
+            TriangleMesh all = load(file({}));
+            ASSERT_EQ(all.vertex_count(), size_t(nv));
+            for (int i = 0; i < nv; ++i)
+                ASSERT_EQ(all.positions[size_t(i)], Vec3f(float(i), 0.25f * float(i), -1.0f));
+            // Each bad vertex alone is an error naming it and its first byte.
+            const size_t rec = leading ? 16 : 12;
+            for (int i : bad) {
+                const std::string text = file({i});
+                const size_t at = text.find("end_header\n") + 11 + size_t(i) * rec;
+                EXPECT_ERROR(text, "test.ply: byte " + std::to_string(at) + ": vertex " +
+                                       std::to_string(i) + ": non-finite coordinate (");
+            }
+            const std::string text = file(bad);
+            MeshLoadOptions o;
+            o.drop_invalid = true;
+            MeshLoadInfo info;
+            TriangleMesh m = load(text, o, &info);
+            std::vector<Vec3f> positions;
+            for (int i = 0; i < nv; ++i)
+                if (!is_bad(i)) positions.emplace_back(float(i), 0.25f * float(i), -1.0f);
+            EXPECT_EQ(m.positions, positions);
+            // Faces (f, f + 1, f + 2) touching 1023, 1024 or 3002: f = 1021 to 1024, 3000 to 3002.
+            EXPECT_EQ(info.dropped_faces, 7u);
+            EXPECT_EQ(m.triangle_count(), size_t(nv - 2 - 7));
         }
     }
 }
