@@ -401,6 +401,9 @@ inline int64_t load_int(const char* p, PlyType t) {
     }
 }
 
+// Face records "3 a b c" (uchar count, 4-byte indices) are 13 bytes each.
+constexpr size_t kTriangleRecord = 1 + 3 * 4;
+
 // How far ahead the binary decoders prefetch: the hardware prefetchers stop at 4 KiB page
 // boundaries, and the file's pages lie anywhere in memory.
 constexpr size_t kPrefetchBytes = 1024;
@@ -435,6 +438,50 @@ template <bool Swap>
                       std::bit_cast<float>(load_uint<Swap, uint32_t>(r + 8)));
         if (!is_finite(p)) return k;
         out[k] = p;
+    }
+    return n;
+#endif
+}
+
+// Decodes up to n face records at r into out while they are "3 a b c" with a, b, c below
+// `limit` and all different; returns how many it took (the record after them is anything
+// else). With SSSE3 one 16-byte load and one shuffle per record take the indices out and
+// swap their bytes for big-endian input; it reads 3 bytes past the last record (the Input
+// padding) and writes 4 bytes past out[n - 1], so out must hold n + 1 triangles.
+template <bool Swap>
+[[gnu::always_inline]] inline size_t decode_triangles(const char* r, size_t n, uint32_t limit,
+                                                      Vec3u* out) {
+#if defined(__SSSE3__)
+    const __m128i take = Swap
+                             ? _mm_setr_epi8(4, 3, 2, 1, 8, 7, 6, 5, 12, 11, 10, 9, -1, -1, -1, -1)
+                             : _mm_setr_epi8(1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, -1, -1, -1, -1);
+    // Unsigned a < limit as signed compares of values with the top bit flipped.
+    const __m128i flip = _mm_set1_epi32(INT32_MIN);
+    const __m128i lim = _mm_set1_epi32(int32_t(limit ^ 0x80000000u));
+    for (size_t k = 0; k < n; ++k, r += kTriangleRecord) {
+        _mm_prefetch(r + kPrefetchBytes, _MM_HINT_T0);
+        const __m128i rec = _mm_loadu_si128(reinterpret_cast<const __m128i*>(r));
+        const __m128i idx = _mm_shuffle_epi8(rec, take);  // a, b, c, 0
+        // Lanes 0-2: index in range; index equal to the next one (a = b, b = c, c = a).
+        const __m128i in_range = _mm_cmpgt_epi32(lim, _mm_xor_si128(idx, flip));
+        const __m128i repeated =
+            _mm_cmpeq_epi32(idx, _mm_shuffle_epi32(idx, _MM_SHUFFLE(3, 0, 2, 1)));
+        const int bad = (~_mm_movemask_ps(_mm_castsi128_ps(in_range)) |
+                         _mm_movemask_ps(_mm_castsi128_ps(repeated))) &
+                        7;
+        if (bad | (uint8_t(r[0]) ^ 3)) return k;
+        _mm_storeu_si128(reinterpret_cast<__m128i*>(out + k), idx);
+    }
+    return n;
+#else
+    for (size_t k = 0; k < n; ++k, r += kTriangleRecord) {
+        const uint32_t a = load_uint<Swap, uint32_t>(r + 1);
+        const uint32_t b = load_uint<Swap, uint32_t>(r + 5);
+        const uint32_t c = load_uint<Swap, uint32_t>(r + 9);
+        if ((uint8_t(r[0]) != 3) | (a >= limit) | (b >= limit) | (c >= limit) | (a == b) |
+            (b == c) | (a == c))
+            return k;
+        out[k] = Vec3u(a, b, c);
     }
     return n;
 #endif
@@ -1576,33 +1623,22 @@ template <bool Swap>
 void PlyParser::read_binary_faces_fast(Element& el) {
     const Property& p = el.props[0];
     const size_t isz = type_size(p.type);
-    constexpr size_t kRecord = 1 + 3 * 4;
     constexpr size_t kRun = 1024;  // 12 KiB of triangles
-    Vec3u run[kRun];
+    Vec3u run[kRun + 1];           // + 1: decode_triangles writes past the last
     // Signed indices are valid below 2^31 however many vertices the header declares.
-    const uint64_t limit = p.type == PlyType::i32
-                               ? std::min<uint64_t>(vertex_count_, uint64_t(INT32_MAX) + 1)
-                               : vertex_count_;
+    const uint32_t limit =
+        uint32_t(p.type == PlyType::i32 ? std::min<uint64_t>(vertex_count_, uint64_t(INT32_MAX) + 1)
+                                        : vertex_count_);
     const bool runs = isz == 4;
     int64_t idx[3];
     for (uint64_t i = 0; i < el.count;) {
         if (runs && bad_vertex_.empty()) {
             const size_t n = size_t(std::min<uint64_t>(
-                {el.count - i, uint64_t(in_.avail() / kRecord), uint64_t(kRun)}));
-            const char* r = in_.pos();
-            size_t k = 0;
-            for (; k < n; ++k, r += kRecord) {
-                const uint64_t a = load_uint<Swap, uint32_t>(r + 1);
-                const uint64_t b = load_uint<Swap, uint32_t>(r + 5);
-                const uint64_t c = load_uint<Swap, uint32_t>(r + 9);
-                if ((uint8_t(r[0]) != 3) | (a >= limit) | (b >= limit) | (c >= limit) | (a == b) |
-                    (b == c) | (a == c))
-                    break;
-                run[k] = Vec3u(uint32_t(a), uint32_t(b), uint32_t(c));
-            }
+                {el.count - i, uint64_t(in_.avail() / kTriangleRecord), uint64_t(kRun)}));
+            const size_t k = decode_triangles<Swap>(in_.pos(), n, limit, run);
             mesh_.triangles.insert(mesh_.triangles.end(), run, run + k);
             source_faces_ += k;
-            in_.advance(k * kRecord);
+            in_.advance(k * kTriangleRecord);
             i += k;
             if (k == kRun) continue;
             if (i == el.count) break;

@@ -375,9 +375,11 @@ TEST(PlyReader, BinaryFaceRunsMatchRecordByRecord) {
         if (f == 0 || f == 1023 || f == 1024 || f == 5000) {
             c = {vi(rng) % 1000, 1000 + vi(rng) % 1000, 2000 + vi(rng) % 1000,
                  3000 + vi(rng) % 1000};
-        } else if (f == 2047 || f == 2048 || f == nf - 1) {
-            const int a = vi(rng);
-            c = {a, a, (a + 1) % nv};
+        } else if (f == 2047 || f == 2048 || f == 6000) {
+            // a = b, b = c and c = a in turn.
+            const int a = vi(rng), b = (a + 1) % nv;
+            c = f % 3 == 0 ? std::vector<int>{a, a, b}
+                           : (f % 3 == 1 ? std::vector<int>{b, a, a} : std::vector<int>{a, b, a});
         } else {
             c = {vi(rng) % 1500, 1500 + vi(rng) % 1500, 3000 + vi(rng) % 2000};
         }
