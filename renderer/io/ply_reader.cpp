@@ -422,7 +422,7 @@ template <bool Swap>
                               : _mm_setr_epi8(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, -1, -1, -1, -1);
     const __m128i exponent = _mm_set1_epi32(0x7f800000);
     for (size_t k = 0; k < n; ++k, r += rec) {
-        _mm_prefetch(r + kPrefetchBytes, _MM_HINT_T0);
+        __builtin_prefetch(r + kPrefetchBytes);
         const __m128i xyz =
             _mm_shuffle_epi8(_mm_loadu_si128(reinterpret_cast<const __m128i*>(r)), order);
         // Infinities and NaNs have every exponent bit set.
@@ -433,6 +433,7 @@ template <bool Swap>
     return n;
 #else
     for (size_t k = 0; k < n; ++k, r += rec) {
+        __builtin_prefetch(r + kPrefetchBytes);
         const Vec3f p(std::bit_cast<float>(load_uint<Swap, uint32_t>(r)),
                       std::bit_cast<float>(load_uint<Swap, uint32_t>(r + 4)),
                       std::bit_cast<float>(load_uint<Swap, uint32_t>(r + 8)));
@@ -459,7 +460,7 @@ template <bool Swap>
     const __m128i flip = _mm_set1_epi32(INT32_MIN);
     const __m128i lim = _mm_set1_epi32(int32_t(limit ^ 0x80000000u));
     for (size_t k = 0; k < n; ++k, r += kTriangleRecord) {
-        _mm_prefetch(r + kPrefetchBytes, _MM_HINT_T0);
+        __builtin_prefetch(r + kPrefetchBytes);
         const __m128i rec = _mm_loadu_si128(reinterpret_cast<const __m128i*>(r));
         const __m128i idx = _mm_shuffle_epi8(rec, take);  // a, b, c, 0
         // Lanes 0-2: index in range; index equal to the next one (a = b, b = c, c = a).
@@ -475,6 +476,7 @@ template <bool Swap>
     return n;
 #else
     for (size_t k = 0; k < n; ++k, r += kTriangleRecord) {
+        __builtin_prefetch(r + kPrefetchBytes);
         const uint32_t a = load_uint<Swap, uint32_t>(r + 1);
         const uint32_t b = load_uint<Swap, uint32_t>(r + 5);
         const uint32_t c = load_uint<Swap, uint32_t>(r + 9);
