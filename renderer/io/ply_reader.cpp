@@ -34,6 +34,7 @@
 #endif
 
 #include "renderer/core/error.h"
+#include "renderer/core/huge_pages.h"
 #include "renderer/core/timer.h"
 
 namespace kdt {
@@ -398,6 +399,94 @@ inline int64_t load_int(const char* p, PlyType t) {
         default:
             return 0;
     }
+}
+
+// Face records "3 a b c" (uchar count, 4-byte indices) are 13 bytes each.
+constexpr size_t kTriangleRecord = 1 + 3 * 4;
+
+// How far ahead the binary decoders prefetch: the hardware prefetchers stop at 4 KiB page
+// boundaries, and the file's pages lie anywhere in memory.
+constexpr size_t kPrefetchBytes = 1024;
+
+// Decodes the float x, y, z at r, r + rec, r + 2 rec, ... (up to n records) into out while
+// they are finite; returns how many it took. With SSSE3 one 16-byte load per record,
+// byte-swapped by a shuffle for big-endian input; it reads 4 bytes past the last z (inside
+// the record or the Input padding) and writes 4 bytes past out[n - 1], so out must hold
+// n + 1 positions.
+template <bool Swap>
+[[gnu::always_inline]] inline size_t decode_positions(const char* r, size_t n, size_t rec,
+                                                      Vec3f* out) {
+#if defined(__SSSE3__)
+    const __m128i order = Swap
+                              ? _mm_setr_epi8(3, 2, 1, 0, 7, 6, 5, 4, 11, 10, 9, 8, -1, -1, -1, -1)
+                              : _mm_setr_epi8(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, -1, -1, -1, -1);
+    const __m128i exponent = _mm_set1_epi32(0x7f800000);
+    for (size_t k = 0; k < n; ++k, r += rec) {
+        __builtin_prefetch(r + kPrefetchBytes);
+        const __m128i xyz =
+            _mm_shuffle_epi8(_mm_loadu_si128(reinterpret_cast<const __m128i*>(r)), order);
+        // Infinities and NaNs have every exponent bit set.
+        const __m128i inf_nan = _mm_cmpeq_epi32(_mm_and_si128(xyz, exponent), exponent);
+        if (_mm_movemask_ps(_mm_castsi128_ps(inf_nan)) & 7) return k;
+        _mm_storeu_si128(reinterpret_cast<__m128i*>(out + k), xyz);
+    }
+    return n;
+#else
+    for (size_t k = 0; k < n; ++k, r += rec) {
+        __builtin_prefetch(r + kPrefetchBytes);
+        const Vec3f p(std::bit_cast<float>(load_uint<Swap, uint32_t>(r)),
+                      std::bit_cast<float>(load_uint<Swap, uint32_t>(r + 4)),
+                      std::bit_cast<float>(load_uint<Swap, uint32_t>(r + 8)));
+        if (!is_finite(p)) return k;
+        out[k] = p;
+    }
+    return n;
+#endif
+}
+
+// Decodes up to n face records at r into out while they are "3 a b c" with a, b, c below
+// `limit` and all different; returns how many it took (the record after them is anything
+// else). With SSSE3 one 16-byte load and one shuffle per record take the indices out and
+// swap their bytes for big-endian input; it reads 3 bytes past the last record (the Input
+// padding) and writes 4 bytes past out[n - 1], so out must hold n + 1 triangles.
+template <bool Swap>
+[[gnu::always_inline]] inline size_t decode_triangles(const char* r, size_t n, uint32_t limit,
+                                                      Vec3u* out) {
+#if defined(__SSSE3__)
+    const __m128i take = Swap
+                             ? _mm_setr_epi8(4, 3, 2, 1, 8, 7, 6, 5, 12, 11, 10, 9, -1, -1, -1, -1)
+                             : _mm_setr_epi8(1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, -1, -1, -1, -1);
+    // Unsigned a < limit as signed compares of values with the top bit flipped.
+    const __m128i flip = _mm_set1_epi32(INT32_MIN);
+    const __m128i lim = _mm_set1_epi32(int32_t(limit ^ 0x80000000u));
+    for (size_t k = 0; k < n; ++k, r += kTriangleRecord) {
+        __builtin_prefetch(r + kPrefetchBytes);
+        const __m128i rec = _mm_loadu_si128(reinterpret_cast<const __m128i*>(r));
+        const __m128i idx = _mm_shuffle_epi8(rec, take);  // a, b, c, 0
+        // Lanes 0-2: index in range; index equal to the next one (a = b, b = c, c = a).
+        const __m128i in_range = _mm_cmpgt_epi32(lim, _mm_xor_si128(idx, flip));
+        const __m128i repeated =
+            _mm_cmpeq_epi32(idx, _mm_shuffle_epi32(idx, _MM_SHUFFLE(3, 0, 2, 1)));
+        const int bad = (~_mm_movemask_ps(_mm_castsi128_ps(in_range)) |
+                         _mm_movemask_ps(_mm_castsi128_ps(repeated))) &
+                        7;
+        if (bad | (uint8_t(r[0]) ^ 3)) return k;
+        _mm_storeu_si128(reinterpret_cast<__m128i*>(out + k), idx);
+    }
+    return n;
+#else
+    for (size_t k = 0; k < n; ++k, r += kTriangleRecord) {
+        __builtin_prefetch(r + kPrefetchBytes);
+        const uint32_t a = load_uint<Swap, uint32_t>(r + 1);
+        const uint32_t b = load_uint<Swap, uint32_t>(r + 5);
+        const uint32_t c = load_uint<Swap, uint32_t>(r + 9);
+        if ((uint8_t(r[0]) != 3) | (a >= limit) | (b >= limit) | (c >= limit) | (a == b) |
+            (b == c) | (a == c))
+            return k;
+        out[k] = Vec3u(a, b, c);
+    }
+    return n;
+#endif
 }
 
 // ---------------------------------------------------------------------------------------
@@ -1412,7 +1501,8 @@ void PlyParser::emit_face(const Element& el, uint64_t i, const int64_t* idx, siz
 
 // ---- binary -------------------------------------------------------------------------------
 
-// Vertex element of scalars only: fixed-size records, decoded in whole-buffer batches.
+// Vertex element of scalars only: fixed-size records, decoded in whole-buffer batches and
+// appended to the positions (reserved, not sized: no zero fill before the real values).
 template <bool Swap>
 void PlyParser::read_binary_vertices_fixed(Element& el) {
     struct Plan {
@@ -1433,6 +1523,8 @@ void PlyParser::read_binary_vertices_fixed(Element& el) {
                           plan[2].slot == kPosZ && plan[0].offset + 4 == plan[1].offset &&
                           plan[1].offset + 4 == plan[2].offset && plan[0].type == PlyType::f32 &&
                           plan[1].type == PlyType::f32 && plan[2].type == PlyType::f32;
+    constexpr size_t kRun = 1024;  // 12 KiB of positions, in L1
+    Vec3f run[kRun + 1];           // + 1: decode_positions writes past the last
     uint64_t i = 0;
     float v[9] = {};
     while (i < el.count) {
@@ -1441,21 +1533,25 @@ void PlyParser::read_binary_vertices_fixed(Element& el) {
         uint64_t n = std::min<uint64_t>(el.count - i, in_.avail() / rec);
         const char* base = in_.pos();
         if (xyz_only && bad_vertex_.empty()) {
-            const size_t o = plan[0].offset;
-            for (uint64_t k = 0; k < n; ++k) {
-                const char* r = base + k * rec + o;
-                Vec3f p(std::bit_cast<float>(load_uint<Swap, uint32_t>(r)),
-                        std::bit_cast<float>(load_uint<Swap, uint32_t>(r + 4)),
-                        std::bit_cast<float>(load_uint<Swap, uint32_t>(r + 8)));
-                if (!is_finite(p)) [[unlikely]] {
-                    record_offset_ = in_.offset() + k * rec;
-                    v[0] = p.x, v[1] = p.y, v[2] = p.z;
-                    store_vertex(el, i + k, v);
-                    continue;
-                }
-                mesh_.positions[i + k] = p;
+            // Runs of finite positions through a small array and one insert each; a
+            // non-finite one goes to store_vertex (an error, or flagged with drop_invalid).
+            n = std::min<uint64_t>(n, kRun);
+            const char* r = base + plan[0].offset;
+            uint64_t k = decode_positions<Swap>(r, size_t(n), rec, run);
+            mesh_.positions.insert(mesh_.positions.end(), run, run + k);
+            if (k < n) {
+                r += k * rec;
+                record_offset_ = in_.offset() + k * rec;
+                v[0] = std::bit_cast<float>(load_uint<Swap, uint32_t>(r));
+                v[1] = std::bit_cast<float>(load_uint<Swap, uint32_t>(r + 4));
+                v[2] = std::bit_cast<float>(load_uint<Swap, uint32_t>(r + 8));
+                mesh_.positions.emplace_back();
+                store_vertex(el, i + k, v);
+                ++k;
             }
+            n = k;
         } else {
+            mesh_.positions.resize(size_t(i + n));
             for (uint64_t k = 0; k < n; ++k) {
                 const char* r = base + k * rec;
                 for (const Plan& pl : plan)
@@ -1520,39 +1616,45 @@ void PlyParser::read_binary_record(Element& el, uint64_t i) {
 }
 
 // Face element holding only the index list with uchar count: the layout of nearly every
-// scanned mesh. Decoded straight from the buffer.
+// scanned mesh. Decoded straight from the buffer: runs of valid triangles with 4-byte indices
+// are collected in a small array (in L1) and appended by one insert each, so the loop keeps
+// its state in registers and checks no capacity per triangle; any other record (a polygon,
+// an invalid or degenerate face, one cut by the window end, other index types) takes the
+// record-by-record path.
 template <bool Swap>
 void PlyParser::read_binary_faces_fast(Element& el) {
     const Property& p = el.props[0];
     const size_t isz = type_size(p.type);
+    constexpr size_t kRun = 1024;  // 12 KiB of triangles
+    Vec3u run[kRun + 1];           // + 1: decode_triangles writes past the last
+    // Signed indices are valid below 2^31 however many vertices the header declares.
+    const uint32_t limit =
+        uint32_t(p.type == PlyType::i32 ? std::min<uint64_t>(vertex_count_, uint64_t(INT32_MAX) + 1)
+                                        : vertex_count_);
+    const bool runs = isz == 4;
     int64_t idx[3];
-    for (uint64_t i = 0; i < el.count; ++i) {
+    for (uint64_t i = 0; i < el.count;) {
+        if (runs && bad_vertex_.empty()) {
+            const size_t n = size_t(std::min<uint64_t>(
+                {el.count - i, uint64_t(in_.avail() / kTriangleRecord), uint64_t(kRun)}));
+            const size_t k = decode_triangles<Swap>(in_.pos(), n, limit, run);
+            mesh_.triangles.insert(mesh_.triangles.end(), run, run + k);
+            source_faces_ += k;
+            in_.advance(k * kTriangleRecord);
+            i += k;
+            if (k == kRun) continue;
+            if (i == el.count) break;
+        }
         record_offset_ = in_.offset();
         if (in_.avail() < 1 + 3 * isz) need(el, i, 1 + 3 * isz);
         const char* r = in_.pos();
-        unsigned count = uint8_t(*r);
-        if (count == 3) [[likely]] {
-            if (isz == 4) {
-                for (int k = 0; k < 3; ++k)
-                    idx[k] = p.type == PlyType::i32
-                                 ? int64_t(int32_t(load_uint<Swap, uint32_t>(r + 1 + 4 * k)))
-                                 : int64_t(load_uint<Swap, uint32_t>(r + 1 + 4 * k));
-            } else {
-                for (int k = 0; k < 3; ++k) idx[k] = load_int<Swap>(r + 1 + isz * k, p.type);
-            }
-            in_.advance(1 + 3 * isz);
-            // Inline the common path of emit_face: valid, finite, non-degenerate triangle.
-            if (uint64_t(idx[0]) < vertex_count_ && uint64_t(idx[1]) < vertex_count_ &&
-                uint64_t(idx[2]) < vertex_count_ && bad_vertex_.empty() && idx[0] != idx[1] &&
-                idx[1] != idx[2] && idx[0] != idx[2]) {
-                ++source_faces_;
-                mesh_.triangles.emplace_back(uint32_t(idx[0]), uint32_t(idx[1]), uint32_t(idx[2]));
-            } else {
-                emit_face(el, i, idx, 3);
-            }
+        if (uint8_t(*r) != 3) {
+            read_binary_record<Swap>(el, i++);
             continue;
         }
-        read_binary_record<Swap>(el, i);
+        for (int k = 0; k < 3; ++k) idx[k] = load_int<Swap>(r + 1 + isz * k, p.type);
+        in_.advance(1 + 3 * isz);
+        emit_face(el, i++, idx, 3);
     }
 }
 
@@ -2084,10 +2186,20 @@ TriangleMesh PlyParser::parse(MeshLoadInfo* info) {
     plan_elements();
     check_counts();
 
-    mesh_.positions.resize(vertex_count_);
-    if (has_normals_) mesh_.normals.resize(vertex_count_);
-    if (has_colors_) mesh_.colors.resize(vertex_count_);
-    if (face_el_ >= 0) mesh_.triangles.reserve(elements_[size_t(face_el_)].count);
+    // Huge pages for the output arrays before anything touches them: first-touch faults of
+    // 4 KiB pages would cost more than parsing a binary file.
+    reserve_huge(mesh_.positions, vertex_count_);
+    // read_binary_vertices_fixed appends the positions; other layouts write them by index.
+    if (ascii_ || elements_[size_t(vertex_el_)].has_lists) mesh_.positions.resize(vertex_count_);
+    if (has_normals_) {
+        reserve_huge(mesh_.normals, vertex_count_);
+        mesh_.normals.resize(vertex_count_);
+    }
+    if (has_colors_) {
+        reserve_huge(mesh_.colors, vertex_count_);
+        mesh_.colors.resize(vertex_count_);
+    }
+    if (face_el_ >= 0) reserve_huge(mesh_.triangles, elements_[size_t(face_el_)].count);
 
     line_ = header_lines_;
     for (Element& el : elements_) {

@@ -4,6 +4,7 @@
 #include "renderer/io/ply_reader.h"
 
 #include <zlib.h>
+#include <algorithm>
 #include <bit>
 #include <charconv>
 #include <cmath>
@@ -12,6 +13,7 @@
 #include <fstream>
 #include <random>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -356,6 +358,138 @@ TEST(PlyReader, BigPolygonFannedAndDegenerateTestedFast) {
     EXPECT_EQ(m.triangle_count(), size_t(n - 2));
     EXPECT_EQ(info.degenerate_faces, 1u);
     EXPECT_EQ(m.triangles[5], Vec3u(0, 6, 7));
+}
+
+// Binary faces of 4-byte indices are decoded in runs; a polygon, a degenerate face or a bad
+// index anywhere (at a run's start, end or middle) leaves the run to the record-by-record
+// path: same triangles, counts and errors in both byte orders, signed and unsigned, as with
+// 2-byte indices (no runs).
+TEST(PlyReader, BinaryFaceRunsMatchRecordByRecord) {
+    const int nv = 5000, nf = 9000;
+    std::mt19937 rng(11);
+    std::uniform_int_distribution<int> vi(0, nv - 1);
+    std::vector<std::vector<int>> faces;
+    std::vector<Vec3u> expected;
+    for (int f = 0; f < nf; ++f) {
+        std::vector<int> c;
+        if (f == 0 || f == 1023 || f == 1024 || f == 5000) {
+            c = {vi(rng) % 1000, 1000 + vi(rng) % 1000, 2000 + vi(rng) % 1000,
+                 3000 + vi(rng) % 1000};
+        } else if (f == 2047 || f == 2048 || f == 6000) {
+            // a = b, b = c and c = a in turn.
+            const int a = vi(rng), b = (a + 1) % nv;
+            c = f % 3 == 0 ? std::vector<int>{a, a, b}
+                           : (f % 3 == 1 ? std::vector<int>{b, a, a} : std::vector<int>{a, b, a});
+        } else {
+            c = {vi(rng) % 1500, 1500 + vi(rng) % 1500, 3000 + vi(rng) % 2000};
+        }
+        for (size_t k = 1; k + 1 < c.size(); ++k)
+            expected.emplace_back(uint32_t(c[0]), uint32_t(c[k]), uint32_t(c[k + 1]));
+        faces.push_back(c);
+    }
+    for (bool big : {false, true}) {
+        for (const char* type : {"int", "uint", "ushort"}) {
+            auto file = [&](int bad_face, int bad_index) {
+                Bytes b;
+                b.big = big;
+                for (int i = 0; i < nv; ++i) b.put(float(i)).put(0.5f).put(-1.0f);
+                for (int f = 0; f < nf; ++f) {
+                    b.put(uint8_t(faces[size_t(f)].size()));
+                    for (size_t k = 0; k < faces[size_t(f)].size(); ++k) {
+                        const int v = f == bad_face && k == 1 ? bad_index : faces[size_t(f)][k];
+                        if (std::string(type) == "ushort")
+                            b.put(uint16_t(v));
+                        else
+                            b.put(int32_t(v));
+                    }
+                }
+                return std::string("ply\nformat ") +
+                       (big ? "binary_big_endian" : "binary_little_endian") +
+                       " 1.0\nelement vertex " + std::to_string(nv) +
+                       "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
+                       std::to_string(nf) + "\nproperty list uchar " + type +
+                       " vertex_indices\nend_header\n" + b.s;
+            };
+            SCOPED_TRACE(std::string(big ? "big endian, " : "little endian, ") + type);
+            MeshLoadInfo info;
+            TriangleMesh m = load(file(-1, 0), {}, &info);
+            EXPECT_EQ(m.triangles, expected);
+            EXPECT_EQ(info.source_faces, uint64_t(nf));
+            EXPECT_EQ(info.degenerate_faces, 3u);
+            // A bad index in the middle of a run: the error names its face and first byte.
+            const std::string text = file(3000, nv + 7);
+            const size_t isz = std::string(type) == "ushort" ? 2 : 4;
+            size_t at = text.find("end_header\n") + 11 + size_t(nv) * 12;
+            for (int f = 0; f < 3000; ++f) at += 1 + faces[size_t(f)].size() * isz;
+            EXPECT_ERROR(text, "test.ply: byte " + std::to_string(at) +
+                                   ": face 3000: vertex index " + std::to_string(nv + 7) +
+                                   " out of range (5000 vertices)");
+            if (std::string(type) == "int")
+                EXPECT_ERROR(file(4095, -3), "face 4095: vertex index -3 out of range");
+        }
+    }
+}
+
+// Binary vertices of float x, y, z are decoded in runs; a non-finite one anywhere (at a run's
+// start, end or middle) goes to the record-by-record path: the same error, or with
+// drop_invalid the same dropped vertices and faces, in both byte orders, with the
+// coordinates alone in the record or after another property.
+TEST(PlyReader, BinaryVertexRunsMatchRecordByRecord) {
+    const int nv = 5000;
+    const std::vector<int> bad = {1023, 1024, 3002};  // NaN in x, y, z (i % 3)
+    auto is_bad = [&](int i) { return std::find(bad.begin(), bad.end(), i) != bad.end(); };
+    for (bool big : {false, true}) {
+        for (bool leading : {false, true}) {
+            SCOPED_TRACE(std::string(big ? "big endian" : "little endian") +
+                         (leading ? ", after another property" : ""));
+            // NaN in the vertices `nan_at` (x, y or z by i % 3).
+            auto file = [&](const std::vector<int>& nan_at) {
+                Bytes b;
+                b.big = big;
+                for (int i = 0; i < nv; ++i) {
+                    if (leading) b.put(float(-i));
+                    const bool bad_i = std::find(nan_at.begin(), nan_at.end(), i) != nan_at.end();
+                    const int nan_in = bad_i ? int(i % 3) : -1;
+                    b.put(nan_in == 0 ? NAN : float(i))
+                        .put(nan_in == 1 ? NAN : 0.25f * float(i))
+                        .put(nan_in == 2 ? NAN : -1.0f);
+                }
+                for (int f = 0; f + 2 < nv; ++f)
+                    b.put(uint8_t(3)).put(uint32_t(f)).put(uint32_t(f + 1)).put(uint32_t(f + 2));
+                return std::string("ply\nformat ") +
+                       (big ? "binary_big_endian" : "binary_little_endian") +
+                       " 1.0\nelement vertex " + std::to_string(nv) +
+                       (leading ? "\nproperty float confidence" : "") +
+                       "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
+                       std::to_string(nv - 2) +
+                       "\nproperty list uchar uint vertex_indices\nend_header\n" + b.s;
+            };
+            TriangleMesh all = load(file({}));
+            ASSERT_EQ(all.vertex_count(), size_t(nv));
+            for (int i = 0; i < nv; ++i)
+                ASSERT_EQ(all.positions[size_t(i)], Vec3f(float(i), 0.25f * float(i), -1.0f));
+            // Each bad vertex alone is an error naming it and its first byte.
+            const size_t rec = leading ? 16 : 12;
+            for (int i : bad) {
+                const std::string text = file({i});
+                const size_t at = text.find("end_header\n") + 11 + size_t(i) * rec;
+                EXPECT_ERROR(text, "test.ply: byte " + std::to_string(at) + ": vertex " +
+                                       std::to_string(i) + ": non-finite coordinate (");
+            }
+            const std::string text = file(bad);
+            MeshLoadOptions o;
+            o.drop_invalid = true;
+            MeshLoadInfo info;
+            TriangleMesh m = load(text, o, &info);
+            std::vector<Vec3f> positions;
+            for (int i = 0; i < nv; ++i)
+                if (!is_bad(i)) positions.emplace_back(float(i), 0.25f * float(i), -1.0f);
+            EXPECT_EQ(m.positions, positions);
+            // Faces (f, f + 1, f + 2) touching 1023, 1024 or 3002: f = 1021 to 1024, 3000 to 3002.
+            EXPECT_EQ(info.dropped_faces, 7u);
+            EXPECT_EQ(m.triangle_count(), size_t(nv - 2 - 7));
+        }
+    }
 }
 
 TEST(PlyReader, BinaryTrailingBytesIgnored) {
