@@ -58,6 +58,18 @@ EmitterTable build_emitter_table(const TraceScene& scene) {
     return table;
 }
 
+InstanceRuns build_instance_runs(const TraceScene& scene) {
+    InstanceRuns runs;
+    const std::vector<uint32_t>& ti = scene.triangle_instance;
+    for (size_t i = 0; i < ti.size(); ++i) {
+        if (i > 0 && ti[i] == ti[i - 1]) continue;
+        if (runs.first.size() == InstanceRuns::kMaxRuns) return {};
+        runs.first.push_back(uint32_t(i));
+        runs.instance.push_back(ti[i]);
+    }
+    return runs;
+}
+
 namespace {
 
 constexpr float kInv4Pi = 0.25f * kInvPi;
@@ -93,7 +105,7 @@ SurfacePoint make_surface(const TraceScene& scene, const Ray& ray, const Hit& hi
     Vec3f ng = glm::cross(p1 - p0, p2 - p0);
     const float len = glm::length(ng);
     ng = len > 0.0f && std::isfinite(len) ? ng / len : -ray.dir;
-    const ShadingInstance& inst = scene.instances[scene.triangle_instance[hit.prim]];
+    const ShadingInstance& inst = scene.instances[scene.instance_of(hit.prim)];
     s.material = &inst.material;
     Vec3f ns = ng;
     if (inst.smooth && !scene.normals.empty()) {
@@ -238,7 +250,7 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
             const float dist2 = glm::dot(d, d);
             const Vec3f wi_l = d / std::sqrt(dist2);
             const float cos_l = std::fabs(glm::dot(nl, wi_l));
-            const Material& lm = scene.instances[scene.triangle_instance[prim]].material;
+            const Material& lm = scene.instances[scene.instance_of(prim)].material;
             const float pdf =
                 float(double(mean_component(lm.emission)) / scene.emitters.total) * dist2 / cos_l;
             if (dist2 > 0.0f && cos_l > 0.0f && std::isfinite(pdf) && pdf > 0.0f &&
