@@ -327,7 +327,13 @@ void record_rays(const TraceScene& scene, const Camera& camera, const TraceParam
 
 Vec3f render_sample(const TraceScene& scene, const Camera& camera, const TraceParams& params, int x,
                     int y, uint32_t sample_index, PathCounters& counters) {
-    PixelSampler sampler(params.seed, uint32_t(x), uint32_t(y), sample_index);
+    return render_sample(scene, camera, params, x, y, sample_index,
+                         PixelSampler::pixel_key(params.seed, uint32_t(x), uint32_t(y)), counters);
+}
+
+Vec3f render_sample(const TraceScene& scene, const Camera& camera, const TraceParams& params, int x,
+                    int y, uint32_t sample_index, uint64_t pixel_key, PathCounters& counters) {
+    PixelSampler sampler(pixel_key, sample_index);
     const Vec2f offset = sample_pixel_filter(params.filter, sampler.next_2d());
     const Ray ray = camera.generate_ray(Vec2f(float(x), float(y)) + offset);
     ++counters.camera_rays;

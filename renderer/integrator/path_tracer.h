@@ -76,6 +76,10 @@ Vec3f trace_path(const TraceScene& scene, const TraceParams& params, const Ray& 
 /// trace_path. Non-finite results are returned as-is (see Film / render_tiles).
 Vec3f render_sample(const TraceScene& scene, const Camera& camera, const TraceParams& params, int x,
                     int y, uint32_t sample_index, PathCounters& counters);
+/// The same with pixel_key = PixelSampler::pixel_key(params.seed, x, y) computed once per
+/// pixel by the caller.
+Vec3f render_sample(const TraceScene& scene, const Camera& camera, const TraceParams& params, int x,
+                    int y, uint32_t sample_index, uint64_t pixel_key, PathCounters& counters);
 
 /// The rays one sample traces, in order: closest-hit queries (camera and bounce rays) and
 /// any-hit queries (shadow rays). For benchmarks that replay them as raw traversal.

@@ -98,6 +98,7 @@ PassStats RenderSession::render_pass(const std::vector<int>& tiles, int max_spp)
         for (int y = y0; y < y1; ++y) {
             for (int x = x0; x < x1; ++x) {
                 if (!film_.active(x, y)) continue;
+                const uint64_t key = PixelSampler::pixel_key(trace_.seed, uint32_t(x), uint32_t(y));
                 bool any = false;
                 for (int s = 0; s < spp; ++s) {
                     const uint32_t index = film_.next_sample_index(x, y);
@@ -105,7 +106,7 @@ PassStats RenderSession::render_pass(const std::vector<int>& tiles, int max_spp)
                     const uint64_t nodes0 = counters.nodes_visited,
                                    tris0 = counters.triangles_tested;
                     const Vec3f L =
-                        render_sample(snap.scene, snap.camera, trace_, x, y, index, counters);
+                        render_sample(snap.scene, snap.camera, trace_, x, y, index, key, counters);
                     if (heat) {
                         const size_t pi = size_t(y) * size_t(width) + size_t(x);
                         heat_nodes_[pi] += counters.nodes_visited - nodes0;

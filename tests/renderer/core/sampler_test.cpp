@@ -98,6 +98,11 @@ TEST(Sampler, Sobol2dMatchesItsBitByBitDefinition) {
     }
 }
 
+TEST(Sampler, HoistedPixelKeyGivesTheSameDraws) {
+    PixelSampler a(9, 3, 4, 17), b(PixelSampler::pixel_key(9, 3, 4), 17);
+    for (int i = 0; i < 12; ++i) EXPECT_EQ(a.next_2d(), b.next_2d());
+}
+
 TEST(Sampler, ScramblingDependsOnSeed) {
     EXPECT_NE(sobol_2d(3, 1).x, sobol_2d(3, 2).x);
     EXPECT_EQ(sobol_2d(3, 1).x, sobol_2d(3, 1).x);
