@@ -333,8 +333,7 @@ Vec3f trace_path(const TraceScene& scene, const TraceParams& params, const Ray& 
 void record_rays(const TraceScene& scene, const Camera& camera, const TraceParams& params, int x,
                  int y, uint32_t sample_index, RayRecord& record) {
     PixelSampler sampler(params.seed, uint32_t(x), uint32_t(y), sample_index);
-    const Vec2f offset = sample_pixel_filter(params.filter, sampler.next_2d());
-    const Ray ray = camera.generate_ray(Vec2f(float(x), float(y)) + offset);
+    const Ray ray = camera_ray(camera, params, x, y, sampler);
     PathCounters counters;
     VectorRecorder rec{&record};
     trace_path_impl(scene, params, ray, sampler, counters, rec);
@@ -349,11 +348,16 @@ Vec3f render_sample(const TraceScene& scene, const Camera& camera, const TracePa
 Vec3f render_sample(const TraceScene& scene, const Camera& camera, const TraceParams& params, int x,
                     int y, uint32_t sample_index, uint64_t pixel_key, PathCounters& counters) {
     PixelSampler sampler(pixel_key, sample_index);
-    const Vec2f offset = sample_pixel_filter(params.filter, sampler.next_2d());
-    const Ray ray = camera.generate_ray(Vec2f(float(x), float(y)) + offset);
+    const Ray ray = camera_ray(camera, params, x, y, sampler);
+    return trace_camera_ray(scene, params, ray, sampler, counters);
+}
+
+Vec3f trace_camera_ray(const TraceScene& scene, const TraceParams& params, const Ray& ray,
+                       PixelSampler& sampler, PathCounters& counters) {
     ++counters.camera_rays;
     ++counters.samples;
-    return trace_path(scene, params, ray, sampler, counters);
+    NoRecorder none;
+    return trace_path_impl(scene, params, ray, sampler, counters, none);
 }
 
 }  // namespace kdt
