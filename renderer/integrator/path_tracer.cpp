@@ -333,7 +333,7 @@ Vec3f trace_path(const TraceScene& scene, const TraceParams& params, const Ray& 
 void record_rays(const TraceScene& scene, const Camera& camera, const TraceParams& params, int x,
                  int y, uint32_t sample_index, RayRecord& record) {
     PixelSampler sampler(params.seed, uint32_t(x), uint32_t(y), sample_index);
-    const Ray ray = camera_ray(camera, params, x, y, sampler);
+    const Ray ray = camera_ray(camera, params, x, y, sampler.next_2d());
     PathCounters counters;
     VectorRecorder rec{&record};
     trace_path_impl(scene, params, ray, sampler, counters, rec);
@@ -348,7 +348,7 @@ Vec3f render_sample(const TraceScene& scene, const Camera& camera, const TracePa
 Vec3f render_sample(const TraceScene& scene, const Camera& camera, const TraceParams& params, int x,
                     int y, uint32_t sample_index, uint64_t pixel_key, PathCounters& counters) {
     PixelSampler sampler(pixel_key, sample_index);
-    const Ray ray = camera_ray(camera, params, x, y, sampler);
+    const Ray ray = camera_ray(camera, params, x, y, sampler.next_2d());
     return trace_camera_ray(scene, params, ray, sampler, counters);
 }
 

@@ -72,11 +72,11 @@ inline float power_heuristic(float pdf_a, float pdf_b) {
 Vec3f trace_path(const TraceScene& scene, const TraceParams& params, const Ray& ray,
                  PixelSampler& sampler, PathCounters& counters);
 
-/// The primary ray of a sample: draws the pixel-filter offset (the sampler's first
-/// dimension) and returns the camera ray through pixel (x, y) plus that offset.
+/// The primary ray of a sample: u_film, the sample's first draw (sampler.next_2d()), picks
+/// the pixel-filter offset; returns the camera ray through pixel (x, y) plus that offset.
 inline Ray camera_ray(const Camera& camera, const TraceParams& params, int x, int y,
-                      PixelSampler& sampler) {
-    const Vec2f offset = sample_pixel_filter(params.filter, sampler.next_2d());
+                      const Vec2f& u_film) {
+    const Vec2f offset = sample_pixel_filter(params.filter, u_film);
     return camera.generate_ray(Vec2f(float(x), float(y)) + offset);
 }
 

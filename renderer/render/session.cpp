@@ -96,14 +96,16 @@ PassStats RenderSession::render_pass(const std::vector<int>& tiles, int max_spp)
         const int x0 = (tile % tiles_x) * kTileSize, y0 = (tile / tiles_x) * kTileSize;
         const int x1 = std::min(x0 + kTileSize, width), y1 = std::min(y0 + kTileSize, height);
         // Camera rays are made for up to kBatch samples of a tile row (in pixel and sample
-        // order) before they are traced: the sampler and camera arithmetic of different
-        // samples are independent chains the CPU overlaps, instead of one latency-bound chain
-        // in front of every traversal. Each sample stays a pure function of its key, and the
-        // film sees the samples in the same order as one at a time.
+        // order) before they are traced, in separate loops for the sampler's first draw and
+        // for the rays: the draws (and the rays) of different samples are short independent
+        // chains the CPU overlaps, instead of one long latency-bound chain in front of every
+        // traversal. Each sample stays a pure function of its key, and the film sees the
+        // samples in the same order as one at a time.
         constexpr int kBatch = 16;
         struct CameraSample {
             Ray ray;
             PixelSampler sampler;
+            Vec2f u_film{0.0f};
             int x = 0;
         };
         CameraSample batch[kBatch];
@@ -133,8 +135,18 @@ PassStats RenderSession::render_pass(const std::vector<int>& tiles, int max_spp)
                     CameraSample& c = batch[n++];
                     c.x = x;
                     c.sampler = PixelSampler(key, index);
-                    c.ray = camera_ray(snap.camera, trace_, x, y, c.sampler);
                     ++s;
+                }
+                for (int i = 0; i < n; ++i) batch[i].u_film = batch[i].sampler.next_2d();
+                for (int i = 0; i < n; ++i) {
+                    CameraSample& c = batch[i];
+                    // Field by field: a whole-Ray copy from a temporary makes GCC reload
+                    // just-stored floats as 16-byte vectors (a store-forwarding stall).
+                    const Ray r = camera_ray(snap.camera, trace_, c.x, y, c.u_film);
+                    c.ray.origin = r.origin;
+                    c.ray.tmin = r.tmin;
+                    c.ray.dir = r.dir;
+                    c.ray.tmax = r.tmax;
                 }
                 for (int i = 0; i < n; ++i) {
                     CameraSample& c = batch[i];
