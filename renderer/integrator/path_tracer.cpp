@@ -145,12 +145,14 @@ struct VectorRecorder {
     void any(const Ray& r) { out->any.push_back(r); }
 };
 
+// first_hit: when set, the closest hit of camera_ray, already found by the caller (and
+// counted in tc).
 template <class Recorder>
 Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const Ray& camera_ray,
-                      PixelSampler& sampler, PathCounters& counters, Recorder& recorder) {
+                      PixelSampler& sampler, PathCounters& counters, Recorder& recorder,
+                      const Hit* first_hit = nullptr, TraversalCounters tc = {}) {
     const KdTree& tree = *scene.tree;
     const EnvironmentLight& env = *scene.env;
-    TraversalCounters tc;
     TraversalCounters* tcp = params.count_traversal ? &tc : nullptr;
     const bool use_nee = params.light_sampling != LightSampling::bsdf;
     const bool use_mis = params.light_sampling == LightSampling::mis;
@@ -161,9 +163,14 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
     bool specular_bounce = true;  // camera rays and delta bounces see the env unweighted
     float prev_bsdf_pdf = 0.0f;
     for (int depth = 0;; ++depth) {
-        Hit hit;
+        // A pointer, not a copy of *first_hit: reloading the caller's fresh scalar stores as
+        // one vector would stall store forwarding.
+        Hit found;
+        const Hit* hitp = &found;
         recorder.closest(ray);
-        if (!tree.intersect(ray, hit, tcp)) {
+        if (depth == 0 && first_hit) {
+            hitp = first_hit;
+        } else if (!tree.intersect(ray, found, tcp)) {
             if (specular_bounce || !use_nee) {
                 radiance += beta * env.eval(ray.dir);
             } else if (use_mis) {
@@ -172,6 +179,7 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
             }
             break;
         }
+        const Hit& hit = *hitp;
         // The traversal has just read the hit triangle's positions, but its shading normals
         // (and its instance, without runs) are likely cache misses: start those loads, then
         // draw this vertex's samples, which do not depend on them, while they are in flight.
@@ -356,8 +364,17 @@ Vec3f trace_camera_ray(const TraceScene& scene, const TraceParams& params, const
                        PixelSampler& sampler, PathCounters& counters) {
     ++counters.camera_rays;
     ++counters.samples;
+    // Most camera rays of a framed model miss it: those see the environment unweighted
+    // (trace_path_impl's depth-0 miss), without setting up the path loop.
+    TraversalCounters tc;
+    Hit hit;
+    if (!scene.tree->intersect(ray, hit, params.count_traversal ? &tc : nullptr)) {
+        counters.nodes_visited += tc.nodes_visited;
+        counters.triangles_tested += tc.triangles_tested;
+        return scene.env->eval(ray.dir);
+    }
     NoRecorder none;
-    return trace_path_impl(scene, params, ray, sampler, counters, none);
+    return trace_path_impl(scene, params, ray, sampler, counters, none, &hit, tc);
 }
 
 }  // namespace kdt
