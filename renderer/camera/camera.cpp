@@ -17,9 +17,8 @@ float sample_tent(float u) {
 
 }  // namespace
 
-Vec2f sample_pixel_filter(PixelFilter filter, const Vec2f& u) {
-    if (filter == PixelFilter::tent) return {0.5f + sample_tent(u.x), 0.5f + sample_tent(u.y)};
-    return u;
+Vec2f sample_tent_filter(const Vec2f& u) {
+    return {0.5f + sample_tent(u.x), 0.5f + sample_tent(u.y)};
 }
 
 Camera make_camera(const Vec3f& eye, const Vec3f& target, const Vec3f& up, float vfov_degrees,
@@ -50,6 +49,13 @@ Camera make_camera(const Vec3f& eye, const Vec3f& target, const Vec3f& up, float
     c.width = width;
     c.height = height;
     c.tan_half_vfov = std::tan(0.5f * vfov_degrees * kPi / 180.0f);
+    // sx = (2 x / width - 1) tan * aspect and sy = (1 - 2 y / height) tan, in the camera
+    // frame; generate_ray() adds x and y times the per-pixel steps to the top-left corner.
+    const float aspect = float(width) / float(height);
+    const float half_w = c.tan_half_vfov * aspect, half_h = c.tan_half_vfov;
+    c.dir_origin = c.forward - half_w * c.right + half_h * c.up;
+    c.dir_per_pixel_x = (2.0f * half_w / float(width)) * c.right;
+    c.dir_per_pixel_y = (-2.0f * half_h / float(height)) * c.up;
     return c;
 }
 

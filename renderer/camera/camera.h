@@ -16,9 +16,14 @@ namespace kdt {
 enum class PixelFilter : uint8_t { box, tent };
 inline constexpr std::array<const char*, 2> kPixelFilterNames = {"box", "tent"};
 
+/// The tent case of sample_pixel_filter().
+Vec2f sample_tent_filter(const Vec2f& u);
+
 /// Maps [0,1)^2 to an offset from the pixel's lower corner: box -> uniform over the pixel,
 /// tent -> tent of radius 1 pixel around the pixel centre.
-Vec2f sample_pixel_filter(PixelFilter filter, const Vec2f& u);
+inline Vec2f sample_pixel_filter(PixelFilter filter, const Vec2f& u) {
+    return filter == PixelFilter::tent ? sample_tent_filter(u) : u;
+}
 
 /// A pinhole camera with a precomputed world-space frame.
 struct Camera {
@@ -30,15 +35,19 @@ struct Camera {
     int width = 640, height = 480;     ///< film size in pixels
     float tan_half_vfov = 0.0f;        ///< derived by make_camera()
 
+    /// Derived by make_camera(): the unnormalised direction through film position (x, y)
+    /// is dir_origin + x * dir_per_pixel_x + y * dir_per_pixel_y.
+    Vec3f dir_origin{0.0f, 0.0f, -1.0f};
+    Vec3f dir_per_pixel_x{0.0f}, dir_per_pixel_y{0.0f};
+
     /// Primary ray through film position `film` (pixels; x right, y down, (0,0) top-left).
     /// dir is unit length, tmin = 0, tmax = infinity.
     Ray generate_ray(const Vec2f& film) const {
-        const float aspect = float(width) / float(height);
-        const float sx = (2.0f * film.x / float(width) - 1.0f) * tan_half_vfov * aspect;
-        const float sy = (1.0f - 2.0f * film.y / float(height)) * tan_half_vfov;
+        // forward + sx * right + sy * up with sx, sy affine in the film position, folded into
+        // make_camera's three vectors: no divisions per ray.
         Ray r;
         r.origin = eye;
-        r.dir = glm::normalize(forward + sx * right + sy * up);
+        r.dir = glm::normalize(dir_origin + film.x * dir_per_pixel_x + film.y * dir_per_pixel_y);
         return r;
     }
 };

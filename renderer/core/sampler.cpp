@@ -52,14 +52,24 @@ constexpr std::array<std::array<uint32_t, 32>, 2> make_sobol_matrices() {
 
 constexpr auto kSobol = make_sobol_matrices();
 
-// Dimension 1 by bytes of the index: 4 lookups instead of a loop over 32 bits.
-constexpr std::array<std::array<uint32_t, 256>, 4> make_sobol1_tables() {
+// Dimension 1 in the bit-reversed domain, by bytes: kSobol1Reversed[k][byte k of p] XORed
+// over k is reverse(sobol1(reverse(p))). Bit j of p is bit 31 - j of reverse(p), whose
+// generator column is kSobol[1][31 - j]. Working on reversed values saves two of the six
+// bit reversals of sobol_2d (the points are unchanged).
+constexpr uint32_t reverse_bits_constexpr(uint32_t x) {
+    uint32_t r = 0;
+    for (int i = 0; i < 32; ++i) r |= ((x >> i) & 1u) << (31 - i);
+    return r;
+}
+
+constexpr std::array<std::array<uint32_t, 256>, 4> make_sobol1_reversed_tables() {
     std::array<std::array<uint32_t, 256>, 4> t{};
     for (int byte = 0; byte < 4; ++byte) {
         for (uint32_t v = 0; v < 256; ++v) {
             uint32_t r = 0;
             for (int bit = 0; bit < 8; ++bit) {
-                if (v & (1u << bit)) r ^= kSobol[1][size_t(byte * 8 + bit)];
+                if (v & (1u << bit))
+                    r ^= reverse_bits_constexpr(kSobol[1][size_t(31 - (byte * 8 + bit))]);
             }
             t[size_t(byte)][v] = r;
         }
@@ -67,19 +77,29 @@ constexpr std::array<std::array<uint32_t, 256>, 4> make_sobol1_tables() {
     return t;
 }
 
-constexpr auto kSobol1 = make_sobol1_tables();
+constexpr auto kSobol1Reversed = make_sobol1_reversed_tables();
+
+// Bit reversal by bytes.
+constexpr std::array<uint8_t, 256> make_reverse8_table() {
+    std::array<uint8_t, 256> t{};
+    for (uint32_t v = 0; v < 256; ++v) t[v] = uint8_t(reverse_bits_constexpr(v) >> 24);
+    return t;
+}
+
+constexpr auto kReverse8 = make_reverse8_table();
 
 inline uint32_t reverse_bits(uint32_t x) {
-    x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
-    x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
-    x = ((x >> 4) & 0x0f0f0f0fu) | ((x & 0x0f0f0f0fu) << 4);
-    return __builtin_bswap32(x);
+    return (uint32_t(kReverse8[x & 0xffu]) << 24) | (uint32_t(kReverse8[(x >> 8) & 0xffu]) << 16) |
+           (uint32_t(kReverse8[(x >> 16) & 0xffu]) << 8) | kReverse8[x >> 24];
 }
 
-inline uint32_t sobol1(uint32_t i) {
-    return kSobol1[0][i & 0xffu] ^ kSobol1[1][(i >> 8) & 0xffu] ^ kSobol1[2][(i >> 16) & 0xffu] ^
-           kSobol1[3][i >> 24];
+// reverse(sobol1(reverse(p))).
+inline uint32_t sobol1_reversed(uint32_t p) {
+    return kSobol1Reversed[0][p & 0xffu] ^ kSobol1Reversed[1][(p >> 8) & 0xffu] ^
+           kSobol1Reversed[2][(p >> 16) & 0xffu] ^ kSobol1Reversed[3][p >> 24];
 }
+
+inline uint32_t sobol1(uint32_t i) { return reverse_bits(sobol1_reversed(reverse_bits(i))); }
 
 // A hash that only propagates bits upwards: applied to bit-reversed values it flips each
 // bit depending only on the more significant bits, which is an Owen scramble
@@ -109,10 +129,14 @@ Vec2f sobol_2d(uint32_t index, uint64_t seed) {
     // Shuffle the sample order (so that padded dimensions decorrelate), then scramble each
     // coordinate with its own seed (Burley 2020, section 4).
     const auto s0 = uint32_t(seed), s1 = uint32_t(seed >> 32);
-    const uint32_t shuffled = nested_scramble(index, s0 ^ 0x5bd1e995u);
+    // The shuffled index, bit-reversed: nested_scramble(index, ...) without its last reversal.
+    const uint32_t shuffled_reversed =
+        laine_karras_permutation(reverse_bits(index), s0 ^ 0x5bd1e995u);
     // Dimension 0 is the bit reversal, so its Owen scramble needs no reversal at all.
-    const uint32_t x = reverse_bits(laine_karras_permutation(shuffled, s0));
-    const uint32_t y = nested_scramble(sobol1(shuffled), s1);
+    const uint32_t x = reverse_bits(laine_karras_permutation(reverse_bits(shuffled_reversed), s0));
+    // Dimension 1 scrambled: reverse(LK(reverse(sobol1(shuffled)))), the inner part tabled.
+    const uint32_t y =
+        reverse_bits(laine_karras_permutation(sobol1_reversed(shuffled_reversed), s1));
     return {bits_to_unit_float(x), bits_to_unit_float(y)};
 }
 

@@ -63,8 +63,18 @@ class PixelSampler {
 public:
     static constexpr uint32_t kSobolPairs = 7;  ///< camera + 2 bounces of 3 pairs
 
+    /// A placeholder (pixel key 0, sample 0), for arrays filled later.
+    PixelSampler() = default;
     PixelSampler(uint64_t seed, uint32_t x, uint32_t y, uint32_t sample_index)
-        : pixel_key_(hash64(seed, (uint64_t(y) << 32) | x)), index_(sample_index) {}
+        : PixelSampler(pixel_key(seed, x, y), sample_index) {}
+    /// The same from key = pixel_key(seed, x, y), which callers may hoist out of a pixel's
+    /// sample loop.
+    PixelSampler(uint64_t key, uint32_t sample_index) : pixel_key_(key), index_(sample_index) {}
+
+    /// What every sampler of pixel (x, y) for `seed` derives its draws from.
+    static uint64_t pixel_key(uint64_t seed, uint32_t x, uint32_t y) {
+        return hash64(seed, (uint64_t(y) << 32) | x);
+    }
 
     /// Next 2D sample in [0,1)^2.
     Vec2f next_2d() {
@@ -82,8 +92,8 @@ public:
     uint32_t dimension() const { return dim_; }
 
 private:
-    uint64_t pixel_key_;
-    uint32_t index_;
+    uint64_t pixel_key_ = 0;
+    uint32_t index_ = 0;
     uint32_t dim_ = 0;
 };
 

@@ -58,6 +58,18 @@ EmitterTable build_emitter_table(const TraceScene& scene) {
     return table;
 }
 
+InstanceRuns build_instance_runs(const TraceScene& scene) {
+    InstanceRuns runs;
+    const std::vector<uint32_t>& ti = scene.triangle_instance;
+    for (size_t i = 0; i < ti.size(); ++i) {
+        if (i > 0 && ti[i] == ti[i - 1]) continue;
+        if (runs.first.size() == InstanceRuns::kMaxRuns) return {};
+        runs.first.push_back(uint32_t(i));
+        runs.instance.push_back(ti[i]);
+    }
+    return runs;
+}
+
 namespace {
 
 constexpr float kInv4Pi = 0.25f * kInvPi;
@@ -93,7 +105,7 @@ SurfacePoint make_surface(const TraceScene& scene, const Ray& ray, const Hit& hi
     Vec3f ng = glm::cross(p1 - p0, p2 - p0);
     const float len = glm::length(ng);
     ng = len > 0.0f && std::isfinite(len) ? ng / len : -ray.dir;
-    const ShadingInstance& inst = scene.instances[scene.triangle_instance[hit.prim]];
+    const ShadingInstance& inst = scene.instances[scene.instance_of(hit.prim)];
     s.material = &inst.material;
     Vec3f ns = ng;
     if (inst.smooth && !scene.normals.empty()) {
@@ -133,12 +145,14 @@ struct VectorRecorder {
     void any(const Ray& r) { out->any.push_back(r); }
 };
 
+// first_hit: when set, the closest hit of camera_ray, already found by the caller (and
+// counted in tc).
 template <class Recorder>
 Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const Ray& camera_ray,
-                      PixelSampler& sampler, PathCounters& counters, Recorder& recorder) {
+                      PixelSampler& sampler, PathCounters& counters, Recorder& recorder,
+                      const Hit* first_hit = nullptr, TraversalCounters tc = {}) {
     const KdTree& tree = *scene.tree;
     const EnvironmentLight& env = *scene.env;
-    TraversalCounters tc;
     TraversalCounters* tcp = params.count_traversal ? &tc : nullptr;
     const bool use_nee = params.light_sampling != LightSampling::bsdf;
     const bool use_mis = params.light_sampling == LightSampling::mis;
@@ -149,9 +163,14 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
     bool specular_bounce = true;  // camera rays and delta bounces see the env unweighted
     float prev_bsdf_pdf = 0.0f;
     for (int depth = 0;; ++depth) {
-        Hit hit;
+        // A pointer, not a copy of *first_hit: reloading the caller's fresh scalar stores as
+        // one vector would stall store forwarding.
+        Hit found;
+        const Hit* hitp = &found;
         recorder.closest(ray);
-        if (!tree.intersect(ray, hit, tcp)) {
+        if (depth == 0 && first_hit) {
+            hitp = first_hit;
+        } else if (!tree.intersect(ray, found, tcp)) {
             if (specular_bounce || !use_nee) {
                 radiance += beta * env.eval(ray.dir);
             } else if (use_mis) {
@@ -160,6 +179,25 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
             }
             break;
         }
+        const Hit& hit = *hitp;
+        // The traversal has just read the hit triangle's positions, but its shading normals
+        // (and its instance, without runs) are likely cache misses: start those loads, then
+        // draw this vertex's samples, which do not depend on them, while they are in flight.
+        // A path that ends here draws samples it does not use, which changes nothing.
+        // (Written out here: GCC deletes calls to a function that only prefetches, which it
+        // finds free of side effects.)
+        if (!scene.normals.empty()) {
+            const Vec3u& tri = scene.mesh->triangles[hit.prim];
+            __builtin_prefetch(&scene.normals[tri.x]);
+            __builtin_prefetch(&scene.normals[tri.y]);
+            __builtin_prefetch(&scene.normals[tri.z]);
+        }
+        if (scene.runs.first.empty() || scene.runs.first.size() > InstanceRuns::kMaxRuns)
+            __builtin_prefetch(&scene.triangle_instance[hit.prim]);
+        const Vec2f u_light = sampler.next_2d();
+        const Vec2f u_bsdf = sampler.next_2d();
+        const Vec2f u_lobe_rr = sampler.next_2d();
+
         // Surface hit after `depth` scattering events; scattering here makes depth + 1.
         const SurfacePoint sp = make_surface(scene, ray, hit);
         const Material& mat = *sp.material;
@@ -179,9 +217,6 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
         }
         if (depth + 1 > params.max_depth || is_black(mat)) break;
 
-        const Vec2f u_light = sampler.next_2d();
-        const Vec2f u_bsdf = sampler.next_2d();
-        const Vec2f u_lobe_rr = sampler.next_2d();
         const Vec3f wo_world = -ray.dir;
         const Vec3f wo = sp.frame.to_local(wo_world);
 
@@ -238,7 +273,7 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
             const float dist2 = glm::dot(d, d);
             const Vec3f wi_l = d / std::sqrt(dist2);
             const float cos_l = std::fabs(glm::dot(nl, wi_l));
-            const Material& lm = scene.instances[scene.triangle_instance[prim]].material;
+            const Material& lm = scene.instances[scene.instance_of(prim)].material;
             const float pdf =
                 float(double(mean_component(lm.emission)) / scene.emitters.total) * dist2 / cos_l;
             if (dist2 > 0.0f && cos_l > 0.0f && std::isfinite(pdf) && pdf > 0.0f &&
@@ -306,8 +341,7 @@ Vec3f trace_path(const TraceScene& scene, const TraceParams& params, const Ray& 
 void record_rays(const TraceScene& scene, const Camera& camera, const TraceParams& params, int x,
                  int y, uint32_t sample_index, RayRecord& record) {
     PixelSampler sampler(params.seed, uint32_t(x), uint32_t(y), sample_index);
-    const Vec2f offset = sample_pixel_filter(params.filter, sampler.next_2d());
-    const Ray ray = camera.generate_ray(Vec2f(float(x), float(y)) + offset);
+    const Ray ray = camera_ray(camera, params, x, y, sampler.next_2d());
     PathCounters counters;
     VectorRecorder rec{&record};
     trace_path_impl(scene, params, ray, sampler, counters, rec);
@@ -315,12 +349,32 @@ void record_rays(const TraceScene& scene, const Camera& camera, const TraceParam
 
 Vec3f render_sample(const TraceScene& scene, const Camera& camera, const TraceParams& params, int x,
                     int y, uint32_t sample_index, PathCounters& counters) {
-    PixelSampler sampler(params.seed, uint32_t(x), uint32_t(y), sample_index);
-    const Vec2f offset = sample_pixel_filter(params.filter, sampler.next_2d());
-    const Ray ray = camera.generate_ray(Vec2f(float(x), float(y)) + offset);
+    return render_sample(scene, camera, params, x, y, sample_index,
+                         PixelSampler::pixel_key(params.seed, uint32_t(x), uint32_t(y)), counters);
+}
+
+Vec3f render_sample(const TraceScene& scene, const Camera& camera, const TraceParams& params, int x,
+                    int y, uint32_t sample_index, uint64_t pixel_key, PathCounters& counters) {
+    PixelSampler sampler(pixel_key, sample_index);
+    const Ray ray = camera_ray(camera, params, x, y, sampler.next_2d());
+    return trace_camera_ray(scene, params, ray, sampler, counters);
+}
+
+Vec3f trace_camera_ray(const TraceScene& scene, const TraceParams& params, const Ray& ray,
+                       PixelSampler& sampler, PathCounters& counters) {
     ++counters.camera_rays;
     ++counters.samples;
-    return trace_path(scene, params, ray, sampler, counters);
+    // Most camera rays of a framed model miss it: those see the environment unweighted
+    // (trace_path_impl's depth-0 miss), without setting up the path loop.
+    TraversalCounters tc;
+    Hit hit;
+    if (!scene.tree->intersect(ray, hit, params.count_traversal ? &tc : nullptr)) {
+        counters.nodes_visited += tc.nodes_visited;
+        counters.triangles_tested += tc.triangles_tested;
+        return scene.env->eval(ray.dir);
+    }
+    NoRecorder none;
+    return trace_path_impl(scene, params, ray, sampler, counters, none, &hit, tc);
 }
 
 }  // namespace kdt

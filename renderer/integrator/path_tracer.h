@@ -72,10 +72,26 @@ inline float power_heuristic(float pdf_a, float pdf_b) {
 Vec3f trace_path(const TraceScene& scene, const TraceParams& params, const Ray& ray,
                  PixelSampler& sampler, PathCounters& counters);
 
-/// One sample of pixel (x, y) with index sample_index: filter-sampled camera ray, then
-/// trace_path. Non-finite results are returned as-is (see Film / render_tiles).
+/// The primary ray of a sample: u_film, the sample's first draw (sampler.next_2d()), picks
+/// the pixel-filter offset; returns the camera ray through pixel (x, y) plus that offset.
+inline Ray camera_ray(const Camera& camera, const TraceParams& params, int x, int y,
+                      const Vec2f& u_film) {
+    const Vec2f offset = sample_pixel_filter(params.filter, u_film);
+    return camera.generate_ray(Vec2f(float(x), float(y)) + offset);
+}
+
+/// trace_path() of a ray from camera_ray(), counted as one sample and one camera ray.
+Vec3f trace_camera_ray(const TraceScene& scene, const TraceParams& params, const Ray& ray,
+                       PixelSampler& sampler, PathCounters& counters);
+
+/// One sample of pixel (x, y) with index sample_index: camera_ray(), then
+/// trace_camera_ray(). Non-finite results are returned as-is (see Film / render_tiles).
 Vec3f render_sample(const TraceScene& scene, const Camera& camera, const TraceParams& params, int x,
                     int y, uint32_t sample_index, PathCounters& counters);
+/// The same with pixel_key = PixelSampler::pixel_key(params.seed, x, y) computed once per
+/// pixel by the caller.
+Vec3f render_sample(const TraceScene& scene, const Camera& camera, const TraceParams& params, int x,
+                    int y, uint32_t sample_index, uint64_t pixel_key, PathCounters& counters);
 
 /// The rays one sample traces, in order: closest-hit queries (camera and bounce rays) and
 /// any-hit queries (shadow rays). For benchmarks that replay them as raw traversal.

@@ -95,31 +95,77 @@ PassStats RenderSession::render_pass(const std::vector<int>& tiles, int max_spp)
         const int tile = tiles[size_t(k)];
         const int x0 = (tile % tiles_x) * kTileSize, y0 = (tile / tiles_x) * kTileSize;
         const int x1 = std::min(x0 + kTileSize, width), y1 = std::min(y0 + kTileSize, height);
+        // Camera rays are made for up to kBatch samples of a tile row (in pixel and sample
+        // order) before they are traced, in separate loops for the sampler's first draw and
+        // for the rays: the draws (and the rays) of different samples are short independent
+        // chains the CPU overlaps, instead of one long latency-bound chain in front of every
+        // traversal. Each sample stays a pure function of its key, and the film sees the
+        // samples in the same order as one at a time.
+        constexpr int kBatch = 16;
+        struct CameraSample {
+            Ray ray;
+            PixelSampler sampler;
+            Vec2f u_film{0.0f};
+            int x = 0;
+        };
+        CameraSample batch[kBatch];
         for (int y = y0; y < y1; ++y) {
-            for (int x = x0; x < x1; ++x) {
-                if (!film_.active(x, y)) continue;
-                bool any = false;
-                for (int s = 0; s < spp; ++s) {
-                    const uint32_t index = film_.next_sample_index(x, y);
-                    if (index >= cap) break;
+            int x = x0, s = 0;  // the next sample to make: sample s of this pass at pixel x
+            uint32_t first_index = 0;
+            uint64_t key = 0;
+            while (x < x1) {
+                int n = 0;
+                while (n < kBatch && x < x1) {
+                    if (s == 0) {
+                        if (!film_.active(x, y)) {
+                            ++x;
+                            continue;
+                        }
+                        first_index = film_.next_sample_index(x, y);
+                        key = PixelSampler::pixel_key(trace_.seed, uint32_t(x), uint32_t(y));
+                    }
+                    // Every sample made is traced and advances the pixel's index by one.
+                    const uint32_t index = first_index + uint32_t(s);
+                    if (s == spp || index >= cap) {
+                        pixels_done += s > 0;
+                        ++x;
+                        s = 0;
+                        continue;
+                    }
+                    CameraSample& c = batch[n++];
+                    c.x = x;
+                    c.sampler = PixelSampler(key, index);
+                    ++s;
+                }
+                for (int i = 0; i < n; ++i) batch[i].u_film = batch[i].sampler.next_2d();
+                for (int i = 0; i < n; ++i) {
+                    CameraSample& c = batch[i];
+                    // Field by field: a whole-Ray copy from a temporary makes GCC reload
+                    // just-stored floats as 16-byte vectors (a store-forwarding stall).
+                    const Ray r = camera_ray(snap.camera, trace_, c.x, y, c.u_film);
+                    c.ray.origin = r.origin;
+                    c.ray.tmin = r.tmin;
+                    c.ray.dir = r.dir;
+                    c.ray.tmax = r.tmax;
+                }
+                for (int i = 0; i < n; ++i) {
+                    CameraSample& c = batch[i];
                     const uint64_t nodes0 = counters.nodes_visited,
                                    tris0 = counters.triangles_tested;
                     const Vec3f L =
-                        render_sample(snap.scene, snap.camera, trace_, x, y, index, counters);
+                        trace_camera_ray(snap.scene, trace_, c.ray, c.sampler, counters);
                     if (heat) {
-                        const size_t pi = size_t(y) * size_t(width) + size_t(x);
+                        const size_t pi = size_t(y) * size_t(width) + size_t(c.x);
                         heat_nodes_[pi] += counters.nodes_visited - nodes0;
                         heat_tris_[pi] += counters.triangles_tested - tris0;
                     }
                     if (is_finite(L) && L.x >= 0.0f && L.y >= 0.0f && L.z >= 0.0f) {
-                        film_.add_sample(x, y, L);
+                        film_.add_sample(c.x, y, L);
                     } else {
-                        film_.skip_sample(x, y);
+                        film_.skip_sample(c.x, y);
                         ++counters.nonfinite_dropped;
                     }
-                    any = true;
                 }
-                pixels_done += any;
             }
         }
     }

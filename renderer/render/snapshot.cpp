@@ -67,6 +67,7 @@ std::shared_ptr<const RenderSnapshot> compile_snapshot(const Scene& scene,
     ts.env = options.env ? options.env : make_environment_light(scene.environment);
     ts.tree = build_tree(options, merged);
     ts.emitters = build_emitter_table(ts);
+    ts.runs = build_instance_runs(ts);
 
     auto snap = std::make_shared<RenderSnapshot>();
     snap->scene = std::move(ts);
@@ -91,6 +92,7 @@ std::shared_ptr<const RenderSnapshot> compile_snapshot(TraceScene scene, const C
     if (!scene.env) scene.env = options.env ? options.env : make_environment_light({});
     if (!scene.tree) scene.tree = build_tree(options, scene.mesh);
     scene.emitters = build_emitter_table(scene);
+    scene.runs = build_instance_runs(scene);
     auto snap = std::make_shared<RenderSnapshot>();
     snap->scene = std::move(scene);
     snap->camera = camera;

@@ -49,6 +49,60 @@ TEST(Sampler, SobolFirstPointsAreA02Net) {
     }
 }
 
+// The definition sobol_2d() implements, written out bit by bit: shuffle the index by a
+// nested uniform scramble, take Sobol dimensions 0 and 1 of it (generator matrices from
+// the direction numbers), Owen-scramble each coordinate with its own seed.
+uint32_t reverse_reference(uint32_t x) {
+    uint32_t r = 0;
+    for (int i = 0; i < 32; ++i) r |= ((x >> i) & 1u) << (31 - i);
+    return r;
+}
+
+uint32_t laine_karras_reference(uint32_t x, uint32_t seed) {
+    x += seed;
+    x ^= x * 0x6c50b47cu;
+    x ^= x * 0xb82f1e52u;
+    x ^= x * 0xc7afe638u;
+    x ^= x * 0x8d22f6e6u;
+    return x;
+}
+
+uint32_t scramble_reference(uint32_t x, uint32_t seed) {
+    return reverse_reference(laine_karras_reference(reverse_reference(x), seed));
+}
+
+uint32_t sobol1_reference(uint32_t index) {
+    uint32_t r = 0, m = 1;
+    for (int k = 1; k <= 32; ++k) {
+        if (k > 1) m = (m << 1) ^ m;
+        if (index & (1u << (k - 1))) r ^= m << (32 - k);
+    }
+    return r;
+}
+
+TEST(Sampler, Sobol2dMatchesItsBitByBitDefinition) {
+    Pcg32 rng(5);
+    for (int i = 0; i < 20000; ++i) {
+        const uint32_t index = i < 10000 ? uint32_t(i) : rng.next_u32();
+        const uint64_t seed = (uint64_t(rng.next_u32()) << 32) | rng.next_u32();
+        const auto s0 = uint32_t(seed), s1 = uint32_t(seed >> 32);
+        const uint32_t shuffled = scramble_reference(index, s0 ^ 0x5bd1e995u);
+        const uint32_t x = scramble_reference(reverse_reference(shuffled), s0);
+        const uint32_t y = scramble_reference(sobol1_reference(shuffled), s1);
+        const Vec2f p = sobol_2d(index, seed);
+        ASSERT_EQ(p.x, bits_to_unit_float(x)) << "index " << index << " seed " << seed;
+        ASSERT_EQ(p.y, bits_to_unit_float(y)) << "index " << index << " seed " << seed;
+        ASSERT_EQ(sobol_u32(index, 0), reverse_reference(index));
+        ASSERT_EQ(sobol_u32(index, 1), sobol1_reference(index));
+        ASSERT_EQ(owen_scramble(index, s1), scramble_reference(index, s1));
+    }
+}
+
+TEST(Sampler, HoistedPixelKeyGivesTheSameDraws) {
+    PixelSampler a(9, 3, 4, 17), b(PixelSampler::pixel_key(9, 3, 4), 17);
+    for (int i = 0; i < 12; ++i) EXPECT_EQ(a.next_2d(), b.next_2d());
+}
+
 TEST(Sampler, ScramblingDependsOnSeed) {
     EXPECT_NE(sobol_2d(3, 1).x, sobol_2d(3, 2).x);
     EXPECT_EQ(sobol_2d(3, 1).x, sobol_2d(3, 1).x);

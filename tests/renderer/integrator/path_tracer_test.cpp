@@ -486,6 +486,32 @@ TEST(PathTracer, OffsetOriginsDoNotSelfIntersect) {
 namespace kdt {
 namespace {
 
+// Shading looks a hit's instance up in runs of triangles; it must agree with the array.
+TEST(PathTracer, InstanceRunsAgreeWithTheTriangleInstances) {
+    TraceScene s;
+    s.triangle_instance = {0, 0, 0, 2, 2, 1, 1, 1, 1, 0};
+    s.runs = build_instance_runs(s);
+    ASSERT_EQ(s.runs.first.size(), 4u);
+    for (uint32_t i = 0; i < s.triangle_instance.size(); ++i)
+        EXPECT_EQ(s.instance_of(i), s.triangle_instance[i]) << i;
+    // More runs than kMaxRuns: none are built and the array answers.
+    s.triangle_instance.clear();
+    for (uint32_t i = 0; i < 40; ++i) s.triangle_instance.push_back(i % 3);
+    s.runs = build_instance_runs(s);
+    EXPECT_TRUE(s.runs.first.empty());
+    for (uint32_t i = 0; i < s.triangle_instance.size(); ++i)
+        EXPECT_EQ(s.instance_of(i), s.triangle_instance[i]) << i;
+    // A snapshot builds them.
+    const TraceScene scene =
+        make_scene({{make_icosphere({0, 0.5f, 0}, 0.5f, 1), test::smooth(diffuse(0.8f))},
+                    {make_box({-1, -1, -1}, {1, 0, 1}), flat(diffuse(0.5f))}},
+                   std::make_shared<ConstantEnv>(Vec3f(1.0f)));
+    const auto snap =
+        compile_snapshot(scene, make_camera({2, 2, 3}, {0, 0, 0}, {0, 1, 0}, 40, 4, 4));
+    EXPECT_EQ(snap->scene.runs.first, (std::vector<uint32_t>{0, 80}));
+    EXPECT_EQ(snap->scene.runs.instance, (std::vector<uint32_t>{0, 1}));
+}
+
 // record_rays() sees exactly the rays render_sample() traces (for the throughput bench).
 TEST(PathTracer, RecordedRaysMatchTheCounters) {
     const TraceScene scene =

@@ -117,6 +117,7 @@ inline TraceScene make_scene(const std::vector<std::pair<TriangleMesh, ShadingIn
     s.mesh = merged;
     s.env = std::move(env);
     s.tree = build_kdtree(merged, KdTreeParams{});
+    s.runs = build_instance_runs(s);
     return s;
 }
 

@@ -67,6 +67,34 @@ TEST(RenderSession, ImagesAreBitwiseIdenticalForAnyThreadCountAndTileSplit) {
     EXPECT_NE(images[0], images[1]);  // adaptive sampling changed the sample distribution
 }
 
+// The pass makes camera rays in batches; the film must hold exactly what render_sample()
+// gives sample by sample, in order, with the per-pass count and the max_spp cap applied
+// (tiles of 16 pixels, rows of 20 and 10: batches end inside pixels and rows).
+TEST(RenderSession, BatchedPassesMatchSampleBySampleRendering) {
+    auto snap = small_snapshot(20, 10);
+    TraceParams tp;
+    tp.samples_per_pass = 3;
+    tp.seed = 5;
+    RenderSession s(snap, tp, FilmParams{});
+    const PassStats first = s.render_pass(4);
+    const PassStats second = s.render_pass(4);  // one more sample each: the cap
+    EXPECT_EQ(first.counters.samples, 200u * 3u);
+    EXPECT_EQ(second.counters.samples, 200u);
+    EXPECT_EQ(second.active_pixels, 200u);
+    EXPECT_EQ(s.render_pass(4).active_pixels, 0u);
+    for (int y = 0; y < 10; ++y) {
+        for (int x = 0; x < 20; ++x) {
+            Film f(1, 1);
+            PathCounters c;
+            for (uint32_t i = 0; i < 4; ++i) {
+                f.add_sample(0, 0, render_sample(snap->scene, snap->camera, tp, x, y, i, c));
+            }
+            ASSERT_EQ(s.film().count(x, y), 4u);
+            ASSERT_EQ(s.film().mean(x, y), f.mean(0, 0)) << x << " " << y;
+        }
+    }
+}
+
 TEST(RenderSession, SeedChangesTheImage) {
     auto snap = small_snapshot(16, 16);
     TraceParams a, b;
