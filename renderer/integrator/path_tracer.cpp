@@ -377,4 +377,13 @@ Vec3f trace_camera_ray(const TraceScene& scene, const TraceParams& params, const
     return trace_path_impl(scene, params, ray, sampler, counters, none, &hit, tc);
 }
 
+Vec3f trace_camera_hit(const TraceScene& scene, const TraceParams& params, const Ray& ray,
+                       const Hit& hit, PixelSampler& sampler, PathCounters& counters) {
+    ++counters.camera_rays;
+    ++counters.samples;
+    if (hit.prim == Hit::kNoHit) return scene.env->eval(ray.dir);
+    NoRecorder none;
+    return trace_path_impl(scene, params, ray, sampler, counters, none, &hit);
+}
+
 }  // namespace kdt

@@ -84,6 +84,12 @@ inline Ray camera_ray(const Camera& camera, const TraceParams& params, int x, in
 Vec3f trace_camera_ray(const TraceScene& scene, const TraceParams& params, const Ray& ray,
                        PixelSampler& sampler, PathCounters& counters);
 
+/// trace_camera_ray() when the caller has already found the ray's closest hit (hit.prim ==
+/// kNoHit for a miss), for example with KdTree's batch query, and counted its traversal.
+/// Gives exactly what trace_camera_ray() gives.
+Vec3f trace_camera_hit(const TraceScene& scene, const TraceParams& params, const Ray& ray,
+                       const Hit& hit, PixelSampler& sampler, PathCounters& counters);
+
 /// One sample of pixel (x, y) with index sample_index: camera_ray(), then
 /// trace_camera_ray(). Non-finite results are returned as-is (see Film / render_tiles).
 Vec3f render_sample(const TraceScene& scene, const Camera& camera, const TraceParams& params, int x,

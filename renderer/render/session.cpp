@@ -103,12 +103,13 @@ PassStats RenderSession::render_pass(const std::vector<int>& tiles, int max_spp)
         // samples in the same order as one at a time.
         constexpr int kBatch = 16;
         struct CameraSample {
-            Ray ray;
             PixelSampler sampler;
             Vec2f u_film{0.0f};
             int x = 0;
         };
         CameraSample batch[kBatch];
+        Ray rays[kBatch];
+        Hit hits[kBatch];
         for (int y = y0; y < y1; ++y) {
             int x = x0, s = 0;  // the next sample to make: sample s of this pass at pixel x
             uint32_t first_index = 0;
@@ -139,21 +140,32 @@ PassStats RenderSession::render_pass(const std::vector<int>& tiles, int max_spp)
                 }
                 for (int i = 0; i < n; ++i) batch[i].u_film = batch[i].sampler.next_2d();
                 for (int i = 0; i < n; ++i) {
-                    CameraSample& c = batch[i];
                     // Field by field: a whole-Ray copy from a temporary makes GCC reload
                     // just-stored floats as 16-byte vectors (a store-forwarding stall).
-                    const Ray r = camera_ray(snap.camera, trace_, c.x, y, c.u_film);
-                    c.ray.origin = r.origin;
-                    c.ray.tmin = r.tmin;
-                    c.ray.dir = r.dir;
-                    c.ray.tmax = r.tmax;
+                    const Ray r = camera_ray(snap.camera, trace_, batch[i].x, y, batch[i].u_film);
+                    rays[i].origin = r.origin;
+                    rays[i].tmin = r.tmin;
+                    rays[i].dir = r.dir;
+                    rays[i].tmax = r.tmax;
+                }
+                // Without a heat map (which needs each ray's own counts), the camera rays go
+                // to the kd-tree's batch query: neighbouring samples' rays are coherent and
+                // traced as 8-ray packets, with exactly the hits of one query per ray.
+                if (!heat) {
+                    TraversalCounters tc;
+                    snap.scene.tree->intersect(rays, size_t(n), hits,
+                                               trace_.count_traversal ? &tc : nullptr);
+                    counters.nodes_visited += tc.nodes_visited;
+                    counters.triangles_tested += tc.triangles_tested;
                 }
                 for (int i = 0; i < n; ++i) {
                     CameraSample& c = batch[i];
                     const uint64_t nodes0 = counters.nodes_visited,
                                    tris0 = counters.triangles_tested;
                     const Vec3f L =
-                        trace_camera_ray(snap.scene, trace_, c.ray, c.sampler, counters);
+                        heat ? trace_camera_ray(snap.scene, trace_, rays[i], c.sampler, counters)
+                             : trace_camera_hit(snap.scene, trace_, rays[i], hits[i], c.sampler,
+                                                counters);
                     if (heat) {
                         const size_t pi = size_t(y) * size_t(width) + size_t(c.x);
                         heat_nodes_[pi] += counters.nodes_visited - nodes0;

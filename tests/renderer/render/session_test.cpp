@@ -142,6 +142,25 @@ TEST(RenderSession, ResetRestartsAndSnapshotSwapTakesEffect) {
     EXPECT_GT(nodes, 0u);
 }
 
+TEST(RenderSession, HeatMapPassesMatchBatchedPasses) {
+    // With a heat map, camera rays are traced one query each (for per-pixel counts);
+    // without, by the kd-tree's batch query (packets). Same films, same totals.
+    auto snap = small_snapshot(40, 24);
+    TraceParams tp;
+    tp.samples_per_pass = 3;
+    RenderSession plain(snap, tp, FilmParams{}), heat(snap, tp, FilmParams{});
+    heat.set_heat_map(true);
+    for (int pass = 0; pass < 2; ++pass) {
+        plain.render_pass();
+        heat.render_pass();
+    }
+    EXPECT_TRUE(same_bits(plain.film().linear_rgb(), heat.film().linear_rgb()));
+    EXPECT_EQ(plain.totals().rays(), heat.totals().rays());
+    EXPECT_EQ(plain.totals().nodes_visited, heat.totals().nodes_visited);
+    EXPECT_EQ(plain.totals().triangles_tested, heat.totals().triangles_tested);
+    EXPECT_GT(plain.totals().nodes_visited, 0u);
+}
+
 TEST(RenderSession, CancelStopsAPassAndKeepsFinishedTiles) {
     auto snap = small_snapshot(64, 64);
     TraceParams tp;
