@@ -147,18 +147,26 @@ void run_throughput(const ConvergeArgs& a, const RenderSnapshot& snap,
     tp.max_depth = a.path_depth;
     tp.samples_per_pass = 4;
     const int threads = a.threads > 0 ? a.threads : omp_get_max_threads();
-    // The camera rays (each sample's first closest-hit query) apart, in pixel and sample
-    // order: the render pass traces them with the batch query in groups of up to 16, and so
-    // does the replay; bounce and shadow rays go one query per ray in both.
+    // The rays in the render pass's order (tile by tile, row by row, pixel by pixel, sample
+    // by sample), so the replay has the same memory locality; the camera rays (each sample's
+    // first closest-hit query) apart: the render pass traces them with the batch query in
+    // groups of up to 16, and so does the replay; bounce and shadow rays go one query per
+    // ray in both.
     RayRecord rec;
     std::vector<Ray> camera_rays;
-    for (int y = 0; y < snap.camera.height; ++y) {
-        for (int x = 0; x < snap.camera.width; ++x) {
-            for (int s = 0; s < tp.samples_per_pass; ++s) {
-                const size_t first = rec.closest.size();
-                record_rays(snap.scene, snap.camera, tp, x, y, uint32_t(s), rec);
-                camera_rays.push_back(rec.closest[first]);
-                rec.closest.erase(rec.closest.begin() + ptrdiff_t(first));
+    const int width = snap.camera.width, height = snap.camera.height;
+    constexpr int kTile = RenderSession::kTileSize;
+    for (int y0 = 0; y0 < height; y0 += kTile) {
+        for (int x0 = 0; x0 < width; x0 += kTile) {
+            for (int y = y0; y < std::min(y0 + kTile, height); ++y) {
+                for (int x = x0; x < std::min(x0 + kTile, width); ++x) {
+                    for (int s = 0; s < tp.samples_per_pass; ++s) {
+                        const size_t first = rec.closest.size();
+                        record_rays(snap.scene, snap.camera, tp, x, y, uint32_t(s), rec);
+                        camera_rays.push_back(rec.closest[first]);
+                        rec.closest.erase(rec.closest.begin() + ptrdiff_t(first));
+                    }
+                }
             }
         }
     }
