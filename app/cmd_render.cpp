@@ -24,7 +24,8 @@ namespace {
 
 struct RenderArgs {
     std::string scene, output = "out.png", env, env_mapping, view, views;
-    float env_intensity = -1.0f, env_rotation = 0.0f;
+    float env_intensity = 1.0f, env_rotation = 0.0f;
+    bool env_intensity_given = false;
     int spp = 0;
     double seconds = 0.0;
     float error = 0.0f;
@@ -77,7 +78,7 @@ std::string rerender_command(const RenderArgs& a, const TraceParams& tp, const F
     if (!a.scene.empty()) c += " '" + a.scene + "'";
     if (!a.env.empty()) c += " --env '" + a.env + "'";
     if (!a.env_mapping.empty()) c += " --env-mapping " + a.env_mapping;
-    if (a.env_intensity > 0.0f) c += " --env-intensity " + std::to_string(a.env_intensity);
+    if (a.env_intensity_given) c += " --env-intensity " + std::to_string(a.env_intensity);
     if (a.env_rotation != 0.0f) c += " --env-rotation " + std::to_string(a.env_rotation);
     c += " --width " + std::to_string(a.width) + " --height " + std::to_string(a.height);
     c += " --seed " + std::to_string(tp.seed);
@@ -134,7 +135,7 @@ void run(const RenderArgs& a) {
     po.scene_path = a.scene;
     po.env_file = a.env;
     po.env_mapping = a.env_mapping;
-    po.env_intensity = a.env_intensity;
+    if (a.env_intensity_given) po.env_intensity = a.env_intensity;
     po.env_rotation_degrees = a.env_rotation;
     po.width = a.width;
     po.height = a.height;
@@ -157,7 +158,7 @@ void run(const RenderArgs& a) {
     stop.spp = a.spp;
     stop.seconds = a.seconds;
     stop.error = a.error;
-    if (stop.spp <= 0 && stop.seconds <= 0.0 && stop.error <= 0.0f) stop.spp = 16;
+    if (stop.spp == 0 && stop.seconds == 0.0 && stop.error == 0.0f) stop.spp = 16;  // none given
 
     RenderSession session(prep.snapshot, tp, fp);
     const bool tty = !a.quiet && isatty(fileno(stderr));
@@ -220,7 +221,8 @@ void add_render_command(CLI::App& parent) {
     cmd->add_option("--view", a.view, "Camera of this view of the views file (A-D for the dragon)");
     cmd->add_option("--views", a.views, "Views file for --view (default assets/views/dragon.json)");
     cmd->add_option("--env-mapping", a.env_mapping, "latlong or angular")->capture_default_str();
-    cmd->add_option("--env-intensity", a.env_intensity, "Scale of the environment radiance");
+    auto* intensity =
+        cmd->add_option("--env-intensity", a.env_intensity, "Scale of the environment radiance");
     cmd->add_option("--env-rotation", a.env_rotation,
                     "Extra rotation of the environment about +y, degrees");
     cmd->add_option("--width", a.width, "Image width")->capture_default_str();
@@ -257,7 +259,10 @@ void add_render_command(CLI::App& parent) {
     cmd->add_option("--exposure", a.exposure, "PNG exposure in stops")->capture_default_str();
     cmd->add_flag("--drop-invalid", a.drop_invalid, "Drop faces with non-finite vertices");
     cmd->add_flag("--quiet", a.quiet, "No progress bar or cache messages");
-    cmd->callback([] { run(a); });
+    cmd->callback([intensity] {
+        a.env_intensity_given = intensity->count() > 0;
+        run(a);
+    });
 }
 
 }  // namespace kdt::app

@@ -41,7 +41,8 @@ void validate(const KdTreeParams& p) {
         bad_param("intersect_cost", num(p.intersect_cost), "(0, inf)");
     if (!std::isfinite(p.empty_bonus) || p.empty_bonus < 0.0f || p.empty_bonus > 1.0f)
         bad_param("empty_bonus", num(p.empty_bonus), "[0, 1]");
-    if (p.threads < 0) bad_param("threads", std::to_string(p.threads), "[0, inf) (0 = default)");
+    if (p.threads < 0 || p.threads > 1024)
+        bad_param("threads", std::to_string(p.threads), "[0, 1024] (0 = default)");
 }
 
 KdTree::KdTree(std::shared_ptr<const TriangleMesh> mesh, Bounds3f bounds, std::vector<KdNode> nodes,

@@ -27,6 +27,13 @@ Camera make_camera(const Vec3f& eye, const Vec3f& target, const Vec3f& up, float
         throw Error("camera: image size must be positive (got " + std::to_string(width) + "x" +
                     std::to_string(height) + ")");
     }
+    // The film keeps about 40 bytes per pixel: 2^28 pixels would be 10 GB.
+    if (width > kMaxCameraSide || height > kMaxCameraSide ||
+        int64_t(width) * int64_t(height) > kMaxCameraPixels) {
+        throw Error("camera: image size " + std::to_string(width) + "x" + std::to_string(height) +
+                    " is too large (at most " + std::to_string(kMaxCameraSide) + " per side and " +
+                    std::to_string(kMaxCameraPixels) + " pixels)");
+    }
     if (!(vfov_degrees > 0.0f && vfov_degrees < 180.0f)) {
         throw Error("camera: vertical field of view must be in (0, 180) degrees (got " +
                     std::to_string(vfov_degrees) + ")");

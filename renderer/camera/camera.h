@@ -52,6 +52,10 @@ struct Camera {
     }
 };
 
+/// Largest image make_camera() accepts: per side, and in pixels (as image files, 2^27).
+inline constexpr int kMaxCameraSide = 65536;
+inline constexpr int64_t kMaxCameraPixels = int64_t(1) << 27;
+
 /// Builds a camera looking from eye at target. Throws kdt::Error when eye == target, up is
 /// parallel to the view direction, vfov is outside (0, 180) or the size is not positive.
 Camera make_camera(const Vec3f& eye, const Vec3f& target, const Vec3f& up, float vfov_degrees,

@@ -1,5 +1,6 @@
 #include "renderer/render/prepare.h"
 
+#include <cmath>
 #include <cstdio>
 
 #include "renderer/accel/kdtree_cache.h"
@@ -21,7 +22,12 @@ Prepared prepare_render(const PrepareOptions& o) {
                 ? EnvMapping::latlong
                 : EnvMapping(parse_name(kEnvMappingNames, o.env_mapping, "--env-mapping"));
     }
-    if (o.env_intensity > 0.0f) out.scene.environment.intensity = o.env_intensity;
+    if (o.env_intensity) {
+        if (!(*o.env_intensity >= 0.0f && std::isfinite(*o.env_intensity)))
+            throw Error("--env-intensity must be a finite number >= 0 (got " +
+                        std::to_string(*o.env_intensity) + ")");
+        out.scene.environment.intensity = *o.env_intensity;
+    }
     out.scene.environment.rotation_degrees += o.env_rotation_degrees;
     if (o.camera) out.scene.camera = *o.camera;
     out.load_seconds = timer.seconds();

@@ -13,12 +13,12 @@
 namespace kdt {
 
 struct PrepareOptions {
-    std::string scene_path;             ///< .json scene or model file; empty = make_default_scene()
-    std::string env_file;               ///< replaces the scene's environment map when non-empty
-    std::string env_mapping;            ///< "latlong" or "angular" (with env_file); empty = latlong
-    float env_intensity = -1.0f;        ///< > 0 replaces the intensity
-    float env_rotation_degrees = 0.0f;  ///< added to the scene's rotation
-    std::optional<CameraDesc> camera;   ///< replaces the scene's camera when set
+    std::string scene_path;   ///< .json scene or model file; empty = make_default_scene()
+    std::string env_file;     ///< replaces the scene's environment map when non-empty
+    std::string env_mapping;  ///< "latlong" or "angular" (with env_file); empty = latlong
+    std::optional<float> env_intensity;  ///< replaces the intensity (finite, >= 0)
+    float env_rotation_degrees = 0.0f;   ///< added to the scene's rotation
+    std::optional<CameraDesc> camera;    ///< replaces the scene's camera when set
     int width = 640, height = 480;
     KdTreeParams tree;
     bool use_cache = true;  ///< kd-tree cache (get_or_build_kdtree)

@@ -7,6 +7,7 @@
 
 #include "renderer/core/error.h"
 #include "renderer/core/timer.h"
+#include "renderer/render/settings.h"
 
 namespace kdt {
 
@@ -14,6 +15,7 @@ RenderSession::RenderSession(std::shared_ptr<const RenderSnapshot> snapshot,
                              const TraceParams& trace, const FilmParams& film)
     : snapshot_(std::move(snapshot)), trace_(trace), film_params_(film) {
     if (!snapshot_) throw Error("render session: no snapshot");
+    validate_render_params(trace, film);
     film_.resize(snapshot_->camera.width, snapshot_->camera.height);
 }
 
@@ -25,6 +27,7 @@ void RenderSession::set_snapshot(std::shared_ptr<const RenderSnapshot> snapshot)
 }
 
 void RenderSession::set_params(const TraceParams& trace, const FilmParams& film) {
+    validate_render_params(trace, film);  // before anything changes
     trace_ = trace;
     film_params_ = film;
     reset_requested_.store(true);
@@ -192,7 +195,16 @@ PassStats RenderSession::render_pass(const std::vector<int>& tiles, int max_spp)
 
 RenderProgress run_render(RenderSession& session, const StopConditions& stop,
                           const std::function<void(const RenderProgress&)>& progress) {
-    if (stop.spp <= 0 && stop.seconds <= 0.0 && stop.error <= 0.0f) {
+    if (stop.spp < 0)
+        throw Error("render: --spp must be positive (got " + std::to_string(stop.spp) + ")");
+    if (!(stop.seconds >= 0.0 && std::isfinite(stop.seconds)))
+        throw Error("render: --time must be a positive number of seconds (got " +
+                    std::to_string(stop.seconds) + ")");
+    if (!(stop.error >= 0.0f && std::isfinite(stop.error)))
+        throw Error("render: --error must be a positive relative error (got " +
+                    std::to_string(stop.error) + ")");
+    if (stop.max_spp < 1) throw Error("render: max_spp must be >= 1");
+    if (stop.spp == 0 && stop.seconds == 0.0 && stop.error == 0.0f) {
         throw Error("render: give a stop condition (--spp, --time or --error)");
     }
     const bool adaptive = session.film_params().adaptive;

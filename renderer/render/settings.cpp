@@ -1,5 +1,7 @@
 #include "renderer/render/settings.h"
 
+#include <cmath>
+
 #include <nlohmann/json.hpp>
 
 namespace kdt {
@@ -8,9 +10,46 @@ namespace {
 
 using nlohmann::json;
 
+[[noreturn]] void bad_render_param(const std::string& name, const std::string& value,
+                                   const std::string& range) {
+    throw Error(ErrorLocation{"", "render parameter " + name},
+                "value " + value + " is outside " + range);
+}
+
+std::string num(double v) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%g", v);
+    return buf;
+}
+
+void check_int(const char* name, int v, int lo, int hi, const char* range) {
+    if (v < lo || v > hi) bad_render_param(name, std::to_string(v), range);
+}
+
 json vec_json(const Vec3f& v) { return json::array({v.x, v.y, v.z}); }
 
 }  // namespace
+
+void validate_render_params(const TraceParams& t, const FilmParams& f) {
+    check_int("max_depth", t.max_depth, 0, 1024, "[0, 1024]");
+    check_int("rr_min_depth", t.rr_min_depth, 0, 1024, "[0, 1024]");
+    check_int("samples_per_pass", t.samples_per_pass, 1, 1 << 20, "[1, 1048576]");
+    check_int("threads", t.threads, 0, kMaxThreads, "[0, 1024] (0 = all)");
+    if (size_t(t.light_sampling) >= kLightSamplingNames.size())
+        bad_render_param("light_sampling", std::to_string(int(t.light_sampling)),
+                         "the known names");
+    if (size_t(t.diffuse_sampling) >= kDiffuseSamplingNames.size())
+        bad_render_param("diffuse_sampling", std::to_string(int(t.diffuse_sampling)),
+                         "the known names");
+    if (size_t(t.filter) >= kPixelFilterNames.size())
+        bad_render_param("filter", std::to_string(int(t.filter)), "the known names");
+    if (!(f.adaptive_threshold > 0.0f && std::isfinite(f.adaptive_threshold)))
+        bad_render_param("adaptive_threshold", num(f.adaptive_threshold), "(0, inf)");
+    check_int("adaptive_min_spp", f.adaptive_min_spp, 0, 1 << 24, "[0, 16777216]");
+    check_int("adaptive_max_spp", f.adaptive_max_spp, 0, 1 << 30, "[0, 2^30] (0 = no cap)");
+    if (!(std::fabs(f.exposure) <= 64.0f))
+        bad_render_param("exposure", num(f.exposure), "[-64, 64] stops");
+}
 
 std::string params_to_json(const TraceParams& t, const FilmParams& f, const KdTreeParams& k) {
     json j;

@@ -27,6 +27,13 @@ size_t parse_name(const std::array<const char*, N>& names, const std::string& va
     throw Error(what + ": unknown value '" + value + "' (one of: " + allowed + ")");
 }
 
+/// Largest thread count a render or build accepts (more is a typo, not a machine).
+inline constexpr int kMaxThreads = 1024;
+
+/// Throws kdt::Error naming the parameter when a trace or film parameter is out of range
+/// or not finite (for example a negative depth, a NaN threshold, 10^5 threads).
+void validate_render_params(const TraceParams& trace, const FilmParams& film);
+
 /// JSON object of all trace, film and tree parameters (one line).
 std::string params_to_json(const TraceParams& trace, const FilmParams& film,
                            const KdTreeParams& tree);

@@ -186,7 +186,8 @@ EnvironmentDesc read_environment(const Reader& r, const fs::path& base) {
     e.mapping = EnvMapping(r.choice("mapping", kEnvMappingNames, int(e.mapping)));
     e.rotation_degrees = r.number("rotation", e.rotation_degrees);
     e.intensity = r.number("intensity", e.intensity);
-    if (!(e.intensity >= 0.0f)) r.fail_key("intensity", "intensity must be non-negative");
+    if (!(e.intensity >= 0.0f && std::isfinite(e.intensity)))
+        r.fail_key("intensity", "intensity must be finite and non-negative");
     return e;
 }
 

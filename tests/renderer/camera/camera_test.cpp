@@ -37,6 +37,16 @@ TEST(Camera, RejectsBadInput) {
     EXPECT_THROW(make_camera({0, 0, 0}, {0, 1, 0}, {0, 1, 0}, 40, 10, 10), Error);
     EXPECT_THROW(make_camera({0, 0, 0}, {0, 0, 1}, {0, 1, 0}, 180, 10, 10), Error);
     EXPECT_THROW(make_camera({0, 0, 0}, {0, 0, 1}, {0, 1, 0}, 40, 0, 10), Error);
+    // Absurd sizes are an error before the film allocates, not an out-of-memory.
+    try {
+        make_camera({0, 0, 0}, {0, 0, 1}, {0, 1, 0}, 40, 100000, 100000);
+        ADD_FAILURE() << "no error";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("100000x100000 is too large"), std::string::npos)
+            << e.what();
+    }
+    EXPECT_THROW(make_camera({0, 0, 0}, {0, 0, 1}, {0, 1, 0}, 40, 65537, 1), Error);
+    EXPECT_NO_THROW(make_camera({0, 0, 0}, {0, 0, 1}, {0, 1, 0}, 40, 65536, 1));
 }
 
 TEST(Camera, FiltersStayInTheirSupport) {

@@ -2,7 +2,9 @@
 // snapshot swaps, adaptive sampling and stop conditions; compiling a Scene.
 #include "renderer/render/session.h"
 
+#include <cmath>
 #include <cstring>
+#include <string>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -214,6 +216,69 @@ TEST(RenderSession, AdaptiveSamplingSpendsSamplesWhereTheNoiseIs) {
     EXPECT_EQ(s.film().count(0, 0), 8u);     // background stopped at the minimum
     EXPECT_GT(s.film().count(16, 16), 32u);  // the object got the rest
     EXPECT_NEAR(s.film().mean(16, 16).x, 0.8f, 0.1f);
+}
+
+// The message of the kdt::Error that f throws ("" if none).
+template <class F>
+std::string error_of(F&& f) {
+    try {
+        f();
+    } catch (const Error& e) {
+        return e.what();
+    }
+    return "";
+}
+
+TEST(RenderSession, RejectsBadParametersWithTheirNames) {
+    auto snap = small_snapshot(8, 8);
+    auto bad_trace = [&](auto change) {
+        TraceParams tp;
+        change(tp);
+        return error_of([&] { RenderSession s(snap, tp, FilmParams{}); });
+    };
+    auto bad_film = [&](auto change) {
+        FilmParams fp;
+        change(fp);
+        return error_of([&] { RenderSession s(snap, TraceParams{}, fp); });
+    };
+    auto has = [](const std::string& msg, const char* part) {
+        return msg.find(part) != std::string::npos;
+    };
+    EXPECT_TRUE(has(bad_trace([](TraceParams& t) { t.threads = 100000; }), "threads"));
+    EXPECT_TRUE(has(bad_trace([](TraceParams& t) { t.threads = -1; }), "threads"));
+    EXPECT_TRUE(has(bad_trace([](TraceParams& t) { t.max_depth = -1; }), "max_depth"));
+    EXPECT_TRUE(has(bad_trace([](TraceParams& t) { t.rr_min_depth = -2; }), "rr_min_depth"));
+    EXPECT_TRUE(has(bad_trace([](TraceParams& t) { t.samples_per_pass = 0; }), "samples_per_pass"));
+    EXPECT_TRUE(has(bad_trace([](TraceParams& t) { t.filter = PixelFilter(7); }), "filter"));
+    EXPECT_TRUE(has(bad_film([](FilmParams& f) { f.adaptive_threshold = std::nanf(""); }),
+                    "adaptive_threshold"));
+    EXPECT_TRUE(
+        has(bad_film([](FilmParams& f) { f.adaptive_threshold = 0.0f; }), "adaptive_threshold"));
+    EXPECT_TRUE(has(bad_film([](FilmParams& f) { f.adaptive_min_spp = -4; }), "adaptive_min_spp"));
+    EXPECT_TRUE(has(bad_film([](FilmParams& f) { f.exposure = INFINITY; }), "exposure"));
+    EXPECT_EQ(bad_trace([](TraceParams&) {}), "");
+
+    // set_params checks before it changes anything.
+    RenderSession s(snap, TraceParams{}, FilmParams{});
+    TraceParams tp;
+    tp.threads = 5000;
+    EXPECT_THROW(s.set_params(tp, FilmParams{}), Error);
+    EXPECT_EQ(s.trace_params().threads, 0);
+
+    // Stop conditions: negative or non-finite values are errors, never a silent default or
+    // an endless render.
+    auto stop_error = [&](auto change) {
+        StopConditions stop;
+        stop.spp = 1;
+        change(stop);
+        return error_of([&] { run_render(s, stop); });
+    };
+    EXPECT_TRUE(has(stop_error([](StopConditions& c) { c.spp = -1; }), "--spp"));
+    EXPECT_TRUE(has(stop_error([](StopConditions& c) { c.seconds = std::nan(""); }), "--time"));
+    EXPECT_TRUE(has(stop_error([](StopConditions& c) { c.seconds = -1.0; }), "--time"));
+    EXPECT_TRUE(has(stop_error([](StopConditions& c) { c.error = std::nanf(""); }), "--error"));
+    EXPECT_TRUE(has(stop_error([](StopConditions& c) { c.error = INFINITY; }), "--error"));
+    EXPECT_EQ(stop_error([](StopConditions&) {}), "");
 }
 
 TEST(RenderSession, StopConditions) {
