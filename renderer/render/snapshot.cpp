@@ -1,5 +1,6 @@
 #include "renderer/render/snapshot.h"
 
+#include <cmath>
 #include <string>
 
 #include "renderer/core/error.h"
@@ -42,6 +43,13 @@ std::shared_ptr<const RenderSnapshot> compile_snapshot(const Scene& scene,
         const size_t nv = m.positions.size();
         if (m.normals.size() != nv) m.normals.clear();
         transform_mesh(m, inst.world_from_object);
+        for (size_t v = 0; v < nv; ++v) {
+            const Vec3f& p = m.positions[v];
+            if (!(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z))) {
+                throw Error(ErrorLocation{inst.file, "vertex", int64_t(v)},
+                            "not finite after the instance's transform (it overflows float)");
+            }
+        }
         // Triangles close in space close in memory, instance by instance (each instance's
         // triangles stay one run): a kd-tree leaf's triangles and vertices then share cache
         // lines and pages, which speeds up queries, above all incoherent ones.

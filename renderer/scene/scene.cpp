@@ -118,7 +118,8 @@ Mat4f read_transform(const Reader& r) {
         for (int row = 0; row < 4; ++row) {
             for (int col = 0; col < 4; ++col) {
                 const json& v = m[size_t(row * 4 + col)];
-                if (!v.is_number() || !std::isfinite(v.get<double>()))
+                if (!v.is_number() || !std::isfinite(v.get<double>()) ||
+                    std::fabs(v.get<double>()) > 3.0e38)
                     r.fail_key("matrix", "expected 16 finite numbers (row-major)");
                 out[col][row] = v.get<float>();
             }
