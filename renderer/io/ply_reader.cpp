@@ -1413,10 +1413,11 @@ void PlyParser::plan_elements() {
 
 // Rejects counts the file cannot hold before anything is allocated for them: binary
 // records need at least their scalar bytes plus list counts (a face at least three
-// indices); ascii needs at least two bytes (digit and separator) per value.
+// indices); ascii needs at least two bytes (digit and separator) per value, except the
+// file's last value, which needs no separator.
 void PlyParser::check_counts() {
     const uint64_t bound = reader_.size_bound();
-    const uint64_t remaining = bound > data_offset_ ? bound - data_offset_ : 0;
+    const uint64_t remaining = (bound > data_offset_ ? bound - data_offset_ : 0) + (ascii_ ? 1 : 0);
     unsigned __int128 total = 0;
     for (const Element& el : elements_) {
         uint64_t min_bytes = 0;
@@ -1437,7 +1438,7 @@ void PlyParser::check_counts() {
             fail_header("element " + el.name + ": count " + std::to_string(el.count) +
                         " needs at least " +
                         (need > UINT64_MAX ? std::string("2^64") : std::to_string(uint64_t(need))) +
-                        " bytes, more than the " + std::to_string(remaining) +
+                        " bytes, more than the " + std::to_string(remaining - (ascii_ ? 1 : 0)) +
                         (reader_.gzip() ? " bytes the compressed file can hold"
                                         : " bytes of data in the file"));
         }

@@ -652,6 +652,25 @@ TEST(PlyReaderErrors, TruncatedAsciiData) {
     EXPECT_ERROR(short_list, "line 18: face 1: face lists 2 of 3 vertex indices");
 }
 
+TEST(PlyReader, TightAsciiWithoutFinalNewline) {
+    // One byte per value and one separator, none after the file's last value: the size
+    // check before allocating must accept exactly this much data.
+    const std::string header =
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+        "property float z\n";
+    const TriangleMesh a = load(header +
+                                "element face 1\nproperty list uchar int vertex_indices\n"
+                                "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2");
+    EXPECT_EQ(a.triangles.size(), 1u);
+    EXPECT_EQ(a.positions[1], Vec3f(1, 0, 0));
+    const TriangleMesh b = load(header + "end_header\n0 0 0\n1 0 0\n0 1 0");
+    EXPECT_EQ(b.positions.size(), 3u);
+    EXPECT_EQ(b.positions[2], Vec3f(0, 1, 0));
+    // One value less is still rejected before allocating.
+    EXPECT_ERROR(header + "end_header\n0 0 0\n1 0 0\n0 1",
+                 "element vertex: count 3 needs at least 18 bytes, more than the 15 bytes");
+}
+
 TEST(PlyReaderErrors, CountsTheFileCannotHold) {
     std::string t = kCubeAscii;
     t.replace(t.find("element vertex 5"), 16, "element vertex 999999999999");
