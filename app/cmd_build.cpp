@@ -1,6 +1,7 @@
 // `kdtrace build MODEL`: builds (or reuses from the cache) the kd-tree of a model and prints
 // what the build produced; with -o writes the tree to a cache file of the user's choice.
 #include <cstdio>
+#include <filesystem>
 #include <map>
 #include <memory>
 #include <string>
@@ -71,6 +72,14 @@ void add_build_command(CLI::App& parent) {
         params.use_center_split = !no_center;
         params.use_cutoff_split = !no_cutoff;
         validate(params);
+        if (!output.empty()) {
+            // Fail before a long build, not after it.
+            const std::filesystem::path dir = std::filesystem::absolute(output).parent_path();
+            std::error_code ec;
+            if (!std::filesystem::is_directory(dir, ec))
+                throw Error(ErrorLocation{output},
+                            "cannot write the tree: directory " + dir.string() + " does not exist");
+        }
         MeshLoadInfo info;
         auto mesh = std::make_shared<TriangleMesh>(load_mesh(model, {}, &info));
         std::printf("%s: %zu vertices, %zu triangles, loaded in %.3f s\n", model.c_str(),

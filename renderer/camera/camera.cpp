@@ -41,13 +41,21 @@ Camera make_camera(const Vec3f& eye, const Vec3f& target, const Vec3f& up, float
     if (!is_finite(eye) || !is_finite(target) || !is_finite(up)) {
         throw Error("camera: eye, target and up must be finite");
     }
+    // Directions are scaled by their largest component before normalizing, so that the
+    // squares in the length neither overflow nor underflow for huge or tiny scenes.
+    auto unit = [](const Vec3f& v) {
+        const float m = std::max(std::fabs(v.x), std::max(std::fabs(v.y), std::fabs(v.z)));
+        return m > 0.0f ? glm::normalize(v / m) : Vec3f(0.0f);
+    };
     const Vec3f view = target - eye;
-    if (!(glm::length(view) > 0.0f)) throw Error("camera: eye and target coincide");
+    if (!is_finite(view)) throw Error("camera: eye and target are too far apart for float");
+    if (view == Vec3f(0.0f)) throw Error("camera: eye and target coincide");
+    if (up == Vec3f(0.0f)) throw Error("camera: up vector is zero");
     Camera c;
     c.eye = eye;
-    c.forward = glm::normalize(view);
-    const Vec3f r = glm::cross(c.forward, up);
-    if (!(glm::length(r) > 1e-6f * glm::length(up))) {
+    c.forward = unit(view);
+    const Vec3f r = glm::cross(c.forward, unit(up));
+    if (!(glm::length(r) > 1e-6f)) {
         throw Error("camera: up vector is parallel to the viewing direction");
     }
     c.right = glm::normalize(r);

@@ -296,12 +296,20 @@ CameraDesc frame_bounds(const Bounds3f& bounds, float vfov_degrees) {
     c.vfov_degrees = vfov_degrees;
     if (bounds.empty()) return c;
     Vec3f center = bounds.center();
-    float radius = std::max(0.5f * glm::length(bounds.extent()), 1e-6f);
+    // Scaled by the largest extent, so that the squares cannot overflow for huge scenes.
+    const Vec3f ext = 0.5f * bounds.upper - 0.5f * bounds.lower;
+    const float m = std::max(ext.x, std::max(ext.y, ext.z));
+    float radius = m > 0.0f ? m * glm::length(ext / m) : 0.0f;
+    radius = std::max(radius, 1e-6f);
     float dist = radius / std::sin(glm::radians(0.5f * vfov_degrees)) * 1.05f;
     Vec3f dir = glm::normalize(Vec3f(0.35f, 0.3f, 1.0f));
     c.eye = center + dist * dir;
     c.target = center;
     c.up = Vec3f(0.0f, 1.0f, 0.0f);
+    if (!is_finite(c.eye) || !is_finite(c.target) || !(glm::length(c.eye - c.target) > 0.0f))
+        throw Error("camera: cannot frame the scene automatically: its bounds (extent " +
+                    std::to_string(2.0f * radius) +
+                    ") are beyond float range; give the scene a camera");
     return c;
 }
 

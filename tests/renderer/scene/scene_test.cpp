@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include "renderer/camera/camera.h"
 #include "renderer/core/error.h"
 #include "renderer/scene/scene.h"
 #include "tests/test_util.h"
@@ -137,6 +138,25 @@ TEST(Scene, ErrorsNameFileAndKey) {
     }
     EXPECT_NE(error_of((dir / "nope.json").string()).find("cannot open"), std::string::npos);
     EXPECT_NE(error_of(dir.string()).find("is a directory"), std::string::npos);
+}
+
+TEST(Scene, FramingBoundsBeyondFloatRangeIsAnError) {
+    const CameraDesc c = frame_bounds(Bounds3f{Vec3f(-1e30f), Vec3f(1e30f)});
+    EXPECT_GT(glm::length(c.eye - c.target), 0.0f);
+    EXPECT_TRUE(is_finite(c.eye));
+    // A camera can be made from it: huge but finite scenes render.
+    const Camera cam = make_camera(c.eye, c.target, c.up, c.vfov_degrees, 8, 8);
+    const Ray r = cam.generate_ray(Vec2f(4.0f, 4.0f));
+    EXPECT_TRUE(is_finite(r.dir));
+    EXPECT_GT(glm::dot(r.dir, glm::normalize(c.target / 1e30f - c.eye / 1e30f)), 0.99f);
+    try {
+        frame_bounds(Bounds3f{Vec3f(-3e38f), Vec3f(3e38f)});
+        ADD_FAILURE() << "no error";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("cannot frame the scene automatically"),
+                  std::string::npos)
+            << e.what();
+    }
 }
 
 TEST(Scene, ModelSceneFramesTheModel) {
