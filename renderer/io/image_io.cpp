@@ -676,7 +676,9 @@ void write_exr(const std::string& path, const ImageRGB& image, const ImageMetada
     }
     std::vector<EXRAttribute> attributes(metadata.size());
     for (size_t i = 0; i < metadata.size(); ++i) {
-        const auto& [key, value] = metadata[i];
+        // Not a structured binding: clang 14 cannot capture those in the lambda below.
+        const std::string& key = metadata[i].first;
+        const std::string& value = metadata[i].second;
         bool reserved = std::any_of(std::begin(kReserved), std::end(kReserved),
                                     [&](const char* r) { return key == r; });
         if (key.empty() || key.size() > 255 || key.find('\0') != std::string::npos || reserved) {

@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Runs the unit tests of the threaded parts (OpenMP render passes, parallel SAH builds,
+# batch queries, sampler, PLY reading on two threads) under ThreadSanitizer. Uses the `tsan`
+# preset: clang with LLVM's libomp and its Archer tool, which tells TSan about OpenMP's
+# barriers and reductions (GCC's libgomp is not instrumented, so a GCC TSan build reports
+# every parallel region). tests/tsan/suppressions.txt hides libomp's own internals only.
+# Exits non-zero on any report or failed test. Not part of scripts/test.sh (about 5 min).
+set -euo pipefail
+
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$root"
+bash scripts/setup.sh
+archer=/usr/lib/llvm-14/lib/libarcher.so
+[ -f "$archer" ] || { echo "run_tsan: $archer missing (Debian libomp-14-dev)" >&2; exit 1; }
+
+targets=(kdt_core_tests kdt_accel_tests kdt_io_tests kdt_integrator_tests kdt_render_tests)
+cmake --preset tsan >/dev/null
+cmake --build --preset tsan --target "${targets[@]}"
+
+status=0
+for t in "${targets[@]}"; do
+    log="$root/build/tsan/$t.tsan.log"
+    set +e
+    OMP_TOOL_LIBRARIES="$archer" \
+    TSAN_OPTIONS="suppressions=$root/tests/tsan/suppressions.txt:halt_on_error=0:exitcode=66" \
+        "$root/build/tsan/tests/$t" >"$log" 2>&1
+    rc=$?
+    set -e
+    reports=$(grep -c "WARNING: ThreadSanitizer" "$log" || true)
+    echo "run_tsan: $t: exit $rc, $reports reports ($log)"
+    if [ "$rc" -ne 0 ] || [ "$reports" -ne 0 ]; then status=1; fi
+done
+[ "$status" -eq 0 ] && echo "run_tsan: OK, no ThreadSanitizer report" || echo "run_tsan: FAILED"
+exit "$status"
