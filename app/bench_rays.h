@@ -90,38 +90,6 @@ double trace_occluded_batch(const std::vector<Ray>& rays, int threads,
 
 // ---- implementation of the templates ----
 
-template <class Intersect>
-double trace_closest(const std::vector<Ray>& rays, std::vector<Hit>& hits, int threads,
-                     const Intersect& intersect) {
-    hits.assign(rays.size(), Hit{});
-    const int64_t chunks = int64_t((rays.size() + kRayChunk - 1) / kRayChunk);
-    const int nthreads = threads > 0 ? threads : omp_get_max_threads();
-    Timer timer;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
-    for (int64_t c = 0; c < chunks; ++c) {
-        const size_t end = std::min(rays.size(), size_t(c + 1) * kRayChunk);
-        for (size_t i = size_t(c) * kRayChunk; i < end; ++i) intersect(rays[i], hits[i]);
-    }
-    return timer.seconds();
-}
-
-template <class Occluded>
-double trace_occluded(const std::vector<Ray>& rays, int threads, const Occluded& occluded,
-                      uint64_t* occluded_count) {
-    const int64_t chunks = int64_t((rays.size() + kRayChunk - 1) / kRayChunk);
-    const int nthreads = threads > 0 ? threads : omp_get_max_threads();
-    uint64_t count = 0;
-    Timer timer;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads) reduction(+ : count)
-    for (int64_t c = 0; c < chunks; ++c) {
-        const size_t end = std::min(rays.size(), size_t(c + 1) * kRayChunk);
-        for (size_t i = size_t(c) * kRayChunk; i < end; ++i) count += occluded(rays[i]) ? 1 : 0;
-    }
-    const double seconds = timer.seconds();
-    if (occluded_count) *occluded_count = count;
-    return seconds;
-}
-
 template <class IntersectBatch>
 double trace_closest_batch(const std::vector<Ray>& rays, std::vector<Hit>& hits, int threads,
                            const IntersectBatch& intersect) {
@@ -156,6 +124,26 @@ double trace_occluded_batch(const std::vector<Ray>& rays, int threads,
     for (uint8_t f : flags) count += f;
     if (occluded_count) *occluded_count = count;
     return seconds;
+}
+
+// One query per ray, chunk by chunk as the batch drivers do.
+template <class Intersect>
+double trace_closest(const std::vector<Ray>& rays, std::vector<Hit>& hits, int threads,
+                     const Intersect& intersect) {
+    return trace_closest_batch(rays, hits, threads, [&](const Ray* r, size_t n, Hit* h) {
+        for (size_t i = 0; i < n; ++i) intersect(r[i], h[i]);
+    });
+}
+
+template <class Occluded>
+double trace_occluded(const std::vector<Ray>& rays, int threads, const Occluded& occluded,
+                      uint64_t* occluded_count) {
+    return trace_occluded_batch(
+        rays, threads,
+        [&](const Ray* r, size_t n, uint8_t* o) {
+            for (size_t i = 0; i < n; ++i) o[i] = occluded(r[i]) ? 1 : 0;
+        },
+        occluded_count);
 }
 
 }  // namespace kdt::app

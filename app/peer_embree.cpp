@@ -56,6 +56,19 @@ void to_embree(const Ray& ray, RTCRay& r) {
     r.flags = 0;
 }
 
+// Our Hit from an RTCRayHit after rtcIntersect*: false (and a miss) when nothing was hit.
+bool from_embree(const RTCRayHit& rh, Hit& hit) {
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
+        hit = Hit{};
+        return false;
+    }
+    hit.t = rh.ray.tfar;
+    hit.u = rh.hit.u;
+    hit.v = rh.hit.v;
+    hit.prim = rh.hit.primID;
+    return true;
+}
+
 // Rays per rtcIntersect1M call: Embree's stream code works on small groups anyway.
 constexpr size_t kStream = 64;
 
@@ -117,15 +130,7 @@ bool EmbreePeer::intersect(const Ray& ray, Hit& hit) const {
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(static_cast<RTCScene>(scene_), &context, &rh);
-    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
-        hit = Hit{};
-        return false;
-    }
-    hit.t = rh.ray.tfar;
-    hit.u = rh.hit.u;
-    hit.v = rh.hit.v;
-    hit.prim = rh.hit.primID;
-    return true;
+    return from_embree(rh, hit);
 }
 
 bool EmbreePeer::occluded(const Ray& ray) const {
@@ -152,17 +157,7 @@ void EmbreePeer::intersect(const Ray* rays, size_t n, Hit* hits, bool coherent) 
             rh[i].hit.primID = RTC_INVALID_GEOMETRY_ID;
         }
         rtcIntersect1M(static_cast<RTCScene>(scene_), &context, rh, unsigned(m), sizeof(RTCRayHit));
-        for (size_t i = 0; i < m; ++i) {
-            Hit& h = hits[begin + i];
-            if (rh[i].hit.geomID == RTC_INVALID_GEOMETRY_ID) {
-                h = Hit{};
-                continue;
-            }
-            h.t = rh[i].ray.tfar;
-            h.u = rh[i].hit.u;
-            h.v = rh[i].hit.v;
-            h.prim = rh[i].hit.primID;
-        }
+        for (size_t i = 0; i < m; ++i) from_embree(rh[i], hits[begin + i]);
     }
 }
 

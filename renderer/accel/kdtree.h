@@ -130,9 +130,10 @@ public:
     bool intersect(const Ray& ray, Hit& hit, TraversalCounters* counters = nullptr) const;
     /// Any hit in [ray.tmin, ray.tmax] (shadow rays).
     bool occluded(const Ray& ray, TraversalCounters* counters = nullptr) const;
-    /// Batch closest hits: hits[i] is exactly what intersect(rays[i], hits[i]) gives. The
-    /// rays are traced interleaved, so the memory latency of one overlaps the work of
-    /// others: faster than one call per ray, above all for incoherent rays.
+    /// Batch closest hits: hits[i] is exactly what intersect(rays[i], hits[i]) gives (and
+    /// the counters sum alike). Each group of 8 consecutive coherent rays (nearly parallel,
+    /// nearby origins, like a camera's) is traced as one AVX2 packet, about 3x faster per
+    /// ray; other groups go ray by ray, as fast as single calls.
     void intersect(const Ray* rays, size_t count, Hit* hits,
                    TraversalCounters* counters = nullptr) const;
     /// Batch any-hit queries: occluded[i] = 1 exactly when occluded(rays[i]) is true.

@@ -72,6 +72,11 @@ bool roughly_coherent(const Ray* rays, int m, const Bounds3f& bounds) {
     return true;
 }
 
+// Lanes 4h .. 4h + 3 of v widened to double.
+inline __m256d half_pd(__m256 v, int h) {
+    return _mm256_cvtps_pd(h == 0 ? _mm256_castps256_ps128(v) : _mm256_extractf128_ps(v, 1));
+}
+
 // The watertight test of intersect_triangle() on eight lanes. Returns the mask of lanes in
 // `active` that hit in [tmin, best_t], with their t, u, v.
 inline int intersect8(const Packet& p, const Vec3f& a, const Vec3f& b, const Vec3f& c, int active,
@@ -93,10 +98,7 @@ inline int intersect8(const Packet& p, const Vec3f& a, const Vec3f& b, const Vec
     __m256d U[2], V[2], W[2];
     int pass = 0;
     for (int h = 0; h < 2; ++h) {
-        auto half = [h](__m256 v) {
-            return _mm256_cvtps_pd(h == 0 ? _mm256_castps256_ps128(v)
-                                          : _mm256_extractf128_ps(v, 1));
-        };
+        auto half = [h](__m256 v) { return half_pd(v, h); };
         const __m256d dax = half(ax), day = half(ay), dbx = half(bx), dby = half(by);
         const __m256d dcx = half(cx), dcy = half(cy);
         U[h] = _mm256_fmsub_pd(dcx, dby, _mm256_mul_pd(dcy, dbx));
@@ -116,10 +118,7 @@ inline int intersect8(const Packet& p, const Vec3f& a, const Vec3f& b, const Vec
     __m128 t4[2], u4[2], v4[2];
     int ok = 0;
     for (int h = 0; h < 2; ++h) {
-        auto half = [h](__m256 v) {
-            return _mm256_cvtps_pd(h == 0 ? _mm256_castps256_ps128(v)
-                                          : _mm256_extractf128_ps(v, 1));
-        };
+        auto half = [h](__m256 v) { return half_pd(v, h); };
         const __m256d det = _mm256_add_pd(_mm256_add_pd(U[h], V[h]), W[h]);
         ok |= (~_mm256_movemask_pd(_mm256_cmp_pd(det, _mm256_setzero_pd(), _CMP_EQ_OQ)) & 0xf)
               << (4 * h);

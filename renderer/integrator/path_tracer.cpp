@@ -145,13 +145,14 @@ struct VectorRecorder {
     void any(const Ray& r) { out->any.push_back(r); }
 };
 
-// first_hit: when set, the closest hit of camera_ray, already found by the caller (and
-// counted in tc).
+// first_hit: when set, the closest hit of camera_ray, already found (and counted) by the
+// caller.
 template <class Recorder>
 Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const Ray& camera_ray,
                       PixelSampler& sampler, PathCounters& counters, Recorder& recorder,
-                      const Hit* first_hit = nullptr, TraversalCounters tc = {}) {
+                      const Hit* first_hit = nullptr) {
     const KdTree& tree = *scene.tree;
+    TraversalCounters tc;
     const EnvironmentLight& env = *scene.env;
     TraversalCounters* tcp = params.count_traversal ? &tc : nullptr;
     const bool use_nee = params.light_sampling != LightSampling::bsdf;
@@ -192,8 +193,7 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
             __builtin_prefetch(&scene.normals[tri.y]);
             __builtin_prefetch(&scene.normals[tri.z]);
         }
-        if (scene.runs.first.empty() || scene.runs.first.size() > InstanceRuns::kMaxRuns)
-            __builtin_prefetch(&scene.triangle_instance[hit.prim]);
+        if (scene.runs.first.empty()) __builtin_prefetch(&scene.triangle_instance[hit.prim]);
         const Vec2f u_light = sampler.next_2d();
         const Vec2f u_bsdf = sampler.next_2d();
         const Vec2f u_lobe_rr = sampler.next_2d();
@@ -362,25 +362,20 @@ Vec3f render_sample(const TraceScene& scene, const Camera& camera, const TracePa
 
 Vec3f trace_camera_ray(const TraceScene& scene, const TraceParams& params, const Ray& ray,
                        PixelSampler& sampler, PathCounters& counters) {
-    ++counters.camera_rays;
-    ++counters.samples;
-    // Most camera rays of a framed model miss it: those see the environment unweighted
-    // (trace_path_impl's depth-0 miss), without setting up the path loop.
     TraversalCounters tc;
     Hit hit;
-    if (!scene.tree->intersect(ray, hit, params.count_traversal ? &tc : nullptr)) {
-        counters.nodes_visited += tc.nodes_visited;
-        counters.triangles_tested += tc.triangles_tested;
-        return scene.env->eval(ray.dir);
-    }
-    NoRecorder none;
-    return trace_path_impl(scene, params, ray, sampler, counters, none, &hit, tc);
+    scene.tree->intersect(ray, hit, params.count_traversal ? &tc : nullptr);
+    counters.nodes_visited += tc.nodes_visited;
+    counters.triangles_tested += tc.triangles_tested;
+    return trace_camera_hit(scene, params, ray, hit, sampler, counters);
 }
 
 Vec3f trace_camera_hit(const TraceScene& scene, const TraceParams& params, const Ray& ray,
                        const Hit& hit, PixelSampler& sampler, PathCounters& counters) {
     ++counters.camera_rays;
     ++counters.samples;
+    // Most camera rays of a framed model miss it: those see the environment unweighted
+    // (trace_path_impl's depth-0 miss), without setting up the path loop.
     if (hit.prim == Hit::kNoHit) return scene.env->eval(ray.dir);
     NoRecorder none;
     return trace_path_impl(scene, params, ray, sampler, counters, none, &hit);

@@ -47,14 +47,14 @@ struct TraceScene {
     std::shared_ptr<const KdTree> tree;  ///< built over *mesh
     std::shared_ptr<const EnvironmentLight> env;
     EmitterTable emitters;  ///< built by build_emitter_table(); empty = no area-light NEE
-    /// Built by build_instance_runs() from triangle_instance; empty (or more than kMaxRuns
-    /// runs) = instance_of() reads triangle_instance.
+    /// Built by build_instance_runs() from triangle_instance (at most kMaxRuns runs);
+    /// empty = instance_of() reads triangle_instance.
     InstanceRuns runs;
 
     /// Instance index of triangle prim; equals triangle_instance[prim].
     uint32_t instance_of(uint32_t prim) const {
         const size_t n = runs.first.size();
-        if (n == 0 || n > InstanceRuns::kMaxRuns) return triangle_instance[prim];
+        if (n == 0) return triangle_instance[prim];
         size_t i = n - 1;
         while (runs.first[i] > prim) --i;  // runs.first[0] == 0
         return runs.instance[i];

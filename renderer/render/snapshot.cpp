@@ -1,6 +1,5 @@
 #include "renderer/render/snapshot.h"
 
-#include <cmath>
 #include <string>
 
 #include "renderer/core/error.h"
@@ -44,8 +43,7 @@ std::shared_ptr<const RenderSnapshot> compile_snapshot(const Scene& scene,
         if (m.normals.size() != nv) m.normals.clear();
         transform_mesh(m, inst.world_from_object);
         for (size_t v = 0; v < nv; ++v) {
-            const Vec3f& p = m.positions[v];
-            if (!(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z))) {
+            if (!is_finite(m.positions[v])) {
                 throw Error(ErrorLocation{inst.file, "vertex", int64_t(v)},
                             "not finite after the instance's transform (it overflows float)");
             }

@@ -146,10 +146,11 @@ TEST(RenderSession, ResetRestartsAndSnapshotSwapTakesEffect) {
 
 TEST(RenderSession, HeatMapPassesMatchBatchedPasses) {
     // With a heat map, camera rays are traced one query each (for per-pixel counts);
-    // without, by the kd-tree's batch query (packets). Same films, same totals.
-    auto snap = small_snapshot(40, 24);
+    // without, by the kd-tree's batch query. Same films, same totals. 160x96 pixels of
+    // 0.42 degrees and 8 samples per pixel and pass, so the batches form 8-ray packets.
+    auto snap = small_snapshot(160, 96);
     TraceParams tp;
-    tp.samples_per_pass = 3;
+    tp.samples_per_pass = 8;
     RenderSession plain(snap, tp, FilmParams{}), heat(snap, tp, FilmParams{});
     heat.set_heat_map(true);
     for (int pass = 0; pass < 2; ++pass) {
