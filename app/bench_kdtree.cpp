@@ -21,6 +21,7 @@
 #include "app/commands.h"
 #include "app/peer_embree.h"
 #include "renderer/accel/kdtree_cache.h"
+#include "renderer/accel/traversal_detail.h"
 #include "renderer/core/error.h"
 #include "renderer/core/timer.h"
 #include "renderer/io/mesh_io.h"
@@ -349,6 +350,75 @@ void save_view_image(const std::string& path, const BenchViewSet& set, const Tri
     out << "P5\n" << w << " " << h << "\n255\n";
     out.write(reinterpret_cast<const char*>(img.data()), std::streamsize(img.size()));
     if (!out) throw Error(ErrorLocation{path}, "cannot write image");
+}
+
+// Where a ray's traversal work goes: the single-ray query's steps (traversal.cpp's descend,
+// leaf test and pop, same decisions and slack), replayed with finer counts. The totals are
+// checked against the query's own counters, so the split describes the real traversal.
+struct RayAnatomy {
+    uint64_t first_descent = 0;  ///< inner nodes visited before the first leaf
+    uint64_t first_leaf_tests = 0;
+    uint64_t leaves = 0, empty_leaves = 0;
+    uint64_t nodes = 0, tests = 0;  ///< totals, as TraversalCounters count them
+};
+
+void add_anatomy(const KdTree& tree, const Ray& ray, RayAnatomy& a) {
+    using detail::lower_slack;
+    using detail::upper_slack;
+    detail::RayState rs;
+    float t0, t1, best_t;
+    if (!detail::setup_ray(ray, tree.bounds(), rs, t0, t1, best_t)) return;
+    const TriangleMesh& mesh = tree.mesh();
+    const std::vector<KdNode>& nodes = tree.nodes();
+    struct Item {
+        uint32_t node;
+        float t0, t1;
+    };
+    Item stack[detail::kStackSize];
+    int sp = 0;
+    uint32_t idx = 0;
+    bool first = true;
+    for (;;) {
+        KdNode node = nodes[idx];
+        ++a.nodes;
+        while (!node.is_leaf()) {
+            if (first) ++a.first_descent;
+            const int axis = node.axis();
+            const float ts = (node.split - rs.org[axis]) * rs.inv[axis];
+            const bool visit_near = !(ts < lower_slack(t0));
+            const bool visit_far = !(ts > upper_slack(t1));
+            const uint32_t near_child = node.child() + rs.neg[axis];
+            const uint32_t far_child = node.child() + 1u - rs.neg[axis];
+            if (visit_near && visit_far) stack[sp++] = {far_child, ts > t0 ? ts : t0, t1};
+            if (visit_near) t1 = ts < t1 ? ts : t1;
+            idx = visit_near ? near_child : far_child;
+            node = nodes[idx];
+            ++a.nodes;
+        }
+        ++a.leaves;
+        if (node.count() == 0) ++a.empty_leaves;
+        for (uint32_t i = 0; i < node.count(); ++i) {
+            const Vec3u t = mesh.triangles[tree.indices()[node.first + i]];
+            float tt, u, v;
+            if (intersect_triangle(rs.wr, mesh.positions[t.x], mesh.positions[t.y],
+                                   mesh.positions[t.z], rs.tmin, best_t, tt, u, v))
+                best_t = tt;
+        }
+        a.tests += node.count();
+        if (first) a.first_leaf_tests += node.count();
+        first = false;
+        bool next = false;
+        while (sp > 0 && !next) {
+            const Item& s = stack[--sp];
+            if (lower_slack(s.t0) <= best_t) {
+                idx = s.node;
+                t0 = s.t0;
+                t1 = std::min(s.t1, best_t);
+                next = true;
+            }
+        }
+        if (!next) break;
+    }
 }
 
 void run(const Options& opt) {
@@ -697,22 +767,42 @@ void run(const Options& opt) {
         tc.name = "cost";
         tc.title = "Work per ray of the best tree (row " + best->config.id +
                    "), from the traversal counters (one extra untimed pass)";
-        tc.header = {"rays",  "nodes visited / ray",        "triangles tested / ray",
-                     "hit %", "ns / ray (1 thread equiv.)", "ns / node visited"};
+        tc.header = {"rays",
+                     "nodes visited / ray",
+                     "triangles tested / ray",
+                     "hit %",
+                     "ns / ray (1 thread equiv.)",
+                     "ns / node visited",
+                     "inner nodes before the first leaf",
+                     "tests in the first leaf",
+                     "leaves / ray",
+                     "empty leaves / ray"};
         auto add = [&](const char* name, const std::vector<Ray>& rays, double seconds) {
             TraversalCounters c;
+            RayAnatomy a;
             uint64_t hits = 0;
             for (const Ray& r : rays) {
                 Hit h;
                 hits += tree.intersect(r, h, &c);
+                add_anatomy(tree, r, a);
             }
+            if (a.nodes != c.nodes_visited || a.tests != c.triangles_tested)
+                throw Error(ErrorLocation{"bench kdtree"},
+                            "internal: the ray anatomy replay disagrees with the traversal "
+                            "counters (" +
+                                std::to_string(a.nodes) + " / " + std::to_string(a.tests) +
+                                " against " + std::to_string(c.nodes_visited) + " / " +
+                                std::to_string(c.triangles_tested) + ")");
             const double n = double(std::max<size_t>(rays.size(), 1));
             const double ns = seconds * double(threads) / n * 1e9;
             const double nodes = double(c.nodes_visited) / n;
-            tc.rows.push_back({name, fmt("%.1f", nodes),
-                               fmt("%.1f", double(c.triangles_tested) / n),
-                               fmt("%.1f", 100.0 * double(hits) / n), fmt("%.0f", ns),
-                               fmt("%.2f", nodes > 0.0 ? ns / nodes : 0.0)});
+            tc.rows.push_back(
+                {name, fmt("%.1f", nodes), fmt("%.1f", double(c.triangles_tested) / n),
+                 fmt("%.1f", 100.0 * double(hits) / n), fmt("%.0f", ns),
+                 fmt("%.2f", nodes > 0.0 ? ns / nodes : 0.0),
+                 fmt("%.1f", double(a.first_descent) / n),
+                 fmt("%.1f", double(a.first_leaf_tests) / n), fmt("%.1f", double(a.leaves) / n),
+                 fmt("%.1f", double(a.empty_leaves) / n)});
         };
         add("primary", primary, median(engines[0].primary_s));
         add("diffuse", diffuse, median(engines[0].diffuse_s));
