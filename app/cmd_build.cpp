@@ -2,7 +2,6 @@
 // what the build produced; with -o writes the tree to a cache file of the user's choice.
 #include <cstdio>
 #include <filesystem>
-#include <map>
 #include <memory>
 #include <string>
 
@@ -11,6 +10,7 @@
 #include "renderer/core/error.h"
 #include "renderer/core/timer.h"
 #include "renderer/io/mesh_io.h"
+#include "renderer/render/settings.h"
 
 namespace kdt::app {
 namespace {
@@ -42,16 +42,12 @@ void print_stats(const KdTree& tree) {
 void add_build_command(CLI::App& parent) {
     auto* cmd = parent.add_subcommand(
         "build", "Build the kd-tree of a model (reused from the cache when valid) and print it");
-    static std::string model, output, cache_dir;
+    static std::string model, output, cache_dir, builder = kKdBuilderNames[size_t(KdBuilder::sah)];
     static KdTreeParams params;
     static bool no_median = false, no_center = false, no_cutoff = false;
     static int subdivide = 0;
-    const std::map<std::string, KdBuilder> builders = {{kKdBuilderNames[0], KdBuilder::thesis},
-                                                       {kKdBuilderNames[1], KdBuilder::sah}};
     cmd->add_option("MODEL", model, "Model file (.ply, .ply.gz, .obj)")->required();
-    cmd->add_option("--builder", params.builder, "Builder")
-        ->transform(CLI::CheckedTransformer(builders, CLI::ignore_case))
-        ->default_str(kKdBuilderNames[size_t(params.builder)]);
+    cmd->add_option("--builder", builder, "kd-tree builder: thesis or sah")->capture_default_str();
     cmd->add_option("--q", params.q, "Thesis cost correction q in (0, 1]")->capture_default_str();
     cmd->add_option("--n0", params.n0, "Thesis cost correction n0 >= 0")->capture_default_str();
     cmd->add_option("--depth", params.max_depth, "Maximum depth, 0 = automatic")
@@ -68,6 +64,7 @@ void add_build_command(CLI::App& parent) {
                     "Cache directory (default: next to the model, else $KDT_CACHE_DIR/trees, "
                     "$XDG_CACHE_HOME/kdtrace/trees or ~/.cache/kdtrace/trees)");
     cmd->callback([] {
+        params.builder = KdBuilder(parse_name(kKdBuilderNames, builder, "--builder"));
         params.use_median_split = !no_median;
         params.use_center_split = !no_center;
         params.use_cutoff_split = !no_cutoff;

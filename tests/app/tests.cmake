@@ -20,3 +20,18 @@ set_tests_properties(smoke.info_missing_file PROPERTIES WILL_FAIL FALSE
 
 add_test(NAME smoke.bad_flag COMMAND ${_kdt} scene --no-such-flag)
 set_tests_properties(smoke.bad_flag PROPERTIES WILL_FAIL TRUE)
+
+add_test(NAME smoke.build_thesis COMMAND ${_kdt} build /usr/share/assimp/models/PLY/cube.ply
+         --builder thesis --q 0.9 --n0 2 --depth 8 -o ${_tmp}/cube_thesis.kdt)
+set_tests_properties(smoke.build_thesis PROPERTIES
+  PASS_REGULAR_EXPRESSION "builder thesis: q 0.90, n0 2, max depth 8")
+
+add_test(NAME smoke.build_bad_builder COMMAND ${_kdt} build
+         /usr/share/assimp/models/PLY/cube.ply --builder bvh -o ${_tmp}/cube_bad.kdt)
+set_tests_properties(smoke.build_bad_builder PROPERTIES
+  PASS_REGULAR_EXPRESSION "--builder: unknown value 'bvh' \\(one of: thesis, sah\\)")
+
+add_test(NAME smoke.build_bad_q COMMAND ${_kdt} build /usr/share/assimp/models/PLY/cube.ply
+         --q 0 -o ${_tmp}/cube_bad.kdt)
+set_tests_properties(smoke.build_bad_q PROPERTIES
+  PASS_REGULAR_EXPRESSION "kd-tree parameter q: value 0 is outside \\(0, 1\\]")
