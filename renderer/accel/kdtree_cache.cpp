@@ -349,9 +349,16 @@ std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
                                           std::shared_ptr<const TriangleMesh> mesh,
                                           const KdTreeParams& params) {
     MappedFile file(path);
-    const size_t size = file.size();
+    return load_kdtree_memory(file.data(), file.size(), path, std::move(mesh), params);
+}
+
+std::shared_ptr<const KdTree> load_kdtree_memory(const unsigned char* data, size_t size,
+                                                 const std::string& path,
+                                                 std::shared_ptr<const TriangleMesh> mesh,
+                                                 const KdTreeParams& params) {
+    if (!mesh) throw Error(ErrorLocation{path}, "no mesh to check the tree cache against");
     if (size == 0) fail_at(path, "", -1, -1, "empty file");
-    if (size < sizeof(kMagic) || std::memcmp(file.data(), kMagic, sizeof(kMagic)) != 0) {
+    if (size < sizeof(kMagic) || std::memcmp(data, kMagic, sizeof(kMagic)) != 0) {
         fail_at(path, "header", -1, 0, "not a kdtrace tree cache (wrong magic)");
     }
     if (size < sizeof(FileHeader)) {
@@ -360,7 +367,7 @@ std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
                     std::to_string(sizeof(FileHeader)));
     }
     FileHeader h;
-    std::memcpy(&h, file.data(), sizeof(h));
+    std::memcpy(&h, data, sizeof(h));
     if (h.byte_order != kByteOrderMark) {
         fail_at(path, "header", -1, offsetof(FileHeader, byte_order),
                 "written with a different byte order");
@@ -421,7 +428,7 @@ std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
                 (size < expected ? "truncated: " : "trailing bytes: ") + std::to_string(size) +
                     " bytes, the header describes " + std::to_string(expected));
     }
-    const unsigned char* payload = file.data() + sizeof(FileHeader);
+    const unsigned char* payload = data + sizeof(FileHeader);
     if (checksum64(payload, size - sizeof(FileHeader)) != h.payload_checksum) {
         fail_at(path, "payload", -1, sizeof(FileHeader),
                 "payload checksum mismatch (corrupt data)");

@@ -606,7 +606,11 @@ void check_png_key(const std::string& path, const std::string& key) {
 }  // namespace
 
 ImageRGB load_image(const std::string& path, ImageMetadata* metadata) {
-    std::vector<uint8_t> data = read_file(path);
+    return load_image_memory(read_file(path), path, metadata);
+}
+
+ImageRGB load_image_memory(const std::vector<uint8_t>& data, const std::string& path,
+                           ImageMetadata* metadata) {
     if (metadata) metadata->clear();
     ImageRGB image;
     auto starts = [&](const char* magic, size_t n) {
