@@ -445,6 +445,11 @@ std::shared_ptr<const KdTree> load_kdtree_memory(const unsigned char* data, size
     Bounds3f bounds;
     bounds.lower = Vec3f(h.bounds[0], h.bounds[1], h.bounds[2]);
     bounds.upper = Vec3f(h.bounds[3], h.bounds[4], h.bounds[5]);
+    // The traversal clips rays to these bounds; an empty box (a tree of no triangles) is
+    // +inf/-inf, anything else must be finite.
+    if (!bounds.empty() && (!is_finite(bounds.lower) || !is_finite(bounds.upper))) {
+        fail_at(path, "header", -1, offsetof(FileHeader, bounds), "bounds not finite");
+    }
     KdTreeStats s;
     s.nodes = h.node_count;
     s.leaves = h.leaves;
@@ -463,8 +468,13 @@ std::shared_ptr<const KdTree> load_kdtree_memory(const unsigned char* data, size
     s.bytes_per_triangle = h.bytes_per_triangle;
     s.build_seconds = h.build_seconds;
     s.peak_build_bytes = h.peak_build_bytes;
-    return std::make_shared<const KdTree>(std::move(mesh), bounds, std::move(nodes),
-                                          std::move(indices), params, std::move(s));
+    try {
+        return std::make_shared<const KdTree>(std::move(mesh), bounds, std::move(nodes),
+                                              std::move(indices), params, std::move(s));
+    } catch (const Error& e) {
+        // The tree re-checks what it is given; whatever it still finds names this file.
+        throw Error(ErrorLocation{path}, e.what());
+    }
 }
 
 void reseal_kdtree_cache_image(std::vector<unsigned char>& bytes) {
