@@ -427,6 +427,14 @@ void parse_exr_header(const std::string& path, const std::vector<uint8_t>& data,
     int64_t h = int64_t(header.data_window.max_y) - header.data_window.min_y + 1;
     check_dimensions(path, w, h);
     if (header.num_channels < 1) fail(path, "OpenEXR file without channels");
+    // tinyexr 1.0.1's PIZ decoder trusts the sizes inside each compressed block (it copies
+    // past the end of the file on corrupt data, found by tests/fuzz/image_fuzzer), and those
+    // cannot be checked without decoding the block: refuse PIZ rather than read out of bounds.
+    if (header.compression_type == TINYEXR_COMPRESSIONTYPE_PIZ) {
+        fail(path,
+             "PIZ-compressed OpenEXR is not supported (its decoder is unsafe on corrupt "
+             "files); re-save with ZIP, ZIPS, RLE or no compression");
+    }
     if (metadata) {
         for (int i = 0; i < header.num_custom_attributes; ++i) {
             const EXRAttribute& a = header.custom_attributes[i];

@@ -139,6 +139,39 @@ TEST_F(ImageIoTest, ExrHalfRgbaAndSingleChannelFilesFromTinyexr) {
     EXPECT_EQ(back.at(4, 2), Vec3f(22.0f));
 }
 
+// Found by tests/fuzz/image_fuzzer: a PIZ block whose bitmap range runs past the end of the
+// file made tinyexr's decoder read out of bounds. PIZ files are now refused up front.
+TEST_F(ImageIoTest, ExrPizCompressionIsRefusedNamingTheFile) {
+    std::vector<float> planes[3];
+    unsigned char* ptrs[3];
+    EXRChannelInfo channels[3];
+    std::memset(channels, 0, sizeof(channels));
+    int types[3] = {TINYEXR_PIXELTYPE_FLOAT, TINYEXR_PIXELTYPE_FLOAT, TINYEXR_PIXELTYPE_FLOAT};
+    for (int c = 0; c < 3; ++c) {
+        planes[c].assign(8 * 4, 0.5f);
+        ptrs[c] = reinterpret_cast<unsigned char*>(planes[c].data());
+        channels[c].name[0] = "BGR"[c];
+    }
+    EXRHeader header;
+    InitEXRHeader(&header);
+    header.num_channels = 3;
+    header.channels = channels;
+    header.pixel_types = types;
+    header.requested_pixel_types = types;
+    header.compression_type = TINYEXR_COMPRESSIONTYPE_PIZ;
+    EXRImage image;
+    InitEXRImage(&image);
+    image.num_channels = 3;
+    image.width = 8;
+    image.height = 4;
+    image.images = ptrs;
+    const char* err = nullptr;
+    ASSERT_EQ(SaveEXRImageToFile(&image, &header, path("piz.exr").c_str(), &err), TINYEXR_SUCCESS);
+    const std::string message = expect_load_error(path("piz.exr"));
+    EXPECT_NE(message.find("PIZ-compressed OpenEXR is not supported"), std::string::npos)
+        << message;
+}
+
 TEST_F(ImageIoTest, ExrTiledFileFromTinyexr) {
     // A 10x7 float RGB image in 4x4 tiles (edge tiles partial), written with tinyexr.
     const int w = 10, h = 7, ts = 4, tx = 3, ty = 2;
