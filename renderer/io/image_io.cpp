@@ -435,6 +435,36 @@ void parse_exr_header(const std::string& path, const std::vector<uint8_t>& data,
              "PIZ-compressed OpenEXR is not supported (its decoder is unsafe on corrupt "
              "files); re-save with ZIP, ZIPS, RLE or no compression");
     }
+    // tinyexr allocates its offset table (8 bytes per block) from the header before reading
+    // it, and takes a scanline file's block count from the chunkCount attribute when there is
+    // one: a table that cannot fit in the file is corrupt (found by the image fuzzer: a
+    // chunkCount of 1.7e9 asked for 13 GB).
+    uint64_t blocks = 0;
+    if (header.tiled) {
+        if (header.tile_size_x < 1 || header.tile_size_y < 1) {
+            fail(path, "invalid tile size " + std::to_string(header.tile_size_x) + "x" +
+                           std::to_string(header.tile_size_y));
+        }
+        // The first level alone; mipmap and ripmap levels only add to it.
+        blocks = uint64_t((w + header.tile_size_x - 1) / header.tile_size_x) *
+                 uint64_t((h + header.tile_size_y - 1) / header.tile_size_y);
+    } else if (header.chunk_count != 0) {
+        if (header.chunk_count < 0) fail(path, "negative chunkCount");
+        blocks = uint64_t(header.chunk_count);
+    } else {
+        const int c = header.compression_type;
+        const int64_t lines = c == TINYEXR_COMPRESSIONTYPE_NONE ||
+                                      c == TINYEXR_COMPRESSIONTYPE_RLE ||
+                                      c == TINYEXR_COMPRESSIONTYPE_ZIPS
+                                  ? 1
+                              : c == TINYEXR_COMPRESSIONTYPE_ZIP ? 16
+                                                                 : 32;
+        blocks = uint64_t((h + lines - 1) / lines);
+    }
+    if (blocks > data.size() / 8) {
+        fail(path, "offset table of " + std::to_string(blocks) + " blocks does not fit in the " +
+                       std::to_string(data.size()) + "-byte file");
+    }
     if (metadata) {
         for (int i = 0; i < header.num_custom_attributes; ++i) {
             const EXRAttribute& a = header.custom_attributes[i];

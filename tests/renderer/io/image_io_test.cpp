@@ -172,6 +172,24 @@ TEST_F(ImageIoTest, ExrPizCompressionIsRefusedNamingTheFile) {
         << message;
 }
 
+// Found by tests/fuzz/image_fuzzer: a chunkCount attribute of 1.7e9 made tinyexr allocate a
+// 13 GB offset table before reading it. The table must fit in the file.
+TEST_F(ImageIoTest, ExrChunkCountBeyondTheFileIsAnError) {
+    write_exr(path("ok.exr"), random_image(4, 3, 9, 1.0f));
+    std::vector<uint8_t> bytes = read_bytes(path("ok.exr"));
+    // A chunkCount attribute (name, type, size 4, value) inserted as the header's first.
+    const char attr[] = "chunkCount\0int";
+    std::vector<uint8_t> insert(attr, attr + sizeof(attr));
+    for (uint32_t v : {4u, 0x7fffffffu}) {
+        for (int b = 0; b < 4; ++b) insert.push_back(uint8_t(v >> (8 * b)));
+    }
+    bytes.insert(bytes.begin() + 8, insert.begin(), insert.end());
+    write_bytes(path("chunks.exr"), bytes);
+    const std::string message = expect_load_error(path("chunks.exr"));
+    EXPECT_NE(message.find("offset table of 2147483647 blocks does not fit"), std::string::npos)
+        << message;
+}
+
 TEST_F(ImageIoTest, ExrTiledFileFromTinyexr) {
     // A 10x7 float RGB image in 4x4 tiles (edge tiles partial), written with tinyexr.
     const int w = 10, h = 7, ts = 4, tx = 3, ty = 2;
