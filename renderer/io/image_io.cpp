@@ -409,6 +409,45 @@ struct ExrHeaderOwner {
     ExrHeaderOwner& operator=(const ExrHeaderOwner&) = delete;
 };
 
+/// Walks a single-part header's attributes (name, type, 32-bit size, value; an empty name
+/// ends the list) and checks what tinyexr 1.0.1 reads without checking (found by the image
+/// fuzzer): every value inside the file, "tiles" 9 bytes (it only asserts), "compression"
+/// and "lineOrder" 1 byte, and "name" and "type" NUL-terminated (it runs strlen on them).
+void check_exr_attributes(const std::string& path, const std::vector<uint8_t>& data) {
+    size_t pos = 8;  // magic and version
+    auto text = [&](const char* what, size_t at) {
+        const size_t end = std::min(data.size(), pos + 256);
+        const void* nul = std::memchr(&data[pos], 0, end - pos);
+        if (!nul) fail(path, std::string("unterminated attribute ") + what, int64_t(at));
+        std::string s(reinterpret_cast<const char*>(&data[pos]));
+        pos += s.size() + 1;
+        return s;
+    };
+    for (;;) {
+        if (pos >= data.size()) fail(path, "truncated OpenEXR header", int64_t(pos));
+        if (data[pos] == 0) return;
+        const size_t at = pos;
+        const std::string name = text("name", at);
+        if (pos >= data.size()) fail(path, "truncated OpenEXR header", int64_t(pos));
+        text("type", at);
+        if (data.size() - pos < 4) fail(path, "truncated OpenEXR header", int64_t(pos));
+        const uint32_t size = uint32_t(data[pos]) | uint32_t(data[pos + 1]) << 8 |
+                              uint32_t(data[pos + 2]) << 16 | uint32_t(data[pos + 3]) << 24;
+        pos += 4;
+        if (size > data.size() - pos)
+            fail(path, "attribute '" + name + "' runs past the end of the file", int64_t(at));
+        const bool bad = (name == "tiles" && size != 9) ||
+                         ((name == "compression" || name == "lineOrder") && size != 1) ||
+                         ((name == "name" || name == "type") &&
+                          (size == 0 || !std::memchr(&data[pos], 0, size)));
+        if (bad) {
+            fail(path, "malformed attribute '" + name + "' (" + std::to_string(size) + " bytes)",
+                 int64_t(at));
+        }
+        pos += size;
+    }
+}
+
 /// Parses the header only and checks the image size before any pixel allocation.
 /// (We avoid tinyexr's LoadEXRFromMemory: it leaks the header on its error paths.)
 void parse_exr_header(const std::string& path, const std::vector<uint8_t>& data,
@@ -419,6 +458,7 @@ void parse_exr_header(const std::string& path, const std::vector<uint8_t>& data,
     if (version.multipart || version.non_image) {
         fail(path, "multi-part and deep OpenEXR files are not supported");
     }
+    check_exr_attributes(path, data);
     const char* err = nullptr;
     EXRHeader& header = owner.header;
     ret = ParseEXRHeaderFromMemory(&header, &version, data.data(), data.size(), &err);

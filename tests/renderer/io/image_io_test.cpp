@@ -190,6 +190,46 @@ TEST_F(ImageIoTest, ExrChunkCountBeyondTheFileIsAnError) {
         << message;
 }
 
+// Found by tests/fuzz/image_fuzzer: tinyexr reads 9 bytes of a "tiles" attribute whatever
+// its size (it only asserts), and runs strlen on "name" and "type" values.
+TEST_F(ImageIoTest, ExrMalformedAttributesAreErrors) {
+    write_exr(path("ok.exr"), random_image(4, 3, 9, 1.0f));
+    const std::vector<uint8_t> good = read_bytes(path("ok.exr"));
+    struct Case {
+        std::string attribute;  // name, type and value; the size is filled in
+        const char* expect;
+    } cases[] = {
+        {std::string("tiles\0tiledesc\0", 15) + "abc", "malformed attribute 'tiles' (3 bytes)"},
+        {std::string("type\0string\0", 12) + "scanlineimage",
+         "malformed attribute 'type' (13 bytes)"},
+        {std::string("compression\0compression\0", 24), "malformed attribute 'compression'"},
+    };
+    int i = 0;
+    for (const Case& c : cases) {
+        const size_t name_and_type =
+            std::strlen(c.attribute.c_str()) + 1 +
+            std::strlen(c.attribute.c_str() + std::strlen(c.attribute.c_str()) + 1) + 1;
+        const uint32_t size = uint32_t(c.attribute.size() - name_and_type);
+        std::vector<uint8_t> insert(c.attribute.begin(), c.attribute.begin() + long(name_and_type));
+        for (int b = 0; b < 4; ++b) insert.push_back(uint8_t(size >> (8 * b)));
+        insert.insert(insert.end(), c.attribute.begin() + long(name_and_type), c.attribute.end());
+        std::vector<uint8_t> bytes = good;
+        bytes.insert(bytes.begin() + 8, insert.begin(), insert.end());
+        const std::string file = path("attr" + std::to_string(i++) + ".exr");
+        write_bytes(file, bytes);
+        const std::string message = expect_load_error(file);
+        EXPECT_NE(message.find(c.expect), std::string::npos) << message;
+    }
+    // A value running past the end of the file.
+    std::vector<uint8_t> bytes(good.begin(), good.begin() + 8);
+    const char tail[] = "channels\0chlist\0\xff\xff\0\0";
+    bytes.insert(bytes.end(), tail, tail + sizeof(tail) - 1);
+    write_bytes(path("past.exr"), bytes);
+    const std::string message = expect_load_error(path("past.exr"));
+    EXPECT_NE(message.find("attribute 'channels' runs past the end of the file"), std::string::npos)
+        << message;
+}
+
 TEST_F(ImageIoTest, ExrTiledFileFromTinyexr) {
     // A 10x7 float RGB image in 4x4 tiles (edge tiles partial), written with tinyexr.
     const int w = 10, h = 7, ts = 4, tx = 3, ty = 2;
