@@ -10,12 +10,13 @@
 set -euo pipefail
 
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-targets_all=(ply cache image)
+targets_all=(ply cache image scene)
 
 budget() {
     case "$1" in
         ply) echo 45 ;;
         cache | image) echo 30 ;;
+        scene) echo 15 ;;
         *) echo "run_fuzz: unknown target '$1' (one of: ${targets_all[*]})" >&2; exit 2 ;;
     esac
 }

@@ -1,6 +1,7 @@
 // Writes the fuzzers' seed corpora with the project's own writers: kd-tree cache files of
-// the fuzz mesh (SAH and thesis, with their mode bytes), and tiny images in every format
-// load_image reads. Run from the repository root after building the `fuzz` preset:
+// the fuzz mesh (SAH and thesis, with their mode bytes), tiny images in every format
+// load_image reads, and scene files (scene_to_json and a short hand-written one). Run from the
+// repository root after building the `fuzz` preset:
 //   build/fuzz/tests/fuzz_seeds tests/fuzz/corpus
 // The PLY seeds are hand-written and not regenerated here. Cache seeds have no .kdt
 // extension, which .gitignore reserves for real cache files.
@@ -15,6 +16,7 @@
 #include "renderer/accel/kdtree_cache.h"
 #include "renderer/core/error.h"
 #include "renderer/io/image_io.h"
+#include "renderer/scene/scene.h"
 #include "tests/fuzz/fuzz_inputs.h"
 
 namespace {
@@ -106,6 +108,29 @@ void exr_seed(const fs::path& path, int pixel_type, int compression, bool grey) 
     std::free(memory);
 }
 
+// A scene with every kind of material, a file and a builtin mesh and an environment map.
+kdt::Scene seed_scene() {
+    kdt::Scene scene;
+    scene.name = "seed";
+    for (size_t i = 0; i < kdt::kMaterialTypeNames.size(); ++i) {
+        kdt::MeshInstance m;
+        m.file = i % 2 ? "builtin:icosphere" : "meshes/part.ply";
+        m.material.type = kdt::MaterialType(i);
+        m.material.emission = kdt::Vec3f(float(i));
+        m.world_from_object[3] = kdt::Vec4f(float(i), 0.0f, 0.0f, 1.0f);
+        m.smooth = i % 2 == 0;
+        scene.meshes.push_back(m);
+    }
+    scene.environment.file = "sky.hdr";
+    scene.environment.mapping = kdt::EnvMapping::angular;
+    scene.environment.rotation_degrees = 30.0f;
+    return scene;
+}
+
+void write_text(const fs::path& p, const std::string& text) {
+    write_bytes(p, std::vector<unsigned char>(text.begin(), text.end()));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -115,9 +140,10 @@ int main(int argc, char** argv) {
     }
     try {
         const fs::path root = argv[1];
-        const fs::path cache = root / "cache", image = root / "image";
+        const fs::path cache = root / "cache", image = root / "image", scene = root / "scene";
         fs::create_directories(cache);
         fs::create_directories(image);
+        fs::create_directories(scene);
         cache_seed(cache, "sah_resealed", 1);
         cache_seed(cache, "sah_raw", 0);
         cache_seed(cache, "thesis_resealed", 5);
@@ -131,7 +157,7 @@ int main(int argc, char** argv) {
                        {{"kdtrace.scene", "fuzz"}});
         exr_seed(image / "half_none.exr", TINYEXR_PIXELTYPE_HALF, TINYEXR_COMPRESSIONTYPE_NONE,
                  false);
-        exr_seed(image / "half_piz.exr", TINYEXR_PIXELTYPE_HALF, TINYEXR_COMPRESSIONTYPE_PIZ,
+        exr_seed(image / "half_zip.exr", TINYEXR_PIXELTYPE_HALF, TINYEXR_COMPRESSIONTYPE_ZIP,
                  false);
         exr_seed(image / "uint_rle_grey.exr", TINYEXR_PIXELTYPE_UINT, TINYEXR_COMPRESSIONTYPE_RLE,
                  true);
@@ -143,6 +169,14 @@ int main(int argc, char** argv) {
         for (unsigned char b : {0x3f, 0x80, 0, 0, 0x3f, 0, 0, 0, 0x3e, 0x80, 0, 0, 0, 0, 0, 0})
             grey.push_back(b);
         write_bytes(image / "grey_be.pfm", grey);
+
+        write_text(scene / "written.json", kdt::scene_to_json(seed_scene()));
+        write_text(scene / "short.json",
+                   "{\"name\": \"s\", \"meshes\": [{\"file\": \"m.ply\", \"transform\": "
+                   "{\"translate\": [1, 2, 3], \"rotate\": [0, 90, 0], \"scale\": 2}, "
+                   "\"material\": {\"type\": \"dielectric\", \"ior\": 1.33}}, "
+                   "{\"file\": \"m.ply\", \"smooth\": false}],\n"
+                   " \"environment\": {\"color\": 0.5, \"intensity\": 2}}\n");
     } catch (const kdt::Error& e) {
         std::fprintf(stderr, "fuzz_seeds: %s\n", e.what());
         return 1;

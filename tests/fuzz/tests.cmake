@@ -1,9 +1,10 @@
-# libFuzzer targets for the readers of untrusted files (KDT_FUZZ=ON with clang; see the `fuzz`
-# preset and scripts/run_fuzz.sh): PLY meshes, kd-tree cache files, images. The readers'
-# sources are compiled into each fuzzer itself so they get coverage instrumentation. Each
-# fuzzer is a ctest test labelled `fuzz` that runs it on a fresh copy of its seed corpus
-# (tests/fuzz/corpus/<target>) for its share of the CI budget (scripts/run_fuzz.sh), or for
-# KDT_FUZZ_SECONDS each when that is set. fuzz_seeds regenerates the seed corpora.
+# libFuzzer targets for the readers of untrusted files (KDT_FUZZ=ON with clang; see the
+# `fuzz` preset and scripts/run_fuzz.sh): PLY meshes, kd-tree cache files, images, JSON
+# scenes. The readers' sources are compiled into each fuzzer itself so they get coverage
+# instrumentation. Each fuzzer is a ctest test labelled `fuzz` that runs it on a fresh copy
+# of its seed corpus (tests/fuzz/corpus/<target>) for its share of the CI budget
+# (scripts/run_fuzz.sh), or for KDT_FUZZ_SECONDS each when that is set. fuzz_seeds
+# regenerates the seed corpora.
 if(KDT_FUZZ)
   if(NOT CMAKE_CXX_COMPILER_ID STREQUAL "Clang")
     message(STATUS "kdtrace: KDT_FUZZ needs clang; not building the fuzzers")
@@ -47,9 +48,13 @@ if(KDT_FUZZ)
                                 "-w;-Wno-error")
     target_link_libraries(image_fuzzer PRIVATE kdt_core ZLIB::ZLIB kdt_options)
 
+    # The scene reader (nlohmann::json is header-only, so it is instrumented along with it).
+    kdt_add_fuzzer(scene ${_src}/scene/scene.cpp ${_src}/scene/default_scene.cpp)
+    target_link_libraries(scene_fuzzer PRIVATE kdt_io kdt_options)
+
     # Writes the seed corpora with the project's own writers (see the file for how to run it).
     add_executable(fuzz_seeds ${_fuzz_dir}/fuzz_seeds.cpp)
     target_link_libraries(fuzz_seeds PRIVATE kdt_renderer kdt_warnings kdt_options)
-    message(STATUS "kdtrace: building the libFuzzer targets (ply, cache, image)")
+    message(STATUS "kdtrace: building the libFuzzer targets (ply, cache, image, scene)")
   endif()
 endif()
