@@ -237,6 +237,9 @@ Scene load_scene_text(const std::string& text, const std::string& path,
         ErrorLocation where{path};
         where.offset = int64_t(e.byte);
         throw Error(where, std::string("invalid JSON: ") + e.what());
+    } catch (const json::exception& e) {
+        // The parser's other errors, e.g. out_of_range for a number beyond double (1e400).
+        throw Error(ErrorLocation{path}, std::string("invalid JSON: ") + e.what());
     }
     Reader r(path, root, "");
     r.allow({"name", "meshes", "camera", "environment"});

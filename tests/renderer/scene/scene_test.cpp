@@ -140,6 +140,18 @@ TEST(Scene, ErrorsNameFileAndKey) {
     EXPECT_NE(error_of(dir.string()).find("is a directory"), std::string::npos);
 }
 
+// Found by tests/fuzz/scene_fuzzer: nlohmann's parser throws out_of_range (not parse_error)
+// for a number beyond double, which escaped load_scene and terminated the program.
+TEST(Scene, NumberBeyondDoubleIsAnErrorNamingTheFile) {
+    auto dir = test::temp_dir("scene_overflow");
+    auto path = write_file(dir, "huge.json",
+                           R"({"meshes": [{"file": "builtin:icosphere", "transform": )"
+                           R"({"translate": [1e380, 0, 0]}}]})");
+    const std::string msg = error_of(path);
+    EXPECT_EQ(msg.rfind(path + ": invalid JSON: ", 0), 0u) << msg;
+    EXPECT_NE(msg.find("number overflow"), std::string::npos) << msg;
+}
+
 TEST(Scene, MeshSourceReplacesMeshFilesAndBuiltins) {
     auto tri = std::make_shared<const TriangleMesh>(make_ground_plane(1.0f, 0.0f));
     std::vector<std::string> asked;
