@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The whole test suite: install, fetch the dragon, build Release and run every test, run the
-# unit tests again under ASan+UBSan, fuzz the PLY parser for 60 s, and check formatting.
+# unit tests again under ASan+UBSan, fuzz every reader of untrusted files (about 120 s in
+# all, see scripts/run_fuzz.sh), and check formatting.
 # The ASan unit tests run last, so ctest's summary closes the output.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -15,7 +16,7 @@ cmake --preset release >/dev/null
 cmake --build --preset release
 ctest --preset release -j2
 
-echo "== fuzzing the PLY parser"
+echo "== fuzzing the readers (PLY, tree cache, images, scenes)"
 bash scripts/run_fuzz.sh
 
 echo "== asan+ubsan build and unit tests"

@@ -349,9 +349,16 @@ std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
                                           std::shared_ptr<const TriangleMesh> mesh,
                                           const KdTreeParams& params) {
     MappedFile file(path);
-    const size_t size = file.size();
+    return load_kdtree_memory(file.data(), file.size(), path, std::move(mesh), params);
+}
+
+std::shared_ptr<const KdTree> load_kdtree_memory(const unsigned char* data, size_t size,
+                                                 const std::string& path,
+                                                 std::shared_ptr<const TriangleMesh> mesh,
+                                                 const KdTreeParams& params) {
+    if (!mesh) throw Error(ErrorLocation{path}, "no mesh to check the tree cache against");
     if (size == 0) fail_at(path, "", -1, -1, "empty file");
-    if (size < sizeof(kMagic) || std::memcmp(file.data(), kMagic, sizeof(kMagic)) != 0) {
+    if (size < sizeof(kMagic) || std::memcmp(data, kMagic, sizeof(kMagic)) != 0) {
         fail_at(path, "header", -1, 0, "not a kdtrace tree cache (wrong magic)");
     }
     if (size < sizeof(FileHeader)) {
@@ -360,7 +367,7 @@ std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
                     std::to_string(sizeof(FileHeader)));
     }
     FileHeader h;
-    std::memcpy(&h, file.data(), sizeof(h));
+    std::memcpy(&h, data, sizeof(h));
     if (h.byte_order != kByteOrderMark) {
         fail_at(path, "header", -1, offsetof(FileHeader, byte_order),
                 "written with a different byte order");
@@ -421,7 +428,7 @@ std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
                 (size < expected ? "truncated: " : "trailing bytes: ") + std::to_string(size) +
                     " bytes, the header describes " + std::to_string(expected));
     }
-    const unsigned char* payload = file.data() + sizeof(FileHeader);
+    const unsigned char* payload = data + sizeof(FileHeader);
     if (checksum64(payload, size - sizeof(FileHeader)) != h.payload_checksum) {
         fail_at(path, "payload", -1, sizeof(FileHeader),
                 "payload checksum mismatch (corrupt data)");
@@ -438,6 +445,11 @@ std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
     Bounds3f bounds;
     bounds.lower = Vec3f(h.bounds[0], h.bounds[1], h.bounds[2]);
     bounds.upper = Vec3f(h.bounds[3], h.bounds[4], h.bounds[5]);
+    // The traversal clips rays to these bounds; an empty box (a tree of no triangles) is
+    // +inf/-inf, anything else must be finite.
+    if (!bounds.empty() && (!is_finite(bounds.lower) || !is_finite(bounds.upper))) {
+        fail_at(path, "header", -1, offsetof(FileHeader, bounds), "bounds not finite");
+    }
     KdTreeStats s;
     s.nodes = h.node_count;
     s.leaves = h.leaves;
@@ -456,8 +468,13 @@ std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
     s.bytes_per_triangle = h.bytes_per_triangle;
     s.build_seconds = h.build_seconds;
     s.peak_build_bytes = h.peak_build_bytes;
-    return std::make_shared<const KdTree>(std::move(mesh), bounds, std::move(nodes),
-                                          std::move(indices), params, std::move(s));
+    try {
+        return std::make_shared<const KdTree>(std::move(mesh), bounds, std::move(nodes),
+                                              std::move(indices), params, std::move(s));
+    } catch (const Error& e) {
+        // The tree re-checks what it is given; whatever it still finds names this file.
+        throw Error(ErrorLocation{path}, e.what());
+    }
 }
 
 void reseal_kdtree_cache_image(std::vector<unsigned char>& bytes) {

@@ -39,6 +39,13 @@ std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
                                           std::shared_ptr<const TriangleMesh> mesh,
                                           const KdTreeParams& params);
 
+/// load_kdtree() on a file image already in memory (`size` bytes at `data`, which need not
+/// be aligned); `path` names it in error messages. For tests and fuzzers.
+std::shared_ptr<const KdTree> load_kdtree_memory(const unsigned char* data, size_t size,
+                                                 const std::string& path,
+                                                 std::shared_ptr<const TriangleMesh> mesh,
+                                                 const KdTreeParams& params);
+
 /// Recomputes both checksums of a cache file held in memory, for tests and tools that forge
 /// or patch files (so that only the structural checks can catch what they changed).
 /// Throws kdt::Error when `bytes` is shorter than a header.

@@ -409,6 +409,45 @@ struct ExrHeaderOwner {
     ExrHeaderOwner& operator=(const ExrHeaderOwner&) = delete;
 };
 
+/// Walks a single-part header's attributes (name, type, 32-bit size, value; an empty name
+/// ends the list) and checks what tinyexr 1.0.1 reads without checking (found by the image
+/// fuzzer): every value inside the file, "tiles" 9 bytes (it only asserts), "compression"
+/// and "lineOrder" 1 byte, and "name" and "type" NUL-terminated (it runs strlen on them).
+void check_exr_attributes(const std::string& path, const std::vector<uint8_t>& data) {
+    size_t pos = 8;  // magic and version
+    auto text = [&](const char* what, size_t at) {
+        const size_t end = std::min(data.size(), pos + 256);
+        const void* nul = std::memchr(&data[pos], 0, end - pos);
+        if (!nul) fail(path, std::string("unterminated attribute ") + what, int64_t(at));
+        std::string s(reinterpret_cast<const char*>(&data[pos]));
+        pos += s.size() + 1;
+        return s;
+    };
+    for (;;) {
+        if (pos >= data.size()) fail(path, "truncated OpenEXR header", int64_t(pos));
+        if (data[pos] == 0) return;
+        const size_t at = pos;
+        const std::string name = text("name", at);
+        if (pos >= data.size()) fail(path, "truncated OpenEXR header", int64_t(pos));
+        text("type", at);
+        if (data.size() - pos < 4) fail(path, "truncated OpenEXR header", int64_t(pos));
+        const uint32_t size = uint32_t(data[pos]) | uint32_t(data[pos + 1]) << 8 |
+                              uint32_t(data[pos + 2]) << 16 | uint32_t(data[pos + 3]) << 24;
+        pos += 4;
+        if (size > data.size() - pos)
+            fail(path, "attribute '" + name + "' runs past the end of the file", int64_t(at));
+        const bool bad = (name == "tiles" && size != 9) ||
+                         ((name == "compression" || name == "lineOrder") && size != 1) ||
+                         ((name == "name" || name == "type") &&
+                          (size == 0 || !std::memchr(&data[pos], 0, size)));
+        if (bad) {
+            fail(path, "malformed attribute '" + name + "' (" + std::to_string(size) + " bytes)",
+                 int64_t(at));
+        }
+        pos += size;
+    }
+}
+
 /// Parses the header only and checks the image size before any pixel allocation.
 /// (We avoid tinyexr's LoadEXRFromMemory: it leaks the header on its error paths.)
 void parse_exr_header(const std::string& path, const std::vector<uint8_t>& data,
@@ -419,6 +458,7 @@ void parse_exr_header(const std::string& path, const std::vector<uint8_t>& data,
     if (version.multipart || version.non_image) {
         fail(path, "multi-part and deep OpenEXR files are not supported");
     }
+    check_exr_attributes(path, data);
     const char* err = nullptr;
     EXRHeader& header = owner.header;
     ret = ParseEXRHeaderFromMemory(&header, &version, data.data(), data.size(), &err);
@@ -427,6 +467,44 @@ void parse_exr_header(const std::string& path, const std::vector<uint8_t>& data,
     int64_t h = int64_t(header.data_window.max_y) - header.data_window.min_y + 1;
     check_dimensions(path, w, h);
     if (header.num_channels < 1) fail(path, "OpenEXR file without channels");
+    // tinyexr 1.0.1's PIZ decoder trusts the sizes inside each compressed block (it copies
+    // past the end of the file on corrupt data, found by tests/fuzz/image_fuzzer), and those
+    // cannot be checked without decoding the block: refuse PIZ rather than read out of bounds.
+    if (header.compression_type == TINYEXR_COMPRESSIONTYPE_PIZ) {
+        fail(path,
+             "PIZ-compressed OpenEXR is not supported (its decoder is unsafe on corrupt "
+             "files); re-save with ZIP, ZIPS, RLE or no compression");
+    }
+    // tinyexr allocates its offset table (8 bytes per block) from the header before reading
+    // it, and takes a scanline file's block count from the chunkCount attribute when there is
+    // one: a table that cannot fit in the file is corrupt (found by the image fuzzer: a
+    // chunkCount of 1.7e9 asked for 13 GB).
+    uint64_t blocks = 0;
+    if (header.tiled) {
+        if (header.tile_size_x < 1 || header.tile_size_y < 1) {
+            fail(path, "invalid tile size " + std::to_string(header.tile_size_x) + "x" +
+                           std::to_string(header.tile_size_y));
+        }
+        // The first level alone; mipmap and ripmap levels only add to it.
+        blocks = uint64_t((w + header.tile_size_x - 1) / header.tile_size_x) *
+                 uint64_t((h + header.tile_size_y - 1) / header.tile_size_y);
+    } else if (header.chunk_count != 0) {
+        if (header.chunk_count < 0) fail(path, "negative chunkCount");
+        blocks = uint64_t(header.chunk_count);
+    } else {
+        const int c = header.compression_type;
+        const int64_t lines = c == TINYEXR_COMPRESSIONTYPE_NONE ||
+                                      c == TINYEXR_COMPRESSIONTYPE_RLE ||
+                                      c == TINYEXR_COMPRESSIONTYPE_ZIPS
+                                  ? 1
+                              : c == TINYEXR_COMPRESSIONTYPE_ZIP ? 16
+                                                                 : 32;
+        blocks = uint64_t((h + lines - 1) / lines);
+    }
+    if (blocks > data.size() / 8) {
+        fail(path, "offset table of " + std::to_string(blocks) + " blocks does not fit in the " +
+                       std::to_string(data.size()) + "-byte file");
+    }
     if (metadata) {
         for (int i = 0; i < header.num_custom_attributes; ++i) {
             const EXRAttribute& a = header.custom_attributes[i];
@@ -606,7 +684,11 @@ void check_png_key(const std::string& path, const std::string& key) {
 }  // namespace
 
 ImageRGB load_image(const std::string& path, ImageMetadata* metadata) {
-    std::vector<uint8_t> data = read_file(path);
+    return load_image_memory(read_file(path), path, metadata);
+}
+
+ImageRGB load_image_memory(const std::vector<uint8_t>& data, const std::string& path,
+                           ImageMetadata* metadata) {
     if (metadata) metadata->clear();
     ImageRGB image;
     auto starts = [&](const char* magic, size_t n) {

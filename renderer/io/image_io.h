@@ -51,6 +51,11 @@ inline constexpr int kMaxImageDimension = 1 << 16;
 /// If metadata is given, it receives the PNG text chunks or EXR string attributes.
 ImageRGB load_image(const std::string& path, ImageMetadata* metadata = nullptr);
 
+/// load_image() on a file's bytes already in memory; `path` names it in error messages.
+/// For tests and fuzzers.
+ImageRGB load_image_memory(const std::vector<uint8_t>& data, const std::string& path,
+                           ImageMetadata* metadata = nullptr);
+
 /// Writes linear float PFM ("PF", little-endian, rows bottom-to-top as the format wants).
 void write_pfm(const std::string& path, const ImageRGB& image);
 

@@ -192,7 +192,10 @@ EnvironmentDesc read_environment(const Reader& r, const fs::path& base) {
     return e;
 }
 
-std::shared_ptr<const TriangleMesh> builtin_mesh(const std::string& name) {
+std::shared_ptr<const TriangleMesh> builtin_mesh(const std::string& name,
+                                                 const SceneMeshSource& source) {
+    const bool known = name == "displaced_sphere" || name == "icosphere" || name == "ground_plane";
+    if (known && source) return source("builtin:" + name);
     if (name == "displaced_sphere")
         return std::make_shared<const TriangleMesh>(make_displaced_sphere(7));
     if (name == "icosphere") return std::make_shared<const TriangleMesh>(make_icosphere(5));
@@ -221,7 +224,11 @@ std::string read_text_file(const std::string& path) {
 }  // namespace
 
 Scene load_scene(const std::string& path, const SceneLoadOptions& options) {
-    std::string text = read_text_file(path);
+    return load_scene_text(read_text_file(path), path, options);
+}
+
+Scene load_scene_text(const std::string& text, const std::string& path,
+                      const SceneLoadOptions& options) {
     json root;
     try {
         root = json::parse(text);
@@ -230,6 +237,9 @@ Scene load_scene(const std::string& path, const SceneLoadOptions& options) {
         ErrorLocation where{path};
         where.offset = int64_t(e.byte);
         throw Error(where, std::string("invalid JSON: ") + e.what());
+    } catch (const json::exception& e) {
+        // The parser's other errors, e.g. out_of_range for a number beyond double (1e400).
+        throw Error(ErrorLocation{path}, std::string("invalid JSON: ") + e.what());
     }
     Reader r(path, root, "");
     r.allow({"name", "meshes", "camera", "environment"});
@@ -252,7 +262,7 @@ Scene load_scene(const std::string& path, const SceneLoadOptions& options) {
         std::string file = m.string("file", "");
         if (file.rfind("builtin:", 0) == 0) {
             inst.file = file;
-            inst.mesh = builtin_mesh(file.substr(8));
+            inst.mesh = builtin_mesh(file.substr(8), options.mesh_source);
             if (!inst.mesh)
                 m.fail_key("file", "unknown builtin mesh \"" + file +
                                        "\" (expected builtin:displaced_sphere, builtin:icosphere "
@@ -265,7 +275,10 @@ Scene load_scene(const std::string& path, const SceneLoadOptions& options) {
                 MeshLoadOptions mo;
                 mo.drop_invalid = options.drop_invalid;
                 try {
-                    slot = std::make_shared<const TriangleMesh>(load_mesh(inst.file, mo));
+                    slot = options.mesh_source
+                               ? options.mesh_source(inst.file)
+                               : std::make_shared<const TriangleMesh>(load_mesh(inst.file, mo));
+                    if (!slot) throw Error(ErrorLocation{inst.file}, "no mesh");
                 } catch (const Error& e) {
                     // Name the scene file and the key too, then the mesh file's own message.
                     throw Error(ErrorLocation{path, "meshes/" + std::to_string(i) + "/file"},

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <array>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -51,14 +52,27 @@ struct Scene {
     EnvironmentDesc environment;
 };
 
+/// Where a scene's meshes come from: called with a mesh file's resolved path, or with
+/// "builtin:<name>" for a known generated mesh. A kdt::Error it throws is reported naming
+/// the scene file and the key.
+using SceneMeshSource = std::function<std::shared_ptr<const TriangleMesh>(const std::string&)>;
+
 /// Options for loading mesh files referenced by a scene.
 struct SceneLoadOptions {
     bool drop_invalid = false;  ///< drop faces with non-finite vertices instead of failing
+    /// Empty: mesh files are read with load_mesh() and builtins generated. Tests and fuzzers
+    /// substitute their own (so that a scene can be checked without its meshes).
+    SceneMeshSource mesh_source;
 };
 
 /// Loads a JSON scene file; mesh paths are relative to the scene file. Unknown keys,
 /// wrong types and missing files throw kdt::Error naming the file and the key.
 Scene load_scene(const std::string& path, const SceneLoadOptions& options = {});
+
+/// load_scene() on a scene file's text already in memory; `path` names it in messages and
+/// is the base of relative mesh paths. For tests and fuzzers.
+Scene load_scene_text(const std::string& text, const std::string& path,
+                      const SceneLoadOptions& options = {});
 
 /// A scene around one model file (.ply, .ply.gz, .obj): a camera framing its bounds,
 /// a diffuse grey material and a constant white environment.

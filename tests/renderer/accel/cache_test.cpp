@@ -405,6 +405,28 @@ TEST_F(CacheStructureTest, NonFiniteSplit) {
     EXPECT_NE(err.find("split plane not finite"), std::string::npos) << err;
 }
 
+// Found by tests/fuzz/cache_fuzzer: NaN bounds in a resealed header passed the loader's
+// checks and were only caught by the KdTree constructor, whose message did not name the file.
+TEST_F(CacheStructureTest, NonFiniteBoundsNameTheFile) {
+    // The header stores the bounds as six floats, lower first; find them by value.
+    const float lower[3] = {tree_->bounds().lower.x, tree_->bounds().lower.y,
+                            tree_->bounds().lower.z};
+    size_t at = 0;
+    for (size_t k = 0; k + sizeof(lower) <= kdtree_cache_payload_offset(); k += 4) {
+        if (std::memcmp(&bytes_[k], lower, sizeof(lower)) == 0) {
+            at = k;
+            break;
+        }
+    }
+    ASSERT_GT(at, 0u);
+    const float nan = std::nanf("");
+    std::memcpy(&bytes_[at + 4], &nan, 4);
+    const std::string err = error();
+    EXPECT_EQ(err.rfind(file_.string() + ": byte " + std::to_string(at) + ": header: ", 0), 0u)
+        << err;
+    EXPECT_NE(err.find("bounds not finite"), std::string::npos) << err;
+}
+
 TEST_F(CacheStructureTest, StructureErrorTriggersRebuild) {
     set_node(first_leaf(), KdNode::make_leaf(5, uint32_t(tree_->indices().size())));
     error();

@@ -139,6 +139,97 @@ TEST_F(ImageIoTest, ExrHalfRgbaAndSingleChannelFilesFromTinyexr) {
     EXPECT_EQ(back.at(4, 2), Vec3f(22.0f));
 }
 
+// Found by tests/fuzz/image_fuzzer: a PIZ block whose bitmap range runs past the end of the
+// file made tinyexr's decoder read out of bounds. PIZ files are now refused up front.
+TEST_F(ImageIoTest, ExrPizCompressionIsRefusedNamingTheFile) {
+    std::vector<float> planes[3];
+    unsigned char* ptrs[3];
+    EXRChannelInfo channels[3];
+    std::memset(channels, 0, sizeof(channels));
+    int types[3] = {TINYEXR_PIXELTYPE_FLOAT, TINYEXR_PIXELTYPE_FLOAT, TINYEXR_PIXELTYPE_FLOAT};
+    for (int c = 0; c < 3; ++c) {
+        planes[c].assign(8 * 4, 0.5f);
+        ptrs[c] = reinterpret_cast<unsigned char*>(planes[c].data());
+        channels[c].name[0] = "BGR"[c];
+    }
+    EXRHeader header;
+    InitEXRHeader(&header);
+    header.num_channels = 3;
+    header.channels = channels;
+    header.pixel_types = types;
+    header.requested_pixel_types = types;
+    header.compression_type = TINYEXR_COMPRESSIONTYPE_PIZ;
+    EXRImage image;
+    InitEXRImage(&image);
+    image.num_channels = 3;
+    image.width = 8;
+    image.height = 4;
+    image.images = ptrs;
+    const char* err = nullptr;
+    ASSERT_EQ(SaveEXRImageToFile(&image, &header, path("piz.exr").c_str(), &err), TINYEXR_SUCCESS);
+    const std::string message = expect_load_error(path("piz.exr"));
+    EXPECT_NE(message.find("PIZ-compressed OpenEXR is not supported"), std::string::npos)
+        << message;
+}
+
+// Found by tests/fuzz/image_fuzzer: a chunkCount attribute of 1.7e9 made tinyexr allocate a
+// 13 GB offset table before reading it. The table must fit in the file.
+TEST_F(ImageIoTest, ExrChunkCountBeyondTheFileIsAnError) {
+    write_exr(path("ok.exr"), random_image(4, 3, 9, 1.0f));
+    std::vector<uint8_t> bytes = read_bytes(path("ok.exr"));
+    // A chunkCount attribute (name, type, size 4, value) inserted as the header's first.
+    const char attr[] = "chunkCount\0int";
+    std::vector<uint8_t> insert(attr, attr + sizeof(attr));
+    for (uint32_t v : {4u, 0x7fffffffu}) {
+        for (int b = 0; b < 4; ++b) insert.push_back(uint8_t(v >> (8 * b)));
+    }
+    bytes.insert(bytes.begin() + 8, insert.begin(), insert.end());
+    write_bytes(path("chunks.exr"), bytes);
+    const std::string message = expect_load_error(path("chunks.exr"));
+    EXPECT_NE(message.find("offset table of 2147483647 blocks does not fit"), std::string::npos)
+        << message;
+}
+
+// Found by tests/fuzz/image_fuzzer: tinyexr reads 9 bytes of a "tiles" attribute whatever
+// its size (it only asserts), and runs strlen on "name" and "type" values.
+TEST_F(ImageIoTest, ExrMalformedAttributesAreErrors) {
+    write_exr(path("ok.exr"), random_image(4, 3, 9, 1.0f));
+    const std::vector<uint8_t> good = read_bytes(path("ok.exr"));
+    struct Case {
+        std::string attribute;  // name, type and value; the size is filled in
+        const char* expect;
+    } cases[] = {
+        {std::string("tiles\0tiledesc\0", 15) + "abc", "malformed attribute 'tiles' (3 bytes)"},
+        {std::string("type\0string\0", 12) + "scanlineimage",
+         "malformed attribute 'type' (13 bytes)"},
+        {std::string("compression\0compression\0", 24), "malformed attribute 'compression'"},
+    };
+    int i = 0;
+    for (const Case& c : cases) {
+        const size_t name_and_type =
+            std::strlen(c.attribute.c_str()) + 1 +
+            std::strlen(c.attribute.c_str() + std::strlen(c.attribute.c_str()) + 1) + 1;
+        const uint32_t size = uint32_t(c.attribute.size() - name_and_type);
+        std::vector<uint8_t> insert(c.attribute.begin(), c.attribute.begin() + long(name_and_type));
+        for (int b = 0; b < 4; ++b) insert.push_back(uint8_t(size >> (8 * b)));
+        insert.insert(insert.end(), c.attribute.begin() + long(name_and_type), c.attribute.end());
+        std::vector<uint8_t> bytes = good;
+        bytes.insert(bytes.begin() + 8, insert.begin(), insert.end());
+        const std::string file = path("attr" + std::to_string(i++) + ".exr");
+        write_bytes(file, bytes);
+        const std::string message = expect_load_error(file);
+        EXPECT_NE(message.find(c.expect), std::string::npos) << message;
+    }
+    // A value running past the end of the file.
+    std::vector<uint8_t> bytes(good.begin(), good.begin() + 8);
+    const char tail[] = "channels\0chlist\0\xff\xff\0\0";
+    bytes.insert(bytes.end(), tail, tail + sizeof(tail) - 1);
+    write_bytes(path("past.exr"), bytes);
+    const std::string message = expect_load_error(path("past.exr"));
+    EXPECT_NE(message.find("attribute 'channels' runs past the end of the file"), std::string::npos)
+        << message;
+}
+
 TEST_F(ImageIoTest, ExrTiledFileFromTinyexr) {
     // A 10x7 float RGB image in 4x4 tiles (edge tiles partial), written with tinyexr.
     const int w = 10, h = 7, ts = 4, tx = 3, ty = 2;

@@ -140,6 +140,43 @@ TEST(Scene, ErrorsNameFileAndKey) {
     EXPECT_NE(error_of(dir.string()).find("is a directory"), std::string::npos);
 }
 
+// Found by tests/fuzz/scene_fuzzer: nlohmann's parser throws out_of_range (not parse_error)
+// for a number beyond double, which escaped load_scene and terminated the program.
+TEST(Scene, NumberBeyondDoubleIsAnErrorNamingTheFile) {
+    auto dir = test::temp_dir("scene_overflow");
+    auto path = write_file(dir, "huge.json",
+                           R"({"meshes": [{"file": "builtin:icosphere", "transform": )"
+                           R"({"translate": [1e380, 0, 0]}}]})");
+    const std::string msg = error_of(path);
+    EXPECT_EQ(msg.rfind(path + ": invalid JSON: ", 0), 0u) << msg;
+    EXPECT_NE(msg.find("number overflow"), std::string::npos) << msg;
+}
+
+TEST(Scene, MeshSourceReplacesMeshFilesAndBuiltins) {
+    auto tri = std::make_shared<const TriangleMesh>(make_ground_plane(1.0f, 0.0f));
+    std::vector<std::string> asked;
+    SceneLoadOptions options;
+    options.mesh_source = [&](const std::string& file) {
+        asked.push_back(file);
+        return tri;
+    };
+    Scene s = load_scene_text(
+        R"({"meshes": [{"file": "a/m.ply"}, {"file": "builtin:displaced_sphere"}]})", "dir/s.json",
+        options);
+    ASSERT_EQ(s.meshes.size(), 2u);
+    EXPECT_EQ(s.meshes[0].mesh, tri);
+    EXPECT_EQ(s.meshes[1].mesh, tri);
+    EXPECT_EQ(asked, (std::vector<std::string>{"dir/a/m.ply", "builtin:displaced_sphere"}));
+    try {
+        load_scene_text(R"({"meshes": [{"file": "builtin:teapot"}]})", "s.json", options);
+        FAIL() << "no error";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("s.json: meshes/0/file: unknown builtin mesh"),
+                  std::string::npos)
+            << e.what();
+    }
+}
+
 TEST(Scene, FramingBoundsBeyondFloatRangeIsAnError) {
     const CameraDesc c = frame_bounds(Bounds3f{Vec3f(-1e30f), Vec3f(1e30f)});
     EXPECT_GT(glm::length(c.eye - c.target), 0.0f);

@@ -1,0 +1,185 @@
+// Writes the fuzzers' seed corpora with the project's own writers: kd-tree cache files of
+// the fuzz mesh (SAH and thesis, with their mode bytes), tiny images in every format
+// load_image reads, and scene files (scene_to_json and a short hand-written one). Run from the
+// repository root after building the `fuzz` preset:
+//   build/fuzz/tests/fuzz_seeds tests/fuzz/corpus
+// The PLY seeds are hand-written and not regenerated here. Cache seeds have no .kdt
+// extension, which .gitignore reserves for real cache files.
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <tinyexr.h>
+
+#include "renderer/accel/kdtree_cache.h"
+#include "renderer/core/error.h"
+#include "renderer/io/image_io.h"
+#include "renderer/scene/scene.h"
+#include "tests/fuzz/fuzz_inputs.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+
+std::vector<unsigned char> read_bytes(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::vector<unsigned char>(std::istreambuf_iterator<char>(in), {});
+}
+
+void write_bytes(const fs::path& p, const std::vector<unsigned char>& bytes) {
+    std::ofstream out(p, std::ios::binary | std::ios::trunc);
+    out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+    if (!out) throw kdt::Error(kdt::ErrorLocation{p.string()}, "cannot write seed");
+}
+
+// A cache seed: the mode byte, then a file written by save_kdtree.
+void cache_seed(const fs::path& dir, const std::string& name, uint8_t mode) {
+    const kdt::KdTreeParams params = kdt::fuzz::cache_params(mode);
+    auto tree = kdt::build_kdtree(kdt::fuzz::cache_mesh(), params);
+    const fs::path tmp = dir / (name + ".tmp");
+    kdt::save_kdtree(tmp.string(), *tree);
+    std::vector<unsigned char> bytes = read_bytes(tmp);
+    fs::remove(tmp);
+    bytes.insert(bytes.begin(), mode);
+    write_bytes(dir / name, bytes);
+}
+
+kdt::ImageRGB gradient(int w, int h) {
+    kdt::ImageRGB image(w, h);
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            image.set(x, y,
+                      kdt::Vec3f(float(x) / float(w), float(y) / float(h), 0.25f * float(x + y)));
+        }
+    }
+    return image;
+}
+
+// OpenEXR variants our writer does not make: half or uint channels, other compressions.
+void exr_seed(const fs::path& path, int pixel_type, int compression, bool grey) {
+    const int w = 8, h = 4, channels = grey ? 1 : 3;
+    std::vector<float> fplanes[3];
+    std::vector<unsigned int> uplanes[3];
+    unsigned char* planes[3];
+    for (int c = 0; c < channels; ++c) {
+        fplanes[c].resize(size_t(w * h));
+        uplanes[c].resize(size_t(w * h));
+        for (int i = 0; i < w * h; ++i) {
+            fplanes[c][size_t(i)] = 0.1f * float(i % 7) + float(c);
+            uplanes[c][size_t(i)] = unsigned(i * 3 + c);
+        }
+        planes[c] = pixel_type == TINYEXR_PIXELTYPE_UINT
+                        ? reinterpret_cast<unsigned char*>(uplanes[c].data())
+                        : reinterpret_cast<unsigned char*>(fplanes[c].data());
+    }
+    EXRChannelInfo info[3] = {};
+    int input_types[3], output_types[3];
+    for (int c = 0; c < channels; ++c) {
+        info[c].name[0] = grey ? 'Y' : "BGR"[c];
+        // tinyexr takes float input for half output.
+        input_types[c] =
+            pixel_type == TINYEXR_PIXELTYPE_HALF ? TINYEXR_PIXELTYPE_FLOAT : pixel_type;
+        output_types[c] = pixel_type;
+    }
+    EXRImage image;
+    InitEXRImage(&image);
+    image.num_channels = channels;
+    image.images = planes;
+    image.width = w;
+    image.height = h;
+    EXRHeader header;
+    InitEXRHeader(&header);
+    header.num_channels = channels;
+    header.channels = info;
+    header.pixel_types = input_types;
+    header.requested_pixel_types = output_types;
+    header.compression_type = compression;
+    unsigned char* memory = nullptr;
+    const char* err = nullptr;
+    size_t size = SaveEXRImageToMemory(&image, &header, &memory, &err);
+    if (size == 0) {
+        std::string message = err ? err : "unknown error";
+        FreeEXRErrorMessage(err);
+        throw kdt::Error(kdt::ErrorLocation{path.string()}, "cannot write seed: " + message);
+    }
+    write_bytes(path, std::vector<unsigned char>(memory, memory + size));
+    std::free(memory);
+}
+
+// A scene with every kind of material, a file and a builtin mesh and an environment map.
+kdt::Scene seed_scene() {
+    kdt::Scene scene;
+    scene.name = "seed";
+    for (size_t i = 0; i < kdt::kMaterialTypeNames.size(); ++i) {
+        kdt::MeshInstance m;
+        m.file = i % 2 ? "builtin:icosphere" : "meshes/part.ply";
+        m.material.type = kdt::MaterialType(i);
+        m.material.emission = kdt::Vec3f(float(i));
+        m.world_from_object[3] = kdt::Vec4f(float(i), 0.0f, 0.0f, 1.0f);
+        m.smooth = i % 2 == 0;
+        scene.meshes.push_back(m);
+    }
+    scene.environment.file = "sky.hdr";
+    scene.environment.mapping = kdt::EnvMapping::angular;
+    scene.environment.rotation_degrees = 30.0f;
+    return scene;
+}
+
+void write_text(const fs::path& p, const std::string& text) {
+    write_bytes(p, std::vector<unsigned char>(text.begin(), text.end()));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    if (argc != 2) {
+        std::fprintf(stderr, "usage: fuzz_seeds <corpus directory>\n");
+        return 2;
+    }
+    try {
+        const fs::path root = argv[1];
+        const fs::path cache = root / "cache", image = root / "image", scene = root / "scene";
+        fs::create_directories(cache);
+        fs::create_directories(image);
+        fs::create_directories(scene);
+        cache_seed(cache, "sah_resealed", 1);
+        cache_seed(cache, "sah_raw", 0);
+        cache_seed(cache, "thesis_resealed", 5);
+
+        kdt::write_hdr((image / "flat.hdr").string(), gradient(5, 3));
+        kdt::write_hdr((image / "rle.hdr").string(), gradient(9, 2));
+        kdt::write_pfm((image / "colour.pfm").string(), gradient(3, 2));
+        kdt::write_png((image / "text.png").string(), gradient(4, 3), {},
+                       {{"kdtrace.spp", "16"}, {"Comment", "gr\xc3\xbcn"}});
+        kdt::write_exr((image / "float_zip.exr").string(), gradient(4, 3),
+                       {{"kdtrace.scene", "fuzz"}});
+        exr_seed(image / "half_none.exr", TINYEXR_PIXELTYPE_HALF, TINYEXR_COMPRESSIONTYPE_NONE,
+                 false);
+        exr_seed(image / "half_zip.exr", TINYEXR_PIXELTYPE_HALF, TINYEXR_COMPRESSIONTYPE_ZIP,
+                 false);
+        exr_seed(image / "uint_rle_grey.exr", TINYEXR_PIXELTYPE_UINT, TINYEXR_COMPRESSIONTYPE_RLE,
+                 true);
+        exr_seed(image / "float_zips_grey.exr", TINYEXR_PIXELTYPE_FLOAT,
+                 TINYEXR_COMPRESSIONTYPE_ZIPS, true);
+        // Grey PFM, big-endian (positive scale): written by hand, our writer makes "PF" only.
+        std::string pf = "Pf\n2 2\n1.0\n";
+        std::vector<unsigned char> grey(pf.begin(), pf.end());
+        for (unsigned char b : {0x3f, 0x80, 0, 0, 0x3f, 0, 0, 0, 0x3e, 0x80, 0, 0, 0, 0, 0, 0})
+            grey.push_back(b);
+        write_bytes(image / "grey_be.pfm", grey);
+
+        write_text(scene / "written.json", kdt::scene_to_json(seed_scene()));
+        write_text(scene / "short.json",
+                   "{\"name\": \"s\", \"meshes\": [{\"file\": \"m.ply\", \"transform\": "
+                   "{\"translate\": [1, 2, 3], \"rotate\": [0, 90, 0], \"scale\": 2}, "
+                   "\"material\": {\"type\": \"dielectric\", \"ior\": 1.33}}, "
+                   "{\"file\": \"m.ply\", \"smooth\": false}],\n"
+                   " \"environment\": {\"color\": 0.5, \"intensity\": 2}}\n");
+    } catch (const kdt::Error& e) {
+        std::fprintf(stderr, "fuzz_seeds: %s\n", e.what());
+        return 1;
+    }
+    return 0;
+}
