@@ -191,35 +191,67 @@ TEST_F(ImageIoTest, ExrChunkCountBeyondTheFileIsAnError) {
 }
 
 // Found by tests/fuzz/image_fuzzer: tinyexr reads 9 bytes of a "tiles" attribute whatever
-// its size (it only asserts), and runs strlen on "name" and "type" values.
+// its size (it only asserts).
 TEST_F(ImageIoTest, ExrMalformedAttributesAreErrors) {
-    write_exr(path("ok.exr"), random_image(4, 3, 9, 1.0f));
+    const ImageRGB image = random_image(4, 3, 9, 1.0f);
+    write_exr(path("ok.exr"), image);
     const std::vector<uint8_t> good = read_bytes(path("ok.exr"));
+    // `attribute` is name, type and value; the size is filled in. Inserted as the first.
+    auto with_attribute = [&](const std::string& attribute, const std::string& file) {
+        const size_t name_and_type =
+            std::strlen(attribute.c_str()) + 1 +
+            std::strlen(attribute.c_str() + std::strlen(attribute.c_str()) + 1) + 1;
+        const uint32_t size = uint32_t(attribute.size() - name_and_type);
+        std::vector<uint8_t> insert(attribute.begin(), attribute.begin() + long(name_and_type));
+        for (int b = 0; b < 4; ++b) insert.push_back(uint8_t(size >> (8 * b)));
+        insert.insert(insert.end(), attribute.begin() + long(name_and_type), attribute.end());
+        std::vector<uint8_t> bytes = good;
+        bytes.insert(bytes.begin() + 8, insert.begin(), insert.end());
+        write_bytes(file, bytes);
+    };
     struct Case {
-        std::string attribute;  // name, type and value; the size is filled in
+        std::string attribute;
         const char* expect;
     } cases[] = {
         {std::string("tiles\0tiledesc\0", 15) + "abc", "malformed attribute 'tiles' (3 bytes)"},
-        {std::string("type\0string\0", 12) + "scanlineimage",
-         "malformed attribute 'type' (13 bytes)"},
         {std::string("compression\0compression\0", 24), "malformed attribute 'compression'"},
     };
     int i = 0;
     for (const Case& c : cases) {
-        const size_t name_and_type =
-            std::strlen(c.attribute.c_str()) + 1 +
-            std::strlen(c.attribute.c_str() + std::strlen(c.attribute.c_str()) + 1) + 1;
-        const uint32_t size = uint32_t(c.attribute.size() - name_and_type);
-        std::vector<uint8_t> insert(c.attribute.begin(), c.attribute.begin() + long(name_and_type));
-        for (int b = 0; b < 4; ++b) insert.push_back(uint8_t(size >> (8 * b)));
-        insert.insert(insert.end(), c.attribute.begin() + long(name_and_type), c.attribute.end());
-        std::vector<uint8_t> bytes = good;
-        bytes.insert(bytes.begin() + 8, insert.begin(), insert.end());
         const std::string file = path("attr" + std::to_string(i++) + ".exr");
-        write_bytes(file, bytes);
+        with_attribute(c.attribute, file);
         const std::string message = expect_load_error(file);
         EXPECT_NE(message.find(c.expect), std::string::npos) << message;
     }
+    // OpenEXR writes string attributes without a terminating NUL; tinyexr terminates "name"
+    // and "type" itself, so such a file is valid and loads. The offset table (after the
+    // header's final NUL; the first offset points past the table) moves with the insert.
+    const std::string type_attr = std::string("type\0string\0", 12) + "scanlineimage";
+    with_attribute(type_attr, path("type.exr"));
+    std::vector<uint8_t> typed_bytes = read_bytes(path("type.exr"));
+    size_t pos = 8;
+    while (typed_bytes.at(pos) != 0) {
+        pos += std::strlen(reinterpret_cast<const char*>(&typed_bytes[pos])) + 1;
+        pos += std::strlen(reinterpret_cast<const char*>(&typed_bytes[pos])) + 1;
+        uint32_t size = 0;
+        std::memcpy(&size, &typed_bytes.at(pos), 4);
+        pos += 4 + size;
+    }
+    const size_t table = pos + 1, shift = type_attr.size() + 4;
+    uint64_t first = 0;
+    std::memcpy(&first, &typed_bytes.at(table), 8);
+    const size_t chunks = (size_t(first) + shift - table) / 8;
+    for (size_t c = 0; c < chunks; ++c) {
+        uint64_t offset = 0;
+        std::memcpy(&offset, &typed_bytes.at(table + 8 * c), 8);
+        offset += shift;
+        std::memcpy(&typed_bytes.at(table + 8 * c), &offset, 8);
+    }
+    write_bytes(path("type.exr"), typed_bytes);
+    const ImageRGB typed = load_image(path("type.exr"));
+    ASSERT_EQ(typed.width, image.width);
+    ASSERT_EQ(typed.height, image.height);
+    EXPECT_EQ(typed.rgb, image.rgb);
     // A value running past the end of the file.
     std::vector<uint8_t> bytes(good.begin(), good.begin() + 8);
     const char tail[] = "channels\0chlist\0\xff\xff\0\0";
@@ -499,6 +531,21 @@ TEST_F(ImageIoTest, TruncatedAndCorruptedFilesThrow) {
     truncate_and_corrupt(dir_, "g.png", read_bytes(path("g.png")), true);
     write_exr(path("g.exr"), img, {{"k", "v"}});
     truncate_and_corrupt(dir_, "g.exr", read_bytes(path("g.exr")), true);
+}
+
+// Found by tests/fuzz/image_fuzzer: an uncompressed block ending at the end of the file made
+// tinyexr read up to 3 bytes past the buffer (the ASan build sees it). Decoded from a padded
+// copy now: the file loads or fails with an error naming it, and nothing is read past it.
+TEST_F(ImageIoTest, ExrBlockEndingAtTheEndOfTheFileIsReadInBounds) {
+    const std::string file =
+        std::string(KDT_SOURCE_DIR) + "/tests/fuzz/corpus/image/regress_block_at_end.exr";
+    try {
+        const ImageRGB image = load_image(file);
+        EXPECT_GT(image.width, 0);
+        EXPECT_GT(image.height, 0);
+    } catch (const Error& e) {
+        EXPECT_EQ(std::string(e.what()).rfind(file, 0), 0u) << e.what();
+    }
 }
 
 }  // namespace
