@@ -2,6 +2,10 @@
 
 #include <unistd.h>
 #include <cstdlib>
+#include <fstream>
+#include <iterator>
+
+#include "renderer/core/error.h"
 
 namespace kdt::test {
 
@@ -33,6 +37,17 @@ std::filesystem::path temp_dir(const std::string& name) {
     std::filesystem::remove_all(p);
     std::filesystem::create_directories(p);
     return p;
+}
+
+std::vector<unsigned char> read_bytes(const std::filesystem::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::vector<unsigned char>(std::istreambuf_iterator<char>(in), {});
+}
+
+void write_bytes(const std::filesystem::path& p, const std::vector<unsigned char>& bytes) {
+    std::ofstream out(p, std::ios::binary | std::ios::trunc);
+    out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+    if (!out) throw Error(ErrorLocation{p.string()}, "cannot write the file");
 }
 
 }  // namespace kdt::test

@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "renderer/core/math.h"
 
@@ -18,6 +19,10 @@ std::filesystem::path shared_data_dir();
 std::filesystem::path dragon_dir();
 /// A fresh temporary directory for one test.
 std::filesystem::path temp_dir(const std::string& name);
+/// The whole file (empty when it cannot be read).
+std::vector<unsigned char> read_bytes(const std::filesystem::path& p);
+/// Writes the file, replacing it; throws kdt::Error naming it when that fails.
+void write_bytes(const std::filesystem::path& p, const std::vector<unsigned char>& bytes);
 
 /// Seeded SplitMix64 stream for test inputs (not the renderer's sampler): fixed seeds only.
 struct HashRng {

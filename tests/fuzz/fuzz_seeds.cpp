@@ -18,21 +18,13 @@
 #include "renderer/io/image_io.h"
 #include "renderer/scene/scene.h"
 #include "tests/fuzz/fuzz_inputs.h"
+#include "tests/test_util.h"
 
 namespace {
 
 namespace fs = std::filesystem;
-
-std::vector<unsigned char> read_bytes(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    return std::vector<unsigned char>(std::istreambuf_iterator<char>(in), {});
-}
-
-void write_bytes(const fs::path& p, const std::vector<unsigned char>& bytes) {
-    std::ofstream out(p, std::ios::binary | std::ios::trunc);
-    out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
-    if (!out) throw kdt::Error(kdt::ErrorLocation{p.string()}, "cannot write seed");
-}
+using kdt::test::read_bytes;
+using kdt::test::write_bytes;
 
 // A cache seed: the mode byte, then a file written by save_kdtree.
 void cache_seed(const fs::path& dir, const std::string& name, uint8_t mode) {

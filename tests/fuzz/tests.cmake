@@ -53,8 +53,9 @@ if(KDT_FUZZ)
     target_link_libraries(scene_fuzzer PRIVATE kdt_io kdt_options)
 
     # Writes the seed corpora with the project's own writers (see the file for how to run it).
-    add_executable(fuzz_seeds ${_fuzz_dir}/fuzz_seeds.cpp)
+    add_executable(fuzz_seeds ${_fuzz_dir}/fuzz_seeds.cpp ${CMAKE_SOURCE_DIR}/tests/test_util.cpp)
     target_link_libraries(fuzz_seeds PRIVATE kdt_renderer kdt_warnings kdt_options)
+    target_compile_definitions(fuzz_seeds PRIVATE KDT_SOURCE_DIR="${CMAKE_SOURCE_DIR}")
     message(STATUS "kdtrace: building the libFuzzer targets (ply, cache, image, scene)")
   endif()
 endif()

@@ -20,6 +20,8 @@ namespace kdt {
 namespace {
 
 namespace fs = std::filesystem;
+using test::read_bytes;
+using test::write_bytes;
 
 std::shared_ptr<const TriangleMesh> sphere_mesh(int levels = 3) {
     return std::make_shared<const TriangleMesh>(make_displaced_sphere(levels));
@@ -32,16 +34,6 @@ KdTreeParams thesis_params() {
     p.n0 = 5;
     p.max_depth = 20;
     return p;
-}
-
-std::vector<unsigned char> read_bytes(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    return std::vector<unsigned char>(std::istreambuf_iterator<char>(in), {});
-}
-
-void write_bytes(const fs::path& p, const std::vector<unsigned char>& bytes) {
-    std::ofstream out(p, std::ios::binary | std::ios::trunc);
-    out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
 }
 
 void expect_same_tree(const KdTree& a, const KdTree& b) {

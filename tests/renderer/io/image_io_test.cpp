@@ -24,22 +24,14 @@ namespace kdt {
 namespace {
 
 using test::HashRng;
+using test::read_bytes;
+using test::write_bytes;
 
 ImageRGB random_image(int w, int h, uint64_t seed, float scale) {
     ImageRGB img(w, h);
     HashRng rng(seed);
     for (float& v : img.rgb) v = scale * rng.next();
     return img;
-}
-
-std::vector<uint8_t> read_bytes(const std::filesystem::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    return std::vector<uint8_t>(std::istreambuf_iterator<char>(in), {});
-}
-
-void write_bytes(const std::filesystem::path& p, const std::vector<uint8_t>& bytes) {
-    std::ofstream out(p, std::ios::binary);
-    out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
 }
 
 void write_text(const std::filesystem::path& p, const std::string& s) {
@@ -253,10 +245,10 @@ TEST_F(ImageIoTest, ExrMalformedAttributesAreErrors) {
     ASSERT_EQ(typed.height, image.height);
     EXPECT_EQ(typed.rgb, image.rgb);
     // A value running past the end of the file.
-    std::vector<uint8_t> bytes(good.begin(), good.begin() + 8);
     const char tail[] = "channels\0chlist\0\xff\xff\0\0";
-    bytes.insert(bytes.end(), tail, tail + sizeof(tail) - 1);
-    write_bytes(path("past.exr"), bytes);
+    std::string past(good.begin(), good.begin() + 8);
+    past.append(tail, sizeof(tail) - 1);
+    write_bytes(path("past.exr"), std::vector<uint8_t>(past.begin(), past.end()));
     const std::string message = expect_load_error(path("past.exr"));
     EXPECT_NE(message.find("attribute 'channels' runs past the end of the file"), std::string::npos)
         << message;
