@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "renderer/core/error.h"
+#include "renderer/core/open_file.h"
 #include "renderer/material/material.h"
 
 namespace kdt::app {
@@ -79,13 +80,15 @@ float hash_uniform(uint64_t a, uint64_t b, uint64_t c, uint64_t d) {
 }
 
 BenchViewSet load_views(const std::string& path) {
-    std::ifstream in(path);
-    if (!in) throw Error(ErrorLocation{path}, "cannot open views file");
+    const std::vector<uint8_t> text = read_regular_file(path, uint64_t(16) << 20, "a views file");
     json doc;
     try {
-        doc = json::parse(in);
+        doc = json::parse(text.begin(), text.end());
     } catch (const json::parse_error& e) {
         throw Error(ErrorLocation{path, "", -1, -1, int64_t(e.byte)}, "invalid JSON");
+    } catch (const json::exception& e) {
+        // out_of_range for a number beyond double (1e400), and any other parser error.
+        throw Error(ErrorLocation{path}, std::string("invalid JSON: ") + e.what());
     }
     check_keys(path, "", doc,
                {"description", "model", "width", "height", "samples_per_pixel", "seed", "views"});

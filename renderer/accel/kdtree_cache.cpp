@@ -17,6 +17,7 @@
 #include <unistd.h>
 
 #include "renderer/core/error.h"
+#include "renderer/core/open_file.h"
 #include "renderer/core/timer.h"
 
 namespace kdt {
@@ -137,13 +138,9 @@ std::string hex64(uint64_t v) {
 class MappedFile {
 public:
     explicit MappedFile(const std::string& path) : path_(path) {
-        std::error_code ec;
-        if (fs::is_directory(path, ec)) fail("is a directory, not a cache file");
-        fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-        if (fd_ < 0) fail(std::string("cannot open: ") + std::strerror(errno));
+        fd_ = open_regular_file(path, "a cache file");
         struct stat st;
         if (::fstat(fd_, &st) != 0) fail(std::string("cannot stat: ") + std::strerror(errno));
-        if (!S_ISREG(st.st_mode)) fail("not a regular file");
         size_ = size_t(st.st_size);
         if (size_ == 0) return;
         void* p = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, fd_, 0);

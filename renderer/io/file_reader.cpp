@@ -9,6 +9,7 @@
 #include <cstring>
 
 #include "renderer/core/error.h"
+#include "renderer/core/open_file.h"
 
 namespace kdt {
 namespace {
@@ -27,12 +28,10 @@ constexpr uint64_t kMaxDeflateRatio = 1032;
 FileReader FileReader::open(const std::string& path) {
     FileReader r;
     r.path_ = path;
-    r.fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-    if (r.fd_ < 0) fail(path, std::string("cannot open file: ") + std::strerror(errno));
+    r.fd_ = open_regular_file(path);
     struct stat st {};
     if (::fstat(r.fd_, &st) != 0)
         fail(path, std::string("cannot stat file: ") + std::strerror(errno));
-    if (S_ISDIR(st.st_mode)) fail(path, "is a directory, not a file");
     r.file_bytes_ = static_cast<uint64_t>(st.st_size);
     r.size_bound_ = r.file_bytes_;
     ::posix_fadvise(r.fd_, 0, 0, POSIX_FADV_SEQUENTIAL);

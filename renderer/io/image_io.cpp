@@ -12,6 +12,7 @@
 #include <zlib.h>
 
 #include "renderer/core/error.h"
+#include "renderer/core/open_file.h"
 
 // stb_image for .hdr and .png decoding, stb_image_write for .hdr encoding; the
 // implementations are compiled into this translation unit only, with internal linkage
@@ -54,18 +55,8 @@ std::string lower_extension(const std::string& path) {
 }
 
 std::vector<uint8_t> read_file(const std::string& path) {
-    std::ifstream in(path, std::ios::binary | std::ios::ate);
-    if (!in) fail(path, "cannot open file");
-    std::streamoff size = in.tellg();
-    if (size < 0) fail(path, "cannot determine the file size");
     // Image files beyond 4 GiB would decode to more than kMaxImagePixels anyway.
-    if (uint64_t(size) > (uint64_t(1) << 32)) fail(path, "file is too large for an image");
-    std::vector<uint8_t> data(static_cast<size_t>(size));
-    in.seekg(0);
-    if (size > 0 && !in.read(reinterpret_cast<char*>(data.data()), size)) {
-        fail(path, "read error");
-    }
-    return data;
+    return read_regular_file(path, uint64_t(1) << 32, "an image file");
 }
 
 void check_dimensions(const std::string& path, int64_t width, int64_t height) {

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "renderer/core/error.h"
+#include "renderer/core/open_file.h"
 #include "renderer/io/mesh_io.h"
 
 namespace kdt {
@@ -205,20 +206,8 @@ std::shared_ptr<const TriangleMesh> builtin_mesh(const std::string& name,
 }
 
 std::string read_text_file(const std::string& path) {
-    std::error_code ec;
-    if (fs::is_directory(path, ec))
-        throw Error(ErrorLocation{path}, "is a directory, not a scene file");
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw Error(ErrorLocation{path}, "cannot open file");
-    in.seekg(0, std::ios::end);
-    auto size = in.tellg();
-    if (size > (std::streamoff(64) << 20))
-        throw Error(ErrorLocation{path}, "scene file larger than 64 MiB");
-    in.seekg(0);
-    std::string text(size_t(size), '\0');
-    in.read(text.data(), size);
-    if (!in) throw Error(ErrorLocation{path}, "read error");
-    return text;
+    const std::vector<uint8_t> bytes = read_regular_file(path, uint64_t(64) << 20, "a scene file");
+    return std::string(bytes.begin(), bytes.end());
 }
 
 }  // namespace

@@ -3,6 +3,8 @@
 // detected with a clear reason and rebuilt.
 #include "renderer/accel/kdtree_cache.h"
 
+#include <sys/stat.h>
+
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -258,6 +260,21 @@ TEST_F(CacheTest, EmptyFileIsRebuilt) {
     std::ofstream(file_).close();
     ASSERT_TRUE(fs::exists(file_));
     expect_rebuilt("empty file");
+}
+
+// A FIFO where the cache file should be must not block the loader (open() of a FIFO
+// without a writer waits forever): it is reported and replaced by the rebuilt tree's file.
+TEST_F(CacheTest, FifoInsteadOfFileIsReportedAndReplaced) {
+    ASSERT_EQ(::mkfifo(file_.c_str(), 0600), 0);
+    CacheRun r = run_cache(model_, mesh_, params_, dir_);
+    ASSERT_TRUE(r.tree);
+    EXPECT_FALSE(r.report.loaded);
+    EXPECT_NE(r.report.reason.find("is a FIFO (pipe), not a cache file"), std::string::npos)
+        << r.report.reason;
+    EXPECT_TRUE(r.report.written) << r.log;
+    EXPECT_TRUE(fs::is_regular_file(file_));
+    CacheRun again = run_cache(model_, mesh_, params_, dir_);
+    EXPECT_TRUE(again.report.loaded) << again.report.reason;
 }
 
 TEST_F(CacheTest, DirectoryInsteadOfFileIsReportedAndTreeStillBuilt) {

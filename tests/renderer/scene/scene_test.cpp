@@ -1,3 +1,5 @@
+#include <sys/stat.h>
+
 #include <cmath>
 #include <fstream>
 #include <map>
@@ -138,6 +140,24 @@ TEST(Scene, ErrorsNameFileAndKey) {
     }
     EXPECT_NE(error_of((dir / "nope.json").string()).find("cannot open"), std::string::npos);
     EXPECT_NE(error_of(dir.string()).find("is a directory"), std::string::npos);
+}
+
+// A FIFO or device, as the scene file or named by it, is refused at once (a FIFO without a
+// writer would block the reader forever), naming the file.
+TEST(Scene, FifosAndDevicesAreRefusedNamingTheFile) {
+    auto dir = test::temp_dir("scene_fifo");
+    const std::string fifo = (dir / "scene.json").string();
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    std::string msg = error_of(fifo);
+    EXPECT_NE(msg.find(fifo + ": is a FIFO (pipe), not a scene file"), std::string::npos) << msg;
+    msg = error_of("/dev/zero");
+    EXPECT_NE(msg.find("/dev/zero: is a character device"), std::string::npos) << msg;
+    const std::string mesh_fifo = (dir / "mesh.ply").string();
+    ASSERT_EQ(::mkfifo(mesh_fifo.c_str(), 0600), 0);
+    const std::string a = write_file(dir, "a.json", R"({"meshes": [{"file": "mesh.ply"}]})");
+    msg = error_of(a);
+    EXPECT_NE(msg.find(a), std::string::npos) << msg;
+    EXPECT_NE(msg.find("is a FIFO (pipe)"), std::string::npos) << msg;
 }
 
 // Found by tests/fuzz/scene_fuzzer: nlohmann's parser throws out_of_range (not parse_error)

@@ -1,0 +1,85 @@
+#include "renderer/core/open_file.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+
+#include "renderer/core/error.h"
+
+namespace kdt {
+namespace {
+
+[[noreturn]] void fail(const std::string& path, const std::string& message) {
+    throw Error(ErrorLocation{path}, message);
+}
+
+const char* kind_of(mode_t mode) {
+    if (S_ISDIR(mode)) return "a directory";
+    if (S_ISFIFO(mode)) return "a FIFO (pipe)";
+    if (S_ISSOCK(mode)) return "a socket";
+    if (S_ISCHR(mode)) return "a character device";
+    if (S_ISBLK(mode)) return "a block device";
+    return "not a regular file";
+}
+
+}  // namespace
+
+int open_regular_file(const std::string& path, const char* what) {
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
+    if (fd < 0) fail(path, std::string("cannot open file: ") + std::strerror(errno));
+    struct stat st {};
+    if (::fstat(fd, &st) != 0) {
+        const int e = errno;
+        ::close(fd);
+        fail(path, std::string("cannot stat file: ") + std::strerror(e));
+    }
+    if (!S_ISREG(st.st_mode)) {
+        ::close(fd);
+        fail(path, std::string("is ") + kind_of(st.st_mode) + ", not " + what);
+    }
+    const int flags = ::fcntl(fd, F_GETFL);
+    if (flags < 0 || ::fcntl(fd, F_SETFL, flags & ~O_NONBLOCK) != 0) {
+        const int e = errno;
+        ::close(fd);
+        fail(path, std::string("cannot configure file: ") + std::strerror(e));
+    }
+    return fd;
+}
+
+std::vector<uint8_t> read_regular_file(const std::string& path, uint64_t max_bytes,
+                                       const char* what) {
+    const int fd = open_regular_file(path, what);
+    struct stat st {};
+    if (::fstat(fd, &st) != 0 || st.st_size < 0) {
+        ::close(fd);
+        fail(path, "cannot determine the file size");
+    }
+    if (uint64_t(st.st_size) > max_bytes) {
+        ::close(fd);
+        fail(path, "file is larger than " + std::to_string(max_bytes >> 20) + " MiB, too large for " +
+                       what);
+    }
+    std::vector<uint8_t> data(size_t(st.st_size));
+    size_t total = 0;
+    while (total < data.size()) {
+        const ssize_t got = ::read(fd, data.data() + total, data.size() - total);
+        if (got < 0 && errno == EINTR) continue;
+        if (got < 0) {
+            const int e = errno;
+            ::close(fd);
+            fail(path, std::string("read error: ") + std::strerror(e));
+        }
+        if (got == 0) {
+            ::close(fd);
+            fail(path, "file shrank while being read");
+        }
+        total += size_t(got);
+    }
+    ::close(fd);
+    return data;
+}
+
+}  // namespace kdt

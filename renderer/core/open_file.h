@@ -1,0 +1,23 @@
+// Opening input files safely: only regular files, and never blocking on a FIFO.
+// Depends on core/error.h.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace kdt {
+
+/// Opens path read-only (close-on-exec) and returns the descriptor. The file is opened
+/// non-blocking, so a FIFO without a writer cannot hang the caller, and then checked: a
+/// directory, FIFO, socket or device (/dev/zero would never end) is refused with an Error
+/// naming the path and what it is; `what` names the expected kind ("a scene file", ...).
+/// Reads on the returned descriptor block as usual. The caller closes it.
+int open_regular_file(const std::string& path, const char* what = "a file");
+
+/// The whole of a regular file (opened as open_regular_file does). Files larger than
+/// max_bytes are refused with an Error naming the path and the limit.
+std::vector<uint8_t> read_regular_file(const std::string& path, uint64_t max_bytes,
+                                       const char* what = "a file");
+
+}  // namespace kdt
