@@ -134,6 +134,29 @@ std::string hex64(uint64_t v) {
     return buf;
 }
 
+// Bounds of the triangles whose vertices are all finite (the ones builders reference).
+Bounds3f usable_triangle_bounds(const TriangleMesh& mesh) {
+    Bounds3f b;
+    const size_t nv = mesh.positions.size();
+    for (const Vec3u& t : mesh.triangles) {
+        if (t.x >= nv || t.y >= nv || t.z >= nv) continue;
+        const Vec3f& p0 = mesh.positions[t.x];
+        const Vec3f& p1 = mesh.positions[t.y];
+        const Vec3f& p2 = mesh.positions[t.z];
+        if (!is_finite(p0) || !is_finite(p1) || !is_finite(p2)) continue;
+        b.extend(p0);
+        b.extend(p1);
+        b.extend(p2);
+    }
+    return b;
+}
+
+bool contains(const Bounds3f& outer, const Bounds3f& inner) {
+    return outer.lower.x <= inner.lower.x && outer.lower.y <= inner.lower.y &&
+           outer.lower.z <= inner.lower.z && outer.upper.x >= inner.upper.x &&
+           outer.upper.y >= inner.upper.y && outer.upper.z >= inner.upper.z;
+}
+
 // A read-only mapping of a whole file, unmapped on destruction.
 class MappedFile {
 public:
@@ -446,6 +469,13 @@ std::shared_ptr<const KdTree> load_kdtree_memory(const unsigned char* data, size
     // +inf/-inf, anything else must be finite.
     if (!bounds.empty() && (!is_finite(bounds.lower) || !is_finite(bounds.upper))) {
         fail_at(path, "header", -1, offsetof(FileHeader, bounds), "bounds not finite");
+    }
+    // Rays are clipped to these bounds, so they must hold every triangle the tree can hit;
+    // a smaller box (say, a resealed hostile file) would lose hits without a word.
+    const Bounds3f need = usable_triangle_bounds(*mesh);
+    if (!need.empty() && (bounds.empty() || !contains(bounds, need))) {
+        fail_at(path, "header", -1, offsetof(FileHeader, bounds),
+                "bounds do not contain the mesh's triangles");
     }
     KdTreeStats s;
     s.nodes = h.node_count;

@@ -436,6 +436,33 @@ TEST_F(CacheStructureTest, NonFiniteBoundsNameTheFile) {
     EXPECT_NE(err.find("bounds not finite"), std::string::npos) << err;
 }
 
+// Rays are clipped to the stored bounds: a box that misses part of the mesh would lose
+// hits silently, so it is refused (growing the box is harmless and loads).
+TEST_F(CacheStructureTest, BoundsThatDoNotHoldTheMeshAreRefused) {
+    const float lower[3] = {tree_->bounds().lower.x, tree_->bounds().lower.y,
+                            tree_->bounds().lower.z};
+    size_t at = 0;
+    for (size_t k = 0; k + sizeof(lower) <= kdtree_cache_payload_offset(); k += 4) {
+        if (std::memcmp(&bytes_[k], lower, sizeof(lower)) == 0) {
+            at = k;
+            break;
+        }
+    }
+    ASSERT_GT(at, 0u);
+    const std::vector<unsigned char> original = bytes_;
+    // upper.y moved inwards by a tenth of the box.
+    const float upper_y = tree_->bounds().upper.y - 0.1f * (tree_->bounds().upper.y - lower[1]);
+    std::memcpy(&bytes_[at + 16], &upper_y, 4);
+    std::string err = error();
+    EXPECT_EQ(err.rfind(file_.string() + ": byte " + std::to_string(at) + ": header: ", 0), 0u)
+        << err;
+    EXPECT_NE(err.find("bounds do not contain the mesh's triangles"), std::string::npos) << err;
+    bytes_ = original;
+    const float lower_x = lower[0] - 1.0f;
+    std::memcpy(&bytes_[at], &lower_x, 4);
+    EXPECT_EQ(error(), "");
+}
+
 TEST_F(CacheStructureTest, StructureErrorTriggersRebuild) {
     set_node(first_leaf(), KdNode::make_leaf(5, uint32_t(tree_->indices().size())));
     error();
