@@ -59,8 +59,8 @@ std::vector<uint8_t> read_regular_file(const std::string& path, uint64_t max_byt
     }
     if (uint64_t(st.st_size) > max_bytes) {
         ::close(fd);
-        fail(path, "file is larger than " + std::to_string(max_bytes >> 20) + " MiB, too large for " +
-                       what);
+        fail(path, "file is larger than " + std::to_string(max_bytes >> 20) +
+                       " MiB, too large for " + what);
     }
     std::vector<uint8_t> data(size_t(st.st_size));
     size_t total = 0;

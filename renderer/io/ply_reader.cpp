@@ -1435,10 +1435,15 @@ void PlyParser::check_counts() {
         total += need;
         if (total > remaining) {
             line_ = el.line;
+            auto bytes = [](unsigned __int128 b) {
+                return b > UINT64_MAX ? std::string("2^64") : std::to_string(uint64_t(b));
+            };
+            // Name the running total when earlier elements took part of the file.
+            const std::string with_before =
+                total == need ? "" : " (" + bytes(total) + " with the elements before it)";
             fail_header("element " + el.name + ": count " + std::to_string(el.count) +
-                        " needs at least " +
-                        (need > UINT64_MAX ? std::string("2^64") : std::to_string(uint64_t(need))) +
-                        " bytes, more than the " + std::to_string(remaining - (ascii_ ? 1 : 0)) +
+                        " needs at least " + bytes(need) + " bytes" + with_before +
+                        ", more than the " + std::to_string(remaining - (ascii_ ? 1 : 0)) +
                         (reader_.gzip() ? " bytes the compressed file can hold"
                                         : " bytes of data in the file"));
         }

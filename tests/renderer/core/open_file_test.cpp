@@ -39,7 +39,9 @@ TEST(OpenFile, RefusesMissingFilesAndOversizedOnes) {
     const std::string big = (dir / "big.bin").string();
     std::ofstream(big) << std::string(3u << 20, 'x');
     msg = error_reading(big, 2u << 20);
-    EXPECT_NE(msg.find(big + ": file is larger than 2 MiB, too large for a test file"), std::string::npos) << msg;
+    EXPECT_NE(msg.find(big + ": file is larger than 2 MiB, too large for a test file"),
+              std::string::npos)
+        << msg;
 }
 
 // A FIFO without a writer would block open() and read() forever; a device such as /dev/zero

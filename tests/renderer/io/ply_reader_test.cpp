@@ -671,6 +671,14 @@ TEST(PlyReader, TightAsciiWithoutFinalNewline) {
                  "element vertex: count 3 needs at least 18 bytes, more than the 15 bytes");
 }
 
+// Three vertices (18 bytes at least in ascii) and two faces of three indices (8 bytes at
+// least each) in 32 bytes of data: each element fits on its own, both do not.
+std::string header_body_of_two_faces() {
+    return "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+           "property float z\nelement face 2\nproperty list uchar int vertex_indices\n"
+           "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 2\n";
+}
+
 TEST(PlyReaderErrors, CountsTheFileCannotHold) {
     std::string t = kCubeAscii;
     t.replace(t.find("element vertex 5"), 16, "element vertex 999999999999");
@@ -689,8 +697,11 @@ TEST(PlyReaderErrors, CountsTheFileCannotHold) {
     EXPECT_ERROR(other, "element normals: count 999999999999 needs at least");
     std::string b = std::string(kHeaderXYZ) + xyz_body();
     b.replace(b.find("element face 1"), 14, "element face 4000000000");
-    EXPECT_ERROR(b,
-                 "element face: count 4000000000 needs at least 52000000000 bytes, more than the");
+    EXPECT_ERROR(b, "element face: count 4000000000 needs at least 52000000000 bytes (");
+    // When the element alone would fit, the message gives the total with those before it.
+    EXPECT_ERROR(header_body_of_two_faces(),
+                 "element face: count 2 needs at least 16 bytes (34 with the elements before it), "
+                 "more than the 32 bytes of data in the file");
     std::string huge = kCubeAscii;
     huge.replace(huge.find("element vertex 5"), 16, "element vertex 99999999999999999999999");
     EXPECT_ERROR(huge, "element vertex: count 99999999999999999999999 is too large");
