@@ -1180,6 +1180,10 @@ private:
     void store_vertex(const Element& el, uint64_t i, const float* v);
     [[gnu::noinline]] void non_finite_vertex(const Element& el, uint64_t i, const Vec3f& p);
     void emit_face(const Element& el, uint64_t i, const int64_t* idx, size_t n);
+    void emit_strip(const Element& el, uint64_t i, const int64_t* idx, size_t n);
+    bool is_strip(const Element& el) const {
+        return strip_el_ >= 0 && &el == &elements_[size_t(strip_el_)];
+    }
     void finish(TriangleMesh& mesh);
 
     FileReader& reader_;
@@ -1193,6 +1197,7 @@ private:
     uint64_t data_offset_ = 0;
     std::vector<Element> elements_;
     int vertex_el_ = -1, face_el_ = -1;
+    int strip_el_ = -1;  // element "tristrips" (Cyberware-era scans): strips, -1 restarts
     bool has_normals_ = false, has_colors_ = false;
     bool xyz_only_ = false;  // vertex properties: float x, y, z and nothing else
     bool vertices_read_ = false;
@@ -1330,6 +1335,7 @@ void PlyParser::plan_elements() {
     for (size_t k = 0; k < elements_.size(); ++k) {
         if (elements_[k].name == "vertex") vertex_el_ = int(k);
         if (elements_[k].name == "face") face_el_ = int(k);
+        if (elements_[k].name == "tristrips") strip_el_ = int(k);
     }
     if (vertex_el_ < 0) {
         line_ = -1;
@@ -1394,20 +1400,21 @@ void PlyParser::plan_elements() {
                     " vertices exceed the 32-bit index limit");
     vertex_count_ = v.count;
 
-    if (face_el_ >= 0) {
-        Element& f = elements_[size_t(face_el_)];
+    for (int k : {face_el_, strip_el_}) {
+        if (k < 0) continue;
+        Element& f = elements_[size_t(k)];
         line_ = f.line;
         for (Property& p : f.props) {
             if (p.is_list() && (p.name == "vertex_indices" || p.name == "vertex_index")) {
                 if (!is_integer(p.type))
-                    fail_header("face list " + p.name + " has non-integer item type");
+                    fail_header(f.name + " list " + p.name + " has non-integer item type");
                 p.slot = kIndices;
                 break;
             }
         }
         bool have = false;
         for (const Property& p : f.props) have |= p.slot == kIndices;
-        if (!have) fail_header("element face has no list property vertex_indices");
+        if (!have) fail_header("element " + f.name + " has no list property vertex_indices");
     }
 }
 
@@ -1421,12 +1428,14 @@ void PlyParser::check_counts() {
     unsigned __int128 total = 0;
     for (const Element& el : elements_) {
         uint64_t min_bytes = 0;
+        // A face lists at least three indices; a strip may be empty.
+        const bool faces = &el != &elements_[size_t(vertex_el_)] && !is_strip(el);
         for (const Property& p : el.props) {
+            const bool indices = p.slot == kIndices && faces;
             if (ascii_) {
-                min_bytes += p.slot == kIndices ? 8 : 2;
+                min_bytes += indices ? 8 : 2;
             } else if (p.is_list()) {
-                min_bytes +=
-                    type_size(p.count_type) + (p.slot == kIndices ? 3 * type_size(p.type) : 0);
+                min_bytes += type_size(p.count_type) + (indices ? 3 * type_size(p.type) : 0);
             } else {
                 min_bytes += type_size(p.type);
             }
@@ -1503,6 +1512,48 @@ void PlyParser::emit_face(const Element& el, uint64_t i, const int64_t* idx, siz
     degenerate_faces_ += degenerate;
     for (size_t k = 1; k + 1 < n; ++k)
         mesh_.triangles.emplace_back(uint32_t(idx[0]), uint32_t(idx[k]), uint32_t(idx[k + 1]));
+}
+
+// One triangle strip: triangle k of a run is (v_k, v_k+1, v_k+2), with the first two swapped
+// for odd k so that all keep one winding; -1 ends a run. Triangles with a repeated vertex
+// are how strips are stitched, so they are dropped (they have no area), not kept as faces.
+void PlyParser::emit_strip(const Element& el, uint64_t i, const int64_t* idx, size_t n) {
+    ++source_faces_;
+    int64_t a = -1, b = -1;
+    bool odd = false;
+    for (size_t k = 0; k < n; ++k) {
+        const int64_t c = idx[k];
+        // -1 ends a run; so does 2^32 - 1, its bit pattern in an unsigned 32-bit list
+        // (never a valid index: at most 2^32 - 1 vertices).
+        if (c == -1 || c == int64_t(UINT32_MAX)) {
+            a = b = -1;
+            odd = false;
+            continue;
+        }
+        if (c < 0 || uint64_t(c) >= vertex_count_) [[unlikely]]
+            fail_at(el, i,
+                    "vertex index " + std::to_string(c) + " out of range (" +
+                        std::to_string(vertex_count_) + " vertices; -1 ends a strip)");
+        if (a < 0) {
+            a = c;
+            continue;
+        }
+        if (b < 0) {
+            b = c;
+            continue;
+        }
+        const int64_t p = odd ? b : a, q = odd ? a : b;
+        odd = !odd;
+        a = b;
+        b = c;
+        if (p == q || q == c || p == c) continue;
+        if (!bad_vertex_.empty() && vertices_read_ &&
+            (bad_vertex_[size_t(p)] || bad_vertex_[size_t(q)] || bad_vertex_[size_t(c)])) {
+            ++dropped_faces_;
+            continue;
+        }
+        mesh_.triangles.emplace_back(uint32_t(p), uint32_t(q), uint32_t(c));
+    }
 }
 
 // ---- binary -------------------------------------------------------------------------------
@@ -1598,7 +1649,7 @@ void PlyParser::read_binary_record(Element& el, uint64_t i) {
                           "unexpected end of data (file truncated?)");
             continue;
         }
-        if (count < 3)
+        if (count < 3 && !is_strip(el))
             fail_at(el, i, "face has " + std::to_string(count) + " vertices (at least 3 needed)");
         poly_.clear();
         if (uint64_t(count) * isz <= kBlockBytes) {
@@ -1618,7 +1669,10 @@ void PlyParser::read_binary_record(Element& el, uint64_t i) {
         have_face = true;
     }
     if (is_vertex) store_vertex(el, i, v);
-    if (have_face) emit_face(el, i, poly_.data(), poly_.size());
+    if (have_face && is_strip(el))
+        emit_strip(el, i, poly_.data(), poly_.size());
+    else if (have_face)
+        emit_face(el, i, poly_.data(), poly_.size());
 }
 
 // Face element holding only the index list with uchar count: the layout of nearly every
@@ -2127,7 +2181,7 @@ void PlyParser::read_ascii_element(Element& el) {
                 }
                 continue;
             }
-            if (count < 3)
+            if (count < 3 && !is_strip(el))
                 fail_at(el, i,
                         "face has " + std::to_string(count) + " vertices (at least 3 needed)");
             poly_.clear();
@@ -2150,7 +2204,10 @@ void PlyParser::read_ascii_element(Element& el) {
                     "more values on the line than the header declares ('" +
                         token_text(skip_blanks(p, e), e) + "' after the last property)");
         if (is_vertex) store_vertex(el, i, v);
-        if (have_face) emit_face(el, i, poly_.data(), poly_.size());
+        if (have_face && is_strip(el))
+            emit_strip(el, i, poly_.data(), poly_.size());
+        else if (have_face)
+            emit_face(el, i, poly_.data(), poly_.size());
     }
 }
 

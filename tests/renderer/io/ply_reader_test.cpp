@@ -289,6 +289,68 @@ TEST(PlyReader, AnyPropertyOrderUnknownElementsAndListsSkipped) {
     }
 }
 
+// "tristrips" elements (as Cyberware-era scans store them): each strip is a run of
+// triangles with alternating winding, -1 restarts a run, and stitching triangles with a
+// repeated vertex are dropped. Same result in every encoding, alongside ordinary faces.
+std::string strips_file(PlyEncoding enc) {
+    const std::string h = std::string("ply\nformat ") + kPlyEncodingNames[size_t(enc)] +
+                          " 1.0\n"
+                          "element vertex 6\n"
+                          "property float x\nproperty float y\nproperty float z\n"
+                          "element tristrips 2\n"
+                          "property list int int vertex_indices\n"
+                          "element face 1\n"
+                          "property list uchar int vertex_indices\n"
+                          "end_header\n";
+    // Strip 0: 0 1 2 3 -1 4 5 0 (triangles 012, 213; then 450). Strip 1: 1 2 2 3 4, whose
+    // first two triangles repeat vertex 2 (dropped), leaving 234 (third, even: unswapped).
+    const std::vector<std::vector<int>> strips = {{0, 1, 2, 3, -1, 4, 5, 0}, {1, 2, 2, 3, 4}, {}};
+    if (enc == PlyEncoding::ascii) {
+        std::string d;
+        for (int i = 0; i < 6; ++i) d += std::to_string(i) + " " + std::to_string(i * i) + " 1\n";
+        for (int k = 0; k < 2; ++k) {
+            d += std::to_string(strips[size_t(k)].size());
+            for (int v : strips[size_t(k)]) d += " " + std::to_string(v);
+            d += "\n";
+        }
+        return h + d + "3 5 4 3\n";
+    }
+    Bytes b;
+    b.big = enc == PlyEncoding::binary_big_endian;
+    for (int i = 0; i < 6; ++i) b.put(float(i)).put(float(i * i)).put(1.0f);
+    for (int k = 0; k < 2; ++k) {
+        b.put(int32_t(strips[size_t(k)].size()));
+        for (int v : strips[size_t(k)]) b.put(int32_t(v));
+    }
+    b.put(uint8_t(3)).put(int32_t(5)).put(int32_t(4)).put(int32_t(3));
+    return h + b.s;
+}
+
+TEST(PlyReader, TriangleStripsInEveryEncoding) {
+    const std::vector<Vec3u> expected = {{0, 1, 2}, {2, 1, 3}, {4, 5, 0}, {2, 3, 4}, {5, 4, 3}};
+    for (PlyEncoding enc :
+         {PlyEncoding::ascii, PlyEncoding::binary_little_endian, PlyEncoding::binary_big_endian}) {
+        SCOPED_TRACE(kPlyEncodingNames[size_t(enc)]);
+        MeshLoadInfo info;
+        const TriangleMesh m = load(strips_file(enc), {}, &info);
+        ASSERT_EQ(m.triangles.size(), expected.size());
+        for (size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(m.triangles[k], expected[k]) << k;
+        EXPECT_EQ(m.positions[5], Vec3f(5, 25, 1));
+        EXPECT_EQ(info.source_faces, 3u);  // two strips and one face
+    }
+    // A strip index out of range names the strip; an empty strip is fine.
+    std::string bad = strips_file(PlyEncoding::ascii);
+    bad.replace(bad.find("5 1 2 2 3 4"), 11, "5 1 2 2 3 9");
+    EXPECT_ERROR(bad, "tristrips 1: vertex index 9 out of range (6 vertices; -1 ends a strip)");
+    std::string empty = strips_file(PlyEncoding::ascii);
+    empty.replace(empty.find("5 1 2 2 3 4"), 11, "0");
+    EXPECT_EQ(load(empty).triangles.size(), 4u);
+    std::string no_list = strips_file(PlyEncoding::ascii);
+    no_list.replace(no_list.find("property list int int vertex_indices"), 36,
+                    "property list int int vertex_ids");
+    EXPECT_ERROR(no_list, "element tristrips has no list property vertex_indices");
+}
+
 TEST(PlyReader, KeepOptionsDropAttributes) {
     MeshLoadOptions o;
     o.keep_normals = false;
