@@ -212,11 +212,11 @@ void add_render_command(CLI::App& parent) {
     cmd->add_option("-o,--output", a.output,
                     "Output image: .png (tone-mapped sRGB), .exr or .pfm (linear)")
         ->capture_default_str();
-    cmd->add_option("--spp", a.spp,
-                    "Stop at N samples per pixel (adaptive: N x pixels in total); default 16");
-    cmd->add_option("--time", a.seconds, "Stop after S seconds of rendering");
-    cmd->add_option("--error", a.error,
-                    "Stop when every pixel's relative error is below E (adaptive)");
+    auto* spp = cmd->add_option(
+        "--spp", a.spp, "Stop at N samples per pixel (adaptive: N x pixels in total); default 16");
+    auto* seconds = cmd->add_option("--time", a.seconds, "Stop after S seconds of rendering");
+    auto* error = cmd->add_option("--error", a.error,
+                                  "Stop when every pixel's relative error is below E (adaptive)");
     cmd->add_option("--env", a.env, "Environment map (.hdr, .exr, .pfm) replacing the scene's");
     cmd->add_option("--view", a.view, "Camera of this view of the views file (A-D for the dragon)");
     cmd->add_option("--views", a.views, "Views file for --view (default assets/views/dragon.json)");
@@ -259,8 +259,14 @@ void add_render_command(CLI::App& parent) {
     cmd->add_option("--exposure", a.exposure, "PNG exposure in stops")->capture_default_str();
     cmd->add_flag("--drop-invalid", a.drop_invalid, "Drop faces with non-finite vertices");
     cmd->add_flag("--quiet", a.quiet, "No progress bar or cache messages");
-    cmd->callback([intensity] {
+    cmd->callback([intensity, spp, seconds, error] {
         a.env_intensity_given = intensity->count() > 0;
+        // 0 means "not given" inside; given explicitly, it is as wrong as a negative value.
+        if (spp->count() > 0 && a.spp == 0) throw Error("render: --spp must be positive (got 0)");
+        if (seconds->count() > 0 && a.seconds == 0.0)
+            throw Error("render: --time must be a positive number of seconds (got 0)");
+        if (error->count() > 0 && a.error == 0.0f)
+            throw Error("render: --error must be a positive relative error (got 0)");
         run(a);
     });
 }

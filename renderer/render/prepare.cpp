@@ -17,11 +17,19 @@ Prepared prepare_render(const PrepareOptions& o) {
     out.scene = o.scene_path.empty() ? make_default_scene() : load_scene_or_model(o.scene_path, lo);
     if (!o.env_file.empty()) {
         out.scene.environment.file = o.env_file;
-        out.scene.environment.mapping =
-            o.env_mapping.empty()
-                ? EnvMapping::latlong
-                : EnvMapping(parse_name(kEnvMappingNames, o.env_mapping, "--env-mapping"));
+        out.scene.environment.mapping = EnvMapping::latlong;
     }
+    if (!o.env_mapping.empty()) {
+        const auto mapping =
+            EnvMapping(parse_name(kEnvMappingNames, o.env_mapping, "--env-mapping"));
+        if (out.scene.environment.file.empty())
+            throw Error(
+                "--env-mapping: the scene has no environment map to map (give one with --env)");
+        out.scene.environment.mapping = mapping;
+    }
+    if (!std::isfinite(o.env_rotation_degrees))
+        throw Error("--env-rotation must be a finite number of degrees (got " +
+                    std::to_string(o.env_rotation_degrees) + ")");
     if (o.env_intensity) {
         if (!(*o.env_intensity >= 0.0f && std::isfinite(*o.env_intensity)))
             throw Error("--env-intensity must be a finite number >= 0 (got " +

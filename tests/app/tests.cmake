@@ -35,3 +35,17 @@ add_test(NAME smoke.build_bad_q COMMAND ${_kdt} build /usr/share/assimp/models/P
          --q 0 -o ${_tmp}/cube_bad.kdt)
 set_tests_properties(smoke.build_bad_q PROPERTIES
   PASS_REGULAR_EXPRESSION "kd-tree parameter q: value 0 is outside \\(0, 1\\]")
+
+# Explicit zero stop conditions and options that would be ignored are errors, not defaults.
+foreach(_case "spp;0;--spp must be positive \\(got 0\\)"
+              "error;0;--error must be a positive relative error \\(got 0\\)"
+              "time;0;--time must be a positive number of seconds \\(got 0\\)"
+              "env-rotation;inf;--env-rotation must be a finite number of degrees"
+              "env-mapping;angular;--env-mapping: the scene has no environment map")
+  list(GET _case 0 _flag)
+  list(GET _case 1 _value)
+  list(GET _case 2 _expect)
+  add_test(NAME smoke.render_bad_${_flag} COMMAND ${_kdt} render --${_flag} ${_value}
+           --width 8 --height 8 --quiet -o ${_tmp}/bad_${_flag}.png)
+  set_tests_properties(smoke.render_bad_${_flag} PROPERTIES PASS_REGULAR_EXPRESSION "${_expect}")
+endforeach()
