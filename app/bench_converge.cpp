@@ -397,14 +397,24 @@ void add_bench_converge_command(CLI::App& parent) {
     cmd->add_option("--reference", a.reference,
                     "Reference image (.exr/.pfm); rendered and written there when missing");
     cmd->add_option("--reference-spp", a.reference_spp, "Samples per pixel of a new reference")
-        ->capture_default_str();
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1 << 20));
     cmd->add_option("--max-spp", a.max_spp, "Largest N of the 1, 2, 4 ... N spp series")
-        ->capture_default_str();
-    cmd->add_option("--width", a.width, "Image width")->capture_default_str();
-    cmd->add_option("--height", a.height, "Image height")->capture_default_str();
-    cmd->add_option("--threads", a.threads, "OpenMP threads (0 = all)")->capture_default_str();
+        ->capture_default_str()
+        ->check(CLI::Range(1, 65536));
+    cmd->add_option("--width", a.width, "Image width")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 65536));
+    cmd->add_option("--height", a.height, "Image height")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 65536));
+    cmd->add_option("--threads", a.threads, "OpenMP threads (0 = all)")
+        ->capture_default_str()
+        ->check(CLI::Range(0, 1024));
     cmd->add_option("--seed", a.seed, "Seed")->capture_default_str();
-    cmd->add_option("--path-depth", a.path_depth, "Maximum bounces")->capture_default_str();
+    cmd->add_option("--path-depth", a.path_depth, "Maximum bounces")
+        ->capture_default_str()
+        ->check(CLI::Range(0, 1024));
     cmd->add_option(
            "--configs", a.configs,
            "Comma-separated: uniform, bsdf, nee, mis-uniform-env, mis, mis+adaptive; the first "
@@ -419,7 +429,9 @@ void add_bench_converge_command(CLI::App& parent) {
     cmd->add_flag("--no-cache", a.no_cache, "Build the kd-tree without the tree cache");
     cmd->add_flag("--throughput", a.throughput,
                   "Instead: path tracer rays/s against raw traversal of the same rays");
-    cmd->add_option("--repeats", a.repeats, "--throughput: runs (median)")->capture_default_str();
+    cmd->add_option("--repeats", a.repeats, "--throughput: runs (median)")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1000));
     cmd->callback([] { run(a); });
 }
 

@@ -908,9 +908,12 @@ void add_bench_kdtree_command(CLI::App& bench) {
     cmd->add_option("--model", opt.model,
                     "Model file (default: the fetched Stanford dragon, dragon_vrip.ply)");
     cmd->add_option("--views", opt.views, "Views file (default: assets/views/dragon.json)");
-    cmd->add_option("--repeat", opt.repeat, "Repeats; medians are reported")->capture_default_str();
+    cmd->add_option("--repeat", opt.repeat, "Repeats; medians are reported")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1000));
     cmd->add_option("--threads", opt.threads, "Threads for both engines, 0 = all")
-        ->capture_default_str();
+        ->capture_default_str()
+        ->check(CLI::Range(0, 1024));
     cmd->add_option("--subdivide", opt.subdivide, "Split every triangle into 4^K first")
         ->check(CLI::Range(0, 3));
     cmd->add_option("--rows", opt.rows, "Rows of table 6.1 to run (1-7, sah), comma-separated")
@@ -921,7 +924,8 @@ void add_bench_kdtree_command(CLI::App& bench) {
         ->check(CLI::Range(1, 64));
     cmd->add_option("--n0", opt.n0, "Thesis rows: n0 instead of 5 (the 10M table uses 4)")
         ->check(CLI::Range(0, 1000));
-    cmd->add_option("--spp", opt.spp, "Primary rays per pixel (default: the views file's)");
+    cmd->add_option("--spp", opt.spp, "Primary rays per pixel (default: the views file's)")
+        ->check(CLI::Range(1, 4096));
     cmd->add_option("--csv", opt.csv, "Also write all tables as CSV");
     cmd->add_option("--md", opt.md, "Write the Markdown here instead of stdout");
     cmd->add_flag("!--no-embree", opt.embree, "Skip the Embree comparison");
@@ -934,7 +938,8 @@ void add_bench_kdtree_command(CLI::App& bench) {
                     "Write a PGM picture of each view's first-sample hits into this directory");
     cmd->add_flag("!--no-robustness", opt.robustness, "Skip the aimed and NaN/Inf ray table");
     cmd->add_option("--robust-rays", opt.robust_rays, "Vertex- and edge-aimed rays each")
-        ->capture_default_str();
+        ->capture_default_str()
+        ->check(CLI::Range(1, 100000000));
     cmd->callback([] { run(opt); });
 }
 
