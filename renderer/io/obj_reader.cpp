@@ -26,19 +26,18 @@ std::string first_line(const std::string& s) {
     return t.empty() ? std::string("unknown error") : t;
 }
 
-}  // namespace
-
-TriangleMesh read_obj(const std::string& path, const MeshLoadOptions& options, MeshLoadInfo* info) {
-    Timer timer;
-    // Opening through FileReader gives the same missing-file message as for PLY.
-    uint64_t file_bytes = FileReader::open(path).file_bytes();
-    if (is_gzip_file(path)) fail(path, "", -1, "gzip-compressed OBJ files are not supported");
-
+// Parses the whole OBJ text. `path` names it in errors and info.
+TriangleMesh read_obj_text(const std::string& text, const std::string& path,
+                           const MeshLoadOptions& options, MeshLoadInfo* info, Timer& timer) {
+    const uint64_t file_bytes = text.size();
     tinyobj::ObjReaderConfig config;
     config.triangulate = true;
     config.vertex_color = false;
     tinyobj::ObjReader reader;
-    if (!reader.ParseFromFile(path, config))
+    // From a string with an empty material text: ParseFromFile would open every `mtllib`
+    // file relative to the OBJ (a device such as /dev/zero there never ends), and the
+    // renderer does not use OBJ materials.
+    if (!reader.ParseFromString(text, std::string(), config))
         fail(path, "", -1, "OBJ parse error: " + first_line(reader.Error()));
 
     const tinyobj::attrib_t& attrib = reader.GetAttrib();
@@ -140,6 +139,32 @@ TriangleMesh read_obj(const std::string& path, const MeshLoadOptions& options, M
         info->seconds = timer.seconds();
     }
     return mesh;
+}
+
+}  // namespace
+
+TriangleMesh read_obj(const std::string& path, const MeshLoadOptions& options, MeshLoadInfo* info) {
+    Timer timer;
+    // Opening through FileReader gives the same missing-file, directory and device messages
+    // as for PLY.
+    FileReader reader = FileReader::open(path);
+    if (reader.gzip()) fail(path, "", -1, "gzip-compressed OBJ files are not supported");
+    std::string text(size_t(reader.file_bytes()), '\0');
+    size_t got = 0;
+    while (got < text.size()) {
+        const size_t n = reader.read(text.data() + got, text.size() - got);
+        if (n == 0) break;
+        got += n;
+    }
+    text.resize(got);
+    return read_obj_text(text, path, options, info, timer);
+}
+
+TriangleMesh read_obj_memory(const void* data, size_t size, const std::string& name,
+                             const MeshLoadOptions& options, MeshLoadInfo* info) {
+    Timer timer;
+    const std::string text(static_cast<const char*>(data), size);
+    return read_obj_text(text, name, options, info, timer);
 }
 
 }  // namespace kdt

@@ -1,6 +1,8 @@
 // Tests of renderer/io/obj_reader (tinyobjloader) and of load_mesh's format dispatch.
 #include "renderer/io/obj_reader.h"
 
+#include <sys/stat.h>
+
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -93,6 +95,19 @@ TEST_F(ObjReader, Errors) {
     EXPECT_EQ(m.vertex_count(), 3u);
     ASSERT_EQ(m.triangle_count(), 1u);
     EXPECT_EQ(m.positions[m.triangles[0].z], Vec3f(1, 1, 0));
+}
+
+TEST_F(ObjReader, MaterialLibrariesAreNeverOpened) {
+    // tinyobjloader's file parser opened every mtllib relative to the OBJ: a FIFO there
+    // blocked forever, ../../dev/zero was read until memory ran out. Materials are not
+    // used, so no other file is opened at all, whatever mtllib names.
+    ASSERT_EQ(::mkfifo((dir_ / "fifo.mtl").c_str(), 0600), 0);
+    std::string dots;
+    for (const char* c = dir_.c_str(); *c; ++c) dots += *c == '/' ? "../" : "";
+    std::string p = write(
+        "m.obj", "mtllib fifo.mtl\nmtllib " + dots + "dev/zero\nmtllib /dev/zero\n" +
+                     "mtllib missing.mtl\nusemtl x\nv 0 0 0\nv 1 0 0\nv 0 1 0\n" + "f 1 2 3\n");
+    EXPECT_EQ(load_mesh(p).triangle_count(), 1u);
 }
 
 TEST_F(ObjReader, LoadMeshDispatchesOnContentThenExtension) {
