@@ -30,12 +30,7 @@ if(KDT_FUZZ)
     kdt_add_fuzzer(ply ${_src}/io/ply_reader.cpp ${_src}/io/file_reader.cpp)
     target_link_libraries(ply_fuzzer PRIVATE kdt_geometry ZLIB::ZLIB kdt_options)
 
-    # tinyobjloader from Debian's header rather than libtinyobjloader.so, so it is
-    # instrumented too.
-    kdt_add_fuzzer(obj ${_src}/io/obj_reader.cpp ${_src}/io/file_reader.cpp
-                   ${_fuzz_dir}/tinyobj_impl.cpp)
-    set_source_files_properties(${_fuzz_dir}/tinyobj_impl.cpp PROPERTIES COMPILE_OPTIONS
-                                "-w;-Wno-error")
+    kdt_add_fuzzer(obj ${_src}/io/obj_reader.cpp ${_src}/io/file_reader.cpp)
     target_link_libraries(obj_fuzzer PRIVATE kdt_geometry ZLIB::ZLIB kdt_options)
 
     # The whole accel module (loader, tree checks, single-ray and packet traversal); the
