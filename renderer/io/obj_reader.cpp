@@ -27,7 +27,8 @@ bool is_letter(char c) { return (c | 0x20) >= 'a' && (c | 0x20) <= 'z'; }
 std::string quoted(const char* b, const char* e) {
     static const char kHex[] = "0123456789abcdef";
     std::string s = "'";
-    for (const char* p = b; p < e && p < b + 40; ++p) {
+    const char* stop = b + std::min<ptrdiff_t>(e - b, 40);
+    for (const char* p = b; p < stop; ++p) {
         const unsigned char c = static_cast<unsigned char>(*p);
         if (c >= 0x20 && c < 0x7f) {
             s += char(c);
@@ -330,6 +331,7 @@ void ObjParser::face(const char* b, const char* e) {
 // One face corner: v, v/vt, v//vn or v/vt/vn. Texture coordinates are checked for form only.
 void ObjParser::corner(const char* b, const char* e, int64_t f) {
     const char* s1 = std::find(b, e, '/');
+    if (s1 == b) fail("face", f, "corner " + quoted(b, e) + " has no vertex index");
     corner_v_.push_back(index(b, s1, positions_.size(), "vertex", "vertices", farthest_v_, f));
     uint32_t n = kNone;
     if (s1 < e) {
@@ -362,27 +364,28 @@ uint32_t ObjParser::index(const char* b, const char* e, uint64_t count, const ch
     const char* p = b;
     const bool negative = p < e && *p == '-';
     if (p < e && (*p == '-' || *p == '+')) ++p;
-    if (p == e) fail("face", f, std::string("missing ") + what + " index in " + quoted(b, e));
+    if (p == e || !std::all_of(p, e, [](char c) { return c >= '0' && c <= '9'; }))
+        fail("face", f, std::string("invalid ") + what + " index " + quoted(b, e));
     uint64_t k = 0;
     for (const char* q = p; q < e; ++q) {
-        if (*q < '0' || *q > '9')
-            fail("face", f, std::string("invalid ") + what + " index " + quoted(b, e));
         // Saturates far beyond any count, so that huge indices stay out of range.
         if (k < (uint64_t(1) << 40)) k = 10 * k + uint64_t(*q - '0');
     }
-    const std::string text(b, size_t(std::min<ptrdiff_t>(e - b, 40)));
+    // The index as written, for messages (not built on the common path).
+    auto text = [&] { return std::string(b, size_t(std::min<ptrdiff_t>(e - b, 40))); };
     if (k == 0) fail("face", f, std::string(what) + " index 0 (OBJ indices start at 1)");
     if (negative) {
         if (k > count)
             fail("face", f,
-                 std::string("relative ") + what + " index " + text + " points before the first " +
-                     what + " (" + std::to_string(count) + " " + plural + " so far)");
+                 std::string("relative ") + what + " index " + text() +
+                     " points before the first " + what + " (" + std::to_string(count) + " " +
+                     plural + " so far)");
         return uint32_t(count - k);
     }
     if (k > kMaxElements)
         fail("face", f,
-             std::string(what) + " index " + text + " out of range (a mesh holds at most 2^32-1 " +
-                 plural + ")");
+             std::string(what) + " index " + text() +
+                 " out of range (a mesh holds at most 2^32-1 " + plural + ")");
     if (k > farthest.index) farthest = {k, line_, f};
     return uint32_t(k - 1);
 }
