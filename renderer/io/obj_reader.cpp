@@ -241,6 +241,8 @@ void ObjParser::statement(const char* b, const char* e) {
     while (k < e && !is_blank(*k)) ++k;
     if (!is_letter(b[0]))
         fail("", -1, "not an OBJ statement: " + quoted(b, k) + " (binary data or UTF-16 text?)");
+    if (std::memchr(b, '\0', size_t(e - b)))
+        fail("", -1, "NUL byte in a statement (binary data or UTF-16 text?)");
     if (std::memchr(b, '\r', size_t(e - b)))
         fail("", -1,
              "carriage return inside a line (CR-only line endings are not supported; use LF "

@@ -31,9 +31,10 @@ namespace kdt {
 ///
 /// Throws kdt::Error naming the file, the line and the vertex or face for: a file that
 /// cannot be opened or is not a regular file, gzip input, a file without vertices, a line
-/// not starting with a statement keyword (binary data, UTF-16), carriage returns inside a
-/// line, malformed numbers or corners, index 0, indices out of range or pointing before the
-/// first element, faces with fewer than 3 corners, more than 2^32-1 vertices or normals.
+/// not starting with a statement keyword or holding a NUL byte (binary data, UTF-16),
+/// carriage returns inside a line, malformed numbers or corners, index 0, indices out of
+/// range or pointing before the first element, faces with fewer than 3 corners, more than
+/// 2^32-1 vertices or normals.
 TriangleMesh read_obj(const std::string& path, const MeshLoadOptions& options = {},
                       MeshLoadInfo* info = nullptr);
 

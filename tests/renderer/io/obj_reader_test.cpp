@@ -346,7 +346,9 @@ TEST_F(ObjReader, HostileInputsGiveClearErrors) {
          "t.obj: line 1: not an OBJ statement: '\\x89PNG' (binary data or UTF-16 text?)"},
         {std::string("\xfe\xff\0v\0 \0\x31", 8), "t.obj: line 1: not an OBJ statement: '\\xfe"},
         {tri + "1 2 3\n", "t.obj: line 4: not an OBJ statement: '1'"},
-        {tri + std::string("f 1 2 3\0\n", 9), "t.obj: line 4: face 0: invalid vertex index"},
+        {tri + std::string("f 1 2 3\0\n", 9),
+         "t.obj: line 4: NUL byte in a statement (binary data or UTF-16 text?)"},
+        {tri + std::string("vt\0\x01\r\x80 x\n", 9), "t.obj: line 4: NUL byte in a statement"},
     };
     for (const Case& c : cases) {
         const std::string e = error_of(c.text);
