@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Fuzzes the readers of untrusted files with libFuzzer under ASan+UBSan, each target on a
 # copy of its seed corpus (tests/fuzz/corpus/<target>) for its share of CI's budget (below,
-# about 120 s in all), or for KDT_FUZZ_SECONDS each when that is set.
+# 125 s in all), or for KDT_FUZZ_SECONDS each when that is set.
 #   scripts/run_fuzz.sh [target...]        configures and builds the `fuzz` preset (clang)
 #                                          and runs the targets given, default all
 #   scripts/run_fuzz.sh --no-build target  runs the fuzzer KDT_FUZZER names (ctest does this)
@@ -10,13 +10,14 @@
 set -euo pipefail
 
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-targets_all=(ply cache image scene)
+targets_all=(ply obj cache image scene)
 
 budget() {
     case "$1" in
-        ply) echo 45 ;;
-        cache | image) echo 30 ;;
-        scene) echo 15 ;;
+        ply) echo 40 ;;
+        cache) echo 30 ;;
+        image) echo 25 ;;
+        obj | scene) echo 15 ;;
         *) echo "run_fuzz: unknown target '$1' (one of: ${targets_all[*]})" >&2; exit 2 ;;
     esac
 }

@@ -1,145 +1,527 @@
 #include "renderer/io/obj_reader.h"
 
-#include <cmath>
+#include <algorithm>
+#include <charconv>
+#include <cstdint>
+#include <cstring>
+#include <limits>
 #include <unordered_map>
-
-#include <tiny_obj_loader.h>
+#include <vector>
 
 #include "renderer/core/error.h"
 #include "renderer/core/timer.h"
-#include "renderer/io/file_reader.h"
 
 namespace kdt {
 namespace {
 
-[[noreturn]] void fail(const std::string& path, const std::string& element, int64_t index,
-                       const std::string& message) {
-    ErrorLocation w;
-    w.path = path;
-    w.element = element;
-    w.index = index;
-    throw Error(w, message);
+constexpr size_t kBlockBytes = size_t(1) << 20;
+// Vertices and normals are addressed by 32-bit indices; kNone (= the cap) marks a corner
+// without a normal.
+constexpr uint64_t kMaxElements = UINT32_MAX;
+constexpr uint32_t kNone = UINT32_MAX;
+
+bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\v' || c == '\f'; }
+bool is_letter(char c) { return (c | 0x20) >= 'a' && (c | 0x20) <= 'z'; }
+
+// A token for messages: quoted, at most 40 bytes, other than printable ASCII as \xNN.
+std::string quoted(const char* b, const char* e) {
+    static const char kHex[] = "0123456789abcdef";
+    std::string s = "'";
+    const char* stop = b + std::min<ptrdiff_t>(e - b, 40);
+    for (const char* p = b; p < stop; ++p) {
+        const unsigned char c = static_cast<unsigned char>(*p);
+        if (c >= 0x20 && c < 0x7f) {
+            s += char(c);
+        } else {
+            s += "\\x";
+            s += kHex[c >> 4];
+            s += kHex[c & 15];
+        }
+    }
+    if (e - b > 40) s += "...";
+    return s + "'";
 }
 
-std::string first_line(const std::string& s) {
-    std::string t = s.substr(0, s.find('\n'));
-    return t.empty() ? std::string("unknown error") : t;
+// The next blank-separated token of [b, e) in [tb, te); false at the end of the statement
+// or at a comment after it.
+bool next_token(const char*& b, const char* e, const char*& tb, const char*& te) {
+    while (b < e && is_blank(*b)) ++b;
+    if (b == e || *b == '#') return false;
+    tb = b;
+    while (b < e && !is_blank(*b)) ++b;
+    te = b;
+    return true;
 }
 
-}  // namespace
+// For a decimal number that from_chars found out of float's range: true when it is huge
+// (overflow, to infinity), false when tiny (underflow, to zero). The decimal exponent of
+// its leading digit decides; it is far from 0 either way (>= 38 or <= -45).
+bool overflows(const char* b, const char* e) {
+    if (b < e && (*b == '-' || *b == '+')) ++b;
+    int64_t magnitude = 0;  // the value lies in [10^(magnitude-1), 10^magnitude)
+    bool point = false, nonzero = false;
+    for (; b < e && (*b == '.' || (*b >= '0' && *b <= '9')); ++b) {
+        if (*b == '.') {
+            point = true;
+        } else if (nonzero) {
+            magnitude += point ? 0 : 1;
+        } else if (*b != '0') {
+            nonzero = true;
+            magnitude = point ? magnitude : 1;
+        } else if (point) {
+            --magnitude;
+        }
+    }
+    int64_t exponent = 0;
+    if (b < e && (*b == 'e' || *b == 'E')) {
+        ++b;
+        const bool negative = b < e && *b == '-';
+        if (b < e && (*b == '-' || *b == '+')) ++b;
+        for (; b < e && *b >= '0' && *b <= '9'; ++b)
+            exponent = std::min<int64_t>(exponent * 10 + (*b - '0'), int64_t(1) << 40);
+        if (negative) exponent = -exponent;
+    }
+    return magnitude + exponent > 0;
+}
 
-TriangleMesh read_obj(const std::string& path, const MeshLoadOptions& options, MeshLoadInfo* info) {
-    Timer timer;
-    // Opening through FileReader gives the same missing-file message as for PLY.
-    uint64_t file_bytes = FileReader::open(path).file_bytes();
-    if (is_gzip_file(path)) fail(path, "", -1, "gzip-compressed OBJ files are not supported");
+// Where the largest positive (1-based) index of a kind was seen: positive indices may point
+// at elements defined later, so they are checked at the end of the file.
+struct Farthest {
+    uint64_t index = 0;  // 0: none seen
+    int64_t line = -1;
+    int64_t face = -1;
+};
 
-    tinyobj::ObjReaderConfig config;
-    config.triangulate = true;
-    config.vertex_color = false;
-    tinyobj::ObjReader reader;
-    if (!reader.ParseFromFile(path, config))
-        fail(path, "", -1, "OBJ parse error: " + first_line(reader.Error()));
+class ObjParser {
+public:
+    ObjParser(FileReader& in, const MeshLoadOptions& options)
+        : in_(in), options_(options), all_normals_(options.keep_normals) {}
 
-    const tinyobj::attrib_t& attrib = reader.GetAttrib();
-    const size_t nv = attrib.vertices.size() / 3;
-    const size_t nn = attrib.normals.size() / 3;
-    if (nv > size_t(UINT32_MAX)) fail(path, "", -1, "more than 2^32-1 vertices");
+    TriangleMesh run(MeshLoadInfo* info) {
+        const char *b = nullptr, *e = nullptr;
+        while (next_line(b, e)) statement(b, e);
+        return build(info);
+    }
+
+private:
+    [[noreturn]] void fail_at(int64_t line, const std::string& element, int64_t index,
+                              const std::string& message) const {
+        ErrorLocation w;
+        w.path = in_.path();
+        w.line = line;
+        w.element = element;
+        w.index = index;
+        throw Error(w, message);
+    }
+    [[noreturn]] void fail(const std::string& element, int64_t index,
+                           const std::string& message) const {
+        fail_at(line_, element, index, message);
+    }
+
+    bool next_line(const char*& b, const char*& e);
+    void refill();
+    void statement(const char* b, const char* e);
+    void vertex(const char* b, const char* e);
+    void normal(const char* b, const char* e);
+    void face(const char* b, const char* e);
+    void corner(const char* b, const char* e, int64_t face);
+    uint32_t index(const char* b, const char* e, uint64_t count, const char* what,
+                   const char* plural, Farthest& farthest, int64_t face);
+    float number(const char* b, const char* e, const char* element, uint64_t index) const;
+    [[gnu::noinline]] void non_finite_vertex(uint64_t i, const Vec3f& p);
+    TriangleMesh build(MeshLoadInfo* info);
+
+    FileReader& in_;
+    const MeshLoadOptions& options_;
+
+    // Input: buf_[pos_, end_) is unparsed; the next line's end is searched from scan_.
+    std::vector<char> buf_;
+    size_t pos_ = 0, scan_ = 0, end_ = 0;
+    bool eof_ = false;
+    std::string joined_;     // a line continued with '\', joined
+    int64_t line_ = 0;       // the line the current statement starts on (1-based)
+    int64_t next_line_ = 1;  // the line the next statement starts on
+    uint64_t bytes_ = 0;
+
+    std::vector<Vec3f> positions_, normals_;
+    uint64_t normal_count_ = 0;  // normals_ is filled only with options.keep_normals
+    std::vector<uint8_t> bad_;   // non-finite positions (drop_invalid), sized once one is seen
+    uint64_t bad_count_ = 0;
+    // Faces as read: corner counts, position index per corner, normal index per corner
+    // while every corner so far has one (and normals are kept).
+    std::vector<uint32_t> face_sizes_, corner_v_, corner_n_;
+    bool all_normals_;
+    uint64_t triangles_ = 0;
+    Farthest farthest_v_, farthest_n_;
+};
+
+bool ObjParser::next_line(const char*& b, const char*& e) {
+    line_ = next_line_;
+    bool continued = false;
+    for (;;) {
+        const char* base = buf_.data();
+        const void* nl = scan_ < end_ ? std::memchr(base + scan_, '\n', end_ - scan_) : nullptr;
+        if (nl) {
+            const size_t at = size_t(static_cast<const char*>(nl) - base);
+            ++next_line_;
+            size_t q = at;
+            if (q > pos_ && base[q - 1] == '\r') --q;
+            if (q > pos_ && base[q - 1] == '\\') {
+                // A '\' ending the line continues the statement on the next line, except in
+                // a comment (which must not swallow a statement).
+                const char* s = base + pos_;
+                while (s < base + q && is_blank(*s)) ++s;
+                if (*s != '#') {
+                    continued = true;
+                    scan_ = at + 1;
+                    continue;
+                }
+            }
+            b = base + pos_;
+            e = base + at;
+            pos_ = scan_ = at + 1;
+            break;
+        }
+        if (eof_) {
+            if (pos_ == end_) return false;
+            b = base + pos_;
+            e = base + end_;  // the last line has no newline
+            pos_ = scan_ = end_;
+            break;
+        }
+        refill();
+    }
+    if (continued) {
+        // Each '\' before a line break becomes a blank.
+        joined_.clear();
+        for (const char* p = b; p < e; ++p) {
+            if (*p == '\\') {
+                const char* q = p + 1;
+                if (q < e && *q == '\r') ++q;
+                if (q < e && *q == '\n') {
+                    joined_ += ' ';
+                    p = q;
+                    continue;
+                }
+            }
+            joined_ += *p;
+        }
+        b = joined_.data();
+        e = b + joined_.size();
+    }
+    return true;
+}
+
+void ObjParser::refill() {
+    if (pos_ > 0) {
+        std::memmove(buf_.data(), buf_.data() + pos_, end_ - pos_);
+        end_ -= pos_;
+        scan_ -= pos_;
+        pos_ = 0;
+    }
+    if (buf_.empty()) {
+        // One block, or less for a small file: +1 so that the read finding the end fits.
+        buf_.resize(size_t(std::min<uint64_t>(kBlockBytes, in_.size_bound() + 1)));
+    } else if (end_ == buf_.size()) {
+        // A line longer than the buffer: grow it (doubling, so a long line costs linear time).
+        buf_.resize(2 * buf_.size());
+    }
+    const size_t got = in_.read(buf_.data() + end_, buf_.size() - end_);
+    if (got == 0) eof_ = true;
+    end_ += got;
+    bytes_ += got;
+}
+
+void ObjParser::statement(const char* b, const char* e) {
+    if (e > b && e[-1] == '\r') --e;                                                 // CRLF
+    if (line_ == 1 && e - b >= 3 && std::memcmp(b, "\xef\xbb\xbf", 3) == 0) b += 3;  // BOM
+    while (b < e && is_blank(*b)) ++b;
+    if (b == e || *b == '#') return;
+    const char* k = b;
+    while (k < e && !is_blank(*k)) ++k;
+    if (!is_letter(b[0]))
+        fail("", -1, "not an OBJ statement: " + quoted(b, k) + " (binary data or UTF-16 text?)");
+    if (std::memchr(b, '\0', size_t(e - b)))
+        fail("", -1, "NUL byte in a statement (binary data or UTF-16 text?)");
+    if (std::memchr(b, '\r', size_t(e - b)))
+        fail("", -1,
+             "carriage return inside a line (CR-only line endings are not supported; use LF "
+             "or CRLF)");
+    const size_t n = size_t(k - b);
+    if (n == 1 && b[0] == 'v') return vertex(k, e);
+    if (n == 2 && b[0] == 'v' && b[1] == 'n') return normal(k, e);
+    if ((n == 1 && b[0] == 'f') || (n == 2 && b[0] == 'f' && b[1] == 'o')) return face(k, e);
+    // Anything else (vt, vp, l, p, o, g, s, usemtl, mtllib, free-form geometry, extensions)
+    // is not needed for rendering.
+}
+
+float ObjParser::number(const char* b, const char* e, const char* element, uint64_t i) const {
+    const char* p = b;
+    if (e - p >= 2 && p[0] == '+' && p[1] != '+' && p[1] != '-') ++p;  // from_chars takes no '+'
+    float x = 0.0f;
+    const auto [end, ec] = std::from_chars(p, e, x);
+    if (end != e || ec == std::errc::invalid_argument)
+        fail(element, int64_t(i), "invalid number " + quoted(b, e));
+    if (ec == std::errc::result_out_of_range) {
+        x = overflows(p, e) ? std::numeric_limits<float>::infinity() : 0.0f;
+        if (*p == '-') x = -x;
+    }
+    return x;
+}
+
+void ObjParser::vertex(const char* b, const char* e) {
+    const uint64_t i = positions_.size();
+    if (i >= kMaxElements) fail("vertex", int64_t(i), "more than 2^32-1 vertices");
+    float v[3] = {0.0f, 0.0f, 0.0f};
+    int count = 0;
+    const char *tb = nullptr, *te = nullptr;
+    while (next_token(b, e, tb, te)) {
+        if (count == 7)
+            fail("vertex", int64_t(i), "more than 7 values (x y z [w] or x y z r g b [a])");
+        const float x = number(tb, te, "vertex", i);
+        if (count < 3) v[count] = x;
+        ++count;
+    }
+    if (count < 3)
+        fail("vertex", int64_t(i), "has " + std::to_string(count) + " coordinates (x y z needed)");
+    const Vec3f p(v[0], v[1], v[2]);
+    if (!is_finite(p)) [[unlikely]]
+        non_finite_vertex(i, p);
+    positions_.push_back(p);
+}
+
+void ObjParser::non_finite_vertex(uint64_t i, const Vec3f& p) {
+    if (!options_.drop_invalid)
+        fail("vertex", int64_t(i),
+             "non-finite coordinate (" + std::to_string(p.x) + ", " + std::to_string(p.y) + ", " +
+                 std::to_string(p.z) + "); --drop-invalid drops the faces using it");
+    bad_.resize(size_t(i) + 1, 0);
+    bad_[size_t(i)] = 1;
+    ++bad_count_;
+}
+
+void ObjParser::normal(const char* b, const char* e) {
+    const uint64_t i = normal_count_;
+    if (i >= kMaxElements) fail("normal", int64_t(i), "more than 2^32-1 normals");
+    float v[3] = {0.0f, 0.0f, 0.0f};
+    int count = 0;
+    const char *tb = nullptr, *te = nullptr;
+    while (next_token(b, e, tb, te)) {
+        if (count == 3) fail("normal", int64_t(i), "more than 3 values (x y z)");
+        v[count++] = number(tb, te, "normal", i);
+    }
+    if (count < 3)
+        fail("normal", int64_t(i), "has " + std::to_string(count) + " values (x y z needed)");
+    if (options_.keep_normals) normals_.emplace_back(v[0], v[1], v[2]);
+    ++normal_count_;
+}
+
+void ObjParser::face(const char* b, const char* e) {
+    const int64_t f = int64_t(face_sizes_.size());
+    uint64_t n = 0;
+    const char *tb = nullptr, *te = nullptr;
+    while (next_token(b, e, tb, te)) {
+        if (n == kMaxElements) fail("face", f, "more than 2^32-1 vertices");
+        corner(tb, te, f);
+        ++n;
+    }
+    if (n < 3) fail("face", f, "has " + std::to_string(n) + " vertices (at least 3 needed)");
+    face_sizes_.push_back(uint32_t(n));
+    triangles_ += n - 2;
+}
+
+// One face corner: v, v/vt, v//vn or v/vt/vn. Texture coordinates are checked for form only.
+void ObjParser::corner(const char* b, const char* e, int64_t f) {
+    const char* s1 = std::find(b, e, '/');
+    if (s1 == b) fail("face", f, "corner " + quoted(b, e) + " has no vertex index");
+    corner_v_.push_back(index(b, s1, positions_.size(), "vertex", "vertices", farthest_v_, f));
+    uint32_t n = kNone;
+    if (s1 < e) {
+        const char* s2 = std::find(s1 + 1, e, '/');
+        if (s2 > s1 + 1) {
+            Farthest ignored;
+            index(s1 + 1, s2, kMaxElements, "texture coordinate", "texture coordinates", ignored,
+                  f);
+        }
+        if (s2 < e) {
+            if (std::find(s2 + 1, e, '/') != e) fail("face", f, "invalid corner " + quoted(b, e));
+            if (s2 + 1 < e)
+                n = index(s2 + 1, e, normal_count_, "normal", "normals", farthest_n_, f);
+        }
+    }
+    if (n == kNone) {
+        if (all_normals_) {
+            all_normals_ = false;
+            std::vector<uint32_t>().swap(corner_n_);
+        }
+    } else if (all_normals_) {
+        corner_n_.push_back(n);
+    }
+}
+
+// A 1-based or (negative) relative index, resolved to 0-based against the `count` elements
+// defined so far. Positive indices may point ahead; the farthest is checked at the end.
+uint32_t ObjParser::index(const char* b, const char* e, uint64_t count, const char* what,
+                          const char* plural, Farthest& farthest, int64_t f) {
+    const char* p = b;
+    const bool negative = p < e && *p == '-';
+    if (p < e && (*p == '-' || *p == '+')) ++p;
+    if (p == e || !std::all_of(p, e, [](char c) { return c >= '0' && c <= '9'; }))
+        fail("face", f, std::string("invalid ") + what + " index " + quoted(b, e));
+    uint64_t k = 0;
+    for (const char* q = p; q < e; ++q) {
+        // Saturates far beyond any count, so that huge indices stay out of range.
+        if (k < (uint64_t(1) << 40)) k = 10 * k + uint64_t(*q - '0');
+    }
+    // The index as written, for messages (not built on the common path).
+    auto text = [&] { return std::string(b, size_t(std::min<ptrdiff_t>(e - b, 40))); };
+    if (k == 0) fail("face", f, std::string(what) + " index 0 (OBJ indices start at 1)");
+    if (negative) {
+        if (k > count)
+            fail("face", f,
+                 std::string("relative ") + what + " index " + text() +
+                     " points before the first " + what + " (" + std::to_string(count) + " " +
+                     plural + " so far)");
+        return uint32_t(count - k);
+    }
+    if (k > kMaxElements)
+        fail("face", f,
+             std::string(what) + " index " + text() +
+                 " out of range (a mesh holds at most 2^32-1 " + plural + ")");
+    if (k > farthest.index) farthest = {k, line_, f};
+    return uint32_t(k - 1);
+}
+
+TriangleMesh ObjParser::build(MeshLoadInfo* info) {
+    const uint64_t nv = positions_.size();
+    if (nv == 0) fail_at(-1, "", -1, "no vertices (an empty file, or not an OBJ file)");
+    if (farthest_v_.index > nv)
+        fail_at(farthest_v_.line, "face", farthest_v_.face,
+                "vertex index " + std::to_string(farthest_v_.index) + " out of range (" +
+                    std::to_string(nv) + " vertices)");
+    if (farthest_n_.index > normal_count_)
+        fail_at(farthest_n_.line, "face", farthest_n_.face,
+                "normal index " + std::to_string(farthest_n_.index) + " out of range (" +
+                    std::to_string(normal_count_) + " normals)");
+    if (bad_count_ > 0) bad_.resize(size_t(nv), 0);
 
     TriangleMesh mesh;
-    // Normals are kept only when every face corner names a valid one.
-    bool use_normals = options.keep_normals && nn > 0;
-    uint64_t faces = 0;
-    for (const tinyobj::shape_t& shape : reader.GetShapes()) {
-        faces += shape.mesh.num_face_vertices.size();
-        for (const tinyobj::index_t& idx : shape.mesh.indices)
-            if (idx.normal_index < 0 || size_t(idx.normal_index) >= nn) use_normals = false;
-    }
-
-    std::vector<uint8_t> bad(nv, 0);
-    uint64_t bad_count = 0;
-    for (size_t i = 0; i < nv; ++i) {
-        Vec3f p(attrib.vertices[3 * i], attrib.vertices[3 * i + 1], attrib.vertices[3 * i + 2]);
-        if (!is_finite(p)) {
-            if (!options.drop_invalid)
-                fail(path, "vertex", int64_t(i),
-                     "non-finite coordinate; --drop-invalid drops the faces using it");
-            bad[i] = 1;
-            ++bad_count;
-        }
-    }
-
-    std::unordered_map<uint64_t, uint32_t> split;  // (position, normal) -> vertex, with normals
-    std::vector<uint32_t> remap;                   // file position -> vertex, without normals
+    mesh.triangles.reserve(size_t(triangles_));
+    const bool use_normals = all_normals_ && !face_sizes_.empty();
+    std::vector<uint32_t> remap;  // file position -> vertex, without normals, when some are dropped
     if (!use_normals) {
-        // Keep the file's vertex order (unused vertices too), minus non-finite ones.
-        remap.assign(nv, UINT32_MAX);
-        mesh.positions.reserve(nv - bad_count);
-        for (size_t v = 0; v < nv; ++v) {
-            if (bad[v]) continue;
-            remap[v] = uint32_t(mesh.positions.size());
-            mesh.positions.emplace_back(attrib.vertices[3 * v], attrib.vertices[3 * v + 1],
-                                        attrib.vertices[3 * v + 2]);
+        // The file's vertices in file order (unused ones too), minus non-finite ones.
+        if (bad_count_ == 0) {
+            mesh.positions = std::move(positions_);
+        } else {
+            remap.assign(size_t(nv), kNone);
+            mesh.positions.reserve(size_t(nv - bad_count_));
+            for (size_t v = 0; v < nv; ++v) {
+                if (bad_[v]) continue;
+                remap[v] = uint32_t(mesh.positions.size());
+                mesh.positions.push_back(positions_[v]);
+            }
         }
     }
-    auto vertex_of = [&](const tinyobj::index_t& idx) -> uint32_t {
-        if (!use_normals) return remap[size_t(idx.vertex_index)];
-        uint64_t key = uint64_t(uint32_t(idx.vertex_index)) << 32 | uint32_t(idx.normal_index);
-        auto [it, inserted] = split.try_emplace(key, uint32_t(mesh.positions.size()));
-        if (inserted) {
-            size_t v = size_t(idx.vertex_index), n = size_t(idx.normal_index);
-            mesh.positions.emplace_back(attrib.vertices[3 * v], attrib.vertices[3 * v + 1],
-                                        attrib.vertices[3 * v + 2]);
-            mesh.normals.emplace_back(attrib.normals[3 * n], attrib.normals[3 * n + 1],
-                                      attrib.normals[3 * n + 2]);
+    // With normals: one vertex per distinct (position, normal) pair, in order of first use.
+    // Most positions meet a single normal, kept in first_normal/first_vertex; the others go
+    // through the map.
+    std::vector<uint32_t> first_normal, first_vertex;
+    std::unordered_map<uint64_t, uint32_t> split;
+    if (use_normals) {
+        first_normal.assign(size_t(nv), kNone);
+        first_vertex.assign(size_t(nv), 0);
+    }
+    auto emit = [&](uint32_t v, uint32_t n) {
+        if (mesh.positions.size() >= kMaxElements)
+            fail_at(-1, "", -1, "more than 2^32-1 distinct (position, normal) pairs");
+        mesh.positions.push_back(positions_[v]);
+        mesh.normals.push_back(normals_[n]);
+        return uint32_t(mesh.positions.size() - 1);
+    };
+    auto vertex_of = [&](size_t c) -> uint32_t {
+        const uint32_t v = corner_v_[c];
+        if (!use_normals) return remap.empty() ? v : remap[v];
+        const uint32_t n = corner_n_[c];
+        if (first_normal[v] == n) return first_vertex[v];
+        if (first_normal[v] == kNone) {
+            first_normal[v] = n;
+            return first_vertex[v] = emit(v, n);
         }
+        auto [it, inserted] = split.try_emplace(uint64_t(v) << 32 | n, 0);
+        if (inserted) it->second = emit(v, n);
         return it->second;
     };
 
-    uint64_t face_index = 0, dropped = 0, degenerate = 0, tris = 0;
-    for (const tinyobj::shape_t& shape : reader.GetShapes()) {
-        size_t corner = 0;
-        for (unsigned char fv : shape.mesh.num_face_vertices) {
-            if (fv != 3)
-                fail(path, "face", int64_t(face_index),
-                     "has " + std::to_string(fv) + " vertices after triangulation");
-            if (corner + 3 > shape.mesh.indices.size())
-                fail(path, "face", int64_t(face_index), "truncated index list");
-            const tinyobj::index_t* c = &shape.mesh.indices[corner];
-            bool is_bad = false;
-            for (int k = 0; k < 3; ++k) {
-                if (c[k].vertex_index < 0 || size_t(c[k].vertex_index) >= nv)
-                    fail(path, "face", int64_t(face_index),
-                         "vertex index " + std::to_string(int64_t(c[k].vertex_index) + 1) +
-                             " (1-based, relative indices resolved) out of range (" +
-                             std::to_string(nv) + " vertices)");
-                is_bad |= bad[size_t(c[k].vertex_index)] != 0;
-            }
-            corner += 3;
-            ++face_index;
-            if (is_bad) {
-                ++dropped;
-                continue;
-            }
-            if (c[0].vertex_index == c[1].vertex_index || c[1].vertex_index == c[2].vertex_index ||
-                c[0].vertex_index == c[2].vertex_index)
-                ++degenerate;
-            mesh.triangles.emplace_back(vertex_of(c[0]), vertex_of(c[1]), vertex_of(c[2]));
-            ++tris;
+    uint64_t dropped = 0, degenerate = 0;
+    std::vector<uint32_t> sorted;  // scratch for the degenerate test of big polygons
+    size_t c = 0;
+    for (const uint32_t n : face_sizes_) {
+        const uint32_t* idx = corner_v_.data() + c;
+        bool is_bad = false;
+        for (uint32_t k = 0; k < n && bad_count_ > 0; ++k) is_bad |= bad_[idx[k]] != 0;
+        if (is_bad) {
+            ++dropped;
+            c += n;
+            continue;
         }
+        bool repeated = false;
+        if (n <= 32) {
+            for (uint32_t a = 0; a < n && !repeated; ++a)
+                for (uint32_t b = a + 1; b < n && !repeated; ++b) repeated = idx[a] == idx[b];
+        } else {
+            // Big polygons: sort a copy instead of comparing all pairs.
+            sorted.assign(idx, idx + n);
+            std::sort(sorted.begin(), sorted.end());
+            repeated = std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end();
+        }
+        degenerate += repeated;
+        const uint32_t v0 = vertex_of(c);
+        uint32_t prev = vertex_of(c + 1);
+        for (uint32_t k = 2; k < n; ++k) {
+            const uint32_t cur = vertex_of(c + k);
+            mesh.triangles.emplace_back(v0, prev, cur);
+            prev = cur;
+        }
+        c += n;
     }
-    (void)tris;
     if (info) {
         info->format = "obj";
         info->encoding = "text";
         info->gzip = false;
-        info->file_bytes = file_bytes;
-        info->source_faces = faces;
+        info->file_bytes = bytes_;
+        info->source_faces = face_sizes_.size();
         info->dropped_faces = dropped;
         info->degenerate_faces = degenerate;
-        info->seconds = timer.seconds();
     }
     return mesh;
+}
+
+}  // namespace
+
+TriangleMesh read_obj(FileReader& reader, const MeshLoadOptions& options, MeshLoadInfo* info) {
+    Timer timer;
+    if (reader.gzip()) {
+        ErrorLocation w;
+        w.path = reader.path();
+        throw Error(w, "gzip-compressed OBJ files are not supported");
+    }
+    TriangleMesh mesh = ObjParser(reader, options).run(info);
+    if (info) info->seconds = timer.seconds();
+    return mesh;
+}
+
+TriangleMesh read_obj(const std::string& path, const MeshLoadOptions& options, MeshLoadInfo* info) {
+    // Opening through FileReader gives the same missing-file, directory and device messages
+    // as for PLY.
+    FileReader reader = FileReader::open(path);
+    return read_obj(reader, options, info);
+}
+
+TriangleMesh read_obj_memory(const void* data, size_t size, const std::string& name,
+                             const MeshLoadOptions& options, MeshLoadInfo* info) {
+    FileReader reader = FileReader::from_memory(data, size, name);
+    return read_obj(reader, options, info);
 }
 
 }  // namespace kdt

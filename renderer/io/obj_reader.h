@@ -1,19 +1,49 @@
-// OBJ loading through tinyobjloader (Debian libtinyobjloader-dev): triangulated faces,
-// per-vertex normals when every corner has one. Depends on core, geometry, tinyobjloader.
+// Our own Wavefront OBJ reader: positions, normals and polygonal faces (fan-triangulated),
+// read in one pass through io/file_reader; everything else (texture coordinates, lines,
+// points, groups, materials, free-form geometry) is skipped. Depends on core, geometry and
+// io/file_reader.
 #pragma once
 
+#include <cstddef>
 #include <string>
 
 #include "renderer/geometry/mesh.h"
+#include "renderer/io/file_reader.h"
 #include "renderer/io/mesh_io.h"
 
 namespace kdt {
 
-/// Reads a Wavefront OBJ file. Polygons are triangulated by tinyobjloader; vertices are
-/// split per distinct (position, normal) pair when the file has normals, otherwise the
-/// file's positions are used as they are. Missing files, parse errors, faces with out of
-/// range indices and non-finite positions (unless options.drop_invalid) throw kdt::Error.
+/// Reads a Wavefront OBJ file.
+///
+/// Statements: `v x y z [w | r g b [a]]` (extra values ignored), `vn x y z`, and `f` (or
+/// `fo`) with corners `v`, `v/vt`, `v//vn` or `v/vt/vn`; indices are 1-based, negative ones
+/// count back from the last vertex or normal defined so far, positive ones may point ahead.
+/// Polygons become fans (v0, vi, vi+1); faces with repeated indices are kept and counted in
+/// info->degenerate_faces. Comments (`#`, also after a statement), `\` line continuation,
+/// CRLF line endings, a missing final newline and a UTF-8 byte order mark are accepted.
+/// Other statements starting with a letter (vt, vp, l, p, o, g, s, usemtl, mtllib, ...)
+/// are ignored: materials are not used and no other file is ever opened.
+///
+/// Vertices are split per distinct (position, normal) pair when every face corner names a
+/// normal, otherwise the file's positions are used as they are and normals are dropped.
+/// Non-finite positions are an error unless options.drop_invalid, which drops the faces
+/// using them and the vertices themselves (indices are remapped), as for PLY.
+///
+/// Throws kdt::Error naming the file, the line and the vertex or face for: a file that
+/// cannot be opened or is not a regular file, gzip input, a file without vertices, a line
+/// not starting with a statement keyword or holding a NUL byte (binary data, UTF-16),
+/// carriage returns inside a line, malformed numbers or corners, index 0, indices out of
+/// range or pointing before the first element, faces with fewer than 3 corners, more than
+/// 2^32-1 vertices or normals.
 TriangleMesh read_obj(const std::string& path, const MeshLoadOptions& options = {},
                       MeshLoadInfo* info = nullptr);
+
+/// Same, from an open reader (file or memory; gzip input is refused).
+TriangleMesh read_obj(FileReader& reader, const MeshLoadOptions& options = {},
+                      MeshLoadInfo* info = nullptr);
+
+/// Same, from `size` bytes in memory; `name` appears in error messages (tests, fuzzing).
+TriangleMesh read_obj_memory(const void* data, size_t size, const std::string& name,
+                             const MeshLoadOptions& options = {}, MeshLoadInfo* info = nullptr);
 
 }  // namespace kdt

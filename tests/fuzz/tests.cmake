@@ -1,6 +1,6 @@
 # libFuzzer targets for the readers of untrusted files (KDT_FUZZ=ON with clang; see the
-# `fuzz` preset and scripts/run_fuzz.sh): PLY meshes, kd-tree cache files, images, JSON
-# scenes. The readers' sources are compiled into each fuzzer itself so they get coverage
+# `fuzz` preset and scripts/run_fuzz.sh): PLY and OBJ meshes, kd-tree cache files, images,
+# JSON scenes. The readers' sources are compiled into each fuzzer itself so they get coverage
 # instrumentation. Each fuzzer is a ctest test labelled `fuzz` that runs it on a fresh copy
 # of its seed corpus (tests/fuzz/corpus/<target>) for its share of the CI budget
 # (scripts/run_fuzz.sh), or for KDT_FUZZ_SECONDS each when that is set. fuzz_seeds
@@ -30,6 +30,9 @@ if(KDT_FUZZ)
     kdt_add_fuzzer(ply ${_src}/io/ply_reader.cpp ${_src}/io/file_reader.cpp)
     target_link_libraries(ply_fuzzer PRIVATE kdt_geometry ZLIB::ZLIB kdt_options)
 
+    kdt_add_fuzzer(obj ${_src}/io/obj_reader.cpp ${_src}/io/file_reader.cpp)
+    target_link_libraries(obj_fuzzer PRIVATE kdt_geometry ZLIB::ZLIB kdt_options)
+
     # The whole accel module (loader, tree checks, single-ray and packet traversal); the
     # packet traversal only exists with AVX2, so it is compiled in when this machine has it.
     file(GLOB _accel_src CONFIGURE_DEPENDS ${_src}/accel/*.cpp)
@@ -56,6 +59,6 @@ if(KDT_FUZZ)
     add_executable(fuzz_seeds ${_fuzz_dir}/fuzz_seeds.cpp ${CMAKE_SOURCE_DIR}/tests/test_util.cpp)
     target_link_libraries(fuzz_seeds PRIVATE kdt_renderer kdt_warnings kdt_options)
     target_compile_definitions(fuzz_seeds PRIVATE KDT_SOURCE_DIR="${CMAKE_SOURCE_DIR}")
-    message(STATUS "kdtrace: building the libFuzzer targets (ply, cache, image, scene)")
+    message(STATUS "kdtrace: building the libFuzzer targets (ply, obj, cache, image, scene)")
   endif()
 endif()
