@@ -8,6 +8,7 @@
 #include <fstream>
 #include <limits>
 #include <memory>
+#include <utility>
 
 #include <zlib.h>
 
@@ -95,7 +96,10 @@ void check_finite(const std::string& path, const ImageRGB& image) {
 /// decoding, so that truncated or inconsistent data is reported with its byte offset
 /// before stb_image sees it (stb_image reads zeros past the end and can then loop forever
 /// on a zero-length run, or silently restarts a mixed flat/RLE file).
-void validate_hdr(const std::string& path, const std::vector<uint8_t>& data) {
+/// Returns the width and height the header gives. Header lines are read as stb_image reads
+/// them: a line ends at its first NUL byte (so a line starting with NUL ends the header).
+std::pair<int64_t, int64_t> validate_hdr(const std::string& path,
+                                         const std::vector<uint8_t>& data) {
     size_t pos = 0;
     auto next_line = [&](std::string& line) {
         if (pos >= data.size()) fail(path, "truncated header", int64_t(pos));
@@ -104,6 +108,7 @@ void validate_hdr(const std::string& path, const std::vector<uint8_t>& data) {
         if (end == data.size()) fail(path, "truncated header", int64_t(pos));
         if (end - pos > 4096) fail(path, "header line too long", int64_t(pos));
         line.assign(reinterpret_cast<const char*>(&data[pos]), end - pos);
+        line.resize(std::strlen(line.c_str()));
         pos = end + 1;
     };
     std::string line;
@@ -139,9 +144,10 @@ void validate_hdr(const std::string& path, const std::vector<uint8_t>& data) {
                  " image)",
              int64_t(at));
     };
+    const std::pair<int64_t, int64_t> size{w, h};
     if (width < 8 || width >= 32768) {
         if (data.size() - pos < 4 * width * height) truncated(data.size());
-        return;
+        return size;
     }
     for (size_t y = 0; y < height; ++y) {
         size_t line_start = pos;
@@ -154,7 +160,7 @@ void validate_hdr(const std::string& path, const std::vector<uint8_t>& data) {
                      int64_t(pos));
             }
             if (data.size() - pos < 4 * width * height) truncated(data.size());
-            return;
+            return size;
         }
         size_t len = (size_t(data[pos + 2]) << 8) | data[pos + 3];
         if (len != width) {
@@ -185,15 +191,22 @@ void validate_hdr(const std::string& path, const std::vector<uint8_t>& data) {
             }
         }
     }
+    return size;
 }
 
 ImageRGB load_hdr(const std::string& path, const std::vector<uint8_t>& data) {
-    validate_hdr(path, data);
+    const auto [want_w, want_h] = validate_hdr(path, data);
     if (data.size() > size_t(std::numeric_limits<int>::max())) fail(path, "file too large");
     int w = 0, h = 0, comp = 0;
     float* pixels = stbi_loadf_from_memory(data.data(), int(data.size()), &w, &h, &comp, 3);
     if (!pixels) fail(path, std::string("cannot decode: ") + stbi_failure_reason());
     std::unique_ptr<float, void (*)(void*)> owner(pixels, stbi_image_free);
+    // Belt and braces: stb_image must have read the header we checked.
+    if (w != want_w || h != want_h) {
+        fail(path, "header read inconsistently (" + std::to_string(w) + "x" + std::to_string(h) +
+                       " decoded, " + std::to_string(want_w) + "x" + std::to_string(want_h) +
+                       " checked)");
+    }
     ImageRGB image;
     image.width = w;
     image.height = h;

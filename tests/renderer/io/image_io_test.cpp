@@ -540,5 +540,34 @@ TEST_F(ImageIoTest, ExrBlockEndingAtTheEndOfTheFileIsReadInBounds) {
     }
 }
 
+// Found by tests/fuzz/image_fuzzer: a header line starting with a NUL byte ends the header
+// for stb_image (it reads lines as C strings) but did not for our check, so the two read
+// different resolution lines and stb_image returned a 0-pixel-wide image. Header lines are
+// now read as stb_image reads them, and the decoded size must match the checked one.
+TEST_F(ImageIoTest, HdrHeaderLineWithNulIsReadAsStbImageReadsIt) {
+    const std::string file =
+        std::string(KDT_SOURCE_DIR) + "/tests/fuzz/corpus/image/regress_nul_header_line.hdr";
+    std::string msg;
+    try {
+        load_image(file);
+    } catch (const Error& e) {
+        msg = e.what();
+    }
+    EXPECT_EQ(msg.rfind(file + ": byte 139: unsupported resolution line '-Y 2 +X '", 0), 0u) << msg;
+    // The same with a clean header: a NUL-led line ends it, then the resolution follows.
+    std::vector<unsigned char> ok = {'#', '?', 'R', 'A', 'D', 'I', 'A', 'N', 'C', 'E', '\n'};
+    for (char c : std::string("FORMAT=32-bit_rle_rgbe\n")) ok.push_back((unsigned char)c);
+    ok.push_back(0);
+    for (char c : std::string("junk\n-Y 1 +X 2\n")) ok.push_back((unsigned char)c);
+    for (int i = 0; i < 2; ++i) {
+        for (unsigned char b : {128, 128, 128, 129}) ok.push_back(b);  // (1, 1, 1) * 2^(129-136)
+    }
+    write_bytes(path("nul.hdr"), ok);
+    const ImageRGB image = load_image(path("nul.hdr"));
+    ASSERT_EQ(image.width, 2);
+    ASSERT_EQ(image.height, 1);
+    EXPECT_GT(image.rgb[0], 0.0f);
+}
+
 }  // namespace
 }  // namespace kdt
