@@ -16,7 +16,7 @@ cmake --preset release >/dev/null
 cmake --build --preset release
 ctest --preset release -j2
 
-echo "== fuzzing the readers (PLY, tree cache, images, scenes)"
+echo "== fuzzing the readers (PLY, OBJ, tree cache, images, scenes)"
 bash scripts/run_fuzz.sh
 
 echo "== asan+ubsan build and unit tests"
