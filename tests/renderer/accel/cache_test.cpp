@@ -344,6 +344,15 @@ protected:
         }
         return 0;
     }
+    // Byte offset of the header's bounds (six floats, lower first), found by value; 0 if not.
+    size_t bounds_offset() const {
+        const float lower[3] = {tree_->bounds().lower.x, tree_->bounds().lower.y,
+                                tree_->bounds().lower.z};
+        for (size_t k = 4; k + sizeof(lower) <= kdtree_cache_payload_offset(); k += 4) {
+            if (std::memcmp(&bytes_[k], lower, sizeof(lower)) == 0) return k;
+        }
+        return 0;
+    }
     std::string error() {
         reseal_kdtree_cache_image(bytes_);
         write_bytes(file_, bytes_);
@@ -417,16 +426,7 @@ TEST_F(CacheStructureTest, NonFiniteSplit) {
 // Found by tests/fuzz/cache_fuzzer: NaN bounds in a resealed header passed the loader's
 // checks and were only caught by the KdTree constructor, whose message did not name the file.
 TEST_F(CacheStructureTest, NonFiniteBoundsNameTheFile) {
-    // The header stores the bounds as six floats, lower first; find them by value.
-    const float lower[3] = {tree_->bounds().lower.x, tree_->bounds().lower.y,
-                            tree_->bounds().lower.z};
-    size_t at = 0;
-    for (size_t k = 0; k + sizeof(lower) <= kdtree_cache_payload_offset(); k += 4) {
-        if (std::memcmp(&bytes_[k], lower, sizeof(lower)) == 0) {
-            at = k;
-            break;
-        }
-    }
+    const size_t at = bounds_offset();
     ASSERT_GT(at, 0u);
     const float nan = std::nanf("");
     std::memcpy(&bytes_[at + 4], &nan, 4);
@@ -439,16 +439,10 @@ TEST_F(CacheStructureTest, NonFiniteBoundsNameTheFile) {
 // Rays are clipped to the stored bounds: a box that misses part of the mesh would lose
 // hits silently, so it is refused (growing the box is harmless and loads).
 TEST_F(CacheStructureTest, BoundsThatDoNotHoldTheMeshAreRefused) {
+    const size_t at = bounds_offset();
+    ASSERT_GT(at, 0u);
     const float lower[3] = {tree_->bounds().lower.x, tree_->bounds().lower.y,
                             tree_->bounds().lower.z};
-    size_t at = 0;
-    for (size_t k = 0; k + sizeof(lower) <= kdtree_cache_payload_offset(); k += 4) {
-        if (std::memcmp(&bytes_[k], lower, sizeof(lower)) == 0) {
-            at = k;
-            break;
-        }
-    }
-    ASSERT_GT(at, 0u);
     const std::vector<unsigned char> original = bytes_;
     // upper.y moved inwards by a tenth of the box.
     const float upper_y = tree_->bounds().upper.y - 0.1f * (tree_->bounds().upper.y - lower[1]);
