@@ -76,6 +76,9 @@ void add_build_command(CLI::App& parent) {
             if (!std::filesystem::is_directory(dir, ec))
                 throw Error(ErrorLocation{output},
                             "cannot write the tree: directory " + dir.string() + " does not exist");
+            if (std::filesystem::is_directory(output, ec))
+                throw Error(ErrorLocation{output},
+                            "cannot write the tree: is a directory (give a file name)");
         }
         MeshLoadInfo info;
         auto mesh = std::make_shared<TriangleMesh>(load_mesh(model, {}, &info));

@@ -49,3 +49,8 @@ foreach(_case "spp;0;--spp must be positive \\(got 0\\)"
            --width 8 --height 8 --quiet -o ${_tmp}/bad_${_flag}.png)
   set_tests_properties(smoke.render_bad_${_flag} PROPERTIES PASS_REGULAR_EXPRESSION "${_expect}")
 endforeach()
+
+add_test(NAME smoke.build_output_is_directory COMMAND ${_kdt} build
+         /usr/share/assimp/models/PLY/cube.ply -o ${_tmp})
+set_tests_properties(smoke.build_output_is_directory PROPERTIES
+  PASS_REGULAR_EXPRESSION "cannot write the tree: is a directory \\(give a file name\\)")
