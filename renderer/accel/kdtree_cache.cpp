@@ -134,20 +134,11 @@ std::string hex64(uint64_t v) {
     return buf;
 }
 
-// Bounds of the triangles whose vertices are all finite (the ones builders reference).
-Bounds3f usable_triangle_bounds(const TriangleMesh& mesh) {
+// Bounds of the triangles a ray can hit (both builders' boxes hold at least these).
+Bounds3f hittable_triangle_bounds(const TriangleMesh& mesh) {
     Bounds3f b;
-    const size_t nv = mesh.positions.size();
-    for (const Vec3u& t : mesh.triangles) {
-        if (t.x >= nv || t.y >= nv || t.z >= nv) continue;
-        const Vec3f& p0 = mesh.positions[t.x];
-        const Vec3f& p1 = mesh.positions[t.y];
-        const Vec3f& p2 = mesh.positions[t.z];
-        if (!is_finite(p0) || !is_finite(p1) || !is_finite(p2)) continue;
-        b.extend(p0);
-        b.extend(p1);
-        b.extend(p2);
-    }
+    for (size_t i = 0; i < mesh.triangles.size(); ++i)
+        if (mesh.triangle_hittable(i)) b.extend(mesh.triangle_bounds(i));
     return b;
 }
 
@@ -470,9 +461,9 @@ std::shared_ptr<const KdTree> load_kdtree_memory(const unsigned char* data, size
     if (!bounds.empty() && (!is_finite(bounds.lower) || !is_finite(bounds.upper))) {
         fail_at(path, "header", -1, offsetof(FileHeader, bounds), "bounds not finite");
     }
-    // Rays are clipped to these bounds, so they must hold every triangle the tree can hit;
+    // Rays are clipped to these bounds, so they must hold every triangle a ray can hit;
     // a smaller box (say, a resealed hostile file) would lose hits without a word.
-    const Bounds3f need = usable_triangle_bounds(*mesh);
+    const Bounds3f need = hittable_triangle_bounds(*mesh);
     if (!need.empty() && (bounds.empty() || !contains(bounds, need))) {
         fail_at(path, "header", -1, offsetof(FileHeader, bounds),
                 "bounds do not contain the mesh's triangles");

@@ -440,25 +440,22 @@ void flatten_indices(Subtree& st, std::vector<uint32_t>& out, size_t& freed) {
 
 KdBuildOutput build_thesis_tree(const TriangleMesh& mesh, const KdTreeParams& params) {
     KdBuildOutput out;
-    const size_t vertex_count = mesh.positions.size();
     if (mesh.triangles.size() >= (size_t(1) << 30)) {
         throw Error("mesh has " + std::to_string(mesh.triangles.size()) +
                     " triangles; the kd-tree supports fewer than 2^30");
     }
     Context ctx{mesh, params};
-    // Triangles that cannot be hit are left out: out-of-range indices, repeated vertices
-    // (zero area), non-finite coordinates.
+    // Triangles that cannot be hit are left out (TriangleMesh::triangle_hittable):
+    // out-of-range indices, repeated vertices (zero area), non-finite coordinates.
     Work root(&ctx.meter);
     size_t valid = 0;
     for (size_t pass = 0; pass < 2; ++pass) {  // count, then fill an exactly sized list
         if (pass == 1) root.tris.reserve(valid);
         for (size_t i = 0; i < mesh.triangles.size(); ++i) {
+            if (!mesh.triangle_hittable(i)) continue;
             const Vec3u& t = mesh.triangles[i];
-            if (t.x >= vertex_count || t.y >= vertex_count || t.z >= vertex_count) continue;
-            if (t.x == t.y || t.y == t.z || t.z == t.x) continue;
             const Vec3f &a = mesh.positions[t.x], &b = mesh.positions[t.y],
                         &c = mesh.positions[t.z];
-            if (!is_finite(a) || !is_finite(b) || !is_finite(c)) continue;
             if (pass == 0) {
                 ++valid;
                 continue;

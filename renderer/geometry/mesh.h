@@ -33,6 +33,15 @@ struct TriangleMesh {
         b.extend(positions[t.z]);
         return b;
     }
+    /// Whether a ray can ever hit triangle i: its indices are in range and distinct and its
+    /// vertices finite. Trees need hold no other triangle (the watertight test never reports
+    /// one with a repeated vertex).
+    bool triangle_hittable(size_t i) const {
+        const Vec3u& t = triangles[i];
+        const size_t n = positions.size();
+        return t.x < n && t.y < n && t.z < n && t.x != t.y && t.y != t.z && t.z != t.x &&
+               is_finite(positions[t.x]) && is_finite(positions[t.y]) && is_finite(positions[t.z]);
+    }
     /// 64-bit FNV-1a hash of positions and triangles (for cache validation).
     uint64_t content_hash() const;
 };

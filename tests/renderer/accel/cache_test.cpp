@@ -463,6 +463,26 @@ TEST_F(CacheStructureTest, StructureErrorTriggersRebuild) {
     expect_rebuilt("leaf range");
 }
 
+// Both builders leave out triangles they can never hit, and the thesis builder's box holds
+// only the others: a far-away triangle with a repeated vertex index must not make the
+// loader's bounds check refuse the tree it saved.
+TEST(CacheBounds, TreesOverMeshesWithStrayDegenerateTrianglesLoad) {
+    auto mesh = std::make_shared<TriangleMesh>(make_displaced_sphere(3));
+    const uint32_t far = uint32_t(mesh->positions.size());
+    mesh->positions.push_back(Vec3f(100.0f, 100.0f, 100.0f));
+    mesh->positions.push_back(Vec3f(101.0f, 100.0f, 100.0f));
+    mesh->triangles.push_back(Vec3u(far, far, far + 1));
+    const std::shared_ptr<const TriangleMesh> m = mesh;
+    const fs::path dir = test::temp_dir("kdt_cache_degenerate");
+    KdTreeParams sah;
+    for (const KdTreeParams& params : {thesis_params(), sah}) {
+        const auto tree = build_kdtree(m, params);
+        const fs::path file = dir / (std::string(kKdBuilderNames[size_t(params.builder)]) + ".kdt");
+        save_kdtree(file.string(), *tree);
+        EXPECT_EQ(load_error(file, m, params), "") << kKdBuilderNames[size_t(params.builder)];
+    }
+}
+
 TEST(CacheLocations, NextToModelThenCacheDirectory) {
     const fs::path dir = test::temp_dir("kdt_cache_loc");
     const fs::path cache = dir / "cache";
