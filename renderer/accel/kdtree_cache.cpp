@@ -152,10 +152,9 @@ bool contains(const Bounds3f& outer, const Bounds3f& inner) {
 class MappedFile {
 public:
     explicit MappedFile(const std::string& path) : path_(path) {
-        fd_ = open_regular_file(path, "a cache file");
-        struct stat st;
-        if (::fstat(fd_, &st) != 0) fail(std::string("cannot stat: ") + std::strerror(errno));
-        size_ = size_t(st.st_size);
+        uint64_t size = 0;
+        fd_ = open_regular_file(path, "a cache file", &size);
+        size_ = size_t(size);
         if (size_ == 0) return;
         void* p = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, fd_, 0);
         if (p == MAP_FAILED) fail(std::string("cannot map: ") + std::strerror(errno));

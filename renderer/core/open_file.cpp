@@ -27,55 +27,45 @@ const char* kind_of(mode_t mode) {
 
 }  // namespace
 
-int open_regular_file(const std::string& path, const char* what) {
+int open_regular_file(const std::string& path, const char* what, uint64_t* size) {
     const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
     if (fd < 0) fail(path, std::string("cannot open file: ") + std::strerror(errno));
+    // Closes fd before throwing.
+    auto fail_closed = [&](const std::string& message) {
+        ::close(fd);
+        fail(path, message);
+    };
     struct stat st {};
-    if (::fstat(fd, &st) != 0) {
-        const int e = errno;
-        ::close(fd);
-        fail(path, std::string("cannot stat file: ") + std::strerror(e));
-    }
-    if (!S_ISREG(st.st_mode)) {
-        ::close(fd);
-        fail(path, std::string("is ") + kind_of(st.st_mode) + ", not " + what);
-    }
+    if (::fstat(fd, &st) != 0)
+        fail_closed(std::string("cannot stat file: ") + std::strerror(errno));
+    if (!S_ISREG(st.st_mode))
+        fail_closed(std::string("is ") + kind_of(st.st_mode) + ", not " + what);
     const int flags = ::fcntl(fd, F_GETFL);
-    if (flags < 0 || ::fcntl(fd, F_SETFL, flags & ~O_NONBLOCK) != 0) {
-        const int e = errno;
-        ::close(fd);
-        fail(path, std::string("cannot configure file: ") + std::strerror(e));
-    }
+    if (flags < 0 || ::fcntl(fd, F_SETFL, flags & ~O_NONBLOCK) != 0)
+        fail_closed(std::string("cannot configure file: ") + std::strerror(errno));
+    if (size) *size = uint64_t(st.st_size);
     return fd;
 }
 
 std::vector<uint8_t> read_regular_file(const std::string& path, uint64_t max_bytes,
                                        const char* what) {
-    const int fd = open_regular_file(path, what);
-    struct stat st {};
-    if (::fstat(fd, &st) != 0 || st.st_size < 0) {
+    uint64_t size = 0;
+    const int fd = open_regular_file(path, what, &size);
+    auto fail_closed = [&](const std::string& message) {
         ::close(fd);
-        fail(path, "cannot determine the file size");
+        fail(path, message);
+    };
+    if (size > max_bytes) {
+        fail_closed("file is larger than " + std::to_string(max_bytes >> 20) +
+                    " MiB, too large for " + what);
     }
-    if (uint64_t(st.st_size) > max_bytes) {
-        ::close(fd);
-        fail(path, "file is larger than " + std::to_string(max_bytes >> 20) +
-                       " MiB, too large for " + what);
-    }
-    std::vector<uint8_t> data(size_t(st.st_size));
+    std::vector<uint8_t> data(size_t(size), 0);
     size_t total = 0;
     while (total < data.size()) {
         const ssize_t got = ::read(fd, data.data() + total, data.size() - total);
         if (got < 0 && errno == EINTR) continue;
-        if (got < 0) {
-            const int e = errno;
-            ::close(fd);
-            fail(path, std::string("read error: ") + std::strerror(e));
-        }
-        if (got == 0) {
-            ::close(fd);
-            fail(path, "file shrank while being read");
-        }
+        if (got < 0) fail_closed(std::string("read error: ") + std::strerror(errno));
+        if (got == 0) fail_closed("file shrank while being read");
         total += size_t(got);
     }
     ::close(fd);

@@ -12,8 +12,10 @@ namespace kdt {
 /// non-blocking, so a FIFO without a writer cannot hang the caller, and then checked: a
 /// directory, FIFO, socket or device (/dev/zero would never end) is refused with an Error
 /// naming the path and what it is; `what` names the expected kind ("a scene file", ...).
-/// Reads on the returned descriptor block as usual. The caller closes it.
-int open_regular_file(const std::string& path, const char* what = "a file");
+/// Reads on the returned descriptor block as usual. The caller closes it. `size`, when given,
+/// receives the file's size.
+int open_regular_file(const std::string& path, const char* what = "a file",
+                      uint64_t* size = nullptr);
 
 /// The whole of a regular file (opened as open_regular_file does). Files larger than
 /// max_bytes are refused with an Error naming the path and the limit.

@@ -28,11 +28,7 @@ constexpr uint64_t kMaxDeflateRatio = 1032;
 FileReader FileReader::open(const std::string& path) {
     FileReader r;
     r.path_ = path;
-    r.fd_ = open_regular_file(path);
-    struct stat st {};
-    if (::fstat(r.fd_, &st) != 0)
-        fail(path, std::string("cannot stat file: ") + std::strerror(errno));
-    r.file_bytes_ = static_cast<uint64_t>(st.st_size);
+    r.fd_ = open_regular_file(path, "a file", &r.file_bytes_);
     r.size_bound_ = r.file_bytes_;
     ::posix_fadvise(r.fd_, 0, 0, POSIX_FADV_SEQUENTIAL);
     unsigned char magic[2] = {0, 0};
