@@ -1428,10 +1428,9 @@ void PlyParser::check_counts() {
     unsigned __int128 total = 0;
     for (const Element& el : elements_) {
         uint64_t min_bytes = 0;
-        // A face lists at least three indices; a strip may be empty.
-        const bool faces = &el != &elements_[size_t(vertex_el_)] && !is_strip(el);
         for (const Property& p : el.props) {
-            const bool indices = p.slot == kIndices && faces;
+            // A face lists at least three indices; a strip may be empty.
+            const bool indices = p.slot == kIndices && !is_strip(el);
             if (ascii_) {
                 min_bytes += indices ? 8 : 2;
             } else if (p.is_list()) {

@@ -345,6 +345,14 @@ TEST(PlyReader, TriangleStripsInEveryEncoding) {
     std::string empty = strips_file(PlyEncoding::ascii);
     empty.replace(empty.find("5 1 2 2 3 4"), 11, "0");
     EXPECT_EQ(load(empty).triangles.size(), 4u);
+    // In an unsigned list, 2^32 - 1 (the bit pattern of -1) restarts a strip too.
+    std::string unsigned_list = strips_file(PlyEncoding::ascii);
+    unsigned_list.replace(unsigned_list.find("property list int int vertex_indices"), 36,
+                          "property list int uint vertex_indices");
+    unsigned_list.replace(unsigned_list.find(" -1 "), 4, " 4294967295 ");
+    const TriangleMesh u = load(unsigned_list);
+    ASSERT_EQ(u.triangles.size(), expected.size());
+    for (size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(u.triangles[k], expected[k]) << k;
     std::string no_list = strips_file(PlyEncoding::ascii);
     no_list.replace(no_list.find("property list int int vertex_indices"), 36,
                     "property list int int vertex_ids");
