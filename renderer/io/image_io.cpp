@@ -416,7 +416,8 @@ struct ExrHeaderOwner {
 /// Walks a single-part header's attributes (name, type, 32-bit size, value; an empty name
 /// ends the list) and checks what tinyexr 1.0.1 reads without checking (found by the image
 /// fuzzer): every value inside the file, "tiles" 9 bytes (it only asserts), "compression"
-/// and "lineOrder" 1 byte, and "name" and "type" NUL-terminated (it runs strlen on them).
+/// and "lineOrder" 1 byte, and each attribute's name and type fields NUL-terminated within
+/// 256 bytes (it runs strlen on them).
 void check_exr_attributes(const std::string& path, const std::vector<uint8_t>& data) {
     size_t pos = 8;  // magic and version
     auto text = [&](const char* what, size_t at) {
