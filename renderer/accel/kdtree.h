@@ -124,6 +124,13 @@ public:
     const std::vector<uint32_t>& indices() const { return indices_; }
     const KdTreeParams& params() const { return params_; }
     const KdTreeStats& stats() const { return stats_; }
+    /// Memory budget of a tree's acceleration data: the per-reference vertex indices are
+    /// stored only when nodes, indices and they fit it together.
+    static constexpr uint64_t kMaxBytesPerTriangle = 32;
+    /// The vertex indices of each reference, parallel to indices() (or empty, over the
+    /// budget): a leaf's triangles are read in sequence, without first fetching each one's
+    /// record from the mesh.
+    const std::vector<Vec3u>& reference_triangles() const { return reference_triangles_; }
 
     /// Closest hit in [ray.tmin, ray.tmax]. Returns false and leaves hit.prim == kNoHit on
     /// a miss; never throws or allocates. Non-finite rays miss.
@@ -145,6 +152,7 @@ private:
     Bounds3f bounds_;
     std::vector<KdNode> nodes_;
     std::vector<uint32_t> indices_;
+    std::vector<Vec3u> reference_triangles_;
     KdTreeParams params_;
     KdTreeStats stats_;
 };

@@ -30,6 +30,7 @@ using detail::setup_ray;
 using detail::StackItem;
 using detail::TreeView;
 using detail::upper_slack;
+using detail::view_of;
 
 // Descends from node idx to a leaf, pushing far children; returns the leaf and leaves idx
 // at it. At each inner node: visit_near = !(ts < lower_slack(t0)), visit_far =
@@ -90,14 +91,16 @@ struct BestHit {
 };
 
 // Tests the triangles of a leaf; true when kAnyHit and one is hit. `tested` counts tests.
-template <bool kAnyHit>
-inline bool test_leaf(const KdNode node, const uint32_t* indices, const Vec3f* positions,
-                      const Vec3u* triangles, const RayState& rs, BestHit& best, uint64_t& tested) {
+// kDirect: the tree has reference triangles (a run-time test here costs the gain they bring).
+template <bool kAnyHit, bool kDirect>
+inline bool test_leaf(const KdNode node, const TreeView& tv, const RayState& rs, BestHit& best,
+                      uint64_t& tested) {
     const uint32_t count = node.count();
-    const uint32_t* ids = indices + node.first;
+    const uint32_t* ids = tv.indices + node.first;
+    const Vec3u* refs = tv.reference_triangles + node.first;
+    const Vec3f* positions = tv.positions;
     for (uint32_t i = 0; i < count; ++i) {
-        const uint32_t prim = ids[i];
-        const Vec3u tri = triangles[prim];
+        const Vec3u tri = kDirect ? refs[i] : tv.triangles[ids[i]];
         float t, u, v;
         if (intersect_triangle(rs.wr, positions[tri.x], positions[tri.y], positions[tri.z], rs.tmin,
                                best.t, t, u, v)) {
@@ -108,7 +111,7 @@ inline bool test_leaf(const KdNode node, const uint32_t* indices, const Vec3f* p
             best.t = t;
             best.u = u;
             best.v = v;
-            best.prim = prim;
+            best.prim = ids[i];
         }
     }
     tested += count;
@@ -139,7 +142,7 @@ inline void write_hit(const BestHit& best, float t_scale, Hit& hit) {
 }
 
 // One ray to the end. Returns true on an any-hit (kAnyHit) or when a closest hit exists.
-template <bool kAnyHit, bool kCount>
+template <bool kAnyHit, bool kCount, bool kDirect>
 bool trace_one(const TreeView& tv, const Ray& ray, Hit* hit, TraversalCounters* counters) {
     RayState rs;
     float t0, t1;
@@ -152,7 +155,7 @@ bool trace_one(const TreeView& tv, const Ray& ray, Hit* hit, TraversalCounters* 
     bool any = false;
     for (;;) {
         const KdNode node = descend<kCount>(tv.nodes, idx, rs, t0, t1, top, visited);
-        if (test_leaf<kAnyHit>(node, tv.indices, tv.positions, tv.triangles, rs, best, tested)) {
+        if (test_leaf<kAnyHit, kDirect>(node, tv, rs, best, tested)) {
             any = true;
             break;
         }
@@ -168,9 +171,13 @@ bool trace_one(const TreeView& tv, const Ray& ray, Hit* hit, TraversalCounters* 
     return true;
 }
 
-TreeView view_of(const TriangleMesh* mesh, const Bounds3f& bounds, const std::vector<KdNode>& nodes,
-                 const std::vector<uint32_t>& indices) {
-    return {nodes.data(), indices.data(), mesh->positions.data(), mesh->triangles.data(), bounds};
+template <bool kAnyHit>
+bool trace(const TreeView& tv, const Ray& ray, Hit* hit, TraversalCounters* counters) {
+    if (tv.reference_triangles)
+        return counters ? trace_one<kAnyHit, true, true>(tv, ray, hit, counters)
+                        : trace_one<kAnyHit, false, true>(tv, ray, hit, nullptr);
+    return counters ? trace_one<kAnyHit, true, false>(tv, ray, hit, counters)
+                    : trace_one<kAnyHit, false, false>(tv, ray, hit, nullptr);
 }
 
 }  // namespace
@@ -178,32 +185,25 @@ TreeView view_of(const TriangleMesh* mesh, const Bounds3f& bounds, const std::ve
 bool KdTree::intersect(const Ray& ray, Hit& hit, TraversalCounters* counters) const {
     hit = Hit{};
     if (!mesh_) return false;
-    const TreeView tv = view_of(mesh_.get(), bounds_, nodes_, indices_);
-    return counters ? trace_one<false, true>(tv, ray, &hit, counters)
-                    : trace_one<false, false>(tv, ray, &hit, nullptr);
+    const TreeView tv = view_of(*this);
+    return trace<false>(tv, ray, &hit, counters);
 }
 
 bool KdTree::occluded(const Ray& ray, TraversalCounters* counters) const {
     if (!mesh_) return false;
-    const TreeView tv = view_of(mesh_.get(), bounds_, nodes_, indices_);
-    return counters ? trace_one<true, true>(tv, ray, nullptr, counters)
-                    : trace_one<true, false>(tv, ray, nullptr, nullptr);
+    const TreeView tv = view_of(*this);
+    return trace<true>(tv, ray, nullptr, counters);
 }
 
 void KdTree::intersect(const Ray* rays, size_t count, Hit* hits,
                        TraversalCounters* counters) const {
     for (size_t i = 0; i < count; ++i) hits[i] = Hit{};
     if (!mesh_) return;
-    const TreeView tv = view_of(mesh_.get(), bounds_, nodes_, indices_);
+    const TreeView tv = view_of(*this);
     for (size_t i = 0; i < count; i += detail::kPacketSize) {
         const int m = int(std::min<size_t>(detail::kPacketSize, count - i));
         if (detail::trace_packet(tv, rays + i, m, false, hits + i, nullptr, counters)) continue;
-        for (int j = 0; j < m; ++j) {
-            if (counters)
-                trace_one<false, true>(tv, rays[i + j], &hits[i + j], counters);
-            else
-                trace_one<false, false>(tv, rays[i + j], &hits[i + j], nullptr);
-        }
+        for (int j = 0; j < m; ++j) trace<false>(tv, rays[i + j], &hits[i + j], counters);
     }
 }
 
@@ -211,15 +211,12 @@ void KdTree::occluded(const Ray* rays, size_t count, uint8_t* occluded,
                       TraversalCounters* counters) const {
     for (size_t i = 0; i < count; ++i) occluded[i] = 0;
     if (!mesh_) return;
-    const TreeView tv = view_of(mesh_.get(), bounds_, nodes_, indices_);
+    const TreeView tv = view_of(*this);
     for (size_t i = 0; i < count; i += detail::kPacketSize) {
         const int m = int(std::min<size_t>(detail::kPacketSize, count - i));
         if (detail::trace_packet(tv, rays + i, m, true, nullptr, occluded + i, counters)) continue;
-        for (int j = 0; j < m; ++j) {
-            const bool hit = counters ? trace_one<true, true>(tv, rays[i + j], nullptr, counters)
-                                      : trace_one<true, false>(tv, rays[i + j], nullptr, nullptr);
-            occluded[i + j] = hit ? 1 : 0;
-        }
+        for (int j = 0; j < m; ++j)
+            occluded[i + j] = trace<true>(tv, rays[i + j], nullptr, counters) ? 1 : 0;
     }
 }
 

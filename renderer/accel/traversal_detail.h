@@ -88,9 +88,22 @@ struct TreeView {
     const KdNode* nodes;
     const uint32_t* indices;
     const Vec3f* positions;
-    const Vec3u* triangles;
+    const Vec3u* triangles;  // the mesh's
     Bounds3f bounds;
+    const Vec3u* reference_triangles;  // parallel to indices; null when the tree has none
+
+    /// Vertex indices of reference i (an index into indices).
+    const Vec3u& triangle_of(size_t i) const {
+        return reference_triangles ? reference_triangles[i] : triangles[indices[i]];
+    }
 };
+
+inline TreeView view_of(const KdTree& tree) {
+    const auto& refs = tree.reference_triangles();
+    return {
+        tree.nodes().data(),          tree.indices().data(), tree.mesh().positions.data(),
+        tree.mesh().triangles.data(), tree.bounds(),         refs.empty() ? nullptr : refs.data()};
+}
 
 /// Rays per packet.
 inline constexpr int kPacketSize = 8;

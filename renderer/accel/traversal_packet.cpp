@@ -193,7 +193,7 @@ void run_packet(const TreeView& tv, const Packet& p, int active, __m256 t0, __m2
         for (uint32_t i = 0; i < count && active; ++i) {
             tested += uint64_t(__builtin_popcount(unsigned(active)));
             const uint32_t prim = ids[i];
-            const Vec3u tri = tv.triangles[prim];
+            const Vec3u tri = tv.triangle_of(node.first + i);
             __m256 t, u, v;
             const int hit = intersect8(p, tv.positions[tri.x], tv.positions[tri.y],
                                        tv.positions[tri.z], active, best_t, t, u, v);

@@ -122,9 +122,7 @@ TEST_P(Batch, IncoherentRaysTakeTheSingleRayPath) {
         rays.push_back(r);
     }
     expect_batch_equals_single(*tree, rays, "random rays");
-    const detail::TreeView tv{tree->nodes().data(), tree->indices().data(),
-                              tree->mesh().positions.data(), tree->mesh().triangles.data(),
-                              tree->bounds()};
+    const detail::TreeView tv = detail::view_of(*tree);
     Hit hits[8];
     EXPECT_FALSE(detail::trace_packet(tv, rays.data(), 8, false, hits, nullptr, nullptr));
 }
@@ -133,9 +131,7 @@ TEST_P(Batch, CoherentRaysFormPackets) {
     auto tree = build(test::make_blob(4, 1.0f, 8));
     // 64 x 64 pixels over 30 degrees: a pixel's samples are within half a degree.
     const auto rays = camera_rays(Vec3f(0.2f, 0.1f, 3.0f), Vec3f(0.0f), 64, 64, 8, 30.0f, 1);
-    const detail::TreeView tv{tree->nodes().data(), tree->indices().data(),
-                              tree->mesh().positions.data(), tree->mesh().triangles.data(),
-                              tree->bounds()};
+    const detail::TreeView tv = detail::view_of(*tree);
     Hit hits[8];
     size_t packets = 0;
     for (size_t i = 0; i + 8 <= rays.size(); i += 8)

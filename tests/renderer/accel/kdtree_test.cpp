@@ -208,7 +208,14 @@ TEST(ThesisBuilder, StatisticsAreConsistent) {
     EXPECT_GT(s.center_splits, 0u);
     EXPECT_GT(s.cutoff_splits, 0u);
     EXPECT_GE(s.refs_per_triangle, 1.0);
-    EXPECT_EQ(s.bytes, s.nodes * 8 + s.references * 4);
+    // Nodes, indices, and each reference's three vertex indices (the render data) exactly
+    // when they fit the budget together.
+    const size_t ntri = mesh->triangle_count();
+    const bool fits = s.nodes * 8 + s.references * 16 <= KdTree::kMaxBytesPerTriangle * ntri;
+    ASSERT_EQ(tree->reference_triangles().size(), fits ? s.references : 0u);
+    EXPECT_EQ(s.bytes, s.nodes * 8 + s.references * (fits ? 16 : 4));
+    for (size_t i = 0; i < tree->reference_triangles().size(); ++i)
+        ASSERT_EQ(tree->reference_triangles()[i], mesh->triangles[tree->indices()[i]]) << i;
     EXPECT_NEAR(s.bytes_per_triangle, double(s.bytes) / double(mesh->triangle_count()), 1e-9);
     uint64_t leaves = 0;
     for (uint64_t c : s.depth_histogram) leaves += c;
@@ -308,6 +315,64 @@ TEST(ThesisBuilder, PeakBuildMemoryIsAtMostTwiceTheTree) {
             EXPECT_GE(s.peak_build_bytes, s.bytes) << "q " << q << ", median " << median;
             EXPECT_LE(s.peak_build_bytes, 2 * s.bytes) << "q " << q << ", median " << median;
         }
+    }
+}
+
+// The per-reference vertex indices are stored only within the memory budget, and they are
+// render data only: the same tree with them and without them gives bitwise the same hits.
+TEST(KdTree, ReferenceTrianglesStayWithinTheBudgetAndNeverChangeAHit) {
+    // Long slivers across the whole box: each is referenced from many leaves.
+    std::mt19937 rng(17);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+    auto slivers = std::make_shared<TriangleMesh>();
+    for (uint32_t i = 0; i < 2000; ++i) {
+        const Vec3f a(u(rng), u(rng), u(rng)), b(u(rng), u(rng), u(rng));
+        slivers->positions.push_back(a);
+        slivers->positions.push_back(b);
+        slivers->positions.push_back(a + 0.02f * Vec3f(u(rng), u(rng), u(rng)));
+        slivers->triangles.emplace_back(3 * i, 3 * i + 1, 3 * i + 2);
+    }
+    KdTreeParams p;
+    p.builder = KdBuilder::thesis;
+    p.q = 1.0f;
+    p.max_depth = 20;
+    const auto over = build_kdtree(slivers, p);
+    const KdTreeStats& s = over->stats();
+    ASSERT_GT(s.nodes * 8 + s.references * 16, KdTree::kMaxBytesPerTriangle * 2000)
+        << "the test needs a tree over the budget";
+    EXPECT_TRUE(over->reference_triangles().empty());
+    EXPECT_EQ(s.bytes, s.nodes * 8 + s.references * 4);
+    // The same nodes over a mesh with enough extra (unreferenced) triangles are within it.
+    auto padded = std::make_shared<TriangleMesh>(*slivers);
+    padded->triangles.resize((s.nodes * 8 + s.references * 16) / KdTree::kMaxBytesPerTriangle + 1,
+                             Vec3u(0, 0, 0));
+    const KdTree within(padded, over->bounds(), over->nodes(), over->indices(), p, s);
+    ASSERT_EQ(within.reference_triangles().size(), s.references);
+    for (size_t i = 0; i < s.references; ++i)
+        ASSERT_EQ(within.reference_triangles()[i], slivers->triangles[within.indices()[i]]) << i;
+    EXPECT_EQ(within.stats().bytes, s.nodes * 8 + s.references * 16);
+    const std::vector<Ray> rays = make_rays(*slivers, 20000, 3);
+    TraversalCounters ca, cb;
+    size_t hits = 0;
+    for (const Ray& r : rays) {
+        Hit a, b;
+        ASSERT_EQ(over->intersect(r, a, &ca), within.intersect(r, b, &cb));
+        ASSERT_EQ(a.prim, b.prim);
+        ASSERT_EQ(a.t, b.t);
+        ASSERT_EQ(a.u, b.u);
+        ASSERT_EQ(a.v, b.v);
+        ASSERT_EQ(over->occluded(r), within.occluded(r));
+        hits += a.valid() ? 1 : 0;
+    }
+    EXPECT_GT(hits, rays.size() / 4);
+    EXPECT_EQ(ca.nodes_visited, cb.nodes_visited);
+    EXPECT_EQ(ca.triangles_tested, cb.triangles_tested);
+    std::vector<Hit> ha(rays.size()), hb(rays.size());
+    over->intersect(rays.data(), rays.size(), ha.data());
+    within.intersect(rays.data(), rays.size(), hb.data());
+    for (size_t i = 0; i < rays.size(); ++i) {
+        ASSERT_EQ(ha[i].prim, hb[i].prim) << i;
+        ASSERT_EQ(ha[i].t, hb[i].t) << i;
     }
 }
 
