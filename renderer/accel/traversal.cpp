@@ -97,7 +97,7 @@ inline bool test_leaf(const KdNode node, const TreeView& tv, const RayState& rs,
                       uint64_t& tested) {
     const uint32_t count = node.count();
     const uint32_t* ids = tv.indices + node.first;
-    const Vec3u* refs = tv.reference_triangles + node.first;
+    const Vec3u* refs = kDirect ? tv.reference_triangles + node.first : nullptr;
     const Vec3f* positions = tv.positions;
     for (uint32_t i = 0; i < count; ++i) {
         const Vec3u tri = kDirect ? refs[i] : tv.triangles[ids[i]];
