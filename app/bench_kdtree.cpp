@@ -39,6 +39,8 @@ struct Options {
     int spp = 0;    // 0 = the views file's
     int depth = 0;  // 0 = the thesis's 20
     int n0 = -1;    // -1 = the thesis's 5
+    // SAH row: 0 (costs) or < 0 (bonus) keeps KdTreeParams' default.
+    float sah_traversal_cost = 0.0f, sah_intersect_cost = 0.0f, sah_empty_bonus = -1.0f;
     bool embree = true;
     bool embree_robust = false;
     bool use_cache = false;
@@ -482,6 +484,10 @@ void run(const Options& opt) {
         if (params.builder == KdBuilder::thesis) {
             if (opt.depth > 0) params.max_depth = opt.depth;
             if (opt.n0 >= 0) params.n0 = opt.n0;
+        } else {
+            if (opt.sah_traversal_cost > 0.0f) params.traversal_cost = opt.sah_traversal_cost;
+            if (opt.sah_intersect_cost > 0.0f) params.intersect_cost = opt.sah_intersect_cost;
+            if (opt.sah_empty_bonus >= 0.0f) params.empty_bonus = opt.sah_empty_bonus;
         }
         r.config.params = params;
         std::vector<double> builds;
@@ -574,7 +580,13 @@ void run(const Options& opt) {
         row.push_back(fmt("%.1f", double(s.peak_build_bytes) / (1024.0 * 1024.0)));
         row.push_back(opt.use_cache ? "-" : fmt("%.1f", r.rss_build_mb));
         row.push_back(&r == &results[0] ? "-" : std::to_string(r.disagreements));
-        row.push_back(r.config.remark);
+        std::string remark = r.config.remark;
+        const KdTreeParams& rp = r.config.params;
+        if (rp.builder == KdBuilder::sah)
+            remark += fmt(", costs: traversal %g", rp.traversal_cost) +
+                      fmt(", intersection %g", rp.intersect_cost) +
+                      fmt(", empty bonus %g", rp.empty_bonus);
+        row.push_back(remark);
         t1.rows.push_back(std::move(row));
     }
     std::vector<Table> tables = {t1};
@@ -926,6 +938,15 @@ void add_bench_kdtree_command(CLI::App& bench) {
         ->check(CLI::Range(1, 64));
     cmd->add_option("--n0", opt.n0, "Thesis rows: n0 instead of 5 (the 10M table uses 4)")
         ->check(CLI::Range(0, 1000));
+    cmd->add_option("--sah-traversal-cost", opt.sah_traversal_cost,
+                    "SAH row: cost of an inner node relative to a triangle test (default 4)")
+        ->check(CLI::Range(0.01f, 1000.0f));
+    cmd->add_option("--sah-intersect-cost", opt.sah_intersect_cost,
+                    "SAH row: cost of a triangle test (default 1)")
+        ->check(CLI::Range(0.01f, 1000.0f));
+    cmd->add_option("--sah-empty-bonus", opt.sah_empty_bonus,
+                    "SAH row: cost reduction for cutting off empty space (default 0.2)")
+        ->check(CLI::Range(0.0f, 1.0f));
     cmd->add_option("--spp", opt.spp, "Primary rays per pixel (default: the views file's)")
         ->check(CLI::Range(1, 4096));
     cmd->add_option("--csv", opt.csv, "Also write all tables as CSV");

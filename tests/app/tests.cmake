@@ -26,6 +26,19 @@ add_test(NAME smoke.build_thesis COMMAND ${_kdt} build /usr/share/assimp/models/
 set_tests_properties(smoke.build_thesis PROPERTIES
   PASS_REGULAR_EXPRESSION "builder thesis: q 0.90, n0 2, max depth 8")
 
+# The SAH cost flags of the kd-tree bench reach the SAH row (any model, views and all).
+add_test(NAME smoke.bench_kdtree_sah_costs COMMAND ${_kdt} bench kdtree
+         --model /usr/share/assimp/models/PLY/cube.ply
+         --views ${CMAKE_SOURCE_DIR}/assets/views/dragon.json --rows sah --repeat 1 --spp 1
+         --no-embree --no-robustness --sah-traversal-cost 2.5 --sah-intersect-cost 1.5
+         --sah-empty-bonus 0.5)
+set_tests_properties(smoke.bench_kdtree_sah_costs PROPERTIES
+  PASS_REGULAR_EXPRESSION "costs: traversal 2.5, intersection 1.5, empty bonus 0.5")
+add_test(NAME smoke.bench_kdtree_bad_sah_cost COMMAND ${_kdt} bench kdtree
+         --sah-traversal-cost 0)
+set_tests_properties(smoke.bench_kdtree_bad_sah_cost PROPERTIES
+  PASS_REGULAR_EXPRESSION "--sah-traversal-cost: Value 0 not in range")
+
 add_test(NAME smoke.build_bad_builder COMMAND ${_kdt} build
          /usr/share/assimp/models/PLY/cube.ply --builder bvh -o ${_tmp}/cube_bad.kdt)
 set_tests_properties(smoke.build_bad_builder PROPERTIES
