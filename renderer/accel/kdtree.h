@@ -107,7 +107,9 @@ struct KdTreeStats {
     uint64_t bytes = 0;  ///< nodes + indices + any per-triangle data
     double bytes_per_triangle = 0.0;
     double build_seconds = 0.0;
-    uint64_t peak_build_bytes = 0;  ///< estimate of builder scratch memory at its peak
+    /// Estimate of build memory at its peak: the builder's scratch, or the final arrays
+    /// (nodes, indices, reference triangles) when they take more.
+    uint64_t peak_build_bytes = 0;
 };
 
 /// An immutable kd-tree over one mesh. Shares ownership of the mesh it was built on.
