@@ -169,8 +169,7 @@ TreeSize tree_size(const KdTree& tree) {
     z.nodes = tree.nodes().size();
     for (const KdNode& n : tree.nodes()) z.leaves += n.is_leaf() ? 1 : 0;
     z.refs = tree.indices().size();
-    z.bytes = z.nodes * sizeof(KdNode) + z.refs * sizeof(uint32_t) +
-              tree.reference_triangles().size() * sizeof(Vec3u);
+    z.bytes = tree.stats().bytes;  // counted by the KdTree from its arrays, for every builder
     return z;
 }
 

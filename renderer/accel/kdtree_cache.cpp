@@ -481,8 +481,7 @@ std::shared_ptr<const KdTree> load_kdtree_memory(const unsigned char* data, size
     s.center_splits = h.center_splits;
     s.cutoff_splits = h.cutoff_splits;
     s.sah_splits = h.sah_splits;
-    s.bytes = h.stats_bytes;
-    s.bytes_per_triangle = h.bytes_per_triangle;
+    // bytes and bytes_per_triangle: the KdTree counts them from its arrays.
     s.build_seconds = h.build_seconds;
     s.peak_build_bytes = h.peak_build_bytes;
     try {
