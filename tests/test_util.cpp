@@ -1,9 +1,12 @@
 #include "tests/test_util.h"
 
 #include <unistd.h>
+#include <algorithm>
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
+#include <mutex>
+#include <vector>
 
 #include "renderer/core/error.h"
 
@@ -31,11 +34,37 @@ std::filesystem::path dragon_dir() {
     return std::filesystem::exists(p / "dragon_vrip.ply") ? p : std::filesystem::path();
 }
 
+namespace {
+
+// The temporary directories this process made, removed when it exits (each test binary
+// run by ctest is one process per test), so test runs leave nothing behind in /tmp.
+struct TempDirs {
+    std::mutex mutex;
+    std::vector<std::filesystem::path> paths;
+    ~TempDirs() {
+        for (const auto& p : paths) {
+            std::error_code ec;
+            std::filesystem::remove_all(p, ec);
+        }
+    }
+};
+
+TempDirs& temp_dirs() {
+    static TempDirs dirs;
+    return dirs;
+}
+
+}  // namespace
+
 std::filesystem::path temp_dir(const std::string& name) {
     auto p = std::filesystem::temp_directory_path() /
              ("kdt_test_" + name + "_" + std::to_string(::getpid()));
     std::filesystem::remove_all(p);
     std::filesystem::create_directories(p);
+    TempDirs& dirs = temp_dirs();
+    std::lock_guard<std::mutex> lock(dirs.mutex);
+    if (std::find(dirs.paths.begin(), dirs.paths.end(), p) == dirs.paths.end())
+        dirs.paths.push_back(p);
     return p;
 }
 
