@@ -79,7 +79,7 @@ inline bool setup_ray(const Ray& ray, const Bounds3f& bounds, RayState& rs, floa
         t1 = tf < t1 ? tf : t1;
     }
     if (!hit || !(t0 <= t1)) return false;
-    rs.wr = WatertightRay(ray.origin, Vec3f(d[0], d[1], d[2]));
+    rs.wr.set(ray.origin, Vec3f(d[0], d[1], d[2]));
     return true;
 }
 

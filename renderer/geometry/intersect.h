@@ -32,7 +32,12 @@ struct WatertightRay {
 
     WatertightRay() = default;
     /// dir must be finite and non-zero (callers reject other rays up front).
-    WatertightRay(const Vec3f& org, const Vec3f& dir) : origin(org) {
+    WatertightRay(const Vec3f& org, const Vec3f& dir) { set(org, dir); }
+
+    /// Sets the constants in place (a traversal's per-ray setup calls this rather than
+    /// assigning a temporary, which compilers copy with a slow `rep movs`).
+    void set(const Vec3f& org, const Vec3f& dir) {
+        origin = org;
         Vec3f a = glm::abs(dir);
         kz = a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2);
         kx = kz == 2 ? 0 : kz + 1;
