@@ -159,7 +159,8 @@ uint64_t count_disagreements(const std::vector<Hit>& a, const std::vector<Hit>& 
     return n;
 }
 
-/// Sizes counted from the arrays themselves (not every builder fills KdTreeStats alike).
+/// Sizes counted from the arrays themselves (a cache file's statistics are informational:
+/// its loader bounds them but does not recount them).
 struct TreeSize {
     uint64_t nodes = 0, leaves = 0, refs = 0, bytes = 0;
 };

@@ -25,7 +25,6 @@ inline float exact_fmsub(float a, float b, float c) {
 /// dominant axis becomes z and a shear maps the direction to (0, 0, 1). The origin is
 /// kept in the permuted order (ox = origin[kx], ...) so the test indexes each vertex once.
 struct WatertightRay {
-    Vec3f origin{0.0f};
     int kx = 0, ky = 1, kz = 2;
     float ox = 0.0f, oy = 0.0f, oz = 0.0f;
     float sx = 0.0f, sy = 0.0f, sz = 1.0f;
@@ -37,7 +36,6 @@ struct WatertightRay {
     /// Sets the constants in place (a traversal's per-ray setup calls this rather than
     /// assigning a temporary, which compilers copy with a slow `rep movs`).
     void set(const Vec3f& org, const Vec3f& dir) {
-        origin = org;
         Vec3f a = glm::abs(dir);
         kz = a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2);
         kx = kz == 2 ? 0 : kz + 1;
