@@ -239,9 +239,11 @@ public:
     }
 
     /// The next line [b, e) without its '\n'; false at the end of the data. Throws through
-    /// `too_long` when a line exceeds kMaxLineBytes.
+    /// `too_long` when a line exceeds max_bytes. The window grows geometrically while a
+    /// line is scanned, so a line of n bytes costs O(n) however long it is.
     template <typename TooLong>
-    bool next_line(const char*& b, const char*& e, TooLong&& too_long) {
+    bool next_line(const char*& b, const char*& e, TooLong&& too_long,
+                   size_t max_bytes = kMaxLineBytes) {
         size_t scanned = 0;
         for (;;) {
             const void* nl = std::memchr(pos_ + scanned, '\n', avail() - scanned);
@@ -259,8 +261,8 @@ public:
                 pos_ = end_;
                 return true;
             }
-            if (scanned >= kMaxLineBytes) too_long();
-            fill(scanned + 1);
+            if (scanned >= max_bytes) too_long();
+            fill(std::min(max_bytes + 1, scanned + std::max(scanned, capacity())));
         }
     }
 
@@ -1214,7 +1216,10 @@ private:
 };
 
 void PlyParser::parse_header() {
-    auto too_long = [&] { fail_header("header line longer than 256 MiB"); };
+    auto too_long = [&] {
+        ++line_;  // the line being read
+        fail_header("header line longer than 4 MiB (missing end_header?)");
+    };
     const char* b;
     const char* e;
     auto split = [](const char* p, const char* end, std::vector<std::string_view>& out) {
@@ -1229,7 +1234,7 @@ void PlyParser::parse_header() {
     };
     std::vector<std::string_view> tok;
 
-    if (!in_.next_line(b, e, too_long)) {
+    if (!in_.next_line(b, e, too_long, kMaxHeaderBytes)) {
         line_ = 1;
         fail_header("empty file (not a PLY file)");
     }
@@ -1242,7 +1247,7 @@ void PlyParser::parse_header() {
     while (!have_end) {
         if (in_.offset() > kMaxHeaderBytes)
             fail_header("no end_header in the first 4 MiB (missing end_header?)");
-        if (!in_.next_line(b, e, too_long)) {
+        if (!in_.next_line(b, e, too_long, kMaxHeaderBytes)) {
             fail_header("missing end_header (the file ends inside the header)");
         }
         ++line_;

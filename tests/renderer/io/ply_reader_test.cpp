@@ -847,6 +847,34 @@ TEST(PlyReaderErrors, HeaderErrors) {
     EXPECT_ERROR(endless, "missing end_header");
 }
 
+// Lines longer than the read window: a header line stops at 4 MiB, and a data line of many
+// MiB is read whole (the window grows geometrically, so such a line costs linear time), from
+// memory and from a mapped file alike.
+TEST(PlyReaderErrors, VeryLongLines) {
+    const std::filesystem::path dir = test::temp_dir("ply_long_lines");
+    auto write = [&](const std::string& name, const std::string& data) {
+        std::ofstream(dir / name, std::ios::binary) << data;
+        return (dir / name).string();
+    };
+    const std::string header_line = "ply\nformat ascii 1.0\ncomment " + std::string(24 << 20, 'c');
+    EXPECT_ERROR(header_line, "line 3: header: header line longer than 4 MiB");
+    try {
+        read_ply(write("long_header.ply", header_line));
+        ADD_FAILURE() << "no error for a 24 MiB header line";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("line 3: header: header line longer than 4 MiB"),
+                  std::string::npos)
+            << e.what();
+    }
+    std::string data = kCubeAscii;
+    data.insert(data.find("0.5 0.5 1") + 9, std::string(24 << 20, ' '));
+    const TriangleMesh ref = load(kCubeAscii);
+    for (const TriangleMesh& m : {load(data), read_ply(write("long_data.ply", data))}) {
+        EXPECT_EQ(m.positions, ref.positions);
+        EXPECT_EQ(m.triangles, ref.triangles);
+    }
+}
+
 TEST(PlyReaderErrors, AsciiValueErrors) {
     auto with = [](const std::string& from, const std::string& to) {
         std::string t = kCubeAscii;
