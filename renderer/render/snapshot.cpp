@@ -20,6 +20,10 @@ std::shared_ptr<const KdTree> build_tree(const SnapshotOptions& options,
 std::shared_ptr<const RenderSnapshot> compile_snapshot(const Scene& scene,
                                                        const SnapshotOptions& options) {
     Timer timer;
+    // The camera first: a bad image size or field of view fails before any tree is built.
+    const CameraDesc& c = scene.camera;
+    const Camera camera =
+        make_camera(c.eye, c.target, c.up, c.vfov_degrees, options.width, options.height);
     TraceScene ts;
     auto merged = std::make_shared<TriangleMesh>();
     bool any_smooth = false;
@@ -77,9 +81,7 @@ std::shared_ptr<const RenderSnapshot> compile_snapshot(const Scene& scene,
 
     auto snap = std::make_shared<RenderSnapshot>();
     snap->scene = std::move(ts);
-    const CameraDesc& c = scene.camera;
-    snap->camera =
-        make_camera(c.eye, c.target, c.up, c.vfov_degrees, options.width, options.height);
+    snap->camera = camera;
     snap->camera_desc = c;
     snap->environment = scene.environment;
     snap->scene_name = scene.name;

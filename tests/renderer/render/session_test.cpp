@@ -356,5 +356,32 @@ TEST(RenderSnapshot, CompilesAScene) {
     EXPECT_THROW(compile_snapshot(scene, opt), Error);
 }
 
+// A bad camera (image size, field of view) is reported before any tree is built: a build of
+// minutes on a big model would otherwise come before the error.
+TEST(RenderSnapshot, BadCameraFailsBeforeTheTreeIsBuilt) {
+    Scene scene;
+    MeshInstance a;
+    a.mesh = std::make_shared<TriangleMesh>(test::make_box({0, 0, 0}, {1, 1, 1}));
+    scene.meshes = {a};
+    scene.camera.eye = {0, 0, 6};
+    int builds = 0;
+    SnapshotOptions opt;
+    opt.env = std::make_shared<ConstantEnv>(Vec3f(0.5f));
+    opt.build_tree = [&](std::shared_ptr<const TriangleMesh> mesh, const KdTreeParams& params) {
+        ++builds;
+        return build_kdtree(std::move(mesh), params);
+    };
+    opt.width = 100000;
+    opt.height = 100000;
+    EXPECT_THROW(compile_snapshot(scene, opt), Error);
+    opt.width = opt.height = 16;
+    scene.camera.vfov_degrees = 180.0f;
+    EXPECT_THROW(compile_snapshot(scene, opt), Error);
+    EXPECT_EQ(builds, 0);
+    scene.camera.vfov_degrees = 40.0f;
+    EXPECT_TRUE(compile_snapshot(scene, opt));
+    EXPECT_EQ(builds, 1);
+}
+
 }  // namespace
 }  // namespace kdt
