@@ -1216,9 +1216,10 @@ private:
 };
 
 void PlyParser::parse_header() {
+    // One bound for the whole header: a line may run only to the header's 4 MiB.
     auto too_long = [&] {
         ++line_;  // the line being read
-        fail_header("header line longer than 4 MiB (missing end_header?)");
+        fail_header("no end_header in the first 4 MiB (missing end_header?)");
     };
     const char* b;
     const char* e;
@@ -1245,9 +1246,8 @@ void PlyParser::parse_header() {
 
     bool have_format = false, have_end = false;
     while (!have_end) {
-        if (in_.offset() > kMaxHeaderBytes)
-            fail_header("no end_header in the first 4 MiB (missing end_header?)");
-        if (!in_.next_line(b, e, too_long, kMaxHeaderBytes)) {
+        if (in_.offset() >= kMaxHeaderBytes) too_long();
+        if (!in_.next_line(b, e, too_long, kMaxHeaderBytes - size_t(in_.offset()))) {
             fail_header("missing end_header (the file ends inside the header)");
         }
         ++line_;
