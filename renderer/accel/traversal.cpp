@@ -20,6 +20,10 @@
 #include "renderer/accel/traversal_detail.h"
 #include "renderer/geometry/intersect.h"
 
+#ifndef KDT_WIDE_LEAF_MIN
+#define KDT_WIDE_LEAF_MIN 2
+#endif
+
 namespace kdt {
 namespace {
 
@@ -90,12 +94,135 @@ struct BestHit {
     uint32_t prim = Hit::kNoHit;
 };
 
+// Leaves with at least this many triangles are tested four at a time.
+constexpr uint32_t kWideLeafMin = KDT_WIDE_LEAF_MIN;
+
+#if defined(__AVX2__) && defined(__FMA__)
+constexpr bool kWideLeafTest = true;
+
+// A vertex as (x, y, z, w) in the watertight test's order (kx, ky, kz): the masked load
+// never reads past the vertex's 12 bytes.
+inline __m128 load_vertex(const Vec3f& p, __m128i perm) {
+    return _mm_permutevar_ps(_mm_maskload_ps(&p.x, _mm_setr_epi32(-1, -1, -1, 0)), perm);
+}
+
+// One vertex of four triangles, sheared as in intersect_triangle(): x, y, z per lane.
+struct Vertex4 {
+    __m128 x, y, z;
+};
+
+inline Vertex4 shear4(__m128 l0, __m128 l1, __m128 l2, __m128 l3, const WatertightRay& r) {
+    const __m128 t0 = _mm_unpacklo_ps(l0, l1);  // x0 x1 y0 y1
+    const __m128 t1 = _mm_unpacklo_ps(l2, l3);  // x2 x3 y2 y3
+    const __m128 t2 = _mm_unpackhi_ps(l0, l1);  // z0 z1 w0 w1
+    const __m128 t3 = _mm_unpackhi_ps(l2, l3);  // z2 z3 w2 w3
+    Vertex4 v;
+    v.z = _mm_sub_ps(_mm_movelh_ps(t2, t3), _mm_set1_ps(r.oz));
+    // exact_fmsub(x - o, s, z) = fma(-s, z, x - o)
+    v.x =
+        _mm_fnmadd_ps(_mm_set1_ps(r.sx), v.z, _mm_sub_ps(_mm_movelh_ps(t0, t1), _mm_set1_ps(r.ox)));
+    v.y =
+        _mm_fnmadd_ps(_mm_set1_ps(r.sy), v.z, _mm_sub_ps(_mm_movehl_ps(t1, t0), _mm_set1_ps(r.oy)));
+    return v;
+}
+
+// intersect_triangle() on four triangles at once, operation by operation (the same float
+// shear, the same exact double edge functions, the same FMAs), so every lane's result is
+// bit for bit the scalar test's. Returns the mask of lanes in `valid` that hit within
+// [tmin, tmax], with their t, u, v.
+inline int intersect4(const Vec3f* positions, const Vec3u* tri, int valid, const RayState& rs,
+                      float tmax, float* t_out, float* u_out, float* v_out) {
+    const WatertightRay& r = rs.wr;
+    Vertex4 v[3];
+    for (int k = 0; k < 3; ++k)
+        v[k] = shear4(load_vertex(positions[tri[0][k]], rs.perm),
+                      load_vertex(positions[tri[1][k]], rs.perm),
+                      load_vertex(positions[tri[2][k]], rs.perm),
+                      load_vertex(positions[tri[3][k]], rs.perm), r);
+    const __m256d ax = _mm256_cvtps_pd(v[0].x), ay = _mm256_cvtps_pd(v[0].y);
+    const __m256d bx = _mm256_cvtps_pd(v[1].x), by = _mm256_cvtps_pd(v[1].y);
+    const __m256d cx = _mm256_cvtps_pd(v[2].x), cy = _mm256_cvtps_pd(v[2].y);
+    const __m256d U = _mm256_fmsub_pd(cx, by, _mm256_mul_pd(cy, bx));
+    const __m256d V = _mm256_fmsub_pd(ax, cy, _mm256_mul_pd(ay, cx));
+    const __m256d W = _mm256_fmsub_pd(bx, ay, _mm256_mul_pd(by, ax));
+    const __m256d zero = _mm256_setzero_pd();
+    const __m256d any_neg = _mm256_or_pd(
+        _mm256_or_pd(_mm256_cmp_pd(U, zero, _CMP_LT_OQ), _mm256_cmp_pd(V, zero, _CMP_LT_OQ)),
+        _mm256_cmp_pd(W, zero, _CMP_LT_OQ));
+    const __m256d any_pos = _mm256_or_pd(
+        _mm256_or_pd(_mm256_cmp_pd(U, zero, _CMP_GT_OQ), _mm256_cmp_pd(V, zero, _CMP_GT_OQ)),
+        _mm256_cmp_pd(W, zero, _CMP_GT_OQ));
+    const int pass = ~_mm256_movemask_pd(_mm256_and_pd(any_neg, any_pos)) & valid;
+    if (!pass) return 0;
+    const __m256d det = _mm256_add_pd(_mm256_add_pd(U, V), W);
+    const int ok = ~_mm256_movemask_pd(_mm256_cmp_pd(det, zero, _CMP_EQ_OQ));
+    const __m128 sz = _mm_set1_ps(r.sz);
+    const __m256d za = _mm256_cvtps_pd(_mm_mul_ps(sz, v[0].z));
+    const __m256d zb = _mm256_cvtps_pd(_mm_mul_ps(sz, v[1].z));
+    const __m256d zc = _mm256_cvtps_pd(_mm_mul_ps(sz, v[2].z));
+    const __m256d T = _mm256_fmadd_pd(W, zc, _mm256_fmadd_pd(V, zb, _mm256_mul_pd(U, za)));
+    const __m256d inv_det = _mm256_div_pd(_mm256_set1_pd(1.0), det);
+    const __m128 t = _mm256_cvtpd_ps(_mm256_mul_pd(T, inv_det));
+    _mm_storeu_ps(t_out, t);
+    _mm_storeu_ps(u_out, _mm256_cvtpd_ps(_mm256_mul_pd(V, inv_det)));
+    _mm_storeu_ps(v_out, _mm256_cvtpd_ps(_mm256_mul_pd(W, inv_det)));
+    const __m128 in_range = _mm_and_ps(_mm_cmp_ps(t, _mm_set1_ps(rs.tmin), _CMP_GE_OQ),
+                                       _mm_cmp_ps(t, _mm_set1_ps(tmax), _CMP_LE_OQ));
+    return pass & ok & _mm_movemask_ps(in_range);
+}
+
+// test_leaf() four triangles at a time. The hits of a group, taken in order and each kept
+// only if it is still the closest, are exactly the scalar loop's: a later triangle at the
+// same t wins, as it does there.
+template <bool kAnyHit, bool kDirect>
+inline bool test_leaf4(const KdNode node, const TreeView& tv, const RayState& rs, BestHit& best,
+                       uint64_t& tested) {
+    const uint32_t count = node.count();
+    const uint32_t* ids = tv.indices + node.first;
+    for (uint32_t i = 0; i < count; i += 4) {
+        const uint32_t n = std::min(count - i, 4u);
+        Vec3u tri[4];
+        for (uint32_t j = 0; j < 4; ++j) {
+            const uint32_t k = i + (j < n ? j : 0u);  // idle lanes repeat the first
+            tri[j] = kDirect ? tv.reference_triangles[node.first + k] : tv.triangles[ids[k]];
+        }
+        alignas(16) float t[4], u[4], v[4];
+        int hits = intersect4(tv.positions, tri, (1 << n) - 1, rs, best.t, t, u, v);
+        if (!hits) continue;
+        if (kAnyHit) {
+            tested += i + uint32_t(__builtin_ctz(unsigned(hits))) + 1;
+            return true;
+        }
+        do {
+            const int j = __builtin_ctz(unsigned(hits));
+            hits &= hits - 1;
+            if (t[j] <= best.t) {
+                best.t = t[j];
+                best.u = u[j];
+                best.v = v[j];
+                best.prim = ids[i + j];
+            }
+        } while (hits);
+    }
+    tested += count;
+    return false;
+}
+#else
+constexpr bool kWideLeafTest = false;
+template <bool kAnyHit, bool kDirect>
+inline bool test_leaf4(const KdNode, const TreeView&, const RayState&, BestHit&, uint64_t&) {
+    return false;
+}
+#endif
+
 // Tests the triangles of a leaf; true when kAnyHit and one is hit. `tested` counts tests.
 // kDirect: the tree has reference triangles (a run-time test here costs the gain they bring).
 template <bool kAnyHit, bool kDirect>
 inline bool test_leaf(const KdNode node, const TreeView& tv, const RayState& rs, BestHit& best,
                       uint64_t& tested) {
     const uint32_t count = node.count();
+    if (kWideLeafTest && count >= kWideLeafMin)
+        return test_leaf4<kAnyHit, kDirect>(node, tv, rs, best, tested);
     const uint32_t* ids = tv.indices + node.first;
     const Vec3u* refs = kDirect ? tv.reference_triangles + node.first : nullptr;
     const Vec3f* positions = tv.positions;

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <cstdint>
 
+#include <immintrin.h>
+
 #include "renderer/accel/kdtree.h"
 #include "renderer/geometry/intersect.h"
 
@@ -29,6 +31,11 @@ struct RayState {
     float t_scale = 1.0f;  // internal t times t_scale = caller's t
     float tmin = 0.0f;     // the caller's tmin in internal units
     WatertightRay wr;
+#if defined(__AVX2__) && defined(__FMA__)
+    // (kx, ky, kz, 3): picks a vertex's components in the watertight test's order, for the
+    // four-wide leaf test (traversal.cpp).
+    __m128i perm;
+#endif
 };
 
 // Rejects non-finite or zero-direction rays and clips the interval to the root box.
@@ -80,6 +87,9 @@ inline bool setup_ray(const Ray& ray, const Bounds3f& bounds, RayState& rs, floa
     }
     if (!hit || !(t0 <= t1)) return false;
     rs.wr.set(ray.origin, Vec3f(d[0], d[1], d[2]));
+#if defined(__AVX2__) && defined(__FMA__)
+    rs.perm = _mm_setr_epi32(rs.wr.kx, rs.wr.ky, rs.wr.kz, 3);
+#endif
     return true;
 }
 
