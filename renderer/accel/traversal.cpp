@@ -94,11 +94,14 @@ struct BestHit {
     uint32_t prim = Hit::kNoHit;
 };
 
-// Leaves with at least this many triangles are tested four at a time.
-constexpr uint32_t kWideLeafMin = KDT_WIDE_LEAF_MIN;
+#if KDT_SIMD_TRAVERSAL
+using detail::Edges4;
+using detail::edges4;
+using detail::solve4;
 
-#if defined(__AVX2__) && defined(__FMA__)
-constexpr bool kWideLeafTest = true;
+// Leaves with at least this many triangles are tested four at a time (from two up is
+// fastest on the dragon; the macro lets a build measure other thresholds).
+constexpr uint32_t kWideLeafMin = KDT_WIDE_LEAF_MIN;
 
 // A vertex as (x, y, z, w) in the watertight test's order (kx, ky, kz): the masked load
 // never reads past the vertex's 12 bytes.
@@ -139,33 +142,20 @@ inline int intersect4(const Vec3f* positions, const Vec3u* tri, int valid, const
                       load_vertex(positions[tri[1][k]], rs.perm),
                       load_vertex(positions[tri[2][k]], rs.perm),
                       load_vertex(positions[tri[3][k]], rs.perm), r);
-    const __m256d ax = _mm256_cvtps_pd(v[0].x), ay = _mm256_cvtps_pd(v[0].y);
-    const __m256d bx = _mm256_cvtps_pd(v[1].x), by = _mm256_cvtps_pd(v[1].y);
-    const __m256d cx = _mm256_cvtps_pd(v[2].x), cy = _mm256_cvtps_pd(v[2].y);
-    const __m256d U = _mm256_fmsub_pd(cx, by, _mm256_mul_pd(cy, bx));
-    const __m256d V = _mm256_fmsub_pd(ax, cy, _mm256_mul_pd(ay, cx));
-    const __m256d W = _mm256_fmsub_pd(bx, ay, _mm256_mul_pd(by, ax));
-    const __m256d zero = _mm256_setzero_pd();
-    const __m256d any_neg = _mm256_or_pd(
-        _mm256_or_pd(_mm256_cmp_pd(U, zero, _CMP_LT_OQ), _mm256_cmp_pd(V, zero, _CMP_LT_OQ)),
-        _mm256_cmp_pd(W, zero, _CMP_LT_OQ));
-    const __m256d any_pos = _mm256_or_pd(
-        _mm256_or_pd(_mm256_cmp_pd(U, zero, _CMP_GT_OQ), _mm256_cmp_pd(V, zero, _CMP_GT_OQ)),
-        _mm256_cmp_pd(W, zero, _CMP_GT_OQ));
-    const int pass = ~_mm256_movemask_pd(_mm256_and_pd(any_neg, any_pos)) & valid;
+    Edges4 e;
+    const int pass =
+        edges4(_mm256_cvtps_pd(v[0].x), _mm256_cvtps_pd(v[0].y), _mm256_cvtps_pd(v[1].x),
+               _mm256_cvtps_pd(v[1].y), _mm256_cvtps_pd(v[2].x), _mm256_cvtps_pd(v[2].y), e) &
+        valid;
     if (!pass) return 0;
-    const __m256d det = _mm256_add_pd(_mm256_add_pd(U, V), W);
-    const int ok = ~_mm256_movemask_pd(_mm256_cmp_pd(det, zero, _CMP_EQ_OQ));
     const __m128 sz = _mm_set1_ps(r.sz);
-    const __m256d za = _mm256_cvtps_pd(_mm_mul_ps(sz, v[0].z));
-    const __m256d zb = _mm256_cvtps_pd(_mm_mul_ps(sz, v[1].z));
-    const __m256d zc = _mm256_cvtps_pd(_mm_mul_ps(sz, v[2].z));
-    const __m256d T = _mm256_fmadd_pd(W, zc, _mm256_fmadd_pd(V, zb, _mm256_mul_pd(U, za)));
-    const __m256d inv_det = _mm256_div_pd(_mm256_set1_pd(1.0), det);
-    const __m128 t = _mm256_cvtpd_ps(_mm256_mul_pd(T, inv_det));
+    __m128 t, u, vb;
+    const int ok =
+        solve4(e, _mm256_cvtps_pd(_mm_mul_ps(sz, v[0].z)), _mm256_cvtps_pd(_mm_mul_ps(sz, v[1].z)),
+               _mm256_cvtps_pd(_mm_mul_ps(sz, v[2].z)), t, u, vb);
     _mm_storeu_ps(t_out, t);
-    _mm_storeu_ps(u_out, _mm256_cvtpd_ps(_mm256_mul_pd(V, inv_det)));
-    _mm_storeu_ps(v_out, _mm256_cvtpd_ps(_mm256_mul_pd(W, inv_det)));
+    _mm_storeu_ps(u_out, u);
+    _mm_storeu_ps(v_out, vb);
     const __m128 in_range = _mm_and_ps(_mm_cmp_ps(t, _mm_set1_ps(rs.tmin), _CMP_GE_OQ),
                                        _mm_cmp_ps(t, _mm_set1_ps(tmax), _CMP_LE_OQ));
     return pass & ok & _mm_movemask_ps(in_range);
@@ -207,12 +197,6 @@ inline bool test_leaf4(const KdNode node, const TreeView& tv, const RayState& rs
     tested += count;
     return false;
 }
-#else
-constexpr bool kWideLeafTest = false;
-template <bool kAnyHit, bool kDirect>
-inline bool test_leaf4(const KdNode, const TreeView&, const RayState&, BestHit&, uint64_t&) {
-    return false;
-}
 #endif
 
 // Tests the triangles of a leaf; true when kAnyHit and one is hit. `tested` counts tests.
@@ -221,8 +205,9 @@ template <bool kAnyHit, bool kDirect>
 inline bool test_leaf(const KdNode node, const TreeView& tv, const RayState& rs, BestHit& best,
                       uint64_t& tested) {
     const uint32_t count = node.count();
-    if (kWideLeafTest && count >= kWideLeafMin)
-        return test_leaf4<kAnyHit, kDirect>(node, tv, rs, best, tested);
+#if KDT_SIMD_TRAVERSAL
+    if (count >= kWideLeafMin) return test_leaf4<kAnyHit, kDirect>(node, tv, rs, best, tested);
+#endif
     const uint32_t* ids = tv.indices + node.first;
     const Vec3u* refs = kDirect ? tv.reference_triangles + node.first : nullptr;
     const Vec3f* positions = tv.positions;

@@ -8,6 +8,14 @@
 
 #include <immintrin.h>
 
+// The SIMD paths (the packet traversal and the four-wide leaf test) need AVX2 and FMA;
+// other builds trace one ray and one triangle at a time.
+#if defined(__AVX2__) && defined(__FMA__)
+#define KDT_SIMD_TRAVERSAL 1
+#else
+#define KDT_SIMD_TRAVERSAL 0
+#endif
+
 #include "renderer/accel/kdtree.h"
 #include "renderer/geometry/intersect.h"
 
@@ -31,7 +39,7 @@ struct RayState {
     float t_scale = 1.0f;  // internal t times t_scale = caller's t
     float tmin = 0.0f;     // the caller's tmin in internal units
     WatertightRay wr;
-#if defined(__AVX2__) && defined(__FMA__)
+#if KDT_SIMD_TRAVERSAL
     // (kx, ky, kz, 3): picks a vertex's components in the watertight test's order, for the
     // four-wide leaf test (traversal.cpp).
     __m128i perm;
@@ -87,7 +95,7 @@ inline bool setup_ray(const Ray& ray, const Bounds3f& bounds, RayState& rs, floa
     }
     if (!hit || !(t0 <= t1)) return false;
     rs.wr.set(ray.origin, Vec3f(d[0], d[1], d[2]));
-#if defined(__AVX2__) && defined(__FMA__)
+#if KDT_SIMD_TRAVERSAL
     rs.perm = _mm_setr_epi32(rs.wr.kx, rs.wr.ky, rs.wr.kz, 3);
 #endif
     return true;
@@ -115,14 +123,54 @@ inline TreeView view_of(const KdTree& tree) {
         tree.mesh().triangles.data(), tree.bounds(),         refs.empty() ? nullptr : refs.data()};
 }
 
+#if KDT_SIMD_TRAVERSAL
+/// The double-precision part of intersect_triangle() on four lanes, shared by the packet
+/// test (four rays per half) and the leaf test (four triangles): the edge functions of the
+/// sheared vertices, exact as there (products of floats are exact in double).
+struct Edges4 {
+    __m256d U, V, W;
+};
+
+/// Sets e from the sheared x, y of vertices a, b, c; returns the mask of lanes inside
+/// (all edge functions of one sign, zero counting as either).
+inline int edges4(__m256d ax, __m256d ay, __m256d bx, __m256d by, __m256d cx, __m256d cy,
+                  Edges4& e) {
+    e.U = _mm256_fmsub_pd(cx, by, _mm256_mul_pd(cy, bx));
+    e.V = _mm256_fmsub_pd(ax, cy, _mm256_mul_pd(ay, cx));
+    e.W = _mm256_fmsub_pd(bx, ay, _mm256_mul_pd(by, ax));
+    const __m256d zero = _mm256_setzero_pd();
+    const __m256d any_neg = _mm256_or_pd(
+        _mm256_or_pd(_mm256_cmp_pd(e.U, zero, _CMP_LT_OQ), _mm256_cmp_pd(e.V, zero, _CMP_LT_OQ)),
+        _mm256_cmp_pd(e.W, zero, _CMP_LT_OQ));
+    const __m256d any_pos = _mm256_or_pd(
+        _mm256_or_pd(_mm256_cmp_pd(e.U, zero, _CMP_GT_OQ), _mm256_cmp_pd(e.V, zero, _CMP_GT_OQ)),
+        _mm256_cmp_pd(e.W, zero, _CMP_GT_OQ));
+    return ~_mm256_movemask_pd(_mm256_and_pd(any_neg, any_pos)) & 0xf;
+}
+
+/// t, u, v of each lane from its edge functions and its vertices' sz * z (the explicit
+/// FMAs of the scalar test); returns the mask of lanes with a non-zero determinant.
+inline int solve4(const Edges4& e, __m256d za, __m256d zb, __m256d zc, __m128& t, __m128& u,
+                  __m128& v) {
+    const __m256d det = _mm256_add_pd(_mm256_add_pd(e.U, e.V), e.W);
+    const int ok = ~_mm256_movemask_pd(_mm256_cmp_pd(det, _mm256_setzero_pd(), _CMP_EQ_OQ)) & 0xf;
+    const __m256d T = _mm256_fmadd_pd(e.W, zc, _mm256_fmadd_pd(e.V, zb, _mm256_mul_pd(e.U, za)));
+    const __m256d inv_det = _mm256_div_pd(_mm256_set1_pd(1.0), det);
+    t = _mm256_cvtpd_ps(_mm256_mul_pd(T, inv_det));
+    u = _mm256_cvtpd_ps(_mm256_mul_pd(e.V, inv_det));
+    v = _mm256_cvtpd_ps(_mm256_mul_pd(e.W, inv_det));
+    return ok;
+}
+#endif
+
 /// Rays per packet.
 inline constexpr int kPacketSize = 8;
 
 /// Traces rays[0, m), 1 <= m <= kPacketSize, as one SIMD packet when they are coherent
 /// (same direction signs and dominant axis, nearly parallel, nearby origins) and returns
 /// true; returns false, having traced nothing, otherwise (and always on builds without
-/// AVX2). Closest hits go to hits (any_hit false), any-hit results to occluded (any_hit
-/// true). Every result is exactly the single-ray query's: each ray visits the same nodes
+/// KDT_SIMD_TRAVERSAL). Closest hits go to hits (any_hit false), any-hit results to occluded
+/// (any_hit true). Every result is exactly the single-ray query's: each ray visits the same nodes
 /// in the same order and runs the same triangle test.
 bool trace_packet(const TreeView& tv, const Ray* rays, int m, bool any_hit, Hit* hits,
                   uint8_t* occluded, TraversalCounters* counters);

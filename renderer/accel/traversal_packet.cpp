@@ -15,13 +15,9 @@
 // functions and t in double, explicit FMAs for t).
 #include "renderer/accel/traversal_detail.h"
 
-#ifdef __AVX2__
-#include <immintrin.h>
-#endif
-
 namespace kdt::detail {
 
-#ifndef __AVX2__
+#if !KDT_SIMD_TRAVERSAL
 
 bool trace_packet(const TreeView&, const Ray*, int, bool, Hit*, uint8_t*, TraversalCounters*) {
     return false;
@@ -94,24 +90,12 @@ inline int intersect8(const Packet& p, const Vec3f& a, const Vec3f& b, const Vec
     const __m256 by = shear(component(b, p.ky), p.oy, p.sy, bz);
     const __m256 cx = shear(component(c, p.kx), p.ox, p.sx, cz);
     const __m256 cy = shear(component(c, p.ky), p.oy, p.sy, cz);
-    // Edge functions in double, four lanes per half; products of floats are exact there.
-    __m256d U[2], V[2], W[2];
+    // Edge functions and t, u, v in double, four lanes per half.
+    Edges4 e[2];
     int pass = 0;
     for (int h = 0; h < 2; ++h) {
         auto half = [h](__m256 v) { return half_pd(v, h); };
-        const __m256d dax = half(ax), day = half(ay), dbx = half(bx), dby = half(by);
-        const __m256d dcx = half(cx), dcy = half(cy);
-        U[h] = _mm256_fmsub_pd(dcx, dby, _mm256_mul_pd(dcy, dbx));
-        V[h] = _mm256_fmsub_pd(dax, dcy, _mm256_mul_pd(day, dcx));
-        W[h] = _mm256_fmsub_pd(dbx, day, _mm256_mul_pd(dby, dax));
-        const __m256d zero = _mm256_setzero_pd();
-        const __m256d any_neg = _mm256_or_pd(_mm256_or_pd(_mm256_cmp_pd(U[h], zero, _CMP_LT_OQ),
-                                                          _mm256_cmp_pd(V[h], zero, _CMP_LT_OQ)),
-                                             _mm256_cmp_pd(W[h], zero, _CMP_LT_OQ));
-        const __m256d any_pos = _mm256_or_pd(_mm256_or_pd(_mm256_cmp_pd(U[h], zero, _CMP_GT_OQ),
-                                                          _mm256_cmp_pd(V[h], zero, _CMP_GT_OQ)),
-                                             _mm256_cmp_pd(W[h], zero, _CMP_GT_OQ));
-        pass |= (~_mm256_movemask_pd(_mm256_and_pd(any_neg, any_pos)) & 0xf) << (4 * h);
+        pass |= edges4(half(ax), half(ay), half(bx), half(by), half(cx), half(cy), e[h]) << (4 * h);
     }
     pass &= active;
     if (!pass) return 0;
@@ -119,18 +103,9 @@ inline int intersect8(const Packet& p, const Vec3f& a, const Vec3f& b, const Vec
     int ok = 0;
     for (int h = 0; h < 2; ++h) {
         auto half = [h](__m256 v) { return half_pd(v, h); };
-        const __m256d det = _mm256_add_pd(_mm256_add_pd(U[h], V[h]), W[h]);
-        ok |= (~_mm256_movemask_pd(_mm256_cmp_pd(det, _mm256_setzero_pd(), _CMP_EQ_OQ)) & 0xf)
+        ok |= solve4(e[h], half(_mm256_mul_ps(p.sz, az)), half(_mm256_mul_ps(p.sz, bz)),
+                     half(_mm256_mul_ps(p.sz, cz)), t4[h], u4[h], v4[h])
               << (4 * h);
-        const __m256d za = half(_mm256_mul_ps(p.sz, az));
-        const __m256d zb = half(_mm256_mul_ps(p.sz, bz));
-        const __m256d zc = half(_mm256_mul_ps(p.sz, cz));
-        const __m256d T =
-            _mm256_fmadd_pd(W[h], zc, _mm256_fmadd_pd(V[h], zb, _mm256_mul_pd(U[h], za)));
-        const __m256d inv_det = _mm256_div_pd(_mm256_set1_pd(1.0), det);
-        t4[h] = _mm256_cvtpd_ps(_mm256_mul_pd(T, inv_det));
-        u4[h] = _mm256_cvtpd_ps(_mm256_mul_pd(V[h], inv_det));
-        v4[h] = _mm256_cvtpd_ps(_mm256_mul_pd(W[h], inv_det));
     }
     t_out = _mm256_set_m128(t4[1], t4[0]);
     u_out = _mm256_set_m128(u4[1], u4[0]);
@@ -477,6 +452,6 @@ bool trace_packet(const TreeView& tv, const Ray* rays, int m, bool any_hit, Hit*
     return true;
 }
 
-#endif  // __AVX2__
+#endif  // KDT_SIMD_TRAVERSAL
 
 }  // namespace kdt::detail

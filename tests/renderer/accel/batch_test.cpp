@@ -4,7 +4,6 @@
 // coherent; hard rays (axis-aligned, in a split plane, aimed at vertices, non-finite) in
 // packets too.
 #include <cmath>
-#include <cstring>
 #include <limits>
 #include <random>
 #include <string>
@@ -22,10 +21,7 @@ namespace {
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
-bool bitwise_equal(const Hit& a, const Hit& b) {
-    return a.prim == b.prim && std::memcmp(&a.t, &b.t, sizeof a.t) == 0 &&
-           std::memcmp(&a.u, &b.u, sizeof a.u) == 0 && std::memcmp(&a.v, &b.v, sizeof a.v) == 0;
-}
+using test::bitwise_equal;
 
 // Batch closest hits, batch any-hits and their counters against one query per ray.
 void expect_batch_equals_single(const KdTree& tree, const std::vector<Ray>& rays,

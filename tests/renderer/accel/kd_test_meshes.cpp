@@ -1,6 +1,7 @@
 #include "tests/renderer/accel/kd_test_meshes.h"
 
 #include <cmath>
+#include <cstring>
 #include <random>
 #include <string>
 
@@ -88,6 +89,11 @@ Hit brute_force_hit(const TriangleMesh& mesh, const Ray& ray) {
         }
     }
     return hit;
+}
+
+bool bitwise_equal(const Hit& a, const Hit& b) {
+    return a.prim == b.prim && std::memcmp(&a.t, &b.t, sizeof a.t) == 0 &&
+           std::memcmp(&a.u, &b.u, sizeof a.u) == 0 && std::memcmp(&a.v, &b.v, sizeof a.v) == 0;
 }
 
 bool brute_force_occluded(const TriangleMesh& mesh, const Ray& ray) {

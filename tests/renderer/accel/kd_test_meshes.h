@@ -26,6 +26,8 @@ Hit brute_force_hit(const TriangleMesh& mesh, const Ray& ray);
 /// both hit with t within 1e-6 relative and the same triangle unless the tree's triangle is
 /// hit at exactly the same t (a tie).
 bool same_closest_hit(const TriangleMesh& mesh, const Ray& ray, const Hit& hit, const Hit& ref);
+/// True when both hits have the same triangle and bit for bit the same t, u and v.
+bool bitwise_equal(const Hit& a, const Hit& b);
 /// Any hit over all triangles.
 bool brute_force_occluded(const TriangleMesh& mesh, const Ray& ray);
 

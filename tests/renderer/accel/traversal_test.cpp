@@ -3,7 +3,6 @@
 // scales), axis-aligned and grazing rays, planar and degenerate geometry, bad rays,
 // extreme parameters.
 #include <cmath>
-#include <cstring>
 #include <limits>
 #include <random>
 #include <string>
@@ -19,12 +18,6 @@ namespace kdt {
 namespace {
 
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
-
-uint32_t float_bits(float f) {
-    uint32_t b;
-    std::memcpy(&b, &f, sizeof b);
-    return b;
-}
 
 class Traversal : public ::testing::TestWithParam<KdBuilder> {
 protected:
@@ -360,10 +353,10 @@ TEST(TraversalLeafTest, WideLeafTestIsTheScalarTestBitForBit) {
             ASSERT_EQ(tree->occluded(r, &c), ref.valid()) << what;
             if (!ref.valid()) continue;
             ++hits;
-            EXPECT_EQ(hit.prim, ref.prim) << what;
-            EXPECT_EQ(float_bits(hit.t), float_bits(ref.t)) << what;
-            EXPECT_EQ(float_bits(hit.u), float_bits(ref.u)) << what;
-            EXPECT_EQ(float_bits(hit.v), float_bits(ref.v)) << what;
+            EXPECT_TRUE(test::bitwise_equal(hit, ref))
+                << what << ": prim " << hit.prim << " vs " << ref.prim << ", t " << hit.t << " vs "
+                << ref.t << ", u " << hit.u << " vs " << ref.u << ", v " << hit.v << " vs "
+                << ref.v;
             EXPECT_EQ(c.triangles_tested, first) << what;
         }
     }
