@@ -361,7 +361,8 @@ void save_view_image(const std::string& path, const BenchViewSet& set, const Tri
 struct RayAnatomy {
     uint64_t first_descent = 0;  ///< inner nodes visited before the first leaf
     uint64_t first_leaf_tests = 0;
-    uint64_t leaves = 0, empty_leaves = 0;
+    uint64_t leaves = 0;            ///< leaves entered
+    uint64_t empty_skipped = 0;     ///< empty children the descent decided not to enter
     uint64_t nodes = 0, tests = 0;  ///< totals, as TraversalCounters count them
 };
 
@@ -384,22 +385,37 @@ void add_anatomy(const KdTree& tree, const Ray& ray, RayAnatomy& a) {
     for (;;) {
         KdNode node = nodes[idx];
         ++a.nodes;
+        bool skipped = false;
         while (!node.is_leaf()) {
             if (first) ++a.first_descent;
             const int axis = node.axis();
             const float ts = (node.split - rs.org[axis]) * rs.inv[axis];
-            const bool visit_near = !(ts < lower_slack(t0));
-            const bool visit_far = !(ts > upper_slack(t1));
             const uint32_t near_child = node.child() + rs.neg[axis];
             const uint32_t far_child = node.child() + 1u - rs.neg[axis];
-            if (visit_near && visit_far) stack[sp++] = {far_child, ts > t0 ? ts : t0, t1};
-            if (visit_near) t1 = ts < t1 ? ts : t1;
-            idx = visit_near ? near_child : far_child;
+            const bool visit_near = !(ts < lower_slack(t0));
+            const bool visit_far = !(ts > upper_slack(t1));
+            const bool near_empty = nodes[near_child].is_leaf() && nodes[near_child].count() == 0;
+            const bool far_empty = nodes[far_child].is_leaf() && nodes[far_child].count() == 0;
+            a.empty_skipped +=
+                uint64_t(visit_near && near_empty) + uint64_t(visit_far && far_empty);
+            const bool go_near = visit_near && !near_empty, go_far = visit_far && !far_empty;
+            const float far_t0 = ts > t0 ? ts : t0;
+            if (go_near && go_far) stack[sp++] = {far_child, far_t0, t1};
+            if (go_near) {
+                t1 = ts < t1 ? ts : t1;
+                idx = near_child;
+            } else if (go_far) {
+                t0 = far_t0;
+                idx = far_child;
+            } else {
+                node = KdNode{};  // no child to enter: straight to the stack
+                skipped = true;
+                break;
+            }
             node = nodes[idx];
             ++a.nodes;
         }
-        ++a.leaves;
-        if (node.count() == 0) ++a.empty_leaves;
+        if (!skipped) ++a.leaves;
         for (uint32_t i = 0; i < node.count(); ++i) {
             const Vec3u t = mesh.triangles[tree.indices()[node.first + i]];
             float tt, u, v;
@@ -789,7 +805,7 @@ void run(const Options& opt) {
                      "inner nodes before the first leaf",
                      "tests in the first leaf",
                      "leaves / ray",
-                     "empty leaves / ray"};
+                     "empty leaves skipped / ray"};
         auto add = [&](const char* name, const std::vector<Ray>& rays, double seconds) {
             TraversalCounters c;
             RayAnatomy a;
@@ -815,7 +831,7 @@ void run(const Options& opt) {
                  fmt("%.2f", nodes > 0.0 ? ns / nodes : 0.0),
                  fmt("%.1f", double(a.first_descent) / n),
                  fmt("%.1f", double(a.first_leaf_tests) / n), fmt("%.1f", double(a.leaves) / n),
-                 fmt("%.1f", double(a.empty_leaves) / n)});
+                 fmt("%.1f", double(a.empty_skipped) / n)});
         };
         add("primary", primary, median(engines[0].primary_s));
         add("diffuse", diffuse, median(engines[0].diffuse_s));

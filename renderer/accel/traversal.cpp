@@ -37,26 +37,27 @@ using detail::upper_slack;
 using detail::view_of;
 
 // Descends from node idx to a leaf, pushing far children; returns the leaf and leaves idx
-// at it. At each inner node: visit_near = !(ts < lower_slack(t0)), visit_far =
-// !(ts > upper_slack(t1)); both: push the far child with [max(ts, t0), t1] and go near
-// with t1 = min(ts, t1); else go to the one visited with the interval unchanged. t0 never
-// changes on the way down (going only to the far side means the plane lies before t0). A
-// ray lying in the plane (origin on it, d = 0: t = 0 * inf = NaN) visits both sides, since
-// a builder may reference a triangle that only touches the plane from either side:
-// comparisons are written so that NaN means "visit", and max/min are SSE's maxss/minss,
-// which return the second operand on NaN (so the interval stays [t0, t1]). The push is
-// branch-free (the far child is always written, kept only when both sides are visited)
-// and so is the update of t1 (a blend: the select is unpredictable); the choice of the
-// next node stays a branch, whose prediction lets the next fetch start before ts is known.
-// The stack cannot overflow: a tree is checked to be at most 64 deep when it is made, and
-// each level pushes at most one entry.
+// at it, or an empty leaf when no child is left to enter. At each inner node: visit_near =
+// !(ts < lower_slack(t0)), visit_far = !(ts > upper_slack(t1)), and a child that is an
+// empty leaf is not visited at all (its word is read from the pair the next fetch loads
+// anyway; on the dragon 7 of the 9.4 leaves a diffuse ray reached were empty). Both: push
+// the far child with [max(ts, t0), t1] and go near with t1 = min(ts, t1); near only: t1 =
+// min(ts, t1); far only: t0 = max(ts, t0). A ray lying in the plane (origin on it, d = 0:
+// t = 0 * inf = NaN) visits both sides, since a builder may reference a triangle that only
+// touches the plane from either side: comparisons are written so that NaN means "visit",
+// and max/min are SSE's maxss/minss, which return the second operand on NaN (so the
+// interval stays [t0, t1]). The push is branch-free (the far child is always written, kept
+// only when both sides are visited); the choice of the next node stays a branch, whose
+// prediction lets the next fetch start before ts is known. The stack cannot overflow: a
+// tree is checked to be at most 64 deep when it is made, and each level pushes at most one
+// entry.
 template <bool kCount>
 inline KdNode descend(const KdNode* nodes, uint32_t& idx, const RayState& rs, float t0, float& t1,
                       StackItem*& top, uint64_t& visited) {
     KdNode node = nodes[idx];
     if (kCount) ++visited;
-    const __m128 vt0 = _mm_set_ss(t0);
-    const __m128 lo0 = _mm_set_ss(lower_slack(t0));
+    __m128 vt0 = _mm_set_ss(t0);
+    __m128 lo0 = _mm_set_ss(lower_slack(t0));
     __m128 vt1 = _mm_set_ss(t1);
     const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
     const __m128 slack = _mm_set_ss(kIntervalSlack);
@@ -67,20 +68,28 @@ inline KdNode descend(const KdNode* nodes, uint32_t& idx, const RayState& rs, fl
                        _mm_load_ss(&rs.inv[axis]));
         // t1 + k |t1|: k is a power of two, so the product is exact and an FMA rounds alike.
         const __m128 hi1 = _mm_add_ss(vt1, _mm_mul_ss(slack, _mm_and_ps(vt1, abs_mask)));
-        const __m128 near_mask = _mm_cmpnlt_ss(ts, lo0);
-        const bool visit_near = _mm_cvtsi128_si32(_mm_castps_si128(near_mask)) != 0;
-        const bool visit_far = !_mm_comigt_ss(ts, hi1);
-        const uint32_t first = node.child();
-        top->node = first + 1u - rs.neg[axis];
-        _mm_store_ss(&top->t0, _mm_max_ss(ts, vt0));
+        const uint32_t near_idx = node.child() + rs.neg[axis];
+        const uint32_t far_idx = node.child() + 1u - rs.neg[axis];
+        // An empty child is never entered: its word is read here (the pair shares a cache
+        // line with the node fetched next) instead of after a descent.
+        const bool visit_near = _mm_cvtsi128_si32(_mm_castps_si128(_mm_cmpnlt_ss(ts, lo0))) != 0;
+        const bool go_near = visit_near & (nodes[near_idx].word != 3u);
+        const bool go_far = !_mm_comigt_ss(ts, hi1) & (nodes[far_idx].word != 3u);
+        top->node = far_idx;
+        const __m128 far_t0 = _mm_max_ss(ts, vt0);
+        _mm_store_ss(&top->t0, far_t0);
         _mm_store_ss(&top->t1, vt1);
-        top += int(visit_near & visit_far);
-#ifdef __SSE4_1__
-        vt1 = _mm_blendv_ps(vt1, _mm_min_ss(ts, vt1), near_mask);
-#else
-        vt1 = _mm_or_ps(_mm_and_ps(near_mask, _mm_min_ss(ts, vt1)), _mm_andnot_ps(near_mask, vt1));
-#endif
-        idx = visit_near ? first + rs.neg[axis] : first + 1u - rs.neg[axis];
+        top += int(go_near & go_far);
+        if (go_near) {
+            vt1 = _mm_min_ss(ts, vt1);
+            idx = near_idx;
+        } else if (go_far) {
+            vt0 = far_t0;
+            lo0 = _mm_sub_ss(vt0, _mm_mul_ss(slack, _mm_and_ps(vt0, abs_mask)));
+            idx = far_idx;
+        } else {
+            return KdNode{};
+        }
         node = nodes[idx];
         if (kCount) ++visited;
     }

@@ -141,14 +141,21 @@ void run_packet(const TreeView& tv, const Packet& p, int active, __m256 t0, __m2
                 _mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(node.split), p.org[axis]), p.inv[axis]);
             const int vn = _mm256_movemask_ps(_mm256_cmp_ps(ts, lower_slack8(t0), _CMP_NLT_UQ));
             const int vf = _mm256_movemask_ps(_mm256_cmp_ps(ts, upper_slack8(t1), _CMP_NGT_UQ));
-            const int near_lanes = active & vn;
-            const int far_lanes = active & (vf | ~vn);
             const uint32_t near_child = node.child() + p.neg[axis];
             const uint32_t far_child = node.child() + 1u - p.neg[axis];
-            if (!far_lanes) {
-                // Every lane goes near only; for those min(ts, t1) = t1.
+            // As in the single-ray descent, empty children are not entered.
+            const int near_lanes = tv.nodes[near_child].word != 3u ? active & vn : 0;
+            const int far_lanes = tv.nodes[far_child].word != 3u ? active & (vf | ~vn) : 0;
+            if (!far_lanes && !near_lanes) {
+                node = KdNode{};  // no lane enters a child: straight to the stack
+                break;
+            } else if (!far_lanes) {
+                t1 = _mm256_min_ps(ts, t1);
+                active = near_lanes;
                 idx = near_child;
             } else if (!near_lanes) {
+                t0 = _mm256_max_ps(ts, t0);
+                active = far_lanes;
                 idx = far_child;
             } else {
                 stack_node[sp] = far_child;
