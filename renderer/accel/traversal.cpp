@@ -61,6 +61,7 @@ inline KdNode descend(const KdNode* nodes, uint32_t& idx, const RayState& rs, fl
     __m128 vt1 = _mm_set_ss(t1);
     const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
     const __m128 slack = _mm_set_ss(kIntervalSlack);
+    const uint32_t neg_bits = rs.neg[0] | (rs.neg[1] << 1) | (rs.neg[2] << 2);
     while (!node.is_leaf()) {
         const int axis = node.axis();
         const __m128 ts =
@@ -68,13 +69,19 @@ inline KdNode descend(const KdNode* nodes, uint32_t& idx, const RayState& rs, fl
                        _mm_load_ss(&rs.inv[axis]));
         // t1 + k |t1|: k is a power of two, so the product is exact and an FMA rounds alike.
         const __m128 hi1 = _mm_add_ss(vt1, _mm_mul_ss(slack, _mm_and_ps(vt1, abs_mask)));
-        const uint32_t near_idx = node.child() + rs.neg[axis];
-        const uint32_t far_idx = node.child() + 1u - rs.neg[axis];
+        // The sign bit comes from a register and the pair's words are read before it is
+        // known, so the next node's address waits on neither.
+        const uint32_t first = node.child();
+        const uint32_t neg = (neg_bits >> axis) & 1u;
+        const uint32_t empty =
+            uint32_t(nodes[first].word == 3u) | (uint32_t(nodes[first + 1u].word == 3u) << 1);
+        const uint32_t near_idx = first + neg;
+        const uint32_t far_idx = first + 1u - neg;
         // An empty child is never entered: its word is read here (the pair shares a cache
         // line with the node fetched next) instead of after a descent.
         const bool visit_near = _mm_cvtsi128_si32(_mm_castps_si128(_mm_cmpnlt_ss(ts, lo0))) != 0;
-        const bool go_near = visit_near & (nodes[near_idx].word != 3u);
-        const bool go_far = !_mm_comigt_ss(ts, hi1) & (nodes[far_idx].word != 3u);
+        const bool go_near = visit_near & !((empty >> neg) & 1u);
+        const bool go_far = !_mm_comigt_ss(ts, hi1) & !((empty >> (1u - neg)) & 1u);
         top->node = far_idx;
         const __m128 far_t0 = _mm_max_ss(ts, vt0);
         _mm_store_ss(&top->t0, far_t0);
