@@ -41,6 +41,7 @@ struct Options {
     int n0 = -1;    // -1 = the thesis's 5
     // SAH row: 0 (costs) or < 0 (bonus) keeps KdTreeParams' default.
     float sah_traversal_cost = 0.0f, sah_intersect_cost = 0.0f, sah_empty_bonus = -1.0f;
+    int sah_depth = 0;  // 0 = automatic
     bool embree = true;
     bool embree_robust = false;
     bool use_cache = false;
@@ -504,6 +505,7 @@ void run(const Options& opt) {
             if (opt.sah_traversal_cost > 0.0f) params.traversal_cost = opt.sah_traversal_cost;
             if (opt.sah_intersect_cost > 0.0f) params.intersect_cost = opt.sah_intersect_cost;
             if (opt.sah_empty_bonus >= 0.0f) params.empty_bonus = opt.sah_empty_bonus;
+            if (opt.sah_depth > 0) params.max_depth = opt.sah_depth;
         }
         r.config.params = params;
         std::vector<double> builds;
@@ -963,6 +965,9 @@ void add_bench_kdtree_command(CLI::App& bench) {
     cmd->add_option("--sah-empty-bonus", opt.sah_empty_bonus,
                     "SAH row: cost reduction for cutting off empty space (default 0.2)")
         ->check(CLI::Range(0.0f, 1.0f));
+    cmd->add_option("--sah-depth", opt.sah_depth,
+                    "SAH row: maximum depth instead of the automatic 8 + 1.3 log2 N")
+        ->check(CLI::Range(1, 64));
     cmd->add_option("--spp", opt.spp, "Primary rays per pixel (default: the views file's)")
         ->check(CLI::Range(1, 4096));
     cmd->add_option("--csv", opt.csv, "Also write all tables as CSV");

@@ -34,6 +34,12 @@ add_test(NAME smoke.bench_kdtree_sah_costs COMMAND ${_kdt} bench kdtree
          --sah-empty-bonus 0.5)
 set_tests_properties(smoke.bench_kdtree_sah_costs PROPERTIES
   PASS_REGULAR_EXPRESSION "costs: traversal 2.5, intersection 1.5, empty bonus 0.5")
+add_test(NAME smoke.bench_kdtree_sah_depth COMMAND ${_kdt} bench kdtree
+         --model /usr/share/assimp/models/PLY/Wuson.ply
+         --views ${CMAKE_SOURCE_DIR}/assets/views/dragon.json --rows sah --repeat 1 --spp 1
+         --no-embree --no-robustness --sah-depth 8)
+set_tests_properties(smoke.bench_kdtree_sah_depth PROPERTIES
+  PASS_REGULAR_EXPRESSION "\\| sah \\| sah \\| - \\| - \\| 8/8 \\|")
 add_test(NAME smoke.bench_kdtree_bad_sah_cost COMMAND ${_kdt} bench kdtree
          --sah-traversal-cost 0)
 set_tests_properties(smoke.bench_kdtree_bad_sah_cost PROPERTIES
