@@ -40,6 +40,12 @@ add_test(NAME smoke.bench_kdtree_sah_depth COMMAND ${_kdt} bench kdtree
          --no-embree --no-robustness --sah-depth 8)
 set_tests_properties(smoke.bench_kdtree_sah_depth PROPERTIES
   PASS_REGULAR_EXPRESSION "\\| sah \\| sah \\| - \\| - \\| 8/8 \\|")
+add_test(NAME smoke.bench_kdtree_robustness COMMAND ${_kdt} bench kdtree
+         --model /usr/share/assimp/models/PLY/Wuson.ply
+         --views ${CMAKE_SOURCE_DIR}/assets/views/dragon.json --rows sah --repeat 1 --spp 1
+         --no-embree --robust-rays 2000)
+set_tests_properties(smoke.bench_kdtree_robustness PROPERTIES
+  PASS_REGULAR_EXPRESSION "\\| kdtrace row sah \\(sah\\) \\| 0 \\| 0.000 \\| 0 \\| 0.000 \\|[^\n]*\\| 0 of 0 / 0 of 0 \\|")
 add_test(NAME smoke.bench_kdtree_bad_sah_cost COMMAND ${_kdt} bench kdtree
          --sah-traversal-cost 0)
 set_tests_properties(smoke.bench_kdtree_bad_sah_cost PROPERTIES
