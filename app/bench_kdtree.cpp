@@ -21,6 +21,7 @@
 #include "app/bench_rays.h"
 #include "app/commands.h"
 #include "app/peer_embree.h"
+#include "renderer/accel/brute_force.h"
 #include "renderer/accel/kdtree_cache.h"
 #include "renderer/accel/traversal_detail.h"
 #include "renderer/core/error.h"
@@ -304,43 +305,36 @@ AimedRays make_aimed_rays(const TriangleMesh& mesh, int count, uint64_t seed) {
     return out;
 }
 
-uint64_t count_escapes(const std::vector<Ray>& rays, const std::vector<Hit>& hits) {
-    uint64_t n = 0;
-    for (size_t i = 0; i < rays.size(); ++i) {
-        if (!hits[i].valid() || hits[i].t > 1.0f + 1e-4f) ++n;
-    }
-    return n;
+// A ray aimed at a point at t = 1 escapes when it misses or hits behind the point.
+bool escaped(const Hit& hit) { return !hit.valid() || hit.t > 1.0f + 1e-4f; }
+
+uint64_t count_escapes(const std::vector<Hit>& hits) {
+    return uint64_t(std::count_if(hits.begin(), hits.end(), escaped));
 }
 
-// Of the escapes (as count_escapes() has them) among the first `cap`, how many the same
-// watertight test run on every triangle also has: those rays truly pass the aimed point
-// by a rounding error (a fan seen almost edge-on), the rest would be holes in the tree.
-// Returns (escapes checked, escapes brute force shares).
+// Of the escapes among the first `cap`, how many the same watertight test run on every
+// triangle (brute_force_hit) also has: those rays truly pass the aimed point by a rounding
+// error (a fan seen almost edge-on), the rest would be holes in the tree. `memo` keeps each
+// ray's brute-force verdict (-1 unknown, 0 hits, 1 escapes), so engines that share escapes
+// test them once. Returns (escapes checked, escapes brute force shares).
 std::pair<uint64_t, uint64_t> brute_force_escapes(const TriangleMesh& mesh,
                                                   const std::vector<Ray>& rays,
-                                                  const std::vector<Hit>& hits, size_t cap) {
-    std::vector<size_t> escaped;
-    for (size_t i = 0; i < rays.size() && escaped.size() < cap; ++i) {
-        if (!hits[i].valid() || hits[i].t > 1.0f + 1e-4f) escaped.push_back(i);
+                                                  const std::vector<Hit>& hits, size_t cap,
+                                                  std::vector<int8_t>& memo) {
+    memo.resize(rays.size(), -1);
+    std::vector<size_t> todo, checked;
+    for (size_t i = 0; i < rays.size() && checked.size() < cap; ++i) {
+        if (!escaped(hits[i])) continue;
+        checked.push_back(i);
+        if (memo[i] < 0) todo.push_back(i);
+    }
+#pragma omp parallel for schedule(dynamic, 1)
+    for (size_t k = 0; k < todo.size(); ++k) {
+        memo[todo[k]] = int8_t(escaped(brute_force_hit(mesh, rays[todo[k]])));
     }
     uint64_t shared = 0;
-#pragma omp parallel for schedule(dynamic, 1) reduction(+ : shared)
-    for (size_t k = 0; k < escaped.size(); ++k) {
-        const Ray& ray = rays[escaped[k]];
-        const WatertightRay wr(ray.origin, ray.dir);
-        float best = ray.tmax;
-        bool hit = false;
-        for (const Vec3u& t : mesh.triangles) {
-            float tt, u, v;
-            if (intersect_triangle(wr, mesh.positions[t.x], mesh.positions[t.y],
-                                   mesh.positions[t.z], ray.tmin, best, tt, u, v)) {
-                best = tt;
-                hit = true;
-            }
-        }
-        shared += uint64_t(!hit || best > 1.0f + 1e-4f);
-    }
-    return {escaped.size(), shared};
+    for (size_t i : checked) shared += uint64_t(memo[i]);
+    return {checked.size(), shared};
 }
 
 /// NaN/Inf rays: copies of `rays` with one component of origin or direction made NaN or
@@ -427,8 +421,8 @@ void add_anatomy(const KdTree& tree, const Ray& ray, RayAnatomy& a) {
             const uint32_t far_child = node.child() + 1u - rs.neg[axis];
             const bool visit_near = !(ts < lower_slack(t0));
             const bool visit_far = !(ts > upper_slack(t1));
-            const bool near_empty = nodes[near_child].is_leaf() && nodes[near_child].count() == 0;
-            const bool far_empty = nodes[far_child].is_leaf() && nodes[far_child].count() == 0;
+            const bool near_empty = nodes[near_child].is_empty_leaf();
+            const bool far_empty = nodes[far_child].is_empty_leaf();
             a.empty_skipped +=
                 uint64_t(visit_near && near_empty) + uint64_t(visit_far && far_empty);
             const bool go_near = visit_near && !near_empty, go_far = visit_far && !far_empty;
@@ -894,6 +888,7 @@ void run(const Options& opt) {
                      "edge escape %",   "normal ns/ray",
                      "NaN/Inf ns/ray",  "NaN/Inf slowdown",
                      "NaN/Inf hits",    "escapes brute force also has (vertex / edge)"};
+        std::vector<int8_t> vertex_memo, edge_memo;  // brute-force verdicts, across engines
         for (Engine& e : engines) {
             std::vector<Hit> hv, he, hn;
             std::vector<double> tn, tb;
@@ -922,13 +917,14 @@ void run(const Options& opt) {
             }
             const uint64_t nonfinite_hits = uint64_t(
                 std::count_if(hn.begin(), hn.end(), [](const Hit& h) { return h.valid(); }));
-            const uint64_t ve = count_escapes(aimed.vertex, hv), ee = count_escapes(aimed.edge, he);
+            const uint64_t ve = count_escapes(hv), ee = count_escapes(he);
             // Checked for kdtrace only (Embree escapes too many rays to test them all).
             std::string shared = "-";
             if (e.tree) {
                 const size_t cap = 1000;
-                const auto [vc, vs] = brute_force_escapes(*mesh, aimed.vertex, hv, cap);
-                const auto [ec, es] = brute_force_escapes(*mesh, aimed.edge, he, cap);
+                const auto [vc, vs] =
+                    brute_force_escapes(*mesh, aimed.vertex, hv, cap, vertex_memo);
+                const auto [ec, es] = brute_force_escapes(*mesh, aimed.edge, he, cap, edge_memo);
                 shared = std::to_string(vs) + " of " + std::to_string(vc) + " / " +
                          std::to_string(es) + " of " + std::to_string(ec);
             }

@@ -75,6 +75,8 @@ struct KdNode {
     };
 
     bool is_leaf() const { return (word & 3u) == 3u; }
+    /// A leaf without triangles: the traversal never enters one (one compare of the word).
+    bool is_empty_leaf() const { return word == 3u; }
     int axis() const { return int(word & 3u); }
     uint32_t child() const { return word >> 2; }
     uint32_t count() const { return word >> 2; }

@@ -73,8 +73,8 @@ inline KdNode descend(const KdNode* nodes, uint32_t& idx, const RayState& rs, fl
         // known, so the next node's address waits on neither.
         const uint32_t first = node.child();
         const uint32_t neg = (neg_bits >> axis) & 1u;
-        const uint32_t empty =
-            uint32_t(nodes[first].word == 3u) | (uint32_t(nodes[first + 1u].word == 3u) << 1);
+        const uint32_t empty = uint32_t(nodes[first].is_empty_leaf()) |
+                               (uint32_t(nodes[first + 1u].is_empty_leaf()) << 1);
         const uint32_t near_idx = first + neg;
         const uint32_t far_idx = first + 1u - neg;
         // An empty child is never entered: its word is read here (the pair shares a cache

@@ -71,26 +71,6 @@ bool same_closest_hit(const TriangleMesh& mesh, const Ray& ray, const Hit& hit, 
            t == ref.t;
 }
 
-Hit brute_force_hit(const TriangleMesh& mesh, const Ray& ray) {
-    Hit hit;
-    if (!is_finite(ray.origin) || !is_finite(ray.dir) || ray.dir == Vec3f(0.0f)) return hit;
-    WatertightRay wr(ray.origin, ray.dir);
-    float best = ray.tmax;
-    for (size_t i = 0; i < mesh.triangles.size(); ++i) {
-        const Vec3u& t = mesh.triangles[i];
-        float tt, u, v;
-        if (intersect_triangle(wr, mesh.positions[t.x], mesh.positions[t.y], mesh.positions[t.z],
-                               ray.tmin, best, tt, u, v)) {
-            best = tt;
-            hit.t = tt;
-            hit.u = u;
-            hit.v = v;
-            hit.prim = uint32_t(i);
-        }
-    }
-    return hit;
-}
-
 bool bitwise_equal(const Hit& a, const Hit& b) {
     return a.prim == b.prim && std::memcmp(&a.t, &b.t, sizeof a.t) == 0 &&
            std::memcmp(&a.u, &b.u, sizeof a.u) == 0 && std::memcmp(&a.v, &b.v, sizeof a.v) == 0;

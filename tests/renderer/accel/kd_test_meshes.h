@@ -5,6 +5,7 @@
 #include <memory>
 #include <vector>
 
+#include "renderer/accel/brute_force.h"
 #include "renderer/accel/kdtree.h"
 #include "renderer/geometry/mesh.h"
 
@@ -20,8 +21,7 @@ TriangleMesh make_soup(size_t n, float size, uint32_t seed);
 /// folded above it.
 TriangleMesh make_planar_grid(int n, uint32_t seed);
 
-/// Closest hit over all triangles with the same watertight test the tree uses.
-Hit brute_force_hit(const TriangleMesh& mesh, const Ray& ray);
+using kdt::brute_force_hit;  // the library's oracle (renderer/accel/brute_force.h)
 /// True when `hit` (from a tree) agrees with the reference `ref` for `ray`: both miss, or
 /// both hit with t within 1e-6 relative and the same triangle unless the tree's triangle is
 /// hit at exactly the same t (a tie).
