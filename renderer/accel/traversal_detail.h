@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 
 #include <immintrin.h>
@@ -34,7 +35,7 @@ inline float upper_slack(float t) { return t + kIntervalSlack * std::fabs(t); }
 
 // Per-ray constants of the traversal and of the triangle test.
 struct RayState {
-    float org[3], inv[3];
+    float org[4] = {}, inv[4] = {};  // lane 3 is padding (setup_ray stores SSE vectors)
     uint32_t neg[3];       // 1 if the ray runs toward -axis: then the second child is near
     float t_scale = 1.0f;  // internal t times t_scale = caller's t
     float tmin = 0.0f;     // the caller's tmin in internal units
@@ -49,52 +50,84 @@ struct RayState {
 // Rejects non-finite or zero-direction rays and clips the interval to the root box.
 // Directions with extreme magnitudes are rescaled by a power of two (exact), so
 // 1 / d and the distances stay finite. Returns false on a certain miss; otherwise sets
-// [t0, t1] (root box, internal units) and tmax (the caller's, internal units).
+// [t0, t1] (root box, internal units) and tmax (the caller's, internal units). The three
+// axes are set up in one SSE vector each (origin, direction, 1 / d, slab distances); each
+// lane computes what a scalar loop over the axes would, operation by operation.
 inline bool setup_ray(const Ray& ray, const Bounds3f& bounds, RayState& rs, float& t0, float& t1,
                       float& tmax) {
-    if (!is_finite(ray.origin) || !is_finite(ray.dir) || std::isnan(ray.tmin) ||
-        std::isnan(ray.tmax) || !(ray.tmin <= ray.tmax) || bounds.empty())
-        return false;
-    float d[3] = {ray.dir.x, ray.dir.y, ray.dir.z};
-    const float m = std::max(std::fabs(d[0]), std::max(std::fabs(d[1]), std::fabs(d[2])));
+    static_assert(sizeof(Ray) == 8 * sizeof(float) && offsetof(Ray, dir) == 4 * sizeof(float),
+                  "Ray is origin, tmin, dir, tmax");
+    const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
+    const __m128 inf = _mm_set1_ps(kInfinity);
+    // Lane 3 holds a 0 origin and a unit direction, which every step leaves finite.
+    const __m128 o = _mm_setr_ps(ray.origin.x, ray.origin.y, ray.origin.z, 0.0f);
+    __m128 d = _mm_setr_ps(ray.dir.x, ray.dir.y, ray.dir.z, 1.0f);
+    const __m128 ad = _mm_and_ps(d, abs_mask);
+    const int finite = _mm_movemask_ps(_mm_cmplt_ps(_mm_and_ps(o, abs_mask), inf)) &
+                       _mm_movemask_ps(_mm_cmplt_ps(ad, inf));
+    // !(tmin <= tmax) also rejects a NaN bound.
+    if (finite != 0xf || !(ray.tmin <= ray.tmax) || bounds.empty()) return false;
+    const float m =
+        _mm_cvtss_f32(_mm_max_ss(_mm_max_ss(ad, _mm_shuffle_ps(ad, ad, 1)), _mm_movehl_ps(ad, ad)));
     if (!(m > 0.0f)) return false;
     t0 = ray.tmin;
     t1 = ray.tmax;
     if (m < 0x1p-40f || m > 0x1p40f) [[unlikely]] {
         int e;
         std::frexp(m, &e);
-        for (float& dk : d) dk = std::ldexp(dk, -e);
+        alignas(16) float dk[4];
+        _mm_store_ps(dk, d);
+        for (int k = 0; k < 3; ++k) dk[k] = std::ldexp(dk[k], -e);
+        d = _mm_load_ps(dk);
         rs.t_scale = std::ldexp(1.0f, -e);
         t0 = std::ldexp(t0, e);
         t1 = std::ldexp(t1, e);
     }
     rs.tmin = t0;
     tmax = t1;
-    const float org[3] = {ray.origin.x, ray.origin.y, ray.origin.z};
-    const float lower[3] = {bounds.lower.x, bounds.lower.y, bounds.lower.z};
-    const float upper[3] = {bounds.upper.x, bounds.upper.y, bounds.upper.z};
-    bool hit = true;
+    const __m128 zero = _mm_setzero_ps();
+    const __m128 is_zero = _mm_cmpeq_ps(d, zero);
+    // Zero components become -0 so that 1/d = -inf and neg agree on the sign.
+    d = _mm_or_ps(d, _mm_and_ps(is_zero, _mm_set1_ps(-0.0f)));
+    const __m128 inv = _mm_div_ps(_mm_set1_ps(1.0f), d);
+    _mm_storeu_ps(rs.org, o);
+    _mm_storeu_ps(rs.inv, inv);
+    const int neg = _mm_movemask_ps(d);
+    for (int k = 0; k < 3; ++k) rs.neg[k] = uint32_t(neg >> k) & 1u;
+    // Slab test against the root box, conservative as intersect_box(); a zero component
+    // hits iff the origin lies in the closed slab, and leaves the interval alone.
+    const __m128 lower = _mm_setr_ps(bounds.lower.x, bounds.lower.y, bounds.lower.z, 0.0f);
+    const __m128 upper = _mm_setr_ps(bounds.upper.x, bounds.upper.y, bounds.upper.z, 0.0f);
+    const __m128 in_slab = _mm_and_ps(_mm_cmpge_ps(o, lower), _mm_cmple_ps(o, upper));
+    if (_mm_movemask_ps(_mm_andnot_ps(in_slab, is_zero)) & 7) return false;
+    const __m128 a = _mm_mul_ps(_mm_sub_ps(lower, o), inv);
+    const __m128 b = _mm_mul_ps(_mm_sub_ps(upper, o), inv);
+    // std::min(a, b) = b < a ? b : a = minps(b, a); std::max(a, b) = a < b ? b : a = maxps(b, a).
+    const __m128 mn = _mm_min_ps(b, a), mx = _mm_max_ps(b, a);
+    const __m128 slack = _mm_set1_ps(kIntervalSlack);
+    const __m128 unused = _mm_or_ps(is_zero, _mm_castsi128_ps(_mm_setr_epi32(0, 0, 0, -1)));
+    // t -/+ k |t|: k is a power of two, so the product is exact and an FMA rounds alike.
+#if KDT_SIMD_TRAVERSAL
+    const __m128 lo = _mm_fnmadd_ps(slack, _mm_and_ps(mn, abs_mask), mn);
+    const __m128 hi = _mm_fmadd_ps(slack, _mm_and_ps(mx, abs_mask), mx);
+#else
+    const __m128 lo = _mm_sub_ps(mn, _mm_mul_ps(slack, _mm_and_ps(mn, abs_mask)));
+    const __m128 hi = _mm_add_ps(mx, _mm_mul_ps(slack, _mm_and_ps(mx, abs_mask)));
+#endif
+    const __m128 tn =
+        _mm_or_ps(_mm_andnot_ps(unused, lo), _mm_and_ps(unused, _mm_set1_ps(-kInfinity)));
+    const __m128 tf = _mm_or_ps(_mm_andnot_ps(unused, hi), _mm_and_ps(unused, inf));
+    // In axis order, as the scalar loop: t0 = tn > t0 ? tn : t0 keeps t0 on NaN.
+    alignas(16) float n4[4], f4[4], dk[4];
+    _mm_store_ps(n4, tn);
+    _mm_store_ps(f4, tf);
     for (int k = 0; k < 3; ++k) {
-        // Zero components become -0 so that 1/d = -inf and neg agree on the sign.
-        const float dk = d[k] == 0.0f ? -0.0f : d[k];
-        d[k] = dk;
-        rs.org[k] = org[k];
-        rs.inv[k] = 1.0f / dk;
-        rs.neg[k] = std::signbit(dk) ? 1u : 0u;
-        // Slab test against the root box, conservative as intersect_box(); a zero
-        // component hits iff the origin lies in the closed slab.
-        if (dk == 0.0f) {
-            hit &= org[k] >= lower[k] && org[k] <= upper[k];
-            continue;
-        }
-        const float a = (lower[k] - org[k]) * rs.inv[k];
-        const float b = (upper[k] - org[k]) * rs.inv[k];
-        const float tn = lower_slack(std::min(a, b)), tf = upper_slack(std::max(a, b));
-        t0 = tn > t0 ? tn : t0;
-        t1 = tf < t1 ? tf : t1;
+        t0 = n4[k] > t0 ? n4[k] : t0;
+        t1 = f4[k] < t1 ? f4[k] : t1;
     }
-    if (!hit || !(t0 <= t1)) return false;
-    rs.wr.set(ray.origin, Vec3f(d[0], d[1], d[2]));
+    if (!(t0 <= t1)) return false;
+    _mm_store_ps(dk, d);
+    rs.wr.set(ray.origin, Vec3f(dk[0], dk[1], dk[2]));
 #if KDT_SIMD_TRAVERSAL
     rs.perm = _mm_setr_epi32(rs.wr.kx, rs.wr.ky, rs.wr.kz, 3);
 #endif
