@@ -307,6 +307,12 @@ TEST_P(Traversal, CountersCountWork) {
     r.origin.x = 10.0f;
     EXPECT_FALSE(tree->intersect(r, h, &miss));
     EXPECT_EQ(miss.triangles_tested, 0u);
+    // The ray runs parallel to x outside the root box's x slab: rejected before any node.
+    EXPECT_EQ(miss.nodes_visited, 0u);
+    r.origin = Vec3f(0.1f, -10.0f, -5.0f);
+    EXPECT_FALSE(tree->occluded(r, &miss));
+    EXPECT_EQ(miss.nodes_visited, 0u);
+    EXPECT_EQ(miss.triangles_tested, 0u);
 }
 
 // A leaf's triangles are tested several at a time (SIMD) where the CPU allows: the closest
