@@ -4,7 +4,6 @@
 #pragma once
 
 #include <cmath>
-#include <cstddef>
 #include <cstdint>
 
 #include <immintrin.h>
@@ -55,8 +54,6 @@ struct RayState {
 // lane computes what a scalar loop over the axes would, operation by operation.
 inline bool setup_ray(const Ray& ray, const Bounds3f& bounds, RayState& rs, float& t0, float& t1,
                       float& tmax) {
-    static_assert(sizeof(Ray) == 8 * sizeof(float) && offsetof(Ray, dir) == 4 * sizeof(float),
-                  "Ray is origin, tmin, dir, tmax");
     const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
     const __m128 inf = _mm_set1_ps(kInfinity);
     // Lane 3 holds a 0 origin and a unit direction, which every step leaves finite.
@@ -106,14 +103,10 @@ inline bool setup_ray(const Ray& ray, const Bounds3f& bounds, RayState& rs, floa
     const __m128 mn = _mm_min_ps(b, a), mx = _mm_max_ps(b, a);
     const __m128 slack = _mm_set1_ps(kIntervalSlack);
     const __m128 unused = _mm_or_ps(is_zero, _mm_castsi128_ps(_mm_setr_epi32(0, 0, 0, -1)));
-    // t -/+ k |t|: k is a power of two, so the product is exact and an FMA rounds alike.
-#if KDT_SIMD_TRAVERSAL
-    const __m128 lo = _mm_fnmadd_ps(slack, _mm_and_ps(mn, abs_mask), mn);
-    const __m128 hi = _mm_fmadd_ps(slack, _mm_and_ps(mx, abs_mask), mx);
-#else
+    // t -/+ k |t|: k is a power of two, so the product is exact and an FMA (which the
+    // compiler may contract this to) rounds alike.
     const __m128 lo = _mm_sub_ps(mn, _mm_mul_ps(slack, _mm_and_ps(mn, abs_mask)));
     const __m128 hi = _mm_add_ps(mx, _mm_mul_ps(slack, _mm_and_ps(mx, abs_mask)));
-#endif
     const __m128 tn =
         _mm_or_ps(_mm_andnot_ps(unused, lo), _mm_and_ps(unused, _mm_set1_ps(-kInfinity)));
     const __m128 tf = _mm_or_ps(_mm_andnot_ps(unused, hi), _mm_and_ps(unused, inf));
