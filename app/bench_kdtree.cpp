@@ -417,8 +417,8 @@ void add_anatomy(const KdTree& tree, const Ray& ray, RayAnatomy& a) {
             if (first) ++a.first_descent;
             const int axis = node.axis();
             const float ts = (node.split - rs.org[axis]) * rs.inv[axis];
-            const uint32_t near_child = node.child() + rs.neg[axis];
-            const uint32_t far_child = node.child() + 1u - rs.neg[axis];
+            const uint32_t near_child = node.child() + rs.neg(axis);
+            const uint32_t far_child = node.child() + 1u - rs.neg(axis);
             const bool visit_near = !(ts < lower_slack(t0));
             const bool visit_far = !(ts > upper_slack(t1));
             const bool near_empty = nodes[near_child].is_empty_leaf();

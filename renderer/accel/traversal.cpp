@@ -61,7 +61,7 @@ inline KdNode descend(const KdNode* nodes, uint32_t& idx, const RayState& rs, fl
     __m128 vt1 = _mm_set_ss(t1);
     const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
     const __m128 slack = _mm_set_ss(kIntervalSlack);
-    const uint32_t neg_bits = rs.neg[0] | (rs.neg[1] << 1) | (rs.neg[2] << 2);
+    const uint32_t neg_bits = rs.neg_bits;
     while (!node.is_leaf()) {
         const int axis = node.axis();
         const __m128 ts =

@@ -35,10 +35,12 @@ inline float upper_slack(float t) { return t + kIntervalSlack * std::fabs(t); }
 // Per-ray constants of the traversal and of the triangle test.
 struct RayState {
     float org[4] = {}, inv[4] = {};  // lane 3 is padding (setup_ray stores SSE vectors)
-    uint32_t neg[3];       // 1 if the ray runs toward -axis: then the second child is near
+    // Bit k is set if the ray runs toward -axis k: then the second child is near.
+    uint32_t neg_bits = 0;
     float t_scale = 1.0f;  // internal t times t_scale = caller's t
     float tmin = 0.0f;     // the caller's tmin in internal units
     WatertightRay wr;
+    uint32_t neg(int axis) const { return (neg_bits >> axis) & 1u; }
 #if KDT_SIMD_TRAVERSAL
     // (kx, ky, kz, 3): picks a vertex's components in the watertight test's order, for the
     // four-wide leaf test (traversal.cpp).
@@ -89,8 +91,7 @@ inline bool setup_ray(const Ray& ray, const Bounds3f& bounds, RayState& rs, floa
     const __m128 inv = _mm_div_ps(_mm_set1_ps(1.0f), d);
     _mm_storeu_ps(rs.org, o);
     _mm_storeu_ps(rs.inv, inv);
-    const int neg = _mm_movemask_ps(d);
-    for (int k = 0; k < 3; ++k) rs.neg[k] = uint32_t(neg >> k) & 1u;
+    rs.neg_bits = uint32_t(_mm_movemask_ps(d)) & 7u;
     // Slab test against the root box, conservative as intersect_box(); a zero component
     // hits iff the origin lies in the closed slab, and leaves the interval alone.
     const __m128 lower = _mm_setr_ps(bounds.lower.x, bounds.lower.y, bounds.lower.z, 0.0f);

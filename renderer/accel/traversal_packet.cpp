@@ -367,8 +367,7 @@ bool setup_packet_lanes(const TreeView& tv, const Ray* rays, int m, Packet& p, _
                 ref = i;
                 first = rs;
             } else if (rs.wr.kx != first.wr.kx || rs.wr.ky != first.wr.ky ||
-                       rs.wr.kz != first.wr.kz || rs.neg[0] != first.neg[0] ||
-                       rs.neg[1] != first.neg[1] || rs.neg[2] != first.neg[2]) {
+                       rs.wr.kz != first.wr.kz || rs.neg_bits != first.neg_bits) {
                 return false;  // the lanes would need different child orders or shears
             }
             active |= 1 << i;
@@ -392,7 +391,7 @@ bool setup_packet_lanes(const TreeView& tv, const Ray* rays, int m, Packet& p, _
     for (int k = 0; k < 3; ++k) {
         p.org[k] = _mm256_load_ps(org[k]);
         p.inv[k] = _mm256_load_ps(inv[k]);
-        p.neg[k] = first.neg[k];
+        p.neg[k] = first.neg(k);
     }
     p.ox = _mm256_load_ps(wo[0]);
     p.oy = _mm256_load_ps(wo[1]);
