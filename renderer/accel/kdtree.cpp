@@ -82,8 +82,11 @@ KdTree::KdTree(std::shared_ptr<const TriangleMesh> mesh, Bounds3f bounds, std::v
     std::vector<uint8_t> depth(nodes_.size(), 0);
     std::vector<uint8_t> seen(nodes_.size(), 0);
     seen[0] = 1;
+    if (nodes_.size() > KdNode::kMaxNodes)
+        throw Error("kd-tree: " + std::to_string(nodes_.size()) + " nodes, more than the " +
+                    std::to_string(KdNode::kMaxNodes) + " (2^28) its node format can index");
     for (size_t i = 0; i < nodes_.size(); ++i) {
-        const KdNode& n = nodes_[i];
+        KdNode& n = nodes_[i];
         if (!seen[i]) corrupt("unreachable node", i);
         if (n.is_leaf()) {
             if (uint64_t(n.first) + n.count() > indices_.size())
@@ -95,6 +98,8 @@ KdTree::KdTree(std::shared_ptr<const TriangleMesh> mesh, Bounds3f bounds, std::v
         if (seen[c] || seen[c + 1]) corrupt("node has two parents", i);
         if (!std::isfinite(n.split)) corrupt("non-finite split position", i);
         if (depth[i] + 1 > kMaxTreeDepth) corrupt("tree deeper than 64 levels", i);
+        n.set_empty_children(uint32_t(nodes_[c].is_empty_leaf()) |
+                             (uint32_t(nodes_[c + 1].is_empty_leaf()) << 1));
         seen[c] = seen[c + 1] = 1;
         depth[c] = depth[c + 1] = uint8_t(depth[i] + 1);
     }

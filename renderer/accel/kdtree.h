@@ -61,8 +61,11 @@ struct TraversalCounters {
 namespace kdt {
 
 /// One 8-byte node. word & 3 is the split axis (0, 1, 2) or 3 for a leaf.
-/// Inner: word >> 2 is the index of the first child; the second child follows it
-/// (children adjacent, depth-first order); `split` is the plane position.
+/// Inner: word >> 4 is the index of the first child; the second child follows it
+/// (children adjacent, depth-first order); `split` is the plane position. Bits 2 and 3 are
+/// set when the first or the second child is an empty leaf, so the descent skips such a
+/// child without reading it: KdTree derives them from the children (builders and cache
+/// files need not set them, and cannot make them lie).
 /// Leaf: word >> 2 is the triangle count; `first` indexes KdTree::indices().
 /// Builder contract the traversal relies on: a child references every triangle that meets
 /// its closed box outside the split plane; a triangle meeting it only within the plane may go
@@ -74,11 +77,16 @@ struct KdNode {
         uint32_t first = 0;
     };
 
+    /// Nodes a tree can have: an inner node's child index has 28 bits.
+    static constexpr uint64_t kMaxNodes = uint64_t(1) << 28;
+
     bool is_leaf() const { return (word & 3u) == 3u; }
     /// A leaf without triangles: the traversal never enters one (one compare of the word).
     bool is_empty_leaf() const { return word == 3u; }
     int axis() const { return int(word & 3u); }
-    uint32_t child() const { return word >> 2; }
+    uint32_t child() const { return word >> 4; }
+    /// Inner: bit 0 set if the first child is an empty leaf, bit 1 if the second is.
+    uint32_t empty_children() const { return (word >> 2) & 3u; }
     uint32_t count() const { return word >> 2; }
 
     static KdNode make_leaf(uint32_t count, uint32_t first_index) {
@@ -87,12 +95,14 @@ struct KdNode {
         n.first = first_index;
         return n;
     }
+    /// first_child < kMaxNodes; the empty-child bits start clear.
     static KdNode make_inner(int axis, float split_pos, uint32_t first_child) {
         KdNode n;
-        n.word = (first_child << 2) | uint32_t(axis);
+        n.word = (first_child << 4) | uint32_t(axis);
         n.split = split_pos;
         return n;
     }
+    void set_empty_children(uint32_t bits) { word = (word & ~0xcu) | ((bits & 3u) << 2); }
 };
 static_assert(sizeof(KdNode) == 8, "kd-tree nodes are 8 bytes");
 

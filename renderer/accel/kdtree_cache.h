@@ -15,7 +15,7 @@
 namespace kdt {
 
 /// Format version written into every cache file; files of any other version are rebuilt.
-inline constexpr uint32_t kKdCacheVersion = 1;
+inline constexpr uint32_t kKdCacheVersion = 2;  // 2: 28-bit child index, empty-child bits
 
 /// Hash of the parameters that change the tree (builder, q, n0, depth, split flags, SAH
 /// costs; not threads). Used in cache file names and stored in the header.

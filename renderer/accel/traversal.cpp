@@ -39,8 +39,8 @@ using detail::view_of;
 // Descends from node idx to a leaf, pushing far children; returns the leaf and leaves idx
 // at it, or an empty leaf when no child is left to enter. At each inner node: visit_near =
 // !(ts < lower_slack(t0)), visit_far = !(ts > upper_slack(t1)), and a child that is an
-// empty leaf is not visited at all (its word is read from the pair the next fetch loads
-// anyway; on the dragon 7 of the 9.4 leaves a diffuse ray reached were empty). Both: push
+// empty leaf is not visited at all (the node's word flags such children, so neither is
+// read; on the dragon 7 of the 9.4 leaves a diffuse ray reached were empty). Both: push
 // the far child with [max(ts, t0), t1] and go near with t1 = min(ts, t1); near only: t1 =
 // min(ts, t1); far only: t0 = max(ts, t0). A ray lying in the plane (origin on it, d = 0:
 // t = 0 * inf = NaN) visits both sides, since a builder may reference a triangle that only
@@ -69,16 +69,13 @@ inline KdNode descend(const KdNode* nodes, uint32_t& idx, const RayState& rs, fl
                        _mm_load_ss(&rs.inv[axis]));
         // t1 + k |t1|: k is a power of two, so the product is exact and an FMA rounds alike.
         const __m128 hi1 = _mm_add_ss(vt1, _mm_mul_ss(slack, _mm_and_ps(vt1, abs_mask)));
-        // The sign bit comes from a register and the pair's words are read before it is
-        // known, so the next node's address waits on neither.
+        // The sign bit and the empty-child bits come from registers, so the next node's
+        // address waits on no other load.
         const uint32_t first = node.child();
         const uint32_t neg = (neg_bits >> axis) & 1u;
-        const uint32_t empty = uint32_t(nodes[first].is_empty_leaf()) |
-                               (uint32_t(nodes[first + 1u].is_empty_leaf()) << 1);
+        const uint32_t empty = node.empty_children();
         const uint32_t near_idx = first + neg;
         const uint32_t far_idx = first + 1u - neg;
-        // An empty child is never entered: its word is read here (the pair shares a cache
-        // line with the node fetched next) instead of after a descent.
         const bool visit_near = _mm_cvtsi128_si32(_mm_castps_si128(_mm_cmpnlt_ss(ts, lo0))) != 0;
         const bool go_near = visit_near & !((empty >> neg) & 1u);
         const bool go_far = !_mm_comigt_ss(ts, hi1) & !((empty >> (1u - neg)) & 1u);

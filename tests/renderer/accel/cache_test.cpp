@@ -229,7 +229,8 @@ TEST_F(CacheTest, WrongVersionIsRebuilt) {
     const uint32_t version = kKdCacheVersion + 1;
     std::memcpy(bytes.data() + 12, &version, 4);  // after magic and byte-order mark
     write_bytes(file_, bytes);
-    expect_rebuilt("cache format version 2");
+    expect_rebuilt("cache format version " + std::to_string(version) + ", this kdtrace reads " +
+                   std::to_string(kKdCacheVersion));
 }
 
 TEST_F(CacheTest, StaleFileForAnotherMeshIsRebuilt) {

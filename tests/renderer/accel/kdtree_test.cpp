@@ -2,6 +2,7 @@
 // parameter validation, statistics and the node layout.
 #include "renderer/accel/kdtree.h"
 
+#include <bit>
 #include <cmath>
 #include <random>
 #include <string>
@@ -396,6 +397,42 @@ TEST(KdTree, ConstructorRejectsCorruptTrees) {
     deep.back() = KdNode::make_leaf(0, 0);
     deep.push_back(KdNode::make_leaf(0, 0));
     EXPECT_THROW(make(deep, {}), Error);
+}
+
+// The descent skips children flagged empty in their parent's word without reading them, so
+// the flags must come from the children, whatever a builder or a cache file wrote.
+TEST(KdTree, EmptyChildFlagsAreDerivedFromTheChildren) {
+    // A closed surface: the builder cuts off the empty space inside and around it.
+    auto mesh = std::make_shared<TriangleMesh>(test::make_blob(5, 1.0f, 3));
+    const auto tree = build_kdtree(mesh, KdTreeParams{});
+    ASSERT_GT(tree->stats().empty_leaves, 10u) << "the test needs empty leaves";
+    std::vector<KdNode> lying = tree->nodes();
+    uint64_t flagged = 0;
+    for (KdNode& n : lying) {
+        if (n.is_leaf()) continue;
+        flagged += std::popcount(n.empty_children());
+        n.set_empty_children(~n.empty_children());  // every flag wrong
+    }
+    ASSERT_EQ(flagged, tree->stats().empty_leaves);
+    const KdTree rebuilt(mesh, tree->bounds(), lying, tree->indices(), tree->params(),
+                         tree->stats());
+    for (size_t i = 0; i < lying.size(); ++i) {
+        const KdNode& n = rebuilt.nodes()[i];
+        ASSERT_EQ(n.word, tree->nodes()[i].word) << i;
+        if (n.is_leaf()) continue;
+        const uint32_t want = uint32_t(rebuilt.nodes()[n.child()].is_empty_leaf()) |
+                              (uint32_t(rebuilt.nodes()[n.child() + 1].is_empty_leaf()) << 1);
+        ASSERT_EQ(n.empty_children(), want) << i;
+    }
+    uint64_t hits = 0;
+    for (const Ray& r : make_rays(*mesh, 5000, 11)) {
+        Hit a, b;
+        ASSERT_EQ(tree->intersect(r, a), rebuilt.intersect(r, b));
+        ASSERT_EQ(a.prim, b.prim);
+        ASSERT_EQ(a.t, b.t);
+        hits += a.valid() ? 1 : 0;
+    }
+    EXPECT_GT(hits, 1000u);
 }
 
 }  // namespace
