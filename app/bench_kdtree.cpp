@@ -421,8 +421,9 @@ void add_anatomy(const KdTree& tree, const Ray& ray, RayAnatomy& a) {
             const uint32_t far_child = node.child() + 1u - rs.neg(axis);
             const bool visit_near = !(ts < lower_slack(t0));
             const bool visit_far = !(ts > upper_slack(t1));
-            const bool near_empty = nodes[near_child].is_empty_leaf();
-            const bool far_empty = nodes[far_child].is_empty_leaf();
+            // The flags in the node's word, as the descent reads them.
+            const bool near_empty = (node.empty_children() >> rs.neg(axis)) & 1u;
+            const bool far_empty = (node.empty_children() >> (1u - rs.neg(axis))) & 1u;
             a.empty_skipped +=
                 uint64_t(visit_near && near_empty) + uint64_t(visit_far && far_empty);
             const bool go_near = visit_near && !near_empty, go_far = visit_far && !far_empty;

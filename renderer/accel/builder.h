@@ -89,4 +89,8 @@ inline float thesis_f(float n, float q, int n0) {
 /// Split-kind counters and build_seconds are left as the builder set them.
 void finalize_stats(KdBuildOutput& out, size_t triangle_count);
 
+/// Throws kdt::Error when a tree of `nodes` nodes cannot be stored (KdNode::kMaxNodes):
+/// builders call it before assembling their final arrays, KdTree on every tree it is given.
+void check_node_count(uint64_t nodes);
+
 }  // namespace kdt

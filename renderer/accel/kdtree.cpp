@@ -79,12 +79,10 @@ KdTree::KdTree(std::shared_ptr<const TriangleMesh> mesh, Bounds3f bounds, std::v
                         "vertex index out of range (" + std::to_string(nvert) + " vertices)");
     }
     // Children must follow their parent (so the structure is acyclic) and depth is bounded.
+    check_node_count(nodes_.size());
     std::vector<uint8_t> depth(nodes_.size(), 0);
     std::vector<uint8_t> seen(nodes_.size(), 0);
     seen[0] = 1;
-    if (nodes_.size() > KdNode::kMaxNodes)
-        throw Error("kd-tree: " + std::to_string(nodes_.size()) + " nodes, more than the " +
-                    std::to_string(KdNode::kMaxNodes) + " (2^28) its node format can index");
     for (size_t i = 0; i < nodes_.size(); ++i) {
         KdNode& n = nodes_[i];
         if (!seen[i]) corrupt("unreachable node", i);
@@ -116,6 +114,12 @@ KdTree::KdTree(std::shared_ptr<const TriangleMesh> mesh, Bounds3f bounds, std::v
     stats_.bytes_per_triangle = ntri ? double(stats_.bytes) / double(ntri) : 0.0;
     // All three arrays are alive at once here: the builder's peak cannot be below that.
     stats_.peak_build_bytes = std::max(stats_.peak_build_bytes, stats_.bytes);
+}
+
+void check_node_count(uint64_t nodes) {
+    if (nodes > KdNode::kMaxNodes)
+        throw Error("kd-tree too large: " + std::to_string(nodes) +
+                    " nodes, more than the 2^28 an inner node can index");
 }
 
 void finalize_stats(KdBuildOutput& out, size_t triangle_count) {

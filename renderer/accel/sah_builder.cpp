@@ -1171,10 +1171,7 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
     size_t node_count = 1, index_count = 0;
     uint64_t splits = 0;
     count_output(top, node_count, index_count, splits);
-    if (node_count > KdNode::kMaxNodes) {
-        throw Error("kd-tree too large: " + std::to_string(node_count) +
-                    " nodes, more than the 2^28 an inner node can index");
-    }
+    check_node_count(node_count);
     // The final arrays count towards the peak from the moment they are reserved.
     return_free_pages();
     size_t freed = 0, index_base = 0;

@@ -495,9 +495,10 @@ KdBuildOutput build_thesis_tree(const TriangleMesh& mesh, const KdTreeParams& pa
 
     size_t node_count = 1, index_count = 0;
     count_parts(*top, node_count, index_count);
-    if (node_count > KdNode::kMaxNodes || index_count > (size_t(1) << 32) - 1) {
-        throw Error("kd-tree too large: " + std::to_string(node_count) + " nodes, " +
-                    std::to_string(index_count) + " references (at most 2^28 and 2^32 - 1)");
+    check_node_count(node_count);
+    if (index_count > (size_t(1) << 32) - 1) {
+        throw Error("kd-tree too large: " + std::to_string(index_count) +
+                    " references, more than 2^32 - 1");
     }
     // The final arrays count towards the peak from the moment they are reserved.
     KdTreeStats stats;

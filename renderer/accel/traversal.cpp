@@ -40,7 +40,7 @@ using detail::view_of;
 // at it, or an empty leaf when no child is left to enter. At each inner node: visit_near =
 // !(ts < lower_slack(t0)), visit_far = !(ts > upper_slack(t1)), and a child that is an
 // empty leaf is not visited at all (the node's word flags such children, so neither is
-// read; on the dragon 7 of the 9.4 leaves a diffuse ray reached were empty). Both: push
+// read; on the dragon 7.4 of the 9.7 leaves a diffuse ray reaches are empty). Both: push
 // the far child with [max(ts, t0), t1] and go near with t1 = min(ts, t1); near only: t1 =
 // min(ts, t1); far only: t0 = max(ts, t0). A ray lying in the plane (origin on it, d = 0:
 // t = 0 * inf = NaN) visits both sides, since a builder may reference a triangle that only

@@ -145,8 +145,8 @@ void run_packet(const TreeView& tv, const Packet& p, int active, __m256 t0, __m2
             const uint32_t far_child = node.child() + 1u - p.neg[axis];
             // As in the single-ray descent, empty children are not entered.
             const uint32_t empty = node.empty_children();
-            const int near_lanes = (empty >> p.neg[axis]) & 1u ? 0 : active & vn;
-            const int far_lanes = (empty >> (1u - p.neg[axis])) & 1u ? 0 : active & (vf | ~vn);
+            const int near_lanes = ((empty >> p.neg[axis]) & 1u) ? 0 : active & vn;
+            const int far_lanes = ((empty >> (1u - p.neg[axis])) & 1u) ? 0 : active & (vf | ~vn);
             if (!far_lanes && !near_lanes) {
                 node = KdNode{};  // no lane enters a child: straight to the stack
                 break;
