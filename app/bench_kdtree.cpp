@@ -43,7 +43,8 @@ struct Options {
     int n0 = -1;    // -1 = the thesis's 5
     // SAH row: 0 (costs) or < 0 (bonus) keeps KdTreeParams' default.
     float sah_traversal_cost = 0.0f, sah_intersect_cost = 0.0f, sah_empty_bonus = -1.0f;
-    int sah_depth = 0;  // 0 = automatic
+    int sah_depth = 0;                         // 0 = automatic
+    std::string leaf_vertex_indices = "auto";  // auto | on | off, for every row
     bool embree = true;
     bool embree_robust = false;
     bool use_cache = false;
@@ -177,14 +178,35 @@ TreeSize tree_size(const KdTree& tree) {
     return z;
 }
 
+/// Mean traversal work of one ray set, from the compiled-in counters.
+struct WorkPerRay {
+    double nodes = 0.0, tests = 0.0;
+};
+
+WorkPerRay count_work(const KdTree& tree, const std::vector<Ray>& rays, int threads) {
+    uint64_t nodes = 0, tests = 0;
+    const int64_t n = int64_t(rays.size());
+#pragma omp parallel for schedule(dynamic, 4096) num_threads(threads) reduction(+ : nodes, tests)
+    for (int64_t i = 0; i < n; ++i) {
+        TraversalCounters c;
+        Hit h;
+        tree.intersect(rays[size_t(i)], h, &c);
+        nodes += c.nodes_visited;
+        tests += c.triangles_tested;
+    }
+    const double count = double(std::max<int64_t>(n, 1));
+    return {double(nodes) / count, double(tests) / count};
+}
+
 struct RowResult {
     Config config;
     std::shared_ptr<const KdTree> tree;
     double build_seconds = 0.0;
     double rss_build_mb = 0.0;
     std::vector<double> view_seconds;
-    double mrays = 0.0;
-    uint64_t disagreements = 0;
+    double mrays = 0.0, diffuse_mrays = 0.0;
+    uint64_t disagreements = 0, diffuse_disagreements = 0;
+    WorkPerRay primary_work, diffuse_work;
 };
 
 // Vertex- and edge-aimed rays: from random points on a sphere around the model, aimed
@@ -519,6 +541,9 @@ void run(const Options& opt) {
     for (const auto& vr : view_rays) total_primary += vr.rays.size();
 
     // ---- table 6.1 ----
+    // Every row's tree is built first. Then each repeat times every row in turn (rows
+    // interleaved, as the engines of the Embree table are), so drift on this shared machine
+    // hits all rows alike instead of favouring whichever row ran in a quiet minute.
     std::vector<RowResult> results;
     for (const Config& cfg : configs) {
         RowResult r;
@@ -552,35 +577,79 @@ void run(const Options& opt) {
             }
         }
         r.build_seconds = median(builds);
-        const KdTree& tree = *r.tree;
-        double total = 0.0;
-        std::vector<Hit> hits;
-        for (ViewRays& vr : view_rays) {
-            std::vector<double> times;
-            for (int k = 0; k < repeat; ++k) {
-                times.push_back(trace_closest(vr.rays, hits, threads, [&](const Ray& ray, Hit& h) {
-                    tree.intersect(ray, h);
-                }));
+        if (opt.leaf_vertex_indices != "auto") {
+            // The same tree with the leaf data asked for (the build is timed without it).
+            const KdTree& t = *r.tree;
+            r.tree = std::make_shared<const KdTree>(
+                t.mesh_ptr(), t.bounds(), t.nodes(), t.indices(), t.params(), t.stats(),
+                opt.leaf_vertex_indices == "on" ? LeafVertexIndices::always
+                                                : LeafVertexIndices::never);
+        }
+        std::fprintf(stderr, "row %s: build %.3f s, %.1f bytes/triangle\n", cfg.id.c_str(),
+                     r.build_seconds, double(tree_size(*r.tree).bytes) / tris);
+        results.push_back(std::move(r));
+    }
+
+    // The first row's hits are the reference; the one-bounce diffuse rays start from them.
+    std::vector<Ray> primary;
+    std::vector<Hit> primary_hits;
+    primary.reserve(total_primary);
+    for (ViewRays& vr : view_rays) {
+        const KdTree& tree = *results[0].tree;
+        trace_closest(vr.rays, vr.reference, threads,
+                      [&](const Ray& ray, Hit& h) { tree.intersect(ray, h); });
+        if (!opt.save_views.empty()) {
+            save_view_image(opt.save_views + "/view_" + vr.name + ".pgm", views, *mesh, vr.rays,
+                            vr.reference);
+        }
+        vr.hits = uint64_t(std::count_if(vr.reference.begin(), vr.reference.end(),
+                                         [](const Hit& h) { return h.valid(); }));
+        primary.insert(primary.end(), vr.rays.begin(), vr.rays.end());
+        primary_hits.insert(primary_hits.end(), vr.reference.begin(), vr.reference.end());
+    }
+    const std::vector<Ray> diffuse = make_diffuse_rays(*mesh, primary, primary_hits, views.seed);
+    std::vector<Hit> diffuse_reference;
+    trace_closest(diffuse, diffuse_reference, threads,
+                  [&](const Ray& ray, Hit& h) { results[0].tree->intersect(ray, h); });
+    primary_hits.clear();
+    primary_hits.shrink_to_fit();
+
+    std::vector<std::vector<std::vector<double>>> view_times(
+        results.size(), std::vector<std::vector<double>>(view_rays.size()));
+    std::vector<std::vector<double>> diffuse_times(results.size());
+    for (int k = 0; k < repeat; ++k) {
+        for (size_t ri = 0; ri < results.size(); ++ri) {
+            RowResult& r = results[ri];
+            const KdTree& tree = *r.tree;
+            auto isect = [&](const Ray& ray, Hit& h) { tree.intersect(ray, h); };
+            std::vector<Hit> hits;
+            for (size_t v = 0; v < view_rays.size(); ++v) {
+                view_times[ri][v].push_back(trace_closest(view_rays[v].rays, hits, threads, isect));
+                if (k == 0 && ri > 0)
+                    r.disagreements += count_disagreements(view_rays[v].reference, hits);
             }
+            diffuse_times[ri].push_back(trace_closest(diffuse, hits, threads, isect));
+            if (k == 0 && ri > 0)
+                r.diffuse_disagreements = count_disagreements(diffuse_reference, hits);
+        }
+    }
+    for (size_t ri = 0; ri < results.size(); ++ri) {
+        RowResult& r = results[ri];
+        double total = 0.0;
+        for (const std::vector<double>& times : view_times[ri]) {
             r.view_seconds.push_back(median(times));
             total += r.view_seconds.back();
-            if (vr.reference.empty()) {
-                if (!opt.save_views.empty()) {
-                    save_view_image(opt.save_views + "/view_" + vr.name + ".pgm", views, *mesh,
-                                    vr.rays, hits);
-                }
-                vr.reference = hits;
-                vr.hits = uint64_t(std::count_if(hits.begin(), hits.end(),
-                                                 [](const Hit& h) { return h.valid(); }));
-            } else {
-                r.disagreements += count_disagreements(vr.reference, hits);
-            }
         }
         r.mrays = double(total_primary) / total * 1e-6;
-        std::fprintf(stderr, "row %s: build %.3f s, %.2f Mrays/s, %.1f bytes/triangle\n",
-                     cfg.id.c_str(), r.build_seconds, r.mrays,
-                     double(tree_size(tree).bytes) / tris);
-        results.push_back(std::move(r));
+        r.diffuse_mrays = double(diffuse.size()) / median(diffuse_times[ri]) * 1e-6;
+        // The work per ray does not depend on the machine's load: one untimed counted pass.
+        r.primary_work = count_work(*r.tree, primary, threads);
+        r.diffuse_work = count_work(*r.tree, diffuse, threads);
+        std::fprintf(stderr,
+                     "row %s: %.2f primary / %.2f diffuse Mrays/s; per diffuse ray %.1f nodes, "
+                     "%.1f triangle tests\n",
+                     r.config.id.c_str(), r.mrays, r.diffuse_mrays, r.diffuse_work.nodes,
+                     r.diffuse_work.tests);
     }
 
     Table t1;
@@ -594,10 +663,12 @@ void run(const Options& opt) {
     for (const auto& v : views.views) t1.header.push_back(v.name + " s");
     for (const std::string& h :
          {std::string("median"), std::string("center"), std::string("cut-off"), std::string("sah"),
-          std::string("Mrays/s"), std::string("nodes"), std::string("leaves"),
-          std::string("refs/tri"), std::string("bytes/tri"), std::string("peak build MB"),
-          std::string("RSS build MB"), "hit diffs vs row " + configs[0].id,
-          std::string("remark")}) {
+          std::string("Mrays/s"), std::string("nodes / ray"), std::string("tests / ray"),
+          std::string("diffuse Mrays/s"), std::string("nodes / diffuse ray"),
+          std::string("tests / diffuse ray"), std::string("nodes"), std::string("leaves"),
+          std::string("refs/tri"), std::string("leaf vertex indices"), std::string("bytes/tri"),
+          std::string("peak build MB"), std::string("RSS build MB"),
+          "hit diffs vs row " + configs[0].id + " (primary / diffuse)", std::string("remark")}) {
         t1.header.push_back(h);
     }
     for (const RowResult& r : results) {
@@ -617,14 +688,24 @@ void run(const Options& opt) {
         row.push_back(std::to_string(s.cutoff_splits));
         row.push_back(std::to_string(s.sah_splits));
         row.push_back(fmt("%.2f", r.mrays));
+        row.push_back(fmt("%.2f", r.primary_work.nodes));
+        row.push_back(fmt("%.2f", r.primary_work.tests));
+        row.push_back(fmt("%.2f", r.diffuse_mrays));
+        row.push_back(fmt("%.2f", r.diffuse_work.nodes));
+        row.push_back(fmt("%.2f", r.diffuse_work.tests));
         const TreeSize z = tree_size(*r.tree);
         row.push_back(std::to_string(z.nodes));
         row.push_back(std::to_string(z.leaves));
         row.push_back(fmt("%.2f", double(z.refs) / tris));
+        // Stored only within the byte budget; they speed up leaf tests, so rows with and
+        // without them differ in time for a reason other than their split choices.
+        row.push_back(r.tree->reference_triangles().empty() ? "no" : "yes");
         row.push_back(fmt("%.1f", double(z.bytes) / tris));
         row.push_back(fmt("%.1f", double(s.peak_build_bytes) / (1024.0 * 1024.0)));
         row.push_back(opt.use_cache ? "-" : fmt("%.1f", r.rss_build_mb));
-        row.push_back(&r == &results[0] ? "-" : std::to_string(r.disagreements));
+        row.push_back(&r == &results[0] ? "-"
+                                        : std::to_string(r.disagreements) + " / " +
+                                              std::to_string(r.diffuse_disagreements));
         std::string remark = r.config.remark;
         const KdTreeParams& rp = r.config.params;
         if (rp.builder == KdBuilder::sah)
@@ -642,18 +723,10 @@ void run(const Options& opt) {
         if (r.mrays > best->mrays) best = &r;
     }
     const KdTree& tree = *best->tree;
-    std::vector<Ray> primary;
-    primary.reserve(total_primary);
-    std::vector<Hit> primary_hits;
-    for (const ViewRays& vr : view_rays) {
-        primary.insert(primary.end(), vr.rays.begin(), vr.rays.end());
-        primary_hits.insert(primary_hits.end(), vr.reference.begin(), vr.reference.end());
-    }
     view_rays.clear();
     view_rays.shrink_to_fit();
-    const std::vector<Ray> diffuse = make_diffuse_rays(*mesh, primary, primary_hits, views.seed);
-    primary_hits.clear();
-    primary_hits.shrink_to_fit();
+    diffuse_reference.clear();
+    diffuse_reference.shrink_to_fit();
 
     struct Engine {
         std::string name;
@@ -1008,6 +1081,12 @@ void add_bench_kdtree_command(CLI::App& bench) {
     cmd->add_option("--sah-depth", opt.sah_depth,
                     "SAH row: maximum depth instead of the automatic 8 + 1.3 log2 N")
         ->check(CLI::Range(1, 64));
+    cmd->add_option("--leaf-vertex-indices", opt.leaf_vertex_indices,
+                    "Every row's trees store each leaf reference's vertex indices (on), or not "
+                    "(off), instead of only within 32 bytes per triangle (auto): rows then "
+                    "differ in time only by their splits")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"auto", "on", "off"}));
     cmd->add_option("--spp", opt.spp, "Primary rays per pixel (default: the views file's)")
         ->check(CLI::Range(1, 4096));
     cmd->add_option("--csv", opt.csv, "Also write all tables as CSV");

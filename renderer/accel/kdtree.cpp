@@ -52,7 +52,8 @@ void validate(const KdTreeParams& p) {
 }
 
 KdTree::KdTree(std::shared_ptr<const TriangleMesh> mesh, Bounds3f bounds, std::vector<KdNode> nodes,
-               std::vector<uint32_t> indices, KdTreeParams params, KdTreeStats stats)
+               std::vector<uint32_t> indices, KdTreeParams params, KdTreeStats stats,
+               LeafVertexIndices leaf_vertex_indices)
     : mesh_(std::move(mesh)),
       bounds_(bounds),
       nodes_(std::move(nodes)),
@@ -103,9 +104,12 @@ KdTree::KdTree(std::shared_ptr<const TriangleMesh> mesh, Bounds3f bounds, std::v
     }
     // Render data: each reference's vertex indices, so a leaf test reads them in sequence
     // instead of fetching each triangle's record from the mesh first (about 20% faster for
-    // diffuse rays on the dragon). Stored only within the memory budget.
+    // diffuse rays on the dragon). Stored only within the memory budget, unless the caller
+    // says otherwise.
     const uint64_t tree_bytes = array_bytes(nodes_.size(), indices_.size());
-    if (tree_bytes + indices_.size() * sizeof(Vec3u) <= kMaxBytesPerTriangle * ntri) {
+    const bool fits = tree_bytes + indices_.size() * sizeof(Vec3u) <= kMaxBytesPerTriangle * ntri;
+    if (leaf_vertex_indices == LeafVertexIndices::always ||
+        (leaf_vertex_indices == LeafVertexIndices::within_budget && fits)) {
         reference_triangles_.resize(indices_.size());
         for (size_t i = 0; i < indices_.size(); ++i)
             reference_triangles_[i] = mesh_->triangles[indices_[i]];

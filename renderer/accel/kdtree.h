@@ -124,12 +124,18 @@ struct KdTreeStats {
     uint64_t peak_build_bytes = 0;
 };
 
+/// Whether a tree stores each reference's vertex indices (KdTree::reference_triangles()).
+/// They never change a hit, only speed: within_budget is what every tool uses; always and
+/// never let a benchmark compare trees with the same leaf data.
+enum class LeafVertexIndices : uint8_t { within_budget, always, never };
+
 /// An immutable kd-tree over one mesh. Shares ownership of the mesh it was built on.
 class KdTree {
 public:
     KdTree() = default;
     KdTree(std::shared_ptr<const TriangleMesh> mesh, Bounds3f bounds, std::vector<KdNode> nodes,
-           std::vector<uint32_t> indices, KdTreeParams params, KdTreeStats stats);
+           std::vector<uint32_t> indices, KdTreeParams params, KdTreeStats stats,
+           LeafVertexIndices leaf_vertex_indices = LeafVertexIndices::within_budget);
 
     const TriangleMesh& mesh() const { return *mesh_; }
     const std::shared_ptr<const TriangleMesh>& mesh_ptr() const { return mesh_; }

@@ -46,6 +46,24 @@ add_test(NAME smoke.bench_kdtree_robustness COMMAND ${_kdt} bench kdtree
          --no-embree --robust-rays 2000)
 set_tests_properties(smoke.bench_kdtree_robustness PROPERTIES
   PASS_REGULAR_EXPRESSION "\\| kdtrace row sah \\(sah\\) \\| 0 \\| 0.000 \\| 0 \\| 0.000 \\|[^\n]*\\| 0 of 0 / 0 of 0 \\|")
+# Every row takes the leaf data asked for (auto stores the vertex indices for neither here:
+# both trees are over the 32-byte budget on this model).
+add_test(NAME smoke.bench_kdtree_leaf_data_off COMMAND ${_kdt} bench kdtree
+         --model /usr/share/assimp/models/PLY/Wuson.ply
+         --views ${CMAKE_SOURCE_DIR}/assets/views/dragon.json --rows 6,sah --repeat 1 --spp 1
+         --no-embree --no-robustness --leaf-vertex-indices off)
+set_tests_properties(smoke.bench_kdtree_leaf_data_off PROPERTIES
+  PASS_REGULAR_EXPRESSION "\\| 6 \\| thesis [^\n]*\\| no \\|[^\n]*\n\\| sah \\| sah [^\n]*\\| no \\|")
+add_test(NAME smoke.bench_kdtree_leaf_data_on COMMAND ${_kdt} bench kdtree
+         --model /usr/share/assimp/models/PLY/Wuson.ply
+         --views ${CMAKE_SOURCE_DIR}/assets/views/dragon.json --rows 6,sah --repeat 1 --spp 1
+         --no-embree --no-robustness --leaf-vertex-indices on)
+set_tests_properties(smoke.bench_kdtree_leaf_data_on PROPERTIES
+  PASS_REGULAR_EXPRESSION "\\| 6 \\| thesis [^\n]*\\| yes \\|[^\n]*\n\\| sah \\| sah [^\n]*\\| yes \\|")
+add_test(NAME smoke.bench_kdtree_bad_leaf_data COMMAND ${_kdt} bench kdtree
+         --leaf-vertex-indices maybe)
+set_tests_properties(smoke.bench_kdtree_bad_leaf_data PROPERTIES
+  PASS_REGULAR_EXPRESSION "--leaf-vertex-indices: maybe not in {auto,on,off}")
 add_test(NAME smoke.bench_kdtree_bad_sah_cost COMMAND ${_kdt} bench kdtree
          --sah-traversal-cost 0)
 set_tests_properties(smoke.bench_kdtree_bad_sah_cost PROPERTIES

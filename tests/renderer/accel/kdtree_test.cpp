@@ -352,6 +352,15 @@ TEST(KdTree, ReferenceTrianglesStayWithinTheBudgetAndNeverChangeAHit) {
     for (size_t i = 0; i < s.references; ++i)
         ASSERT_EQ(within.reference_triangles()[i], slivers->triangles[within.indices()[i]]) << i;
     EXPECT_EQ(within.stats().bytes, s.nodes * 8 + s.references * 16);
+    // A caller may ask for them over the budget, or go without them within it.
+    const KdTree forced(slivers, over->bounds(), over->nodes(), over->indices(), p, s,
+                        LeafVertexIndices::always);
+    ASSERT_EQ(forced.reference_triangles().size(), s.references);
+    EXPECT_EQ(forced.stats().bytes, s.nodes * 8 + s.references * 16);
+    const KdTree without(padded, over->bounds(), over->nodes(), over->indices(), p, s,
+                         LeafVertexIndices::never);
+    EXPECT_TRUE(without.reference_triangles().empty());
+    EXPECT_EQ(without.stats().bytes, s.nodes * 8 + s.references * 4);
     const std::vector<Ray> rays = make_rays(*slivers, 20000, 3);
     TraversalCounters ca, cb;
     size_t hits = 0;
@@ -363,6 +372,11 @@ TEST(KdTree, ReferenceTrianglesStayWithinTheBudgetAndNeverChangeAHit) {
         ASSERT_EQ(a.u, b.u);
         ASSERT_EQ(a.v, b.v);
         ASSERT_EQ(over->occluded(r), within.occluded(r));
+        Hit c;
+        ASSERT_EQ(forced.intersect(r, c), a.valid());
+        ASSERT_EQ(c.prim, a.prim);
+        ASSERT_EQ(c.t, a.t);
+        ASSERT_EQ(forced.occluded(r), within.occluded(r));
         hits += a.valid() ? 1 : 0;
     }
     EXPECT_GT(hits, rays.size() / 4);
