@@ -120,16 +120,15 @@ void run(const RenderArgs& a) {
     fp.adaptive_min_spp = a.adaptive_min_spp;
     fp.exposure = a.exposure;
     if (tp.max_depth < 0) throw Error("--path-depth must be >= 0");
-    {
-        // Fail before rendering, not after.
-        std::string ext = std::filesystem::path(a.output).extension().string();
-        for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
-        if (ext != ".png" && ext != ".exr" && ext != ".pfm" && ext != ".hdr") {
-            throw Error(ErrorLocation{a.output},
-                        "unknown image format '" + ext + "' (use .png, .exr, .pfm or .hdr)");
-        }
-    }
     if (tp.samples_per_pass < 1) throw Error("--spp-per-pass must be >= 1");
+    StopConditions stop;
+    stop.spp = a.spp;
+    stop.seconds = a.seconds;
+    stop.error = a.error;
+    if (stop.spp == 0 && stop.seconds == 0.0 && stop.error == 0.0f) stop.spp = 16;  // none given
+    // Fail before loading and rendering, not after.
+    validate(stop);
+    check_image_output(a.output);
 
     PrepareOptions po;
     po.scene_path = a.scene;
@@ -153,12 +152,6 @@ void run(const RenderArgs& a) {
     };
     const Prepared prep = prepare_render(po);
     const RenderSnapshot& snap = *prep.snapshot;
-
-    StopConditions stop;
-    stop.spp = a.spp;
-    stop.seconds = a.seconds;
-    stop.error = a.error;
-    if (stop.spp == 0 && stop.seconds == 0.0 && stop.error == 0.0f) stop.spp = 16;  // none given
 
     RenderSession session(prep.snapshot, tp, fp);
     const bool tty = !a.quiet && isatty(fileno(stderr));

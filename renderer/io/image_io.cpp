@@ -1,15 +1,18 @@
 #include "renderer/io/image_io.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <memory>
 #include <utility>
 
+#include <unistd.h>
 #include <zlib.h>
 
 #include "renderer/core/error.h"
@@ -608,12 +611,23 @@ ImageRGB load_exr(const std::string& path, const std::vector<uint8_t>& data,
 // ---------------------------------------------------------------------------------------
 // Writing
 
+// Writes to a temporary file beside path and renames it over path, so a failed write
+// (a full disk, say) leaves any earlier file at path whole instead of truncated.
 void write_bytes(const std::string& path, const void* data, size_t size) {
-    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    const std::string tmp = path + ".kdtrace-" + std::to_string(::getpid()) + ".tmp";
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) fail(path, "cannot open file for writing");
     out.write(static_cast<const char*>(data), std::streamsize(size));
     out.close();
-    if (!out) fail(path, "write error");
+    if (!out) {
+        std::remove(tmp.c_str());
+        fail(path, "write error");
+    }
+    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+        const int err = errno;
+        std::remove(tmp.c_str());
+        fail(path, std::string("cannot replace the file: ") + std::strerror(err));
+    }
 }
 
 void check_image(const std::string& path, const ImageRGB& image) {
@@ -898,6 +912,20 @@ void write_image(const std::string& path, const ImageRGB& image, const ToneParam
     } else {
         fail(path, "unknown image extension '" + ext + "' (use .png, .exr, .pfm or .hdr)");
     }
+}
+
+void check_image_output(const std::string& path) {
+    const std::string ext = lower_extension(path);
+    if (ext != ".png" && ext != ".exr" && ext != ".pfm" && ext != ".hdr")
+        fail(path, "unknown image format '" + ext + "' (use .png, .exr, .pfm or .hdr)");
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    if (fs::is_directory(fs::path(path), ec)) fail(path, "is a directory");
+    fs::path dir = fs::path(path).parent_path();
+    if (dir.empty()) dir = ".";
+    if (!fs::is_directory(dir, ec)) fail(path, "no directory " + dir.string() + " to write into");
+    if (::access(dir.c_str(), W_OK) != 0)
+        fail(path, "cannot write into " + dir.string() + ": " + std::strerror(errno));
 }
 
 ImageMetadata read_png_metadata(const std::string& path) {

@@ -77,6 +77,11 @@ void write_hdr(const std::string& path, const ImageRGB& image);
 void write_image(const std::string& path, const ImageRGB& image, const ToneParams& tone = {},
                  const ImageMetadata& metadata = {});
 
+/// Throws kdt::Error naming path when write_image() could not write there: an unknown
+/// extension, a missing directory, a directory in its place, or no write permission. For
+/// callers to check before long work; it writes nothing.
+void check_image_output(const std::string& path);
+
 /// Reads the tEXt, zTXt and iTXt chunks of a PNG file without decoding its pixels.
 /// Throws kdt::Error for a file that is not a well-formed PNG chunk stream.
 ImageMetadata read_png_metadata(const std::string& path);

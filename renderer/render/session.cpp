@@ -193,8 +193,7 @@ PassStats RenderSession::render_pass(const std::vector<int>& tiles, int max_spp)
     return stats;
 }
 
-RenderProgress run_render(RenderSession& session, const StopConditions& stop,
-                          const std::function<void(const RenderProgress&)>& progress) {
+void validate(const StopConditions& stop) {
     if (stop.spp < 0)
         throw Error("render: --spp must be positive (got " + std::to_string(stop.spp) + ")");
     if (!(stop.seconds >= 0.0 && std::isfinite(stop.seconds)))
@@ -207,6 +206,11 @@ RenderProgress run_render(RenderSession& session, const StopConditions& stop,
     if (stop.spp == 0 && stop.seconds == 0.0 && stop.error == 0.0f) {
         throw Error("render: give a stop condition (--spp, --time or --error)");
     }
+}
+
+RenderProgress run_render(RenderSession& session, const StopConditions& stop,
+                          const std::function<void(const RenderProgress&)>& progress) {
+    validate(stop);
     const bool adaptive = session.film_params().adaptive;
     const double pixels = double(session.film().pixel_count());
     const uint64_t budget = stop.spp > 0 ? uint64_t(stop.spp) * uint64_t(pixels) : 0;

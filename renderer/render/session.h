@@ -104,8 +104,12 @@ struct RenderProgress {
     double mean_relative_error = 0.0;
 };
 
+/// Throws kdt::Error naming the bad condition (negative, NaN or infinite values, none
+/// given), so a caller can check them before it loads a scene or builds a tree.
+void validate(const StopConditions& stop);
+
 /// Runs passes until a stop condition holds (or cancel). Calls progress after each pass.
-/// Throws kdt::Error when no stop condition is given.
+/// Throws kdt::Error when the conditions do not pass validate().
 RenderProgress run_render(RenderSession& session, const StopConditions& stop,
                           const std::function<void(const RenderProgress&)>& progress = {});
 

@@ -26,6 +26,19 @@ if(EXISTS ${_cube})
            COMMAND ${_kdt} render ${_cube} --no-cache --width 8 --height 8 --spp 1 -o ${_tmp}/x.bmp)
   set_tests_properties(smoke.render_bad_extension PROPERTIES
     PASS_REGULAR_EXPRESSION "x.bmp: unknown image format .\.bmp.")
+  # A missing output directory or a bad stop condition fails before the tree is built.
+  add_test(NAME smoke.render_missing_output_dir
+           COMMAND ${_kdt} render ${_cube} --width 8 --height 8 --spp 1
+                   --cache-dir ${_tmp}/fail_fast_cache -o ${_tmp}/no_such_dir/x.png)
+  set_tests_properties(smoke.render_missing_output_dir PROPERTIES
+    PASS_REGULAR_EXPRESSION "no_such_dir/x.png: no directory [^\n]*no_such_dir to write into"
+    FAIL_REGULAR_EXPRESSION "kd-tree cache")
+  add_test(NAME smoke.render_negative_spp
+           COMMAND ${_kdt} render ${_cube} --width 8 --height 8 --spp -2
+                   --cache-dir ${_tmp}/fail_fast_cache -o ${_tmp}/x.png)
+  set_tests_properties(smoke.render_negative_spp PROPERTIES
+    PASS_REGULAR_EXPRESSION "--spp must be positive \\(got -2\\)"
+    FAIL_REGULAR_EXPRESSION "kd-tree cache")
   # --view takes the camera from the views file; the metadata records the view's eye.
   add_test(NAME smoke.render_cube_view
            COMMAND ${_kdt} render ${_cube} --no-cache --width 8 --height 6 --spp 1 --view B

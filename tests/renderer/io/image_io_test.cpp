@@ -422,6 +422,53 @@ TEST_F(ImageIoTest, MissingEmptyAndUnknownFiles) {
     EXPECT_THROW(write_pfm(path("x.pfm"), inconsistent), Error);
 }
 
+// A render checks its output before it starts, so hours of work are not lost to a typo;
+// the write goes through a temporary file, so a failed write never truncates an old image.
+TEST_F(ImageIoTest, OutputIsCheckedBeforehandAndReplacedWhole) {
+    auto error_of = [](const std::string& p) {
+        try {
+            check_image_output(p);
+        } catch (const Error& e) {
+            EXPECT_NE(std::string(e.what()).find(p), std::string::npos) << e.what();
+            return std::string(e.what());
+        }
+        return std::string();
+    };
+    EXPECT_EQ(error_of(path("ok.png")), "");
+    EXPECT_EQ(error_of(path("ok.EXR")), "");
+    EXPECT_NE(error_of(path("x.bmp")).find("unknown image format '.bmp'"), std::string::npos);
+    EXPECT_NE(error_of(path("x")).find("unknown image format"), std::string::npos);
+    EXPECT_NE(error_of(path("missing/x.pfm")).find("no directory"), std::string::npos);
+    std::filesystem::create_directory(dir_ / "d.png");
+    EXPECT_NE(error_of(path("d.png")).find("is a directory"), std::string::npos);
+    write_text(dir_ / "file", "x");
+    EXPECT_NE(error_of(path("file/x.png")).find("no directory"), std::string::npos);
+    EXPECT_TRUE(std::filesystem::exists(dir_ / "file"));  // checking wrote nothing
+    EXPECT_FALSE(std::filesystem::exists(dir_ / "ok.png"));
+
+    // Replacing an image leaves the new one and no temporary file behind.
+    write_pfm(path("a.pfm"), random_image(3, 2, 1, 1.0f));
+    const ImageRGB second = random_image(2, 5, 2, 1.0f);
+    write_image(path("a.pfm"), second);
+    EXPECT_EQ(load_image(path("a.pfm")).rgb, second.rgb);
+    EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir_),
+                            std::filesystem::directory_iterator()),
+              3);  // d.png, file, a.pfm
+    // A write whose last step fails (a directory in the way of the rename) is an error
+    // naming the file, and leaves neither a temporary file nor a changed target behind.
+    try {
+        write_image(path("d.png"), second);
+        ADD_FAILURE() << "no error";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("d.png: cannot replace the file"), std::string::npos)
+            << e.what();
+    }
+    EXPECT_TRUE(std::filesystem::is_directory(dir_ / "d.png"));
+    EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir_),
+                            std::filesystem::directory_iterator()),
+              3);
+}
+
 TEST_F(ImageIoTest, BrokenHdrHeaders) {
     const std::string head = "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n";
     auto bin = [](const char* bytes, size_t n) { return std::string(bytes, n); };

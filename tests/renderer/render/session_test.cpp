@@ -272,7 +272,11 @@ TEST(RenderSession, RejectsBadParametersWithTheirNames) {
         StopConditions stop;
         stop.spp = 1;
         change(stop);
-        return error_of([&] { run_render(s, stop); });
+        // validate() alone, as the CLI calls it before loading anything, says the same.
+        const std::string checked = error_of([&] { validate(stop); });
+        const std::string rendered = error_of([&] { run_render(s, stop); });
+        EXPECT_EQ(checked, rendered);
+        return rendered;
     };
     EXPECT_TRUE(has(stop_error([](StopConditions& c) { c.spp = -1; }), "--spp"));
     EXPECT_TRUE(has(stop_error([](StopConditions& c) { c.seconds = std::nan(""); }), "--time"));
