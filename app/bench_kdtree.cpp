@@ -607,7 +607,9 @@ void run(const Options& opt) {
         primary.insert(primary.end(), vr.rays.begin(), vr.rays.end());
         primary_hits.insert(primary_hits.end(), vr.reference.begin(), vr.reference.end());
     }
-    const std::vector<Ray> diffuse = make_diffuse_rays(*mesh, primary, primary_hits, views.seed);
+    std::vector<uint32_t> diffuse_sources;
+    const std::vector<Ray> diffuse =
+        make_diffuse_rays(*mesh, primary, primary_hits, views.seed, &diffuse_sources);
     std::vector<Hit> diffuse_reference;
     trace_closest(diffuse, diffuse_reference, threads,
                   [&](const Ray& ray, Hit& h) { results[0].tree->intersect(ray, h); });
@@ -735,6 +737,9 @@ void run(const Options& opt) {
         const EmbreePeer* peer = nullptr;
 #endif
         bool batch = false;  ///< batch queries (ours) / rtcIntersect1M streams (Embree)
+        /// Ours, with paths: primary rays record the path to their hit's leaf, and each
+        /// diffuse ray starts from the path of the primary hit it leaves from.
+        bool from_leaf = false;
         double build_seconds = 0.0, bytes_per_triangle = 0.0, peak_mb = 0.0;
         std::vector<double> primary_s, diffuse_s, shadow_s;
         std::vector<Hit> primary_hits, diffuse_hits;
@@ -752,8 +757,12 @@ void run(const Options& opt) {
         Engine ours_batch = ours;
         ours_batch.name += ", batch";
         ours_batch.batch = true;
+        Engine ours_from_leaf = ours;
+        ours_from_leaf.name += ", from the hit's leaf";
+        ours_from_leaf.from_leaf = true;
         engines.push_back(std::move(ours));
         engines.push_back(std::move(ours_batch));
+        engines.push_back(std::move(ours_from_leaf));
     }
 #ifdef KDT_HAVE_EMBREE
     std::vector<std::unique_ptr<EmbreePeer>> peers;
@@ -816,9 +825,49 @@ void run(const Options& opt) {
         auto isect = [t](const Ray* r, size_t n, Hit* h) { t->intersect(r, n, h); };
         body(isect, isect, [t](const Ray* r, size_t n, uint8_t* o) { t->occluded(r, n, o); });
     };
+    // The path of each diffuse ray's primary hit in our tree, as a path tracer keeps it from
+    // one bounce to the next: leaf_paths[leaf_first[i], leaf_first[i + 1]).
+    std::vector<uint32_t> leaf_paths;
+    std::vector<uint64_t> leaf_first(1, 0);
+    leaf_first.reserve(diffuse.size() + 1);
+    for (uint32_t src : diffuse_sources) {
+        Hit h;
+        KdPath path;
+        tree.intersect(primary[src], h, path);
+        leaf_paths.insert(leaf_paths.end(), path.nodes, path.nodes + path.length);
+        leaf_first.push_back(leaf_paths.size());
+    }
+    diffuse_sources.clear();
+    diffuse_sources.shrink_to_fit();
+    auto start_of = [&](const Ray& r) {
+        const size_t i = size_t(&r - diffuse.data());  // the ray's index in `diffuse`
+        return std::make_pair(leaf_paths.data() + leaf_first[i],
+                              uint32_t(leaf_first[i + 1] - leaf_first[i]));
+    };
     // Interleave engines within each repeat so drift (thermal, other load) hits all alike.
     for (int k = 0; k < repeat; ++k) {
         for (Engine& e : engines) {
+            if (e.from_leaf) {
+                const KdTree* t = e.tree;
+                e.primary_s.push_back(
+                    trace_closest(primary, e.primary_hits, threads, [t](const Ray& r, Hit& h) {
+                        KdPath path;
+                        t->intersect(r, h, path);
+                    }));
+                e.diffuse_s.push_back(
+                    trace_closest(diffuse, e.diffuse_hits, threads, [&](const Ray& r, Hit& h) {
+                        const auto [start, length] = start_of(r);
+                        t->intersect_from(start, length, r, h);
+                    }));
+                e.shadow_s.push_back(trace_occluded(
+                    diffuse, threads,
+                    [&](const Ray& r) {
+                        const auto [start, length] = start_of(r);
+                        return t->occluded_from(start, length, r);
+                    },
+                    &e.diffuse_occluded));
+                continue;
+            }
             if (e.batch) {
                 with_batch_queries(
                     e, [&](const auto& coherent, const auto& incoherent, const auto& occ) {
@@ -940,6 +989,23 @@ void run(const Options& opt) {
         // The batch queries visit exactly the same nodes per ray (counted per lane).
         add("primary, batch", primary, median(engines[1].primary_s));
         add("diffuse, batch", diffuse, median(engines[1].diffuse_s));
+        {
+            // From the primary hit's leaf: the walked path's nodes count as visited.
+            TraversalCounters c;
+            uint64_t hits = 0;
+            for (const Ray& r : diffuse) {
+                const auto [start, length] = start_of(r);
+                Hit h;
+                hits += tree.intersect_from(start, length, r, h, nullptr, &c);
+            }
+            const double n = double(std::max<size_t>(diffuse.size(), 1));
+            const double ns = median(engines[2].diffuse_s) * double(threads) / n * 1e9;
+            const double nodes = double(c.nodes_visited) / n;
+            tc.rows.push_back({"diffuse, from the hit's leaf", fmt("%.1f", nodes),
+                               fmt("%.1f", double(c.triangles_tested) / n),
+                               fmt("%.1f", 100.0 * double(hits) / n), fmt("%.0f", ns),
+                               fmt("%.2f", nodes > 0.0 ? ns / nodes : 0.0), "-", "-", "-", "-"});
+        }
         tables.push_back(tc);
     }
 
@@ -964,6 +1030,7 @@ void run(const Options& opt) {
                      "NaN/Inf hits",    "escapes brute force also has (vertex / edge)"};
         std::vector<int8_t> vertex_memo, edge_memo;  // brute-force verdicts, across engines
         for (Engine& e : engines) {
+            if (e.from_leaf) continue;  // aimed rays leave from no hit
             std::vector<Hit> hv, he, hn;
             std::vector<double> tn, tb;
             // Debian's Embree is built with assertions: a NaN/Inf ray aborts in

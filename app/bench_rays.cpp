@@ -207,9 +207,11 @@ std::vector<Ray> make_primary_rays(const BenchViewSet& set, size_t view_index) {
 }
 
 std::vector<Ray> make_diffuse_rays(const TriangleMesh& mesh, const std::vector<Ray>& rays,
-                                   const std::vector<Hit>& hits, uint64_t seed) {
+                                   const std::vector<Hit>& hits, uint64_t seed,
+                                   std::vector<uint32_t>* sources) {
     std::vector<Ray> out;
     out.reserve(rays.size());
+    if (sources) sources->clear();
     for (size_t i = 0; i < rays.size(); ++i) {
         const Hit& hit = hits[i];
         if (!hit.valid() || hit.prim >= mesh.triangle_count()) continue;
@@ -236,6 +238,7 @@ std::vector<Ray> make_diffuse_rays(const TriangleMesh& mesh, const std::vector<R
         make_basis(n, b1, b2);
         r.dir = glm::normalize(local.x * b1 + local.y * b2 + local.z * n);
         out.push_back(r);
+        if (sources) sources->push_back(uint32_t(i));
     }
     return out;
 }

@@ -58,9 +58,11 @@ std::vector<Ray> make_primary_rays(const BenchViewSet& set, size_t view_index);
 
 /// For every ray that hit (hits[i].valid()), one cosine-distributed ray about the
 /// geometric normal flipped to face the incoming ray, starting at the hit point offset
-/// along that normal by a few float ULPs of the hit position. Misses produce no ray.
+/// along that normal by a few float ULPs of the hit position. Misses produce no ray. If
+/// `sources` is given, it receives the index in `rays` of each diffuse ray's primary ray.
 std::vector<Ray> make_diffuse_rays(const TriangleMesh& mesh, const std::vector<Ray>& rays,
-                                   const std::vector<Hit>& hits, uint64_t seed);
+                                   const std::vector<Hit>& hits, uint64_t seed,
+                                   std::vector<uint32_t>* sources = nullptr);
 
 /// Uniform float in [0,1) from a 64-bit hash of the arguments (splitmix64 finaliser).
 float hash_uniform(uint64_t a, uint64_t b, uint64_t c, uint64_t d);

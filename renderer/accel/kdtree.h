@@ -50,6 +50,16 @@ struct Hit {
     bool valid() const { return prim != kNoHit; }
 };
 
+/// The nodes from the root to one node of a tree: nodes[0] is the root (0), each next one a
+/// child of the one before, nodes[length - 1] the node itself. intersect() can report the
+/// path to the leaf where it found its hit; a ray that starts there (a bounce, a shadow ray)
+/// can then begin at that leaf instead of descending from the root again.
+struct KdPath {
+    static constexpr uint32_t kMaxLength = 65;  ///< trees are at most 64 levels deep
+    uint32_t length = 0;                        ///< 0: no path
+    uint32_t nodes[kMaxLength];
+};
+
 /// Per-ray cost counters for heat maps and benchmarks, accumulated by the queries.
 struct TraversalCounters {
     uint64_t nodes_visited = 0;
@@ -157,6 +167,35 @@ public:
     bool intersect(const Ray& ray, Hit& hit, TraversalCounters* counters = nullptr) const;
     /// Any hit in [ray.tmin, ray.tmax] (shadow rays).
     bool occluded(const Ray& ray, TraversalCounters* counters = nullptr) const;
+
+    /// intersect(), also setting `leaf` to the path to the leaf where the hit was found
+    /// (length 0 on a miss). Slightly slower than intersect(): each step records its node.
+    bool intersect(const Ray& ray, Hit& hit, KdPath& leaf,
+                   TraversalCounters* counters = nullptr) const;
+    /// Closest hit of a ray that starts in or near the node at the end of `start` (nodes
+    /// start[0..length), from the root; typically the path intersect() gave for the hit the
+    /// ray leaves from). Instead of descending from the root, the query walks down the given
+    /// path, which it reads as independent loads, setting aside the other child at each
+    /// level wherever the ray meets it, and then goes on from that node. The result is
+    /// intersect()'s for any path (same t; among triangles hit at exactly the same t the
+    /// reported one may differ): a path far from the origin only costs time, and one that is
+    /// not a path of this tree (a node out of range, not a child of the one before, not
+    /// starting at the root) is ignored. If `leaf` is given, it receives the path of the new
+    /// hit, as from intersect(); it may be the start path itself (one path, updated from
+    /// bounce to bounce).
+    bool intersect_from(const uint32_t* start, uint32_t length, const Ray& ray, Hit& hit,
+                        KdPath* leaf = nullptr, TraversalCounters* counters = nullptr) const;
+    bool intersect_from(const KdPath& start, const Ray& ray, Hit& hit, KdPath* leaf = nullptr,
+                        TraversalCounters* counters = nullptr) const {
+        return intersect_from(start.nodes, start.length, ray, hit, leaf, counters);
+    }
+    /// occluded() for a ray that starts in or near the node at the end of `start`.
+    bool occluded_from(const uint32_t* start, uint32_t length, const Ray& ray,
+                       TraversalCounters* counters = nullptr) const;
+    bool occluded_from(const KdPath& start, const Ray& ray,
+                       TraversalCounters* counters = nullptr) const {
+        return occluded_from(start.nodes, start.length, ray, counters);
+    }
     /// Batch closest hits: hits[i] is exactly what intersect(rays[i], hits[i]) gives (and
     /// the counters sum alike). Each group of 8 consecutive coherent rays (nearly parallel,
     /// nearby origins, like a camera's) is traced as one AVX2 packet, about 3x faster per

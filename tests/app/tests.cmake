@@ -48,18 +48,19 @@ set_tests_properties(smoke.bench_kdtree_robustness PROPERTIES
   PASS_REGULAR_EXPRESSION "\\| kdtrace row sah \\(sah\\) \\| 0 \\| 0.000 \\| 0 \\| 0.000 \\|[^\n]*\\| 0 of 0 / 0 of 0 \\|")
 # Every row takes the leaf data asked for (auto stores the vertex indices for neither here:
 # both trees are over the 32-byte budget on this model).
-add_test(NAME smoke.bench_kdtree_leaf_data_off COMMAND ${_kdt} bench kdtree
-         --model /usr/share/assimp/models/PLY/Wuson.ply
-         --views ${CMAKE_SOURCE_DIR}/assets/views/dragon.json --rows 6,sah --repeat 1 --spp 1
-         --no-embree --no-robustness --leaf-vertex-indices off)
-set_tests_properties(smoke.bench_kdtree_leaf_data_off PROPERTIES
-  PASS_REGULAR_EXPRESSION "\\| 6 \\| thesis [^\n]*\\| no \\|[^\n]*\n\\| sah \\| sah [^\n]*\\| no \\|")
-add_test(NAME smoke.bench_kdtree_leaf_data_on COMMAND ${_kdt} bench kdtree
-         --model /usr/share/assimp/models/PLY/Wuson.ply
-         --views ${CMAKE_SOURCE_DIR}/assets/views/dragon.json --rows 6,sah --repeat 1 --spp 1
-         --no-embree --no-robustness --leaf-vertex-indices on)
-set_tests_properties(smoke.bench_kdtree_leaf_data_on PROPERTIES
-  PASS_REGULAR_EXPRESSION "\\| 6 \\| thesis [^\n]*\\| yes \\|[^\n]*\n\\| sah \\| sah [^\n]*\\| yes \\|")
+foreach(_mode off on)
+  if(_mode STREQUAL "on")
+    set(_cell yes)
+  else()
+    set(_cell no)
+  endif()
+  add_test(NAME smoke.bench_kdtree_leaf_data_${_mode} COMMAND ${_kdt} bench kdtree
+           --model /usr/share/assimp/models/PLY/Wuson.ply
+           --views ${CMAKE_SOURCE_DIR}/assets/views/dragon.json --rows 6,sah --repeat 1 --spp 1
+           --no-embree --no-robustness --leaf-vertex-indices ${_mode})
+  set_tests_properties(smoke.bench_kdtree_leaf_data_${_mode} PROPERTIES
+    PASS_REGULAR_EXPRESSION "\\| 6 \\| thesis [^\n]*\\| ${_cell} \\|[^\n]*\n\\| sah \\| sah [^\n]*\\| ${_cell} \\|")
+endforeach()
 add_test(NAME smoke.bench_kdtree_bad_leaf_data COMMAND ${_kdt} bench kdtree
          --leaf-vertex-indices maybe)
 set_tests_properties(smoke.bench_kdtree_bad_leaf_data PROPERTIES
