@@ -267,6 +267,32 @@ struct Workspace {
 constexpr size_t kWorkspaceBudget = size_t(4) << 20;
 constexpr size_t kWorkspaceBytesPerTriangle = 8;
 
+// Surface areas of the two sides of a split plane relative to the box's (the probabilities
+// of the SAH), in double: products of float extents overflow float above extents of about
+// 1e19 and underflow below about 1e-19, and an infinite or zero area left a whole model
+// in one leaf.
+class SplitAreas {
+public:
+    explicit SplitAreas(const Bounds3f& box) : lower_(box.lower), ext_(Vec3d(box.upper) - lower_) {
+        const double area = 2.0 * (ext_.x * ext_.y + ext_.y * ext_.z + ext_.z * ext_.x);
+        valid_ = area > 0.0 && std::isfinite(area);
+        inv_area_ = valid_ ? 1.0 / area : 0.0;
+    }
+    bool valid() const { return valid_; }
+    /// SA(left) / SA(box) and SA(right) / SA(box) for the plane at p on axis k.
+    void ratios(int k, float p, float& p_left, float& p_right) const {
+        const double d1 = ext_[(k + 1) % 3], d2 = ext_[(k + 2) % 3];
+        const double cross = d1 * d2, sum = d1 + d2, x = double(p) - lower_[k];
+        p_left = float(2.0 * (cross + x * sum) * inv_area_);
+        p_right = float(2.0 * (cross + (ext_[k] - x) * sum) * inv_area_);
+    }
+
+private:
+    Vec3d lower_, ext_;
+    double inv_area_ = 0.0;
+    bool valid_ = false;
+};
+
 struct SweepSplit {
     float cost = kInfinity;
     int axis = -1;
@@ -321,11 +347,9 @@ public:
 private:
     SweepSplit find_split(const SweepNode& node, const Bounds3f& box) const {
         SweepSplit best;
-        const float area = box.surface_area();
-        if (!(area > 0.0f) || !std::isfinite(area)) return best;
-        const float inv_area = 1.0f / area;
+        const SplitAreas areas(box);
+        if (!areas.valid()) return best;
         const size_t n = node.refs.size();
-        const Vec3f ext = box.extent();
         // Context::split_cost() with its inputs in locals: the loop below evaluates it at
         // every event, and the compiler would reload them from the context each time.
         const float* f_table = ctx_.f_table.data();
@@ -343,8 +367,6 @@ private:
         for (int k = 0; k < 3; ++k) {
             const float lo = box.lower[k], hi = box.upper[k];
             if (!(hi > lo)) continue;
-            const float d1 = ext[(k + 1) % 3], d2 = ext[(k + 2) % 3];
-            const float cross = d1 * d2, sum = d1 + d2;
             const Event* ev = node.events[k].data();
             const size_t m = node.events[k].size();
             // Counters of the events seen so far (branch-free), and their values at the
@@ -366,8 +388,8 @@ private:
                 group_starts = starts;
                 // No split on the cell boundary: it would not separate anything.
                 if (!(p > lo && p < hi)) continue;
-                const float p_left = 2.0f * (cross + (p - lo) * sum) * inv_area;
-                const float p_right = 2.0f * (cross + (hi - p) * sum) * inv_area;
+                float p_left, p_right;
+                areas.ratios(k, p, p_left, p_right);
                 const float c_left = cost(p_left, p_right, n_left + in_plane, n_right);
                 if (c_left < best_cost) {
                     best_cost = c_left;
@@ -664,8 +686,8 @@ void count_bins(const Context& ctx, const TopJob& job, const Binner& binner, siz
 BinnedSplit find_binned_split(const Context& ctx, TopJob& job) {
     BinnedSplit best;
     const Bounds3f& box = job.box;
-    const float area = box.surface_area();
-    if (!(area > 0.0f) || !std::isfinite(area)) return best;
+    const SplitAreas areas(box);
+    if (!areas.valid()) return best;
     const int bins = std::max(2, ctx.tuning.bins);
     const auto stride = size_t(6 * bins);
     if (job.counts.empty()) {
@@ -692,21 +714,18 @@ BinnedSplit find_binned_split(const Context& ctx, TopJob& job) {
     const uint32_t* starts = job.counts.data();
     const uint32_t* ends = starts + 3 * bins;
     const Vec3f ext = box.extent();
-    const float inv_area = 1.0f / area;
     const size_t n = job.size();
     for (int k = 0; k < 3; ++k) {
         const float lo = box.lower[k], hi = box.upper[k];
         if (!(hi > lo)) continue;
-        const float d1 = ext[(k + 1) % 3], d2 = ext[(k + 2) % 3];
-        const float cross = d1 * d2, sum = d1 + d2;
         size_t n_left = 0, n_right = n;
         for (int j = 1; j < bins; ++j) {
             n_left += starts[k * bins + j - 1];
             n_right -= ends[k * bins + j - 1];
             const float p = lo + ext[k] * (float(j) / float(bins));
             if (!(p > lo && p < hi)) continue;
-            const float p_left = 2.0f * (cross + (p - lo) * sum) * inv_area;
-            const float p_right = 2.0f * (cross + (hi - p) * sum) * inv_area;
+            float p_left, p_right;
+            areas.ratios(k, p, p_left, p_right);
             const float c = ctx.split_cost(p_left, p_right, n_left, n_right);
             if (c < best.cost) best = {c, k, p};
         }

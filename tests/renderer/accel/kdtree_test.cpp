@@ -449,5 +449,39 @@ TEST(KdTree, EmptyChildFlagsAreDerivedFromTheChildren) {
     EXPECT_GT(hits, 1000u);
 }
 
+// Scaling a model by a power of two is exact, so both builders must make the same tree at
+// any scale float holds: the SAH builder's surface areas, products of two extents, once
+// overflowed float above extents of about 1e19 (and underflowed below 1e-19), and it then
+// left the whole model in one leaf.
+TEST(KdTree, SameTreeAtEveryPowerOfTwoScale) {
+    const TriangleMesh base = test::make_blob(4, 1.0f, 31);
+    for (KdBuilder builder : {KdBuilder::sah, KdBuilder::thesis}) {
+        KdTreeParams p;
+        p.builder = builder;
+        const auto ref = build_kdtree(std::make_shared<TriangleMesh>(base), p);
+        ASSERT_GT(ref->nodes().size(), 100u);
+        for (int e : {-120, -66, 66, 100}) {
+            const float s = std::ldexp(1.0f, e);
+            auto scaled = std::make_shared<TriangleMesh>(base);
+            for (Vec3f& v : scaled->positions) v *= s;
+            const auto tree = build_kdtree(scaled, p);
+            const std::string what =
+                std::string(kKdBuilderNames[size_t(builder)]) + ", scale 2^" + std::to_string(e);
+            ASSERT_EQ(tree->nodes().size(), ref->nodes().size()) << what;
+            for (size_t i = 0; i < ref->nodes().size(); ++i) {
+                const KdNode& a = ref->nodes()[i];
+                const KdNode& b = tree->nodes()[i];
+                ASSERT_EQ(a.word, b.word) << what << ": node " << i;
+                // A split rounded outward from 0 is a subnormal, whose scaled value float
+                // cannot hold: compare normal ones exactly.
+                if (!a.is_leaf() && std::isnormal(a.split) && std::isnormal(a.split * s)) {
+                    ASSERT_EQ(a.split * s, b.split) << what << ": node " << i;
+                }
+            }
+            ASSERT_EQ(tree->indices(), ref->indices()) << what;
+        }
+    }
+}
+
 }  // namespace
 }  // namespace kdt
