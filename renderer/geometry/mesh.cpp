@@ -164,11 +164,17 @@ void append_mesh(TriangleMesh& dst, const TriangleMesh& src) {
 void transform_mesh(TriangleMesh& mesh, const Mat4f& world_from_object) {
     for (Vec3f& p : mesh.positions) p = Vec3f(world_from_object * Vec4f(p, 1.0f));
     if (!mesh.normals.empty()) {
-        Mat3f n = glm::transpose(glm::inverse(Mat3f(world_from_object)));
+        // Normals go by the inverse transpose; they are normalised, so any positive multiple
+        // of it serves: the cofactor matrix (det times the inverse transpose) needs no
+        // division, and double keeps its products of tiny or huge scales finite (a float
+        // inverse of a scale of 1e-15 divides by a determinant that underflows to 0).
+        const glm::dmat3 m{Mat3f{world_from_object}};
+        glm::dmat3 cof(glm::cross(m[1], m[2]), glm::cross(m[2], m[0]), glm::cross(m[0], m[1]));
+        if (glm::determinant(m) < 0.0) cof = -cof;
         for (Vec3f& v : mesh.normals) {
-            Vec3f w = n * v;
-            float len = glm::length(w);
-            v = len > 0.0f ? w / len : w;
+            const Vec3d w = cof * Vec3d(v);
+            const double len = glm::length(w);
+            v = len > 0.0 ? Vec3f(w / len) : Vec3f(w);
         }
     }
 }

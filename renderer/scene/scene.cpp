@@ -125,7 +125,12 @@ Mat4f read_transform(const Reader& r) {
                 out[col][row] = v.get<float>();
             }
         }
-        if (std::fabs(glm::determinant(Mat3f(out))) < 1e-30f)
+        // Singular when its columns are (nearly) dependent, whatever their lengths: the
+        // determinant relative to the product of the column lengths, in double, so a uniform
+        // scale of 1e-20 is as good as one of 1.
+        const glm::dmat3 a(Mat3f{out});
+        const double lengths = glm::length(a[0]) * glm::length(a[1]) * glm::length(a[2]);
+        if (!(std::fabs(glm::determinant(a)) > 1e-6 * lengths))
             r.fail_key("matrix", "the matrix is singular");
         return out;
     }

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <glm/gtc/matrix_transform.hpp>
 
 #include "renderer/geometry/mesh.h"
 
@@ -113,6 +114,38 @@ TEST(SpatialOrder, EmptyDegenerateAndNonFiniteMeshes) {
     ASSERT_EQ(f.vertices.size(), 5u);
     apply_order(flat, f);
     EXPECT_EQ(flat.triangles.size(), 3u);
+}
+
+// Normals follow the inverse transpose at any scale: a uniform scale of 1e-20 (whose float
+// inverse divides by a determinant that underflows) leaves them as they are, a mirror flips
+// them with the surface, and a shear matches the float inverse transpose.
+TEST(TransformMesh, NormalsAtAnyScaleAndUnderMirrors) {
+    TriangleMesh base;
+    base.positions = {Vec3f(0, 0, 0), Vec3f(1, 0, 0), Vec3f(0, 1, 0)};
+    base.triangles = {Vec3u(0, 1, 2)};
+    base.normals = {glm::normalize(Vec3f(1, 2, 3)), Vec3f(0, 0, 1), Vec3f(0, -1, 0)};
+    auto transformed = [&](const Mat4f& m) {
+        TriangleMesh t = base;
+        transform_mesh(t, m);
+        return t;
+    };
+    const TriangleMesh tiny = transformed(glm::scale(Mat4f(1.0f), Vec3f(1e-20f)));
+    for (size_t i = 0; i < base.normals.size(); ++i) {
+        EXPECT_NEAR(glm::length(tiny.normals[i] - base.normals[i]), 0.0f, 1e-6f) << i;
+        EXPECT_EQ(tiny.positions[i], base.positions[i] * 1e-20f) << i;
+    }
+    const TriangleMesh mirror = transformed(glm::scale(Mat4f(1.0f), Vec3f(-1.0f, 1.0f, 1.0f)));
+    EXPECT_NEAR(glm::length(mirror.normals[0] - glm::normalize(Vec3f(-1, 2, 3))), 0.0f, 1e-6f);
+    Mat4f shear(1.0f);
+    shear[1][0] = 0.5f;   // x += 0.5 y
+    shear[2][1] = -2.0f;  // y -= 2 z
+    const TriangleMesh sheared = transformed(glm::scale(shear, Vec3f(-3.0f, 0.5f, 2.0f)));
+    const Mat3f expected =
+        glm::transpose(glm::inverse(Mat3f(glm::scale(shear, Vec3f(-3.0f, 0.5f, 2.0f)))));
+    for (size_t i = 0; i < base.normals.size(); ++i) {
+        const Vec3f e = glm::normalize(expected * base.normals[i]);
+        EXPECT_NEAR(glm::length(sheared.normals[i] - e), 0.0f, 1e-5f) << i;
+    }
 }
 
 }  // namespace

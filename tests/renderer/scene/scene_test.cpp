@@ -125,6 +125,13 @@ TEST(Scene, ErrorsNameFileAndKey) {
         {R"({"meshes": [{"file": "cube.ply", "transform": {"scale": 0}}]})",
          "scale must be non-zero"},
         {R"({"meshes": [{"file": "builtin:teapot"}]})", "unknown builtin mesh"},
+        // A zero column, and two parallel columns: singular at any scale.
+        {R"({"meshes": [{"file": "cube.ply", "transform": {"matrix":
+            [1, 0, 0, 0, 2, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]}}]})",
+         "meshes/0/transform/matrix: the matrix is singular"},
+        {R"({"meshes": [{"file": "cube.ply", "transform": {"matrix":
+            [1e-20, 1e-20, 0, 0, 0, 0, 1e-20, 0, 0, 0, 0, 0, 0, 0, 0, 1]}}]})",
+         "meshes/0/transform/matrix: the matrix is singular"},
         {R"({"meshes": [{"file": "cube.ply"}], "environment": {"intensity": -1}})",
          "environment/intensity"},
         {R"({"meshes": [{"file": "cube.ply"}] )", "invalid JSON"},
@@ -194,6 +201,21 @@ TEST(Scene, MeshSourceReplacesMeshFilesAndBuiltins) {
         EXPECT_NE(std::string(e.what()).find("s.json: meshes/0/file: unknown builtin mesh"),
                   std::string::npos)
             << e.what();
+    }
+}
+
+// Singularity does not depend on scale: a uniform scale of 1e-20 (or a strong anisotropic
+// one) is an invertible transform, and its normals stay finite unit vectors.
+TEST(Scene, TinyAndAnisotropicScalesAreNotSingular) {
+    auto dir = test::temp_dir("scene_scale");
+    write_file(dir, "cube.ply", kCubePly);
+    for (const char* m : {"[1e-20, 0, 0, 0, 0, 1e-20, 0, 0, 0, 0, 1e-20, 0, 0, 0, 0, 1]",
+                          "[1e-15, 0, 0, 0, 0, 1e15, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]"}) {
+        const std::string path =
+            write_file(dir, "s.json",
+                       std::string(R"({"meshes": [{"file": "cube.ply", "transform": {"matrix": )") +
+                           m + "}}]}");
+        EXPECT_EQ(error_of(path), "") << m;
     }
 }
 
