@@ -183,17 +183,16 @@ std::vector<Vec3f> compute_vertex_normals(const TriangleMesh& mesh) {
     std::vector<Vec3f> n(mesh.positions.size(), Vec3f(0.0f));
     for (const Vec3u& t : mesh.triangles) {
         const Vec3f p[3] = {mesh.positions[t.x], mesh.positions[t.y], mesh.positions[t.z]};
-        Vec3f fn = glm::cross(p[1] - p[0], p[2] - p[0]);
-        float len = glm::length(fn);
-        if (!(len > 0.0f) || !std::isfinite(len)) continue;
-        fn /= len;
+        const Vec3f fn = triangle_normal(p[0], p[1], p[2]);
+        if (fn == Vec3f(0.0f)) continue;
         for (int k = 0; k < 3; ++k) {
-            Vec3f e0 = p[(k + 1) % 3] - p[k];
-            Vec3f e1 = p[(k + 2) % 3] - p[k];
-            float l0 = glm::length(e0), l1 = glm::length(e1);
-            if (!(l0 > 0.0f) || !(l1 > 0.0f)) continue;
-            float c = glm::clamp(glm::dot(e0, e1) / (l0 * l1), -1.0f, 1.0f);
-            n[t[k]] += std::acos(c) * fn;
+            // The corner's angle, in double for the same reason as triangle_normal().
+            const Vec3d e0 = Vec3d(p[(k + 1) % 3]) - Vec3d(p[k]);
+            const Vec3d e1 = Vec3d(p[(k + 2) % 3]) - Vec3d(p[k]);
+            const double l0 = glm::length(e0), l1 = glm::length(e1);
+            if (!(l0 > 0.0) || !(l1 > 0.0)) continue;
+            const double c = glm::clamp(glm::dot(e0, e1) / (l0 * l1), -1.0, 1.0);
+            n[t[k]] += float(std::acos(c)) * fn;
         }
     }
     for (Vec3f& v : n) {

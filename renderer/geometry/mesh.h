@@ -56,6 +56,20 @@ void transform_mesh(TriangleMesh& mesh, const Mat4f& world_from_object);
 /// Angle-weighted vertex normals (Thürmer & Wüthrich 1998); degenerate triangles add nothing.
 std::vector<Vec3f> compute_vertex_normals(const TriangleMesh& mesh);
 
+/// (b - a) x (c - a) in double, whose length is twice the triangle's area: in float the
+/// squared length overflows for edges beyond about 1e9 and underflows below about 1e-10,
+/// so a normal normalised in float is lost at such scales.
+inline Vec3d triangle_cross(const Vec3f& a, const Vec3f& b, const Vec3f& c) {
+    return glm::cross(Vec3d(b) - Vec3d(a), Vec3d(c) - Vec3d(a));
+}
+
+/// Unit normal of the winding (a, b, c) at any scale; (0, 0, 0) for a degenerate triangle.
+inline Vec3f triangle_normal(const Vec3f& a, const Vec3f& b, const Vec3f& c) {
+    const Vec3d n = triangle_cross(a, b, c);
+    const double len = glm::length(n);
+    return len > 0.0 && len < 1e300 ? Vec3f(n / len) : Vec3f(0.0f);
+}
+
 /// A reordering of a mesh: new index i holds old index order[i].
 struct MeshOrder {
     std::vector<uint32_t> triangles;  ///< old triangle index of each new triangle

@@ -16,20 +16,9 @@ PathCounters& PathCounters::operator+=(const PathCounters& o) {
     return *this;
 }
 
-Vec3f offset_ray_origin(const Vec3f& p, const Vec3f& n) {
-    // Offsets proportional to the magnitude of p: move the integer representation by
-    // 256 * n ULPs; near the origin, where ULPs get tiny, add an absolute 2^-16 * n instead.
-    constexpr float kOrigin = 1.0f / 32.0f;
-    constexpr float kFloatScale = 1.0f / 65536.0f;
-    constexpr float kIntScale = 256.0f;
-    Vec3f out;
-    for (int i = 0; i < 3; ++i) {
-        const auto of = int32_t(kIntScale * n[i]);
-        const auto bits = std::bit_cast<int32_t>(p[i]);
-        const float pi = std::bit_cast<float>(bits + (p[i] < 0.0f ? -of : of));
-        out[i] = std::abs(p[i]) < kOrigin ? p[i] + kFloatScale * n[i] : pi;
-    }
-    return out;
+Vec3f offset_ray_origin(const Vec3f& p, const Vec3f& n, float scale) {
+    // At least the smallest normal float, so that a point at the very origin moves too.
+    return p + (std::max(scale, 0x1p-126f) * 0x1p-16f) * n;
 }
 
 EmitterTable build_emitter_table(const TraceScene& scene) {
@@ -45,8 +34,8 @@ EmitterTable build_emitter_table(const TraceScene& scene) {
         if (!(mean > 0.0f)) continue;
         const Vec3u& t = mesh.triangles[i];
         const Vec3f& p0 = mesh.positions[t.x];
-        const float area =
-            0.5f * glm::length(glm::cross(mesh.positions[t.y] - p0, mesh.positions[t.z] - p0));
+        const auto area =
+            float(0.5 * glm::length(triangle_cross(p0, mesh.positions[t.y], mesh.positions[t.z])));
         const float w = area * mean;
         if (!(area > 0.0f) || !std::isfinite(w)) continue;
         table.triangles.push_back(uint32_t(i));
@@ -89,8 +78,9 @@ struct Frame {
 // Everything shading needs about a hit.
 struct SurfacePoint {
     Vec3f p;
-    Vec3f ng;     // unit geometric normal; two-sided materials: flipped towards wo
-    Frame frame;  // shading frame (n = shading normal, same side as ng)
+    float offset_scale;  // of rays leaving p (offset_ray_origin)
+    Vec3f ng;            // unit geometric normal; two-sided materials: flipped towards wo
+    Frame frame;         // shading frame (n = shading normal, same side as ng)
     const Material* material;
 };
 
@@ -102,9 +92,9 @@ SurfacePoint make_surface(const TraceScene& scene, const Ray& ray, const Hit& hi
     SurfacePoint s;
     // Barycentric interpolation is more accurate than origin + t * dir far from the origin.
     s.p = w * p0 + hit.u * p1 + hit.v * p2;
-    Vec3f ng = glm::cross(p1 - p0, p2 - p0);
-    const float len = glm::length(ng);
-    ng = len > 0.0f && std::isfinite(len) ? ng / len : -ray.dir;
+    s.offset_scale = offset_scale(s.p, p0, p1, p2);
+    Vec3f ng = triangle_normal(p0, p1, p2);
+    if (ng == Vec3f(0.0f)) ng = -ray.dir;
     const ShadingInstance& inst = scene.instances[scene.instance_of(hit.prim)];
     s.material = &inst.material;
     Vec3f ns = ng;
@@ -209,9 +199,8 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
                 radiance += beta * mat.emission;
             } else if (use_mis) {
                 const float cos_l = std::fabs(glm::dot(sp.ng, ray.dir));
-                const float light_pdf =
-                    float(double(mean_component(mat.emission)) / scene.emitters.total) * hit.t *
-                    hit.t / cos_l;
+                const auto light_pdf = float(double(mean_component(mat.emission)) /
+                                             scene.emitters.total * double(hit.t) * hit.t / cos_l);
                 radiance += beta * mat.emission * power_heuristic(prev_bsdf_pdf, light_pdf);
             }
         }
@@ -236,7 +225,7 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
                 const Vec3f f = bsdf_eval(mat, wo, wi, params.diffuse_sampling);
                 if (max_component(f) > 0.0f) {
                     Ray shadow;
-                    shadow.origin = offset_ray_origin(sp.p, sp.ng);
+                    shadow.origin = offset_ray_origin(sp.p, sp.ng, sp.offset_scale);
                     shadow.dir = ls.dir;
                     ++counters.shadow_rays;
                     recorder.any(shadow);
@@ -267,23 +256,24 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
             const Vec2f u_pt = sampler.next_2d();
             const float b1 = su * (1.0f - u_pt.x), b2 = su * u_pt.x;
             const Vec3f pl = (1.0f - b1 - b2) * p0 + b1 * p1 + b2 * p2;
-            Vec3f nl = glm::cross(p1 - p0, p2 - p0);
-            nl /= glm::length(nl);
-            const Vec3f d = pl - sp.p;
-            const float dist2 = glm::dot(d, d);
-            const Vec3f wi_l = d / std::sqrt(dist2);
+            const Vec3f nl = triangle_normal(p0, p1, p2);
+            // Distances in double: a float squared distance overflows beyond about 1e19.
+            const Vec3d d = Vec3d(pl) - Vec3d(sp.p);
+            const double dist2 = glm::dot(d, d);
+            const Vec3f wi_l(d / std::sqrt(dist2));
             const float cos_l = std::fabs(glm::dot(nl, wi_l));
             const Material& lm = scene.instances[scene.instance_of(prim)].material;
-            const float pdf =
-                float(double(mean_component(lm.emission)) / scene.emitters.total) * dist2 / cos_l;
-            if (dist2 > 0.0f && cos_l > 0.0f && std::isfinite(pdf) && pdf > 0.0f &&
+            const auto pdf =
+                float(double(mean_component(lm.emission)) / scene.emitters.total * dist2 / cos_l);
+            if (dist2 > 0.0 && cos_l > 0.0f && std::isfinite(pdf) && pdf > 0.0f &&
                 glm::dot(wi_l, sp.ng) > 0.0f) {
                 const Vec3f wi = sp.frame.to_local(wi_l);
                 const Vec3f f = bsdf_eval(mat, wo, wi, params.diffuse_sampling);
                 if (max_component(f) > 0.0f) {
                     Ray shadow;
-                    shadow.origin = offset_ray_origin(sp.p, sp.ng);
-                    const Vec3f end = offset_ray_origin(pl, glm::dot(nl, wi_l) < 0.0f ? nl : -nl);
+                    shadow.origin = offset_ray_origin(sp.p, sp.ng, sp.offset_scale);
+                    const Vec3f end = offset_ray_origin(pl, glm::dot(nl, wi_l) < 0.0f ? nl : -nl,
+                                                        offset_scale(pl, p0, p1, p2));
                     shadow.dir = end - shadow.origin;
                     shadow.tmax = 1.0f;
                     ++counters.shadow_rays;
@@ -321,7 +311,7 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
             beta /= survive;
         }
         ray = Ray{};
-        ray.origin = offset_ray_origin(sp.p, cos_g_in > 0.0f ? sp.ng : -sp.ng);
+        ray.origin = offset_ray_origin(sp.p, cos_g_in > 0.0f ? sp.ng : -sp.ng, sp.offset_scale);
         ray.dir = wi_world;
         ++counters.bounce_rays;
     }

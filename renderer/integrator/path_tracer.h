@@ -56,10 +56,20 @@ struct PathCounters {
 };
 
 /// Moves a ray origin p off the surface along the geometric normal n (unit, pointing to
-/// the side the ray leaves to) by a few float ULPs, with a small absolute offset near the
-/// origin (Waechter & Binder 2019, "A Fast and Robust Method for Avoiding
-/// Self-Intersection"). No scene-scale epsilon.
-Vec3f offset_ray_origin(const Vec3f& p, const Vec3f& n);
+/// the side the ray leaves to) by 2^-16 times `scale`, the largest magnitude of any
+/// coordinate of p and of the triangle it lies on (offset_scale()). The watertight test's
+/// translation and shear round each coordinate to a few ULPs of that magnitude, so a ray
+/// leaving a surface by less could find it again: from a point with one coordinate near 0
+/// and others large (a ground plane at y = 0 of a scene in millimetres) a per-coordinate
+/// offset does. No scene-scale epsilon: a scene scaled by a power of two renders the same.
+Vec3f offset_ray_origin(const Vec3f& p, const Vec3f& n, float scale);
+
+/// The `scale` of offset_ray_origin() for a point p on the triangle (a, b, c).
+inline float offset_scale(const Vec3f& p, const Vec3f& a, const Vec3f& b, const Vec3f& c) {
+    const Vec3f m =
+        glm::max(glm::max(glm::abs(p), glm::abs(a)), glm::max(glm::abs(b), glm::abs(c)));
+    return std::max(std::max(m.x, m.y), m.z);
+}
 
 /// Power heuristic with exponent 2 for one sample of each strategy.
 inline float power_heuristic(float pdf_a, float pdf_b) {

@@ -442,6 +442,44 @@ TEST(PathTracer, HardScenesStayFinite) {
     }
 }
 
+// Scaling a scene by a power of two is exact, and so is everything the path tracer does
+// with it: the image must be bit for bit the same from 2^-60 to 2^60. Ray offsets with an
+// absolute part near the origin (a ground plane at y = 0) and normals normalised in float
+// (whose squared length overflows beyond edges of about 1e9) each broke this.
+TEST(PathTracer, ImagesAreTheSameAtEveryPowerOfTwoScale) {
+    MaterialDesc lamp;
+    lamp.type = MaterialType::emissive;
+    lamp.emission = Vec3f(6.0f, 5.0f, 4.0f);
+    auto scene_at = [&](float s) {
+        return make_scene(
+            {{make_quad(s * Vec3f(-20, 0, -20), s * Vec3f(0, 0, 40), s * Vec3f(40, 0, 0)),
+              flat(diffuse(0.5f))},
+             {make_icosphere(s * Vec3f(0, 0.8f, 0), 0.8f * s, 2), test::smooth(diffuse(0.7f))},
+             {make_box(s * Vec3f(0.9f, 0, -0.3f), s * Vec3f(1.5f, 0.6f, 0.3f)),
+              flat(diffuse(0.6f))},
+             {make_quad(s * Vec3f(-1, 2.5f, -1), s * Vec3f(0.6f, 0, 0), s * Vec3f(0, 0, 0.6f)),
+              flat(compile_material(lamp))}},
+            std::make_shared<ConstantEnv>(Vec3f(0.3f, 0.4f, 0.5f)));
+    };
+    TraceParams tp;
+    tp.light_sampling = LightSampling::mis;
+    auto image_at = [&](float s) {
+        return render(scene_at(s),
+                      make_camera(s * Vec3f(2.5f, 1.8f, 3.2f), s * Vec3f(0, 0.6f, 0), {0, 1, 0},
+                                  45.0f, 24, 16),
+                      tp, 16);
+    };
+    const Image ref = image_at(1.0f);
+    ASSERT_GT(ref.counters.bounce_rays, 1000u);
+    for (int e : {-60, -20, 20, 60}) {
+        const Image img = image_at(std::ldexp(1.0f, e));
+        EXPECT_EQ(img.counters.bounce_rays, ref.counters.bounce_rays) << "scale 2^" << e;
+        EXPECT_EQ(img.counters.shadow_rays, ref.counters.shadow_rays) << "scale 2^" << e;
+        EXPECT_EQ(img.counters.nonfinite_dropped, 0u) << "scale 2^" << e;
+        EXPECT_TRUE(img.rgb == ref.rgb) << "scale 2^" << e;
+    }
+}
+
 // Offsetting along the geometric normal avoids self-intersection without a scene-scale
 // epsilon, also far from the origin.
 TEST(PathTracer, OffsetOriginsDoNotSelfIntersect) {
@@ -469,7 +507,7 @@ TEST(PathTracer, OffsetOriginsDoNotSelfIntersect) {
             make_basis(ng, tt, bb);
             const Vec3f local = sample_cosine_hemisphere({rng.next_float(), rng.next_float()});
             Ray out;
-            out.origin = offset_ray_origin(hp, ng);
+            out.origin = offset_ray_origin(hp, ng, offset_scale(hp, p[t.x], p[t.y], p[t.z]));
             out.dir = local.x * tt + local.y * bb + local.z * ng;
             Hit again;
             EXPECT_FALSE(scene.tree->intersect(out, again)) << "scale " << scale;
