@@ -957,55 +957,56 @@ void run(const Options& opt) {
                      "tests in the first leaf",
                      "leaves / ray",
                      "empty leaves skipped / ray"};
-        auto add = [&](const char* name, const std::vector<Ray>& rays, double seconds) {
+        // One counted pass per ray set (the batch queries visit exactly the same nodes per
+        // ray, counted per lane, so their rows share it); from the hit's leaf, the walked
+        // path's nodes count as visited and there is no first descent to replay.
+        struct Counted {
             TraversalCounters c;
             RayAnatomy a;
             uint64_t hits = 0;
+            size_t rays = 0;
+            bool anatomy = false;
+        };
+        auto count = [&](const std::vector<Ray>& rays, bool from_leaf) {
+            Counted w;
+            w.rays = rays.size();
+            w.anatomy = !from_leaf;
             for (const Ray& r : rays) {
                 Hit h;
-                hits += tree.intersect(r, h, &c);
-                add_anatomy(tree, r, a);
+                if (from_leaf) {
+                    const auto [start, length] = start_of(r);
+                    w.hits += tree.intersect_from(start, length, r, h, nullptr, &w.c);
+                } else {
+                    w.hits += tree.intersect(r, h, &w.c);
+                    add_anatomy(tree, r, w.a);
+                }
             }
-            if (a.nodes != c.nodes_visited || a.tests != c.triangles_tested)
+            if (w.anatomy && (w.a.nodes != w.c.nodes_visited || w.a.tests != w.c.triangles_tested))
                 throw Error(ErrorLocation{"bench kdtree"},
                             "internal: the ray anatomy replay disagrees with the traversal "
                             "counters (" +
-                                std::to_string(a.nodes) + " / " + std::to_string(a.tests) +
-                                " against " + std::to_string(c.nodes_visited) + " / " +
-                                std::to_string(c.triangles_tested) + ")");
-            const double n = double(std::max<size_t>(rays.size(), 1));
-            const double ns = seconds * double(threads) / n * 1e9;
-            const double nodes = double(c.nodes_visited) / n;
-            tc.rows.push_back(
-                {name, fmt("%.1f", nodes), fmt("%.1f", double(c.triangles_tested) / n),
-                 fmt("%.1f", 100.0 * double(hits) / n), fmt("%.0f", ns),
-                 fmt("%.2f", nodes > 0.0 ? ns / nodes : 0.0),
-                 fmt("%.1f", double(a.first_descent) / n),
-                 fmt("%.1f", double(a.first_leaf_tests) / n), fmt("%.1f", double(a.leaves) / n),
-                 fmt("%.1f", double(a.empty_skipped) / n)});
+                                std::to_string(w.a.nodes) + " / " + std::to_string(w.a.tests) +
+                                " against " + std::to_string(w.c.nodes_visited) + " / " +
+                                std::to_string(w.c.triangles_tested) + ")");
+            return w;
         };
-        add("primary", primary, median(engines[0].primary_s));
-        add("diffuse", diffuse, median(engines[0].diffuse_s));
-        // The batch queries visit exactly the same nodes per ray (counted per lane).
-        add("primary, batch", primary, median(engines[1].primary_s));
-        add("diffuse, batch", diffuse, median(engines[1].diffuse_s));
-        {
-            // From the primary hit's leaf: the walked path's nodes count as visited.
-            TraversalCounters c;
-            uint64_t hits = 0;
-            for (const Ray& r : diffuse) {
-                const auto [start, length] = start_of(r);
-                Hit h;
-                hits += tree.intersect_from(start, length, r, h, nullptr, &c);
-            }
-            const double n = double(std::max<size_t>(diffuse.size(), 1));
-            const double ns = median(engines[2].diffuse_s) * double(threads) / n * 1e9;
-            const double nodes = double(c.nodes_visited) / n;
-            tc.rows.push_back({"diffuse, from the hit's leaf", fmt("%.1f", nodes),
-                               fmt("%.1f", double(c.triangles_tested) / n),
-                               fmt("%.1f", 100.0 * double(hits) / n), fmt("%.0f", ns),
-                               fmt("%.2f", nodes > 0.0 ? ns / nodes : 0.0), "-", "-", "-", "-"});
-        }
+        auto add = [&](const char* name, const Counted& w, double seconds) {
+            const double n = double(std::max<size_t>(w.rays, 1));
+            const double ns = seconds * double(threads) / n * 1e9;
+            const double nodes = double(w.c.nodes_visited) / n;
+            auto per_ray = [&](uint64_t v) { return w.anatomy ? fmt("%.1f", double(v) / n) : "-"; };
+            tc.rows.push_back(
+                {name, fmt("%.1f", nodes), fmt("%.1f", double(w.c.triangles_tested) / n),
+                 fmt("%.1f", 100.0 * double(w.hits) / n), fmt("%.0f", ns),
+                 fmt("%.2f", nodes > 0.0 ? ns / nodes : 0.0), per_ray(w.a.first_descent),
+                 per_ray(w.a.first_leaf_tests), per_ray(w.a.leaves), per_ray(w.a.empty_skipped)});
+        };
+        const Counted cp = count(primary, false), cd = count(diffuse, false);
+        add("primary", cp, median(engines[0].primary_s));
+        add("diffuse", cd, median(engines[0].diffuse_s));
+        add("primary, batch", cp, median(engines[1].primary_s));
+        add("diffuse, batch", cd, median(engines[1].diffuse_s));
+        add("diffuse, from the hit's leaf", count(diffuse, true), median(engines[2].diffuse_s));
         tables.push_back(tc);
     }
 

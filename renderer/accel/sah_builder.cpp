@@ -276,20 +276,25 @@ public:
     explicit SplitAreas(const Bounds3f& box) : lower_(box.lower), ext_(Vec3d(box.upper) - lower_) {
         const double area = 2.0 * (ext_.x * ext_.y + ext_.y * ext_.z + ext_.z * ext_.x);
         valid_ = area > 0.0 && std::isfinite(area);
-        inv_area_ = valid_ ? 1.0 / area : 0.0;
+        const double inv_area = valid_ ? 1.0 / area : 0.0;
+        // Per split axis, what the sweep's inner loop needs, scaled by 2 / SA(box).
+        for (int k = 0; k < 3; ++k) {
+            const double d1 = ext_[(k + 1) % 3], d2 = ext_[(k + 2) % 3];
+            cross_[k] = 2.0 * d1 * d2 * inv_area;
+            sum_[k] = 2.0 * (d1 + d2) * inv_area;
+        }
     }
     bool valid() const { return valid_; }
     /// SA(left) / SA(box) and SA(right) / SA(box) for the plane at p on axis k.
     void ratios(int k, float p, float& p_left, float& p_right) const {
-        const double d1 = ext_[(k + 1) % 3], d2 = ext_[(k + 2) % 3];
-        const double cross = d1 * d2, sum = d1 + d2, x = double(p) - lower_[k];
-        p_left = float(2.0 * (cross + x * sum) * inv_area_);
-        p_right = float(2.0 * (cross + (ext_[k] - x) * sum) * inv_area_);
+        const double x = double(p) - lower_[k];
+        p_left = float(cross_[k] + x * sum_[k]);
+        p_right = float(cross_[k] + (ext_[k] - x) * sum_[k]);
     }
 
 private:
     Vec3d lower_, ext_;
-    double inv_area_ = 0.0;
+    double cross_[3] = {}, sum_[3] = {};
     bool valid_ = false;
 };
 

@@ -37,6 +37,14 @@ using detail::TreeView;
 using detail::upper_slack;
 using detail::view_of;
 
+// The path of the current node while a query records one (kPath): nodes[0..depth]. A stack
+// entry keeps its node's depth, so a pop restores it; the entries above that depth are still
+// the popped node's ancestors, since the stack is last in, first out.
+struct PathRecord {
+    uint32_t depth;
+    uint32_t nodes[KdPath::kMaxLength];
+};
+
 // Descends from node idx to a leaf, pushing far children; returns the leaf and leaves idx
 // at it, or an empty leaf when no child is left to enter. At each inner node: visit_near =
 // !(ts < lower_slack(t0)), visit_far = !(ts > upper_slack(t1)), and a child that is an
@@ -52,14 +60,6 @@ using detail::view_of;
 // prediction lets the next fetch start before ts is known. The stack cannot overflow: a
 // tree is checked to be at most 64 deep when it is made, and each level pushes at most one
 // entry.
-// The path of the current node while a query records one (kPath): nodes[0..depth]. A stack
-// entry keeps its node's depth, so a pop restores it; the entries above that depth are still
-// the popped node's ancestors, since the stack is last in, first out.
-struct PathRecord {
-    uint32_t depth;
-    uint32_t nodes[KdPath::kMaxLength];
-};
-
 template <bool kCount, bool kPath = false>
 inline KdNode descend(const KdNode* nodes, uint32_t& idx, const RayState& rs, float t0, float& t1,
                       StackItem*& top, uint64_t& visited, PathRecord* rec = nullptr) {
@@ -393,15 +393,16 @@ bool trace_one(const TreeView& tv, const Ray& ray, Hit* hit, TraversalCounters* 
     bool any = false;
     while (go) {
         const KdNode node = descend<kCount, kPath>(tv.nodes, idx, rs, t0, t1, top, visited, &rec);
-        const uint32_t prim_before = best.prim;
-        const float t_before = best.t;
+        const BestHit before = best;
         if (test_leaf<kAnyHit, kDirect>(node, tv, rs, best, tested)) {
             any = true;
             break;
         }
-        if (kPath && (best.prim != prim_before || best.t != t_before)) {
-            leaf->length = rec.depth + 1;
-            std::copy(rec.nodes, rec.nodes + rec.depth + 1, leaf->nodes);
+        if constexpr (kPath) {
+            if (best.prim != before.prim || best.t != before.t) {
+                leaf->length = rec.depth + 1;
+                std::copy(rec.nodes, rec.nodes + rec.depth + 1, leaf->nodes);
+            }
         }
         go = pop<kPath>(stack, top, best.t, idx, t0, t1, &rec);
     }

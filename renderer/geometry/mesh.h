@@ -2,6 +2,7 @@
 // Depends on core only.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -67,7 +68,7 @@ inline Vec3d triangle_cross(const Vec3f& a, const Vec3f& b, const Vec3f& c) {
 inline Vec3f triangle_normal(const Vec3f& a, const Vec3f& b, const Vec3f& c) {
     const Vec3d n = triangle_cross(a, b, c);
     const double len = glm::length(n);
-    return len > 0.0 && len < 1e300 ? Vec3f(n / len) : Vec3f(0.0f);
+    return len > 0.0 && std::isfinite(len) ? Vec3f(n / len) : Vec3f(0.0f);
 }
 
 /// A reordering of a mesh: new index i holds old index order[i].

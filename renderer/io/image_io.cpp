@@ -898,26 +898,29 @@ void write_hdr(const std::string& path, const ImageRGB& image) {
     write_bytes(path, out.data(), out.size());
 }
 
+// The formats write_image() knows, by extension; anything else is this one error.
+void check_image_extension(const std::string& path, const std::string& ext) {
+    if (ext != ".png" && ext != ".exr" && ext != ".pfm" && ext != ".hdr")
+        fail(path, "unknown image format '" + ext + "' (use .png, .exr, .pfm or .hdr)");
+}
+
 void write_image(const std::string& path, const ImageRGB& image, const ToneParams& tone,
                  const ImageMetadata& metadata) {
-    std::string ext = lower_extension(path);
+    const std::string ext = lower_extension(path);
+    check_image_extension(path, ext);
     if (ext == ".png") {
         write_png(path, image, tone, metadata);
     } else if (ext == ".exr") {
         write_exr(path, image, metadata);
     } else if (ext == ".pfm") {
         write_pfm(path, image);
-    } else if (ext == ".hdr") {
-        write_hdr(path, image);
     } else {
-        fail(path, "unknown image extension '" + ext + "' (use .png, .exr, .pfm or .hdr)");
+        write_hdr(path, image);
     }
 }
 
 void check_image_output(const std::string& path) {
-    const std::string ext = lower_extension(path);
-    if (ext != ".png" && ext != ".exr" && ext != ".pfm" && ext != ".hdr")
-        fail(path, "unknown image format '" + ext + "' (use .png, .exr, .pfm or .hdr)");
+    check_image_extension(path, lower_extension(path));
     namespace fs = std::filesystem;
     std::error_code ec;
     if (fs::is_directory(fs::path(path), ec)) fail(path, "is a directory");
