@@ -6,6 +6,7 @@
 #include <string>
 
 #include "app/commands.h"
+#include "app/options_cli.h"
 #include "renderer/accel/kdtree_cache.h"
 #include "renderer/core/error.h"
 #include "renderer/core/timer.h"
@@ -42,20 +43,11 @@ void print_stats(const KdTree& tree) {
 void add_build_command(CLI::App& parent) {
     auto* cmd = parent.add_subcommand(
         "build", "Build the kd-tree of a model (reused from the cache when valid) and print it");
-    static std::string model, output, cache_dir, builder = kKdBuilderNames[size_t(KdBuilder::sah)];
+    static std::string model, output, cache_dir;
     static KdTreeParams params;
-    static bool no_median = false, no_center = false, no_cutoff = false;
     static int subdivide = 0;
     cmd->add_option("MODEL", model, "Model file (.ply, .ply.gz, .obj)")->required();
-    cmd->add_option("--builder", builder, "kd-tree builder: thesis or sah")->capture_default_str();
-    cmd->add_option("--q", params.q, "Thesis cost correction q in (0, 1]")->capture_default_str();
-    cmd->add_option("--n0", params.n0, "Thesis cost correction n0 >= 0")->capture_default_str();
-    cmd->add_option("--depth", params.max_depth, "Maximum depth, 0 = automatic")
-        ->capture_default_str();
-    cmd->add_flag("--no-median", no_median, "Thesis builder: no median-vertex split candidates");
-    cmd->add_flag("--no-center", no_center, "Thesis builder: no spatial-middle split candidates");
-    cmd->add_flag("--no-cutoff", no_cutoff, "Thesis builder: no cut-off-empty-space candidates");
-    cmd->add_option("--threads", params.threads, "Build threads, 0 = all")->capture_default_str();
+    add_tree_options(*cmd, params);
     cmd->add_option("--subdivide", subdivide, "Split every triangle into 4^K first")
         ->check(CLI::Range(0, 4));
     cmd->add_option("-o,--output", output,
@@ -64,10 +56,6 @@ void add_build_command(CLI::App& parent) {
                     "Cache directory (default: next to the model, else $KDT_CACHE_DIR/trees, "
                     "$XDG_CACHE_HOME/kdtrace/trees or ~/.cache/kdtrace/trees)");
     cmd->callback([] {
-        params.builder = KdBuilder(parse_name(kKdBuilderNames, builder, "--builder"));
-        params.use_median_split = !no_median;
-        params.use_center_split = !no_center;
-        params.use_cutoff_split = !no_cutoff;
         validate(params);
         if (!output.empty()) {
             // Fail before a long build, not after it.

@@ -8,24 +8,11 @@
 
 #include "renderer/accel/builder.h"
 #include "renderer/core/error.h"
+#include "renderer/core/fields.h"
 #include "renderer/core/timer.h"
 
 namespace kdt {
 namespace {
-
-constexpr int kMaxTreeDepth = 64;  // the traversal stack holds one entry per level
-
-[[noreturn]] void bad_param(const std::string& name, const std::string& value,
-                            const std::string& range) {
-    throw Error(ErrorLocation{"", "kd-tree parameter " + name},
-                "value " + value + " is outside " + range);
-}
-
-std::string num(double v) {
-    std::ostringstream s;
-    s << v;
-    return s.str();
-}
 
 // Bytes of a tree's nodes and leaf indices.
 uint64_t array_bytes(size_t nodes, size_t indices) {
@@ -34,22 +21,7 @@ uint64_t array_bytes(size_t nodes, size_t indices) {
 
 }  // namespace
 
-void validate(const KdTreeParams& p) {
-    if (size_t(p.builder) >= kKdBuilderNames.size())
-        bad_param("builder", std::to_string(int(p.builder)), "{thesis, sah}");
-    if (!std::isfinite(p.q) || !(p.q > 0.0f) || !(p.q <= 1.0f)) bad_param("q", num(p.q), "(0, 1]");
-    if (p.n0 < 0 || p.n0 > 1000000) bad_param("n0", std::to_string(p.n0), "[0, 1000000]");
-    if (p.max_depth < 0 || p.max_depth > kMaxTreeDepth)
-        bad_param("max_depth", std::to_string(p.max_depth), "[0, 64] (0 = automatic)");
-    if (!std::isfinite(p.traversal_cost) || !(p.traversal_cost > 0.0f))
-        bad_param("traversal_cost", num(p.traversal_cost), "(0, inf)");
-    if (!std::isfinite(p.intersect_cost) || !(p.intersect_cost > 0.0f))
-        bad_param("intersect_cost", num(p.intersect_cost), "(0, inf)");
-    if (!std::isfinite(p.empty_bonus) || p.empty_bonus < 0.0f || p.empty_bonus > 1.0f)
-        bad_param("empty_bonus", num(p.empty_bonus), "[0, 1]");
-    if (p.threads < 0 || p.threads > 1024)
-        bad_param("threads", std::to_string(p.threads), "[0, 1024] (0 = default)");
-}
+void validate(const KdTreeParams& p) { validate_fields(p, kd_tree_fields(), "tree"); }
 
 KdTree::KdTree(std::shared_ptr<const TriangleMesh> mesh, Bounds3f bounds, std::vector<KdNode> nodes,
                std::vector<uint32_t> indices, KdTreeParams params, KdTreeStats stats,

@@ -6,9 +6,11 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
+#include "renderer/core/fields.h"
 #include "renderer/core/math.h"
 #include "renderer/geometry/mesh.h"
 
@@ -220,7 +222,15 @@ private:
 std::shared_ptr<const KdTree> build_kdtree(std::shared_ptr<const TriangleMesh> mesh,
                                            const KdTreeParams& params);
 
-/// Checks parameters; throws kdt::Error naming the bad one (q outside (0,1], n0 < 0, ...).
+/// Deepest tree the traversal's stack holds (one entry per level).
+inline constexpr int kMaxTreeDepth = 64;
+
+/// KdTreeParams as data (renderer/core/fields.h): name, flag, help and range of every field;
+/// the defaults are KdTreeParams's initialisers.
+std::span<const Field<KdTreeParams>> kd_tree_fields();
+
+/// Checks parameters against kd_tree_fields(); throws kdt::Error naming the bad one
+/// ("tree.q must be in (0, 1] (got 1.5)").
 void validate(const KdTreeParams& params);
 
 }  // namespace kdt

@@ -33,7 +33,7 @@ constexpr int kMaxDepthHistogram = 72;
 // Traversal keeps a fixed stack; a file may not describe a deeper tree than any builder makes.
 constexpr uint32_t kMaxTreeDepth = 64;
 
-enum : uint8_t { kFlagMedian = 1, kFlagCenter = 2, kFlagCutoff = 4 };
+enum : uint8_t { kFlagMedian = 1, kFlagCenter = 2, kFlagCutoff = 4, kFlagAllAxes = 8 };
 
 // Fixed-size header, native (little-endian) layout without implicit padding; the payload
 // (nodes, then indices) follows at header_bytes.
@@ -106,7 +106,7 @@ uint64_t checksum64(const void* data, size_t bytes) {
 
 uint8_t split_flags(const KdTreeParams& p) {
     return uint8_t((p.use_median_split ? kFlagMedian : 0) | (p.use_center_split ? kFlagCenter : 0) |
-                   (p.use_cutoff_split ? kFlagCutoff : 0));
+                   (p.use_cutoff_split ? kFlagCutoff : 0) | (p.thesis_all_axes ? kFlagAllAxes : 0));
 }
 
 uint32_t float_bits(float f) {

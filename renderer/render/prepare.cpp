@@ -1,6 +1,5 @@
 #include "renderer/render/prepare.h"
 
-#include <cmath>
 #include <cstdio>
 
 #include "renderer/accel/kdtree_cache.h"
@@ -9,65 +8,61 @@
 
 namespace kdt {
 
-Prepared prepare_render(const PrepareOptions& o) {
-    Prepared out;
-    Timer timer;
+Scene load_scene_with_overrides(const SceneOptions& o) {
+    validate(o);
     SceneLoadOptions lo;
     lo.drop_invalid = o.drop_invalid;
-    out.scene = o.scene_path.empty() ? make_default_scene() : load_scene_or_model(o.scene_path, lo);
+    Scene scene =
+        o.scene_path.empty() ? make_default_scene() : load_scene_or_model(o.scene_path, lo);
+    EnvironmentDesc& env = scene.environment;
     if (!o.env_file.empty()) {
-        out.scene.environment.file = o.env_file;
-        out.scene.environment.mapping = EnvMapping::latlong;
+        env.file = o.env_file;
+        env.mapping = EnvMapping::latlong;
     }
     if (!o.env_mapping.empty()) {
-        const auto mapping =
-            EnvMapping(parse_name(kEnvMappingNames, o.env_mapping, "--env-mapping"));
-        if (out.scene.environment.file.empty())
-            throw Error(
-                "--env-mapping: the scene has no environment map to map (give one with --env)");
-        out.scene.environment.mapping = mapping;
+        if (env.file.empty())
+            throw Error("scene.env_mapping: the scene has no environment map to map");
+        env.mapping = EnvMapping(parse_name(kEnvMappingNames, o.env_mapping, "scene.env_mapping"));
     }
-    if (!std::isfinite(o.env_rotation_degrees))
-        throw Error("--env-rotation must be a finite number of degrees (got " +
-                    std::to_string(o.env_rotation_degrees) + ")");
-    if (o.env_intensity) {
-        if (!(*o.env_intensity >= 0.0f && std::isfinite(*o.env_intensity)))
-            throw Error("--env-intensity must be a finite number >= 0 (got " +
-                        std::to_string(*o.env_intensity) + ")");
-        out.scene.environment.intensity = *o.env_intensity;
-    }
-    out.scene.environment.rotation_degrees += o.env_rotation_degrees;
-    if (o.camera) out.scene.camera = *o.camera;
+    if (o.env_intensity) env.intensity = *o.env_intensity;
+    env.rotation_degrees += o.env_rotation_degrees;
+    if (o.camera) scene.camera = *o.camera;
+    return scene;
+}
+
+Prepared prepare_render(const RenderOptions& o, const PrepareLog& log) {
+    validate(o);
+    Prepared out;
+    Timer timer;
+    out.scene = load_scene_with_overrides(o.scene);
     out.load_seconds = timer.seconds();
 
-    auto log =
-        o.log ? o.log : [](const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); };
-    SnapshotOptions so;
-    so.width = o.width;
-    so.height = o.height;
-    so.tree = o.tree;
-    const std::string model = o.scene_path;
-    if (o.use_cache) {
-        so.build_tree = [&](std::shared_ptr<const TriangleMesh> mesh, const KdTreeParams& params) {
-            Timer t;
-            KdCacheReport report;
-            // The merged world-space mesh of a scene file differs from the file's mesh; the
-            // cache validates the content hash, so naming it after the scene is safe.
-            auto tree =
-                get_or_build_kdtree(model, std::move(mesh), params, o.cache_dir, log, &report);
-            out.tree_seconds = t.seconds();
-            out.tree_from_cache = report.loaded;
-            return tree;
-        };
+    // The camera and the environment before the tree: a bad image size or probe fails first.
+    const Camera camera = make_camera(out.scene.camera, o.scene.width, o.scene.height);
+    TraceScene ts = merge_instances(out.scene);
+    ts.env = make_environment_light(out.scene.environment);
+
+    Timer tree_timer;
+    if (o.scene.use_cache) {
+        const PrepareLog say =
+            log ? log : [](const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); };
+        KdCacheReport report;
+        // The merged world-space mesh of a scene file differs from the file's mesh; the cache
+        // checks the content hash, so naming the file after the scene is safe.
+        ts.tree = get_or_build_kdtree(o.scene.scene_path, ts.mesh, o.tree, o.scene.cache_dir, say,
+                                      &report);
+        out.tree_from_cache = report.loaded;
     } else {
-        so.build_tree = [&](std::shared_ptr<const TriangleMesh> mesh, const KdTreeParams& params) {
-            Timer t;
-            auto tree = build_kdtree(std::move(mesh), params);
-            out.tree_seconds = t.seconds();
-            return tree;
-        };
+        ts.tree = build_kdtree(ts.mesh, o.tree);
     }
-    out.snapshot = compile_snapshot(out.scene, so);
+    out.tree_seconds = tree_timer.seconds();
+
+    auto snap = std::const_pointer_cast<RenderSnapshot>(compile_snapshot(std::move(ts), camera));
+    snap->camera_desc = out.scene.camera;
+    snap->environment = out.scene.environment;
+    snap->scene_name = out.scene.name;
+    snap->build_seconds = timer.seconds();
+    out.snapshot = std::move(snap);
     return out;
 }
 

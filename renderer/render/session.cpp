@@ -193,24 +193,11 @@ PassStats RenderSession::render_pass(const std::vector<int>& tiles, int max_spp)
     return stats;
 }
 
-void validate(const StopConditions& stop) {
-    if (stop.spp < 0)
-        throw Error("render: --spp must be positive (got " + std::to_string(stop.spp) + ")");
-    if (!(stop.seconds >= 0.0 && std::isfinite(stop.seconds)))
-        throw Error("render: --time must be a positive number of seconds (got " +
-                    std::to_string(stop.seconds) + ")");
-    if (!(stop.error >= 0.0f && std::isfinite(stop.error)))
-        throw Error("render: --error must be a positive relative error (got " +
-                    std::to_string(stop.error) + ")");
-    if (stop.max_spp < 1) throw Error("render: max_spp must be >= 1");
-    if (stop.spp == 0 && stop.seconds == 0.0 && stop.error == 0.0f) {
-        throw Error("render: give a stop condition (--spp, --time or --error)");
-    }
-}
-
 RenderProgress run_render(RenderSession& session, const StopConditions& stop,
                           const std::function<void(const RenderProgress&)>& progress) {
     validate(stop);
+    if (stop.spp == 0 && stop.seconds == 0.0 && stop.error == 0.0f)
+        throw Error("stop: no stop condition (spp, seconds or error; resolve() sets a default)");
     const bool adaptive = session.film_params().adaptive;
     const double pixels = double(session.film().pixel_count());
     const uint64_t budget = stop.spp > 0 ? uint64_t(stop.spp) * uint64_t(pixels) : 0;

@@ -14,6 +14,7 @@
 
 #include "renderer/film/film.h"
 #include "renderer/integrator/path_tracer.h"
+#include "renderer/render/render_options.h"
 #include "renderer/render/snapshot.h"
 
 namespace kdt {
@@ -87,14 +88,6 @@ private:
     std::atomic<bool> cancel_requested_{false};
 };
 
-/// When run_render() stops; any non-zero condition that is met stops it.
-struct StopConditions {
-    int spp = 0;           ///< samples per pixel (adaptive: a budget of spp * pixels in total)
-    double seconds = 0.0;  ///< wall time
-    float error = 0.0f;    ///< target mean relative error (adaptive: every pixel below it)
-    int max_spp = 65536;   ///< safety cap per pixel
-};
-
 struct RenderProgress {
     int passes = 0;
     double seconds = 0.0;
@@ -103,10 +96,6 @@ struct RenderProgress {
     size_t active_pixels = 0;
     double mean_relative_error = 0.0;
 };
-
-/// Throws kdt::Error naming the bad condition (negative, NaN or infinite values, none
-/// given), so a caller can check them before it loads a scene or builds a tree.
-void validate(const StopConditions& stop);
 
 /// Runs passes until a stop condition holds (or cancel). Calls progress after each pass.
 /// Throws kdt::Error when the conditions do not pass validate().

@@ -1,5 +1,5 @@
-// Render settings as text: enum names for flags, and the JSON written into image metadata
-// (kdtrace:params, kdtrace:camera) so that any image can be re-rendered exactly.
+// Render settings as text: enum names, and the camera's JSON written into image metadata
+// (kdtrace:camera; the parameters are options_to_json(), render_options.h).
 // Depends on integrator, film, accel, scene.
 #pragma once
 
@@ -27,20 +27,11 @@ size_t parse_name(const std::array<const char*, N>& names, const std::string& va
     throw Error(what + ": unknown value '" + value + "' (one of: " + allowed + ")");
 }
 
-/// Largest thread count a render or build accepts (more is a typo, not a machine).
-inline constexpr int kMaxThreads = 1024;
-
-/// Throws kdt::Error naming the parameter when a trace or film parameter is out of range
-/// or not finite (for example a negative depth, a NaN threshold, 10^5 threads).
+/// Throws kdt::Error naming the field ("trace.max_depth must be in [0, 1024] (got -1)") when
+/// a trace or film parameter is out of its range (render_options.h's tables).
 void validate_render_params(const TraceParams& trace, const FilmParams& film);
 
-/// JSON object of all trace, film and tree parameters (one line).
-std::string params_to_json(const TraceParams& trace, const FilmParams& film,
-                           const KdTreeParams& tree);
 /// JSON object of the camera: eye, target, up, vfov_degrees, width, height (one line).
 std::string camera_to_json(const Camera& camera);
-/// Reads params_to_json() output back; unknown keys throw kdt::Error.
-void params_from_json(const std::string& json, TraceParams& trace, FilmParams& film,
-                      KdTreeParams& tree);
 
 }  // namespace kdt

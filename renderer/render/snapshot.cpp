@@ -7,23 +7,11 @@
 
 namespace kdt {
 
-namespace {
-
-std::shared_ptr<const KdTree> build_tree(const SnapshotOptions& options,
-                                         std::shared_ptr<const TriangleMesh> mesh) {
-    if (options.build_tree) return options.build_tree(std::move(mesh), options.tree);
-    return build_kdtree(std::move(mesh), options.tree);
+Camera make_camera(const CameraDesc& c, int width, int height) {
+    return make_camera(c.eye, c.target, c.up, c.vfov_degrees, width, height);
 }
 
-}  // namespace
-
-std::shared_ptr<const RenderSnapshot> compile_snapshot(const Scene& scene,
-                                                       const SnapshotOptions& options) {
-    Timer timer;
-    // The camera first: a bad image size or field of view fails before any tree is built.
-    const CameraDesc& c = scene.camera;
-    const Camera camera =
-        make_camera(c.eye, c.target, c.up, c.vfov_degrees, options.width, options.height);
+TraceScene merge_instances(const Scene& scene) {
     TraceScene ts;
     auto merged = std::make_shared<TriangleMesh>();
     bool any_smooth = false;
@@ -74,18 +62,21 @@ std::shared_ptr<const RenderSnapshot> compile_snapshot(const Scene& scene,
         ts.triangle_instance.insert(ts.triangle_instance.end(), m.triangles.size(), uint32_t(i));
     }
     ts.mesh = merged;
-    ts.env = options.env ? options.env : make_environment_light(scene.environment);
-    ts.tree = build_tree(options, merged);
-    ts.emitters = build_emitter_table(ts);
-    ts.runs = build_instance_runs(ts);
+    return ts;
+}
 
-    auto snap = std::make_shared<RenderSnapshot>();
-    snap->scene = std::move(ts);
-    snap->camera = camera;
-    snap->camera_desc = c;
+std::shared_ptr<const RenderSnapshot> compile_snapshot(const Scene& scene,
+                                                       const SnapshotOptions& options) {
+    Timer timer;
+    // The camera first: a bad image size or field of view fails before any tree is built.
+    const Camera camera = make_camera(scene.camera, options.width, options.height);
+    TraceScene ts = merge_instances(scene);
+    ts.env = options.env ? options.env : make_environment_light(scene.environment);
+    auto snap =
+        std::const_pointer_cast<RenderSnapshot>(compile_snapshot(std::move(ts), camera, options));
+    snap->camera_desc = scene.camera;
     snap->environment = scene.environment;
     snap->scene_name = scene.name;
-    snap->tree_params = options.tree;
     snap->build_seconds = timer.seconds();
     return snap;
 }
@@ -98,7 +89,7 @@ std::shared_ptr<const RenderSnapshot> compile_snapshot(TraceScene scene, const C
         throw Error("snapshot: triangle_instance must have one entry per triangle");
     }
     if (!scene.env) scene.env = options.env ? options.env : make_environment_light({});
-    if (!scene.tree) scene.tree = build_tree(options, scene.mesh);
+    if (!scene.tree) scene.tree = build_kdtree(scene.mesh, options.tree);
     scene.emitters = build_emitter_table(scene);
     scene.runs = build_instance_runs(scene);
     auto snap = std::make_shared<RenderSnapshot>();
@@ -108,7 +99,7 @@ std::shared_ptr<const RenderSnapshot> compile_snapshot(TraceScene scene, const C
     snap->camera_desc.target = camera.eye + camera.forward;
     snap->camera_desc.up = camera.up;
     snap->camera_desc.vfov_degrees = camera.vfov_degrees;
-    snap->tree_params = options.tree;
+    snap->tree_params = snap->scene.tree->params();
     snap->build_seconds = timer.seconds();
     return snap;
 }

@@ -4,7 +4,6 @@
 // Depends on scene, accel, light, integrator, camera.
 #pragma once
 
-#include <functional>
 #include <memory>
 #include <string>
 
@@ -15,14 +14,9 @@
 
 namespace kdt {
 
-/// Builds (or fetches from a cache) the kd-tree over the merged world-space mesh.
-using TreeBuildFn = std::function<std::shared_ptr<const KdTree>(std::shared_ptr<const TriangleMesh>,
-                                                                const KdTreeParams&)>;
-
 struct SnapshotOptions {
     int width = 640, height = 480;  ///< film size in pixels
-    KdTreeParams tree;              ///< kd-tree parameters
-    TreeBuildFn build_tree;         ///< empty = build_kdtree()
+    KdTreeParams tree;              ///< kd-tree parameters, when the tree is built here
     /// Replaces the scene's environment when set (tests, `--env` after loading).
     std::shared_ptr<const EnvironmentLight> env;
 };
@@ -37,8 +31,19 @@ struct RenderSnapshot {
     double build_seconds = 0.0;  ///< wall time of compile_snapshot (tree included)
 };
 
-/// Merges all instances (applying world_from_object), computes angle-weighted normals for
-/// smooth instances without file normals, builds the tree and the environment light.
+/// The camera of a scene's CameraDesc for a width x height film; throws kdt::Error for a bad
+/// image size, field of view or view direction.
+Camera make_camera(const CameraDesc& camera, int width, int height);
+
+/// Merges all instances (applying world_from_object, each instance's triangles in spatial
+/// order) into one world-space mesh with per-triangle instance ids and, when any instance is
+/// smooth, angle-weighted normals for smooth instances without file normals. No tree and no
+/// environment yet. Throws kdt::Error for instances without a loaded mesh, bad materials,
+/// vertices that overflow under their transform or out-of-range indices.
+TraceScene merge_instances(const Scene& scene);
+
+/// merge_instances(), then the environment light and the tree (built here with
+/// options.tree).
 /// Throws kdt::Error for instances without a loaded mesh, bad materials, a bad camera or
 /// environment.
 std::shared_ptr<const RenderSnapshot> compile_snapshot(const Scene& scene,

@@ -73,19 +73,19 @@ set_tests_properties(smoke.bench_kdtree_bad_sah_cost PROPERTIES
 add_test(NAME smoke.build_bad_builder COMMAND ${_kdt} build
          /usr/share/assimp/models/PLY/cube.ply --builder bvh -o ${_tmp}/cube_bad.kdt)
 set_tests_properties(smoke.build_bad_builder PROPERTIES
-  PASS_REGULAR_EXPRESSION "--builder: unknown value 'bvh' \\(one of: thesis, sah\\)")
+  PASS_REGULAR_EXPRESSION "--builder must be one of: thesis, sah \\(got 'bvh'\\)")
 
 add_test(NAME smoke.build_bad_q COMMAND ${_kdt} build /usr/share/assimp/models/PLY/cube.ply
          --q 0 -o ${_tmp}/cube_bad.kdt)
 set_tests_properties(smoke.build_bad_q PROPERTIES
-  PASS_REGULAR_EXPRESSION "kd-tree parameter q: value 0 is outside \\(0, 1\\]")
+  PASS_REGULAR_EXPRESSION "--q must be in \\(0, 1\\] \\(got 0\\)")
 
 # Explicit zero stop conditions and options that would be ignored are errors, not defaults.
-foreach(_case "spp;0;--spp must be positive \\(got 0\\)"
-              "error;0;--error must be a positive relative error \\(got 0\\)"
-              "time;0;--time must be a positive number of seconds \\(got 0\\)"
-              "env-rotation;inf;--env-rotation must be a finite number of degrees"
-              "env-mapping;angular;--env-mapping: the scene has no environment map")
+foreach(_case "spp;0;--spp must be in \\(0, 1073741824\\] \\(got 0\\)"
+              "error;0;--error must be in \\(0, 1e\\+06\\] \\(got 0\\)"
+              "time;0;--time must be in \\(0, 1e\\+09\\] \\(got 0\\)"
+              "env-rotation;inf;--env-rotation must be a finite number in \\[-36000, 36000\\]"
+              "env-mapping;angular;scene.env_mapping \\(--env-mapping\\): the scene has no environment map")
   list(GET _case 0 _flag)
   list(GET _case 1 _value)
   list(GET _case 2 _expect)

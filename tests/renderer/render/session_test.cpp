@@ -4,13 +4,17 @@
 
 #include <cmath>
 #include <cstring>
+#include <filesystem>
+#include <iterator>
 #include <string>
 #include <thread>
 
 #include <gtest/gtest.h>
 
 #include "renderer/core/error.h"
+#include "renderer/render/prepare.h"
 #include "tests/renderer/integrator/test_scenes.h"
+#include "tests/test_util.h"
 
 namespace kdt {
 namespace {
@@ -278,11 +282,12 @@ TEST(RenderSession, RejectsBadParametersWithTheirNames) {
         EXPECT_EQ(checked, rendered);
         return rendered;
     };
-    EXPECT_TRUE(has(stop_error([](StopConditions& c) { c.spp = -1; }), "--spp"));
-    EXPECT_TRUE(has(stop_error([](StopConditions& c) { c.seconds = std::nan(""); }), "--time"));
-    EXPECT_TRUE(has(stop_error([](StopConditions& c) { c.seconds = -1.0; }), "--time"));
-    EXPECT_TRUE(has(stop_error([](StopConditions& c) { c.error = std::nanf(""); }), "--error"));
-    EXPECT_TRUE(has(stop_error([](StopConditions& c) { c.error = INFINITY; }), "--error"));
+    EXPECT_TRUE(has(stop_error([](StopConditions& c) { c.spp = -1; }), "stop.spp"));
+    EXPECT_TRUE(
+        has(stop_error([](StopConditions& c) { c.seconds = std::nan(""); }), "stop.seconds"));
+    EXPECT_TRUE(has(stop_error([](StopConditions& c) { c.seconds = -1.0; }), "stop.seconds"));
+    EXPECT_TRUE(has(stop_error([](StopConditions& c) { c.error = std::nanf(""); }), "stop.error"));
+    EXPECT_TRUE(has(stop_error([](StopConditions& c) { c.error = INFINITY; }), "stop.error"));
     EXPECT_EQ(stop_error([](StopConditions&) {}), "");
 }
 
@@ -361,30 +366,29 @@ TEST(RenderSnapshot, CompilesAScene) {
 }
 
 // A bad camera (image size, field of view) is reported before any tree is built: a build of
-// minutes on a big model would otherwise come before the error.
+// minutes on a big model would otherwise come before the error. The tree cache directory
+// shows whether a tree was built.
 TEST(RenderSnapshot, BadCameraFailsBeforeTheTreeIsBuilt) {
-    Scene scene;
-    MeshInstance a;
-    a.mesh = std::make_shared<TriangleMesh>(test::make_box({0, 0, 0}, {1, 1, 1}));
-    scene.meshes = {a};
-    scene.camera.eye = {0, 0, 6};
-    int builds = 0;
-    SnapshotOptions opt;
-    opt.env = std::make_shared<ConstantEnv>(Vec3f(0.5f));
-    opt.build_tree = [&](std::shared_ptr<const TriangleMesh> mesh, const KdTreeParams& params) {
-        ++builds;
-        return build_kdtree(std::move(mesh), params);
+    const std::filesystem::path dir = test::temp_dir("bad_camera_cache");
+    RenderOptions o;
+    o.scene.cache_dir = dir.string();
+    o.scene.width = o.scene.height = 8;
+    auto trees = [&] {
+        return std::distance(std::filesystem::directory_iterator(dir),
+                             std::filesystem::directory_iterator());
     };
-    opt.width = 100000;
-    opt.height = 100000;
-    EXPECT_THROW(compile_snapshot(scene, opt), Error);
-    opt.width = opt.height = 16;
-    scene.camera.vfov_degrees = 180.0f;
-    EXPECT_THROW(compile_snapshot(scene, opt), Error);
-    EXPECT_EQ(builds, 0);
-    scene.camera.vfov_degrees = 40.0f;
-    EXPECT_TRUE(compile_snapshot(scene, opt));
-    EXPECT_EQ(builds, 1);
+    CameraDesc wide;
+    wide.vfov_degrees = 180.0f;
+    o.scene.camera = wide;
+    EXPECT_NE(error_of([&] { prepare_render(o, [](const std::string&) {}); }), "");
+    o.scene.width = 100000;
+    o.scene.camera.reset();
+    EXPECT_NE(error_of([&] { prepare_render(o, [](const std::string&) {}); }).find("scene.width"),
+              std::string::npos);
+    EXPECT_EQ(trees(), 0);
+    o.scene.width = 8;
+    EXPECT_TRUE(prepare_render(o, [](const std::string&) {}).snapshot);
+    EXPECT_EQ(trees(), 1);
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
-// Ray sets shared by the benchmarks: the views file (assets/views/*.json), jittered primary
-// rays per view, one-bounce cosine-distributed diffuse rays, and parallel tracing helpers.
+// Ray sets shared by the benchmarks: jittered primary rays per view of a views file
+// (renderer/scene/views.h), one-bounce cosine-distributed diffuse rays, and parallel tracing
+// helpers.
 // Deterministic: every random number is a hash of (seed, view, pixel, sample).
 #pragma once
 
@@ -14,47 +15,14 @@
 #include "renderer/core/math.h"
 #include "renderer/core/timer.h"
 #include "renderer/geometry/mesh.h"
-#include "renderer/scene/scene.h"
+#include "renderer/scene/views.h"
 
 namespace kdt::app {
-
-/// One named camera of a views file.
-struct BenchView {
-    std::string name;   ///< "A", "B", ...
-    std::string label;  ///< "front", "side", ...
-    CameraDesc camera;
-};
-
-/// A views file: image size, samples per pixel, seed and the cameras.
-struct BenchViewSet {
-    int width = 640;
-    int height = 480;
-    int samples_per_pixel = 8;
-    uint64_t seed = 1;
-    std::vector<BenchView> views;
-};
-
-/// Reads a views file. Unknown keys, wrong types and missing values throw kdt::Error naming
-/// the file and the key (a JSON pointer).
-BenchViewSet load_views(const std::string& path);
-
-/// The camera of view `name` in a views file (empty path = assets/views/dragon.json).
-/// Throws kdt::Error naming the file and the views it has when there is no such view.
-CameraDesc find_view(const std::string& views_path, const std::string& name);
-
-/// Finds a file under the assets directory: $KDT_ASSETS_DIR, ./assets, then assets/ relative
-/// to the executable (build/bin/../../assets, bin/../share/kdtrace/assets). Throws kdt::Error
-/// when none exists.
-std::string find_asset(const std::string& relative);
-
-/// Pinhole camera ray through raster position (x, y) in pixels (y down, pixel (0,0) covers
-/// [0,1)^2), the CameraDesc conventions: vertical fov, right = forward x up. Unit direction.
-Ray camera_ray(const CameraDesc& camera, int width, int height, float x, float y);
 
 /// width*height*spp primary rays with box-filter jitter, in 8x8-pixel tiles (tile-major,
 /// then pixels row-major, then samples) so consecutive rays are coherent.
 /// The jitter of (pixel, sample) depends only on (seed, view_index, pixel, sample).
-std::vector<Ray> make_primary_rays(const BenchViewSet& set, size_t view_index);
+std::vector<Ray> make_primary_rays(const ViewSet& set, size_t view_index);
 
 /// For every ray that hit (hits[i].valid()), one cosine-distributed ray about the
 /// geometric normal flipped to face the incoming ray, starting at the hit point offset

@@ -1,31 +1,20 @@
-#include "app/bench_rays.h"
+#include "renderer/scene/views.h"
 
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <set>
-
-#include <unistd.h>
 
 #include <nlohmann/json.hpp>
 
 #include "renderer/core/error.h"
 #include "renderer/core/open_file.h"
-#include "renderer/material/material.h"
 
-namespace kdt::app {
+namespace kdt {
 namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-uint64_t splitmix64(uint64_t x) {
-    x += 0x9e3779b97f4a7c15ull;
-    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
-    x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
-    return x ^ (x >> 31);
-}
 
 [[noreturn]] void bad(const std::string& path, const std::string& pointer, const std::string& msg) {
     throw Error(ErrorLocation{path, pointer}, msg);
@@ -70,16 +59,7 @@ Vec3f vec3(const std::string& path, const std::string& pointer, const json& v) {
 
 }  // namespace
 
-float hash_uniform(uint64_t a, uint64_t b, uint64_t c, uint64_t d) {
-    uint64_t h = splitmix64(a);
-    h = splitmix64(h ^ b);
-    h = splitmix64(h ^ c);
-    h = splitmix64(h ^ d);
-    // 24 high bits: exactly representable, strictly below 1.
-    return float(h >> 40) * 0x1.0p-24f;
-}
-
-BenchViewSet load_views(const std::string& path) {
+ViewSet load_views(const std::string& path) {
     const std::vector<uint8_t> text = read_regular_file(path, uint64_t(16) << 20, "a views file");
     json doc;
     try {
@@ -92,7 +72,7 @@ BenchViewSet load_views(const std::string& path) {
     }
     check_keys(path, "", doc,
                {"description", "model", "width", "height", "samples_per_pixel", "seed", "views"});
-    BenchViewSet set;
+    ViewSet set;
     if (doc.contains("width")) set.width = positive_int(path, "/width", doc["width"], 16384);
     if (doc.contains("height")) set.height = positive_int(path, "/height", doc["height"], 16384);
     if (doc.contains("samples_per_pixel")) {
@@ -109,7 +89,7 @@ BenchViewSet load_views(const std::string& path) {
         const std::string ptr = "/views/" + std::to_string(i);
         const json& v = views[i];
         check_keys(path, ptr, v, {"name", "label", "eye", "target", "up", "vfov_degrees"});
-        BenchView view;
+        View view;
         const json& name = need(path, ptr, v, "name");
         if (!name.is_string() || name.get<std::string>().empty()) {
             bad(path, ptr + "/name", "expected a non-empty string");
@@ -139,9 +119,9 @@ BenchViewSet load_views(const std::string& path) {
 
 CameraDesc find_view(const std::string& views_path, const std::string& name) {
     const std::string path = views_path.empty() ? find_asset("views/dragon.json") : views_path;
-    const BenchViewSet set = load_views(path);
+    const ViewSet set = load_views(path);
     std::string names;
-    for (const BenchView& v : set.views) {
+    for (const View& v : set.views) {
         if (v.name == name) return v.camera;
         names += (names.empty() ? "" : ", ") + v.name;
     }
@@ -160,87 +140,17 @@ std::string find_asset(const std::string& relative) {
         roots.push_back(bin / ".." / "assets");
         roots.push_back(bin / ".." / "share" / "kdtrace" / "assets");
     }
+#ifdef KDT_SOURCE_ASSETS_DIR
+    roots.emplace_back(KDT_SOURCE_ASSETS_DIR);
+#endif
     for (const fs::path& r : roots) {
         fs::path p = r / relative;
         if (fs::is_regular_file(p, ec)) return fs::weakly_canonical(p, ec).string();
     }
-    throw Error(ErrorLocation{relative},
-                "asset not found (looked in $KDT_ASSETS_DIR, ./assets and next to the executable)");
+    throw Error(
+        ErrorLocation{relative},
+        "asset not found (looked in $KDT_ASSETS_DIR, ./assets, next to the executable and in "
+        "the source tree)");
 }
 
-Ray camera_ray(const CameraDesc& camera, int width, int height, float x, float y) {
-    const Vec3f forward = glm::normalize(camera.target - camera.eye);
-    const Vec3f right = glm::normalize(glm::cross(forward, camera.up));
-    const Vec3f up = glm::cross(right, forward);
-    const float tan_half = std::tan(0.5f * camera.vfov_degrees * kPi / 180.0f);
-    const float aspect = float(width) / float(height);
-    const float sx = (2.0f * x / float(width) - 1.0f) * tan_half * aspect;
-    const float sy = (1.0f - 2.0f * y / float(height)) * tan_half;
-    Ray r;
-    r.origin = camera.eye;
-    r.dir = glm::normalize(forward + sx * right + sy * up);
-    return r;
-}
-
-std::vector<Ray> make_primary_rays(const BenchViewSet& set, size_t view_index) {
-    const CameraDesc& cam = set.views.at(view_index).camera;
-    const int w = set.width, h = set.height, spp = set.samples_per_pixel;
-    constexpr int kTile = 8;
-    std::vector<Ray> rays;
-    rays.reserve(size_t(w) * size_t(h) * size_t(spp));
-    for (int ty = 0; ty < h; ty += kTile) {
-        for (int tx = 0; tx < w; tx += kTile) {
-            for (int y = ty; y < std::min(h, ty + kTile); ++y) {
-                for (int x = tx; x < std::min(w, tx + kTile); ++x) {
-                    const uint64_t pixel = uint64_t(y) * uint64_t(w) + uint64_t(x);
-                    for (int s = 0; s < spp; ++s) {
-                        const float jx = hash_uniform(set.seed, view_index, pixel, 2 * uint64_t(s));
-                        const float jy =
-                            hash_uniform(set.seed, view_index, pixel, 2 * uint64_t(s) + 1);
-                        rays.push_back(camera_ray(cam, w, h, float(x) + jx, float(y) + jy));
-                    }
-                }
-            }
-        }
-    }
-    return rays;
-}
-
-std::vector<Ray> make_diffuse_rays(const TriangleMesh& mesh, const std::vector<Ray>& rays,
-                                   const std::vector<Hit>& hits, uint64_t seed,
-                                   std::vector<uint32_t>* sources) {
-    std::vector<Ray> out;
-    out.reserve(rays.size());
-    if (sources) sources->clear();
-    for (size_t i = 0; i < rays.size(); ++i) {
-        const Hit& hit = hits[i];
-        if (!hit.valid() || hit.prim >= mesh.triangle_count()) continue;
-        const Vec3u t = mesh.triangles[hit.prim];
-        const Vec3f p0 = mesh.positions[t.x], p1 = mesh.positions[t.y], p2 = mesh.positions[t.z];
-        // The hit point from barycentrics is accurate to a few ULPs of the vertices; o + t d
-        // would carry the error of t times the ray length.
-        const Vec3f p = (1.0f - hit.u - hit.v) * p0 + hit.u * p1 + hit.v * p2;
-        Vec3f n = glm::cross(p1 - p0, p2 - p0);
-        const float len = glm::length(n);
-        if (!(len > 0.0f) || !std::isfinite(len)) continue;
-        n /= len;
-        if (glm::dot(n, rays[i].dir) > 0.0f) n = -n;
-        // Offset by 16 ULPs of the largest coordinate of p: scales with the position, not
-        // with the scene (Wächter & Binder 2019 argue the same in integer ULP space).
-        const float m = std::max({std::fabs(p.x), std::fabs(p.y), std::fabs(p.z)});
-        const float offset = std::max(m, 1e-30f) * 0x1.0p-19f;
-        Ray r;
-        r.origin = p + offset * n;
-        // Cosine-distributed direction about n, with the path tracer's own sampling.
-        const Vec3f local = sample_cosine_hemisphere(
-            {hash_uniform(seed, 0x5eed, i, 0), hash_uniform(seed, 0x5eed, i, 1)});
-        Vec3f b1, b2;
-        make_basis(n, b1, b2);
-        r.dir = glm::normalize(local.x * b1 + local.y * b2 + local.z * n);
-        out.push_back(r);
-        if (sources) sources->push_back(uint32_t(i));
-    }
-    return out;
-}
-
-}  // namespace kdt::app
+}  // namespace kdt

@@ -18,9 +18,9 @@
 #include <utility>
 #include <vector>
 
-#include "app/bench_rays.h"
+#include "app/bench/bench_rays.h"
+#include "app/bench/peer_embree.h"
 #include "app/commands.h"
-#include "app/peer_embree.h"
 #include "renderer/accel/brute_force.h"
 #include "renderer/accel/kdtree_cache.h"
 #include "renderer/accel/traversal_detail.h"
@@ -378,7 +378,7 @@ std::vector<Ray> make_nonfinite_rays(const std::vector<Ray>& rays) {
 
 // A grey-scale picture of a view (first sample per pixel, |cos| between ray and geometric
 // normal) to check the framing of the views file by eye.
-void save_view_image(const std::string& path, const BenchViewSet& set, const TriangleMesh& mesh,
+void save_view_image(const std::string& path, const ViewSet& set, const TriangleMesh& mesh,
                      const std::vector<Ray>& rays, const std::vector<Hit>& hits) {
     const int w = set.width, h = set.height, spp = set.samples_per_pixel;
     std::vector<unsigned char> img(size_t(w) * size_t(h), 0);
@@ -495,7 +495,7 @@ void run(const Options& opt) {
     const int repeat = std::max(1, opt.repeat);
     const std::string model = opt.model.empty() ? default_model() : opt.model;
     const std::string views_path = opt.views.empty() ? find_asset("views/dragon.json") : opt.views;
-    BenchViewSet views = load_views(views_path);
+    ViewSet views = load_views(views_path);
     if (opt.spp > 0) views.samples_per_pixel = opt.spp;
 
     // Which rows.

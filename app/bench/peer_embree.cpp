@@ -1,4 +1,4 @@
-#include "app/peer_embree.h"
+#include "app/bench/peer_embree.h"
 
 #ifdef KDT_HAVE_EMBREE
 

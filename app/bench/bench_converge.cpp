@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "app/bench_rays.h"
+#include "app/bench/bench_rays.h"
 #include "app/commands.h"
 #include "renderer/core/error.h"
 #include "renderer/core/timer.h"
@@ -239,15 +239,15 @@ void run(const ConvergeArgs& a) {
     if (a.max_spp < 1 || a.reference_spp < 1)
         throw Error("--max-spp and --reference-spp must be >= 1");
     fs::create_directories(a.out_dir);
-    PrepareOptions po;
-    po.scene_path = a.scene;
-    po.env_file = a.env;
-    po.width = a.width;
-    po.height = a.height;
-    po.tree.threads = a.threads;
-    po.use_cache = !a.no_cache;
-    if (!a.view.empty()) po.camera = find_view(a.views, a.view);
-    const Prepared prep = prepare_render(po);
+    RenderOptions ro;
+    ro.scene.scene_path = a.scene;
+    ro.scene.env_file = a.env;
+    ro.scene.width = a.width;
+    ro.scene.height = a.height;
+    ro.tree.threads = a.threads;
+    ro.scene.use_cache = !a.no_cache;
+    if (!a.view.empty()) ro.scene.camera = find_view(a.views, a.view);
+    const Prepared prep = prepare_render(ro);
     std::printf("bench converge: %s%s%s, %dx%d, tree %.2f s\n",
                 a.scene.empty() ? "default scene" : a.scene.c_str(), a.env.empty() ? "" : " under ",
                 a.env.c_str(), a.width, a.height, prep.tree_seconds);
@@ -268,21 +268,20 @@ void run(const ConvergeArgs& a) {
         }
         std::printf("reference: %s\n", a.reference.c_str());
     } else {
-        TraceParams tp;
+        TraceParams& tp = ro.trace;
         tp.seed = a.seed ^ 0x5eed5eed5eedull;
         tp.threads = a.threads;
         tp.max_depth = a.path_depth;
         tp.samples_per_pass = 16;
         RenderSession rs(prep.snapshot, tp, FilmParams{});
-        StopConditions stop;
-        stop.spp = a.reference_spp;
-        const RenderProgress p = run_render(rs, stop);
+        ro.stop.spp = a.reference_spp;
+        const RenderProgress p = run_render(rs, ro.stop);
         ref = ImageRGB(a.width, a.height);
         ref.rgb = rs.film().linear_rgb();
         const std::string path =
             a.reference.empty() ? (fs::path(a.out_dir) / "reference.exr").string() : a.reference;
         write_image(path, ref, {},
-                    {{"kdtrace:params", params_to_json(tp, FilmParams{}, po.tree)},
+                    {{"kdtrace:params", options_to_json(ro)},
                      {"kdtrace:spp", std::to_string(a.reference_spp)}});
         std::printf("reference: %d spp in %.1f s -> %s\n", a.reference_spp, p.seconds,
                     path.c_str());

@@ -1,0 +1,140 @@
+#include "app/options_cli.h"
+
+#include <cctype>
+#include <cstring>
+#include <utility>
+
+#include "renderer/core/error.h"
+#include "renderer/scene/views.h"
+
+namespace kdt::app {
+
+namespace {
+
+bool skipped(const char* flag, SkipFlags skip) {
+    for (const char* s : skip) {
+        if (std::strcmp(s, flag) == 0) return true;
+    }
+    return false;
+}
+
+template <class S>
+void add_fields(CLI::App& app, S& s, std::span<const Field<S>> fields, SkipFlags skip) {
+    for (const Field<S>& field : fields) {
+        if (!field.flag || skipped(field.flag, skip)) continue;
+        const Field<S>* f = &field;
+        const FieldRef ref = f->at(s);
+        if (auto* b = std::get_if<bool*>(&ref)) {
+            bool* target = *b;
+            const bool value = std::strncmp(f->flag, "--no-", 5) != 0;
+            app.add_flag_callback(
+                f->flag, [target, value] { *target = value; }, f->help);
+            continue;
+        }
+        const std::string flag = f->flag;
+        auto* opt = app.add_option_function<std::string>(
+            flag,
+            [&s, f, flag](const std::string& text) {
+                if (std::string why = parse_field(*f, s, text); !why.empty())
+                    throw Error(flag + " " + why);
+            },
+            std::holds_alternative<ChoiceRef>(ref)
+                ? std::string(f->help)
+                : std::string(f->help) + " " + field_range_text(*f));
+        opt->default_str(field_text(*f, s));
+        if (std::holds_alternative<ChoiceRef>(ref)) {
+            opt->type_name("NAME");
+        } else if (field_is_integral(ref)) {
+            opt->type_name("INT");
+        } else {
+            opt->type_name("FLOAT");
+        }
+    }
+}
+
+}  // namespace
+
+void add_tree_options(CLI::App& app, KdTreeParams& tree, SkipFlags skip) {
+    add_fields(app, tree, kd_tree_fields(), skip);
+}
+void add_trace_options(CLI::App& app, TraceParams& trace, SkipFlags skip) {
+    add_fields(app, trace, trace_fields(), skip);
+}
+void add_film_options(CLI::App& app, FilmParams& film, SkipFlags skip) {
+    add_fields(app, film, film_fields(), skip);
+}
+void add_stop_options(CLI::App& app, StopConditions& stop, SkipFlags skip) {
+    add_fields(app, stop, stop_fields(), skip);
+}
+
+void add_scene_options(CLI::App& app, SceneOptions& scene) {
+    app.add_option("SCENE", scene.scene_path,
+                   "Scene (.json) or model (.ply, .ply.gz, .obj); omitted = built-in scene");
+    app.add_option("--env", scene.env_file,
+                   "Environment map (.hdr, .exr, .pfm) replacing the scene's");
+    app.add_option("--env-mapping", scene.env_mapping, "Mapping of --env: latlong or angular");
+    app.add_option_function<float>(
+        "--env-intensity", [&scene](const float& v) { scene.env_intensity = v; },
+        "Scale of the environment radiance, replacing the scene's [0, 3e38]");
+    app.add_option("--cache-dir", scene.cache_dir, "Directory of kd-tree cache files");
+    add_fields(app, scene, scene_fields(), {});
+    // --view NAME picks a camera of a views file (--views, default: the dragon's views).
+    auto views = std::make_shared<std::string>();
+    app.add_option("--views", *views, "Views file for --view (default: the dragon's views)");
+    app.add_option_function<std::string>(
+           "--view",
+           [&scene, views](const std::string& name) { scene.camera = find_view(*views, name); },
+           "Camera of this view of the views file (A-D for the dragon)")
+        ->trigger_on_parse(false);
+}
+
+void add_render_options(CLI::App& app, RenderOptions& o) {
+    add_scene_options(app, o.scene);
+    add_stop_options(app, o.stop);
+    add_trace_options(app, o.trace);
+    add_film_options(app, o.film);
+    add_tree_options(app, o.tree, {"--threads"});
+}
+
+namespace {
+
+template <class S>
+void name_flags(std::string& m, std::span<const Field<S>> fields, const std::string& group) {
+    for (const Field<S>& f : fields) {
+        if (!f.flag) continue;
+        const std::string name = group + "." + f.name;
+        for (size_t at = m.find(name); at != std::string::npos; at = m.find(name, at + 1)) {
+            const size_t end = at + name.size();
+            const bool word = end == m.size() || !(std::isalnum(uint8_t(m[end])) || m[end] == '_');
+            if (!word) continue;
+            const std::string flag = std::string(" (") + f.flag + ")";
+            m.insert(end, flag);
+            at = end + flag.size() - 1;
+        }
+    }
+}
+
+}  // namespace
+
+std::string with_flags(const std::string& message) {
+    std::string m = message;
+    name_flags(m, scene_fields(), "scene");
+    name_flags(m, kd_tree_fields(), "tree");
+    name_flags(m, trace_fields(), "trace");
+    name_flags(m, film_fields(), "film");
+    name_flags(m, stop_fields(), "stop");
+    // The scene's string and optional fields, which have no table entry.
+    const std::pair<const char*, const char*> extras[] = {
+        {"scene.env_mapping", "--env-mapping"},
+        {"scene.env_intensity", "--env-intensity"},
+        {"scene.env_file", "--env"}};
+    for (const auto& [name, flag] : extras) {
+        const std::string insert = std::string(" (") + flag + ")";
+        for (size_t at = m.find(name); at != std::string::npos; at = m.find(name, at + 1)) {
+            m.insert(at + std::strlen(name), insert);
+        }
+    }
+    return m;
+}
+
+}  // namespace kdt::app

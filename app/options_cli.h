@@ -1,0 +1,34 @@
+// Command-line flags bound straight to the fields of the option structs (render_options.h):
+// every flag's name, help, default and range come from the structs' range tables, and a bad
+// value is an error naming the flag. Used by render, build and the benches.
+#pragma once
+
+#include <initializer_list>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "renderer/render/render_options.h"
+
+namespace kdt::app {
+
+/// Flags of fields not to register (a command that sets them itself, or shares one flag
+/// between two groups, such as --threads).
+using SkipFlags = std::initializer_list<const char*>;
+
+void add_tree_options(CLI::App& app, KdTreeParams& tree, SkipFlags skip = {});
+void add_trace_options(CLI::App& app, TraceParams& trace, SkipFlags skip = {});
+void add_film_options(CLI::App& app, FilmParams& film, SkipFlags skip = {});
+void add_stop_options(CLI::App& app, StopConditions& stop, SkipFlags skip = {});
+/// The SCENE positional, the environment overrides, the image size, the tree cache and the
+/// camera (--view, --views).
+void add_scene_options(CLI::App& app, SceneOptions& scene);
+/// All of the above for a render; --threads sets the trace's threads (resolve() gives the
+/// tree the same).
+void add_render_options(CLI::App& app, RenderOptions& options);
+
+/// A renderer message with every field name it mentions ("trace.max_depth") followed by the
+/// flag that sets it ("trace.max_depth (--path-depth)"), so a CLI user knows what to change.
+std::string with_flags(const std::string& message);
+
+}  // namespace kdt::app

@@ -1,0 +1,95 @@
+#include "renderer/core/fields.h"
+
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+
+#include "renderer/core/error.h"
+
+namespace kdt {
+
+double field_number(const FieldRef& ref) {
+    return std::visit(
+        [](auto p) -> double {
+            if constexpr (std::is_same_v<decltype(p), ChoiceRef>) {
+                return double(*p.value);
+            } else {
+                return double(*p);
+            }
+        },
+        ref);
+}
+
+void set_field_number(const FieldRef& ref, double value) {
+    std::visit(
+        [value](auto p) {
+            if constexpr (std::is_same_v<decltype(p), ChoiceRef>) {
+                *p.value = uint8_t(value);
+            } else if constexpr (std::is_same_v<decltype(p), bool*>) {
+                *p = value != 0.0;
+            } else {
+                *p = static_cast<std::remove_pointer_t<decltype(p)>>(value);
+            }
+        },
+        ref);
+}
+
+namespace detail {
+
+std::string number_text(double v) {
+    // The shortest text that reads back as the same double; floats widened to double read
+    // back exactly too, and print as the float's shortest form when that is shorter.
+    char buf[64];
+    const float f = float(v);
+    if (double(f) == v) {
+        auto r = std::to_chars(buf, buf + sizeof buf, f);
+        return std::string(buf, r.ptr);
+    }
+    auto r = std::to_chars(buf, buf + sizeof buf, v);
+    return std::string(buf, r.ptr);
+}
+
+std::string range_text(double min, double max, bool min_open, bool integral) {
+    auto text = [integral](double v) {
+        if (!integral) return number_text(v);
+        if (v >= 18446744073709551615.0) return std::string("18446744073709551615");
+        char buf[32];
+        std::snprintf(buf, sizeof buf, "%.0f", v);
+        return std::string(buf);
+    };
+    return std::string(min_open ? "(" : "[") + text(min) + ", " + text(max) + "]";
+}
+
+std::string choices_text(std::span<const char* const> names) {
+    std::string s = "one of: ";
+    for (size_t i = 0; i < names.size(); ++i) s += (i ? ", " : "") + std::string(names[i]);
+    return s;
+}
+
+std::string check_number(double v, double min, double max, bool min_open, bool integral) {
+    const std::string range = range_text(min, max, min_open, integral);
+    if (!std::isfinite(v))
+        return "must be a finite number in " + range + " (got " + number_text(v) + ")";
+    const bool below = min_open ? !(v > min) : !(v >= min);
+    if (below || !(v <= max)) return "must be in " + range + " (got " + number_text(v) + ")";
+    if (integral && v != std::trunc(v))
+        return "must be a whole number in " + range + " (got " + number_text(v) + ")";
+    return {};
+}
+
+bool parse_number(const std::string& text, double& out) {
+    if (text.empty()) return false;
+    const char* begin = text.data();
+    const char* end = text.data() + text.size();
+    if (*begin == '+') ++begin;
+    auto r = std::from_chars(begin, end, out);
+    return r.ec == std::errc() && r.ptr == end;
+}
+
+void throw_field_error(const char* group, const char* name, const std::string& reason) {
+    throw Error(std::string(group) + "." + name + " " + reason);
+}
+
+}  // namespace detail
+
+}  // namespace kdt

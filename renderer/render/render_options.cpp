@@ -1,0 +1,313 @@
+#include "renderer/render/render_options.h"
+
+#include <cmath>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "renderer/core/error.h"
+#include "renderer/render/settings.h"
+
+namespace kdt {
+
+namespace {
+
+using json = nlohmann::json;
+using SO = SceneOptions;
+using TP = TraceParams;
+using FP = FilmParams;
+using SC = StopConditions;
+
+constexpr double kMaxSeed = 18446744073709551615.0;  // 2^64 - 1 as a double (rounds to 2^64)
+
+// A float as the double that prints as the float's shortest text (2.6f as 2.6, not
+// 2.5999999046325684), which reads back as the same float.
+double json_float(float v) {
+    return std::isfinite(v) ? std::stod(detail::number_text(double(v))) : double(v);
+}
+
+const Field<SO> kSceneFields[] = {
+    KDT_FIELD(SO, width, "--width", "Image width in pixels", 1, 16384),
+    KDT_FIELD(SO, height, "--height", "Image height in pixels", 1, 16384),
+    KDT_FIELD(SO, env_rotation_degrees, "--env-rotation",
+              "Extra rotation of the environment about +y, degrees", -36000.0, 36000.0),
+    KDT_FIELD(SO, use_cache, "--no-cache", "Build the kd-tree without the tree cache"),
+    KDT_FIELD(SO, drop_invalid, "--drop-invalid", "Drop faces with non-finite vertices"),
+};
+
+const Field<TP> kTraceFields[] = {
+    KDT_FIELD(TP, max_depth, "--path-depth",
+              "Maximum bounces per path (0 = directly visible light only)", 0, 1024),
+    KDT_FIELD(TP, russian_roulette, "--no-rr", "Switch Russian roulette off"),
+    KDT_FIELD(TP, rr_min_depth, "--rr-depth", "Bounces before Russian roulette may end a path", 0,
+              1024),
+    KDT_FIELD(TP, light_sampling, "--light-sampling",
+              "Light sampling: bsdf, nee (next-event estimation) or mis (both)", 0, 2, false,
+              kLightSamplingNames),
+    KDT_FIELD(TP, env_importance, "--no-env-importance",
+              "Sample the environment uniformly instead of by its radiance"),
+    KDT_FIELD(TP, sample_emitters, "--no-emitter-sampling",
+              "Find emissive triangles by BSDF rays only"),
+    KDT_FIELD(TP, diffuse_sampling, "--diffuse-sampling", "Diffuse bounces: cosine or uniform", 0,
+              1, false, kDiffuseSamplingNames),
+    KDT_FIELD(TP, filter, "--filter", "Pixel filter: box or tent", 0, 1, false, kPixelFilterNames),
+    KDT_FIELD(TP, samples_per_pass, "--spp-per-pass", "Samples per active pixel and pass", 1,
+              1 << 20),
+    KDT_FIELD(TP, seed, "--seed", "Seed of all randomness", 0.0, kMaxSeed),
+    KDT_FIELD(TP, threads, "--threads", "Threads (0 = all)", 0, 1024),
+    KDT_FIELD(TP, count_traversal, nullptr, "Count kd-tree nodes and triangles per ray"),
+};
+
+const Field<FP> kFilmFields[] = {
+    KDT_FIELD(FP, adaptive, "--adaptive", "Adaptive sampling: stop converged pixels"),
+    KDT_FIELD(FP, adaptive_threshold, "--adaptive-threshold",
+              "Relative error at which an adaptive pixel stops", 0.0, 1e6, true),
+    KDT_FIELD(FP, adaptive_min_spp, "--adaptive-min-spp",
+              "Samples before an adaptive pixel may stop", 0, 1 << 24),
+    KDT_FIELD(FP, adaptive_max_spp, "--adaptive-max-spp",
+              "Samples at which an adaptive pixel stops (0 = no cap)", 0, 1 << 30),
+    KDT_FIELD(FP, exposure, "--exposure", "Exposure of tone-mapped output, in stops", -64.0, 64.0),
+};
+
+const Field<SC> kStopFields[] = {
+    KDT_FIELD(SC, spp, "--spp", "Stop at N samples per pixel (adaptive: N x pixels in all)", 0,
+              1 << 30, true),
+    KDT_FIELD(SC, seconds, "--time", "Stop after S seconds of rendering", 0.0, 1e9, true),
+    KDT_FIELD(SC, error, "--error",
+              "Stop when every pixel's relative error is below E (turns on adaptive sampling)", 0.0,
+              1e6, true),
+    KDT_FIELD(SC, max_spp, "--max-spp", "Cap on samples per pixel", 1, 1 << 30),
+};
+
+template <class S>
+json group_json(const S& s, std::span<const Field<S>> fields) {
+    json j = json::object();
+    for (const Field<S>& f : fields) {
+        const FieldRef r = f.at(s);
+        if (auto* b = std::get_if<bool*>(&r)) {
+            j[f.name] = **b;
+        } else if (std::holds_alternative<ChoiceRef>(r)) {
+            j[f.name] = field_text(f, s);
+        } else if (auto* u = std::get_if<uint64_t*>(&r)) {
+            j[f.name] = **u;
+        } else if (auto* i = std::get_if<int*>(&r)) {
+            j[f.name] = **i;
+        } else if (auto* x = std::get_if<float*>(&r)) {
+            j[f.name] = json_float(**x);
+        } else {
+            j[f.name] = field_number(r);
+        }
+    }
+    return j;
+}
+
+template <class S>
+void group_from_json(const json& j, S& s, std::span<const Field<S>> fields,
+                     const std::string& where, const std::string& group) {
+    if (!j.is_object()) throw Error(ErrorLocation{where, "/" + group}, "expected an object");
+    for (auto it = j.begin(); it != j.end(); ++it) {
+        const std::string pointer = "/" + group + "/" + it.key();
+        const Field<S>* field = nullptr;
+        for (const Field<S>& f : fields) {
+            if (it.key() == f.name) field = &f;
+        }
+        if (!field) throw Error(ErrorLocation{where, pointer}, "unknown key");
+        const json& v = it.value();
+        std::string text;
+        if (v.is_string()) {
+            text = v.get<std::string>();
+        } else if (v.is_boolean()) {
+            text = v.get<bool>() ? "true" : "false";
+        } else if (v.is_number_unsigned()) {
+            text = std::to_string(v.get<uint64_t>());
+        } else if (v.is_number()) {
+            text = v.dump();
+        } else {
+            throw Error(ErrorLocation{where, pointer}, "expected a number, bool or name");
+        }
+        if (std::string why = parse_field(*field, s, text); !why.empty())
+            throw Error(ErrorLocation{where, pointer}, why);
+    }
+}
+
+json vec_json(const Vec3f& v) {
+    return json::array({json_float(v.x), json_float(v.y), json_float(v.z)});
+}
+
+Vec3f vec_from_json(const json& j, const std::string& where, const std::string& pointer) {
+    if (!j.is_array() || j.size() != 3 || !j[0].is_number() || !j[1].is_number() ||
+        !j[2].is_number())
+        throw Error(ErrorLocation{where, pointer}, "expected an array of 3 numbers");
+    return Vec3f(j[0].get<float>(), j[1].get<float>(), j[2].get<float>());
+}
+
+}  // namespace
+
+std::span<const Field<SceneOptions>> scene_fields() { return kSceneFields; }
+std::span<const Field<TraceParams>> trace_fields() { return kTraceFields; }
+std::span<const Field<FilmParams>> film_fields() { return kFilmFields; }
+std::span<const Field<StopConditions>> stop_fields() { return kStopFields; }
+
+RenderOptions resolve(RenderOptions o) {
+    if (o.stop.spp == 0 && o.stop.seconds == 0.0 && o.stop.error == 0.0f) o.stop.spp = kDefaultSpp;
+    if (o.stop.error > 0.0f) {
+        o.film.adaptive = true;
+        o.film.adaptive_threshold = o.stop.error;
+    }
+    if (o.tree.threads == 0) o.tree.threads = o.trace.threads;
+    return o;
+}
+
+void validate(const SceneOptions& s) {
+    validate_fields(s, scene_fields(), "scene");
+    if (s.env_intensity) {
+        const std::string why = detail::check_number(*s.env_intensity, 0.0, 3.0e38, false, false);
+        if (!why.empty()) detail::throw_field_error("scene", "env_intensity", why);
+    }
+    if (!s.env_mapping.empty()) {
+        bool known = false;
+        for (const char* name : kEnvMappingNames) known |= s.env_mapping == name;
+        if (!known)
+            detail::throw_field_error("scene", "env_mapping",
+                                      "must be " + detail::choices_text(kEnvMappingNames) +
+                                          " (got '" + s.env_mapping + "')");
+    }
+}
+
+void validate(const TraceParams& t) { validate_fields(t, trace_fields(), "trace"); }
+void validate(const FilmParams& f) { validate_fields(f, film_fields(), "film"); }
+
+void validate(const StopConditions& s) {
+    for (const Field<SC>& f : stop_fields()) {
+        if (field_number(f.at(s)) == 0.0 && f.min_open) continue;  // off
+        if (std::string why = check_field(f, s); !why.empty())
+            detail::throw_field_error("stop", f.name, why);
+    }
+}
+
+void validate(const RenderOptions& o) {
+    validate(o.scene);
+    validate(o.tree);
+    validate(o.trace);
+    validate(o.film);
+    validate(o.stop);
+}
+
+void validate_render_params(const TraceParams& t, const FilmParams& f) {
+    validate(t);
+    validate(f);
+}
+
+std::string camera_to_json(const Camera& c) {
+    json j;
+    j["eye"] = vec_json(c.eye);
+    j["target"] = vec_json(c.eye + c.forward);
+    j["up"] = vec_json(c.up);
+    j["vfov_degrees"] = json_float(c.vfov_degrees);
+    j["width"] = c.width;
+    j["height"] = c.height;
+    return j.dump();
+}
+
+std::string options_to_json(const RenderOptions& o) {
+    json j;
+    json scene = group_json(o.scene, scene_fields());
+    if (!o.scene.scene_path.empty()) scene["scene_path"] = o.scene.scene_path;
+    if (!o.scene.env_file.empty()) scene["env_file"] = o.scene.env_file;
+    if (!o.scene.env_mapping.empty()) scene["env_mapping"] = o.scene.env_mapping;
+    if (o.scene.env_intensity) scene["env_intensity"] = json_float(*o.scene.env_intensity);
+    if (!o.scene.cache_dir.empty()) scene["cache_dir"] = o.scene.cache_dir;
+    if (o.scene.camera) {
+        scene["camera"] = {{"eye", vec_json(o.scene.camera->eye)},
+                           {"target", vec_json(o.scene.camera->target)},
+                           {"up", vec_json(o.scene.camera->up)},
+                           {"vfov_degrees", json_float(o.scene.camera->vfov_degrees)}};
+    }
+    j["scene"] = scene;
+    j["tree"] = group_json(o.tree, kd_tree_fields());
+    j["trace"] = group_json(o.trace, trace_fields());
+    j["film"] = group_json(o.film, film_fields());
+    j["stop"] = group_json(o.stop, stop_fields());
+    return j.dump();
+}
+
+void options_from_json(const std::string& text, RenderOptions& o, const std::string& where) {
+    json j;
+    try {
+        j = json::parse(text);
+    } catch (const json::exception& e) {
+        throw Error(ErrorLocation{where}, std::string("malformed JSON: ") + e.what());
+    }
+    if (!j.is_object()) throw Error(ErrorLocation{where}, "expected a JSON object");
+    try {
+        for (auto it = j.begin(); it != j.end(); ++it) {
+            const std::string& group = it.key();
+            const json& v = it.value();
+            if (group == "tree") {
+                group_from_json(v, o.tree, kd_tree_fields(), where, group);
+            } else if (group == "trace") {
+                group_from_json(v, o.trace, trace_fields(), where, group);
+            } else if (group == "film") {
+                group_from_json(v, o.film, film_fields(), where, group);
+            } else if (group == "stop") {
+                group_from_json(v, o.stop, stop_fields(), where, group);
+            } else if (group == "scene") {
+                if (!v.is_object())
+                    throw Error(ErrorLocation{where, "/scene"}, "expected an object");
+                json rest = json::object();
+                for (auto s = v.begin(); s != v.end(); ++s) {
+                    const std::string& key = s.key();
+                    const std::string pointer = "/scene/" + key;
+                    const json& x = s.value();
+                    auto str = [&]() {
+                        if (!x.is_string())
+                            throw Error(ErrorLocation{where, pointer}, "expected a string");
+                        return x.get<std::string>();
+                    };
+                    if (key == "scene_path") {
+                        o.scene.scene_path = str();
+                    } else if (key == "env_file") {
+                        o.scene.env_file = str();
+                    } else if (key == "env_mapping") {
+                        o.scene.env_mapping = str();
+                    } else if (key == "cache_dir") {
+                        o.scene.cache_dir = str();
+                    } else if (key == "env_intensity") {
+                        if (!x.is_number())
+                            throw Error(ErrorLocation{where, pointer}, "expected a number");
+                        o.scene.env_intensity = x.get<float>();
+                    } else if (key == "camera") {
+                        if (!x.is_object())
+                            throw Error(ErrorLocation{where, pointer}, "expected an object");
+                        CameraDesc c;
+                        for (auto k = x.begin(); k != x.end(); ++k) {
+                            const std::string p = pointer + "/" + k.key();
+                            if (k.key() == "eye") {
+                                c.eye = vec_from_json(k.value(), where, p);
+                            } else if (k.key() == "target") {
+                                c.target = vec_from_json(k.value(), where, p);
+                            } else if (k.key() == "up") {
+                                c.up = vec_from_json(k.value(), where, p);
+                            } else if (k.key() == "vfov_degrees" && k.value().is_number()) {
+                                c.vfov_degrees = k.value().get<float>();
+                            } else {
+                                throw Error(ErrorLocation{where, p}, "unknown key or wrong type");
+                            }
+                        }
+                        o.scene.camera = c;
+                    } else {
+                        rest[key] = x;
+                    }
+                }
+                group_from_json(rest, o.scene, scene_fields(), where, group);
+            } else {
+                throw Error(ErrorLocation{where, "/" + group}, "unknown key");
+            }
+        }
+    } catch (const json::exception& e) {
+        throw Error(ErrorLocation{where}, std::string("bad value: ") + e.what());
+    }
+    validate(o);
+}
+
+}  // namespace kdt

@@ -1,0 +1,84 @@
+// Everything a render needs, in one struct set with valid defaults: the scene to prepare, the
+// kd-tree, path tracing, film and stop conditions. Every numeric, bool and enum field is also
+// described as data (renderer/core/fields.h): validate(), the CLI's flags, the viewer's widgets
+// and the JSON of image metadata and session files all read these tables.
+// Depends on accel, integrator, film, scene.
+#pragma once
+
+#include <optional>
+#include <span>
+#include <string>
+
+#include "renderer/accel/kdtree.h"
+#include "renderer/core/fields.h"
+#include "renderer/film/film.h"
+#include "renderer/integrator/path_tracer.h"
+#include "renderer/scene/scene.h"
+
+namespace kdt {
+
+/// When a render stops; any non-zero condition that is met stops it (0 = that condition off).
+struct StopConditions {
+    int spp = 0;           ///< samples per pixel (adaptive: a budget of spp * pixels in total)
+    double seconds = 0.0;  ///< wall time
+    float error = 0.0f;    ///< target relative error; implies adaptive sampling (resolve())
+    int max_spp = 65536;   ///< safety cap per pixel
+};
+
+/// Samples per pixel of a render given no stop condition.
+inline constexpr int kDefaultSpp = 16;
+
+/// What to load and how to compile it into a snapshot (the tree's parameters are
+/// RenderOptions::tree).
+struct SceneOptions {
+    std::string scene_path;   ///< .json scene or model file; empty = make_default_scene()
+    std::string env_file;     ///< replaces the scene's environment map when non-empty
+    std::string env_mapping;  ///< "latlong" or "angular" (with env_file); empty = latlong
+    std::optional<float> env_intensity;  ///< replaces the scene's intensity (finite, >= 0)
+    float env_rotation_degrees = 0.0f;   ///< added to the scene's rotation about +y
+    std::optional<CameraDesc> camera;    ///< replaces the scene's camera when set
+    int width = 640, height = 480;       ///< image size in pixels
+    bool use_cache = true;               ///< kd-tree cache (get_or_build_kdtree)
+    std::string cache_dir;               ///< empty = the default cache places
+    bool drop_invalid = false;           ///< drop faces with non-finite vertices
+};
+
+struct RenderOptions {
+    SceneOptions scene;
+    KdTreeParams tree;
+    TraceParams trace;
+    FilmParams film;
+    StopConditions stop;
+};
+
+/// The range tables (defaults: the structs' initialisers). Messages name fields as
+/// "<group>.<name>" with the groups scene, tree, trace, film and stop.
+std::span<const Field<SceneOptions>> scene_fields();
+std::span<const Field<TraceParams>> trace_fields();
+std::span<const Field<FilmParams>> film_fields();
+/// A stop field of value 0 is off and valid; a set one must be within its range.
+std::span<const Field<StopConditions>> stop_fields();
+
+/// The options a render actually runs with; every rule that ties fields together is here and
+/// nowhere else: no stop condition means kDefaultSpp samples per pixel; an error target
+/// turns adaptive sampling on with that target as the per-pixel threshold; a tree built for a
+/// render uses the render's threads.
+RenderOptions resolve(RenderOptions options);
+
+/// Throws kdt::Error naming the first invalid field ("trace.max_depth must be in [0, 1024]
+/// (got -1)"). Checks values only: files are checked when they are opened.
+void validate(const SceneOptions& scene);
+void validate(const TraceParams& trace);
+void validate(const FilmParams& film);
+void validate(const StopConditions& stop);
+void validate(const RenderOptions& options);
+
+/// Every tabled field of every group as one JSON object {"tree": {...}, "trace": {...},
+/// "film": {...}, "stop": {...}, "scene": {...}} (one line; strings of the scene too).
+std::string options_to_json(const RenderOptions& options);
+/// Reads options_to_json() output (any subset of groups and keys) into `options`; unknown
+/// groups or keys and invalid values throw kdt::Error naming `where` and the key.
+void options_from_json(const std::string& json, RenderOptions& options,
+                       const std::string& where = "options");
+
+}  // namespace kdt
