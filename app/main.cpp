@@ -1,9 +1,55 @@
 // kdtrace: command-line entry point. Parses, dispatches, and reports errors in one place.
+#include <algorithm>
+#include <cstdint>
 #include <cstdio>
 #include <exception>
+#include <string>
+#include <vector>
 
 #include "app/commands.h"
 #include "renderer/core/error.h"
+
+namespace {
+
+size_t edit_distance(const std::string& a, const std::string& b) {
+    std::vector<size_t> row(b.size() + 1);
+    for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
+    for (size_t i = 1; i <= a.size(); ++i) {
+        size_t diag = row[0];
+        row[0] = i;
+        for (size_t j = 1; j <= b.size(); ++j) {
+            const size_t up = row[j];
+            row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] != b[j - 1])});
+            diag = up;
+        }
+    }
+    return row[b.size()];
+}
+
+// An argument where `app` expects a subcommand that names none: a message naming the word and
+// the closest subcommand, or empty when the word is fine (or an option).
+std::string unknown_subcommand(const CLI::App& app, const std::string& word) {
+    if (word.empty() || word[0] == '-') return {};
+    std::string best;
+    size_t best_distance = SIZE_MAX;
+    std::string all;
+    for (const CLI::App* sub : app.get_subcommands([](const CLI::App*) { return true; })) {
+        const std::string& name = sub->get_name();
+        if (name == word) return {};
+        all += (all.empty() ? "" : ", ") + name;
+        const size_t d = edit_distance(word, name);
+        if (d < best_distance) best_distance = d, best = name;
+    }
+    std::string message = "unknown command '" + word + "'";
+    if (best_distance <= std::max<size_t>(2, word.size() / 3)) {
+        message += " (did you mean '" + best + "'?)";
+    } else {
+        message += " (commands: " + all + ")";
+    }
+    return message;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
     CLI::App app{"kdtrace: a kd-tree path tracer for big scanned meshes"};
@@ -18,6 +64,22 @@ int main(int argc, char** argv) {
     kdt::app::add_bench_load_command(*bench);
     kdt::app::add_bench_kdtree_command(*bench);
     kdt::app::add_bench_converge_command(*bench);
+    // CLI11 would take an unknown word for a stray positional and say only that a subcommand
+    // is required.
+    const CLI::App* level = &app;
+    for (int i = 1; i < argc && level; ++i) {
+        if (argv[i][0] == '-') break;
+        if (std::string message = unknown_subcommand(*level, argv[i]); !message.empty()) {
+            std::fprintf(stderr, "kdtrace: error: %s\n", message.c_str());
+            return 1;
+        }
+        const CLI::App* next = nullptr;
+        for (const CLI::App* sub : level->get_subcommands([](const CLI::App*) { return true; }))
+            if (sub->get_name() == argv[i]) next = sub;
+        level = next && !next->get_subcommands([](const CLI::App*) { return true; }).empty()
+                    ? next
+                    : nullptr;
+    }
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

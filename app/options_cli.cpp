@@ -1,15 +1,57 @@
 #include "app/options_cli.h"
 
 #include <cctype>
+#include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <optional>
+#include <tuple>
 #include <utility>
 
 #include "renderer/core/error.h"
+#include "renderer/core/open_file.h"
 #include "renderer/scene/views.h"
 
 namespace kdt::app {
 
 namespace {
+
+// Text from the command line as it may be printed: control and non-ASCII bytes as \xHH.
+std::string printable(const std::string& s) {
+    std::string out;
+    for (unsigned char c : s) {
+        if (c >= 0x20 && c < 0x7f) {
+            out += char(c);
+        } else {
+            char buf[8];
+            std::snprintf(buf, sizeof buf, "\\x%02x", c);
+            out += buf;
+        }
+    }
+    return out;
+}
+
+// "X,Y,Z" with three finite numbers, else an error naming the flag.
+Vec3f parse_vec3(const std::string& flag, const std::string& text) {
+    Vec3f v(0.0f);
+    size_t start = 0;
+    for (int i = 0; i < 3; ++i) {
+        const size_t comma = text.find(',', start);
+        const bool last = i == 2;
+        if ((comma == std::string::npos) != last) {
+            throw Error(flag + " must be three numbers X,Y,Z (got '" + printable(text) + "')");
+        }
+        const std::string part = text.substr(start, last ? std::string::npos : comma - start);
+        double d = 0.0;
+        if (!detail::parse_number(part, d) || !std::isfinite(float(d))) {
+            throw Error(flag + " must be three finite numbers X,Y,Z (got '" + printable(text) +
+                        "')");
+        }
+        v[i] = float(d);
+        start = comma + 1;
+    }
+    return v;
+}
 
 bool skipped(const char* flag, SkipFlags skip) {
     for (const char* s : skip) {
@@ -78,6 +120,28 @@ void add_scene_options(CLI::App& app, SceneOptions& scene) {
         "Scale of the environment radiance, replacing the scene's [0, 3e38]");
     app.add_option("--cache-dir", scene.cache_dir, "Directory of kd-tree cache files");
     add_fields(app, scene, scene_fields(), {});
+    // Camera parts, each overriding the scene's (and --view's).
+    for (auto [flag, target, help] :
+         {std::tuple{"--eye", &scene.eye, "Camera position X,Y,Z (world space)"},
+          std::tuple{"--target", &scene.target, "Point the camera looks at, X,Y,Z"},
+          std::tuple{"--up", &scene.up, "Camera up direction X,Y,Z"}}) {
+        const std::string name = flag;
+        std::optional<Vec3f>* out = target;
+        app.add_option_function<std::string>(
+               name, [name, out](const std::string& text) { *out = parse_vec3(name, text); }, help)
+            ->type_name("X,Y,Z");
+    }
+    app.add_option_function<std::string>(
+           "--fov",
+           [&scene](const std::string& text) {
+               double v = 0.0;
+               if (!detail::parse_number(text, v) || !(v > 0.0 && v < 180.0))
+                   throw Error("--fov must be a vertical field of view in (0, 180) degrees (got '" +
+                               printable(text) + "')");
+               scene.vfov_degrees = float(v);
+           },
+           "Vertical field of view in degrees, (0, 180)")
+        ->type_name("DEG");
     // --view NAME picks a camera of a views file (--views, default: the dragon's views).
     auto views = std::make_shared<std::string>();
     app.add_option("--views", *views, "Views file for --view (default: the dragon's views)");
@@ -89,6 +153,16 @@ void add_scene_options(CLI::App& app, SceneOptions& scene) {
 }
 
 void add_render_options(CLI::App& app, RenderOptions& o) {
+    // First, so that the flags given with it (their callbacks run after its) override it.
+    app.add_option_function<std::string>(
+           "--session",
+           [&o](const std::string& path) {
+               const std::vector<uint8_t> text =
+                   read_regular_file(path, uint64_t(1) << 20, "a session file");
+               options_from_json(std::string(text.begin(), text.end()), o, path);
+           },
+           "Session file (the viewer's, or any options JSON): all its options, then the flags")
+        ->type_name("FILE");
     add_scene_options(app, o.scene);
     add_stop_options(app, o.stop);
     add_trace_options(app, o.trace);

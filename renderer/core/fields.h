@@ -46,6 +46,9 @@ struct Field {
     double min = 0.0, max = 0.0;  ///< inclusive range of numbers (choices: their indices)
     bool min_open = false;        ///< the lower bound itself is excluded: (min, max]
     std::span<const char* const> choices = {};  ///< an enum's names, by value
+    /// 0 is valid and means "off" (a stop condition); parse_field() still refuses an explicit
+    /// 0 outside the range, since a user who types it means something else.
+    bool zero_is_off = false;
 
     FieldRef at(S& s) const { return ref(s); }
     FieldRef at(const S& s) const { return ref(const_cast<S&>(s)); }  // read through it only
@@ -134,6 +137,7 @@ std::string check_field(const Field<S>& f, const S& s) {
         if (double(**u) >= f.min && double(**u) <= f.max) return {};
         return "must be in " + field_range_text(f) + " (got " + std::to_string(**u) + ")";
     }
+    if (f.zero_is_off && field_number(r) == 0.0) return {};
     return detail::check_number(field_number(r), f.min, f.max, f.min_open, field_is_integral(r));
 }
 

@@ -27,6 +27,10 @@ Scene load_scene_with_overrides(const SceneOptions& o) {
     if (o.env_intensity) env.intensity = *o.env_intensity;
     env.rotation_degrees += o.env_rotation_degrees;
     if (o.camera) scene.camera = *o.camera;
+    if (o.eye) scene.camera.eye = *o.eye;
+    if (o.target) scene.camera.target = *o.target;
+    if (o.up) scene.camera.up = *o.up;
+    if (o.vfov_degrees) scene.camera.vfov_degrees = *o.vfov_degrees;
     return scene;
 }
 

@@ -71,11 +71,11 @@ const Field<FP> kFilmFields[] = {
 
 const Field<SC> kStopFields[] = {
     KDT_FIELD(SC, spp, "--spp", "Stop at N samples per pixel (adaptive: N x pixels in all)", 0,
-              1 << 30, true),
-    KDT_FIELD(SC, seconds, "--time", "Stop after S seconds of rendering", 0.0, 1e9, true),
+              1 << 30, true, {}, true),
+    KDT_FIELD(SC, seconds, "--time", "Stop after S seconds of rendering", 0.0, 1e9, true, {}, true),
     KDT_FIELD(SC, error, "--error",
               "Stop when every pixel's relative error is below E (turns on adaptive sampling)", 0.0,
-              1e6, true),
+              1e6, true, {}, true),
     KDT_FIELD(SC, max_spp, "--max-spp", "Cap on samples per pixel", 1, 1 << 30),
 };
 
@@ -125,7 +125,10 @@ void group_from_json(const json& j, S& s, std::span<const Field<S>> fields,
         } else {
             throw Error(ErrorLocation{where, pointer}, "expected a number, bool or name");
         }
-        if (std::string why = parse_field(*field, s, text); !why.empty())
+        if (field->zero_is_off && v.is_number() && v.get<double>() == 0.0) text = "";
+        if (text.empty()) {
+            set_field_number(field->at(s), 0.0);  // off
+        } else if (std::string why = parse_field(*field, s, text); !why.empty())
             throw Error(ErrorLocation{where, pointer}, why);
     }
 }
@@ -139,6 +142,69 @@ Vec3f vec_from_json(const json& j, const std::string& where, const std::string& 
         !j[2].is_number())
         throw Error(ErrorLocation{where, pointer}, "expected an array of 3 numbers");
     return Vec3f(j[0].get<float>(), j[1].get<float>(), j[2].get<float>());
+}
+
+CameraDesc camera_from_json(const json& x, const std::string& where, const std::string& pointer) {
+    if (!x.is_object()) throw Error(ErrorLocation{where, pointer}, "expected an object");
+    CameraDesc c;
+    for (auto k = x.begin(); k != x.end(); ++k) {
+        const std::string p = pointer + "/" + k.key();
+        if (k.key() == "eye") {
+            c.eye = vec_from_json(k.value(), where, p);
+        } else if (k.key() == "target") {
+            c.target = vec_from_json(k.value(), where, p);
+        } else if (k.key() == "up") {
+            c.up = vec_from_json(k.value(), where, p);
+        } else if (k.key() == "vfov_degrees" && k.value().is_number()) {
+            c.vfov_degrees = k.value().get<float>();
+        } else {
+            throw Error(ErrorLocation{where, p}, "unknown key or wrong type");
+        }
+    }
+    return c;
+}
+
+// The scene group: its strings, optionals and camera here, the tabled fields by the table.
+void scene_from_json(const json& v, SceneOptions& scene, const std::string& where) {
+    if (!v.is_object()) throw Error(ErrorLocation{where, "/scene"}, "expected an object");
+    json rest = json::object();
+    for (auto s = v.begin(); s != v.end(); ++s) {
+        const std::string& key = s.key();
+        const std::string pointer = "/scene/" + key;
+        const json& x = s.value();
+        auto str = [&]() {
+            if (!x.is_string()) throw Error(ErrorLocation{where, pointer}, "expected a string");
+            return x.get<std::string>();
+        };
+        auto number = [&]() {
+            if (!x.is_number()) throw Error(ErrorLocation{where, pointer}, "expected a number");
+            return x.get<float>();
+        };
+        if (key == "scene_path") {
+            scene.scene_path = str();
+        } else if (key == "env_file") {
+            scene.env_file = str();
+        } else if (key == "env_mapping") {
+            scene.env_mapping = str();
+        } else if (key == "cache_dir") {
+            scene.cache_dir = str();
+        } else if (key == "env_intensity") {
+            scene.env_intensity = number();
+        } else if (key == "eye") {
+            scene.eye = vec_from_json(x, where, pointer);
+        } else if (key == "target") {
+            scene.target = vec_from_json(x, where, pointer);
+        } else if (key == "up") {
+            scene.up = vec_from_json(x, where, pointer);
+        } else if (key == "vfov_degrees") {
+            scene.vfov_degrees = number();
+        } else if (key == "camera") {
+            scene.camera = camera_from_json(x, where, pointer);
+        } else {
+            rest[key] = x;
+        }
+    }
+    group_from_json(rest, scene, scene_fields(), where, "scene");
 }
 
 }  // namespace
@@ -177,13 +243,7 @@ void validate(const SceneOptions& s) {
 void validate(const TraceParams& t) { validate_fields(t, trace_fields(), "trace"); }
 void validate(const FilmParams& f) { validate_fields(f, film_fields(), "film"); }
 
-void validate(const StopConditions& s) {
-    for (const Field<SC>& f : stop_fields()) {
-        if (field_number(f.at(s)) == 0.0 && f.min_open) continue;  // off
-        if (std::string why = check_field(f, s); !why.empty())
-            detail::throw_field_error("stop", f.name, why);
-    }
-}
+void validate(const StopConditions& s) { validate_fields(s, stop_fields(), "stop"); }
 
 void validate(const RenderOptions& o) {
     validate(o.scene);
@@ -223,6 +283,10 @@ std::string options_to_json(const RenderOptions& o) {
                            {"up", vec_json(o.scene.camera->up)},
                            {"vfov_degrees", json_float(o.scene.camera->vfov_degrees)}};
     }
+    if (o.scene.eye) scene["eye"] = vec_json(*o.scene.eye);
+    if (o.scene.target) scene["target"] = vec_json(*o.scene.target);
+    if (o.scene.up) scene["up"] = vec_json(*o.scene.up);
+    if (o.scene.vfov_degrees) scene["vfov_degrees"] = json_float(*o.scene.vfov_degrees);
     j["scene"] = scene;
     j["tree"] = group_json(o.tree, kd_tree_fields());
     j["trace"] = group_json(o.trace, trace_fields());
@@ -252,54 +316,7 @@ void options_from_json(const std::string& text, RenderOptions& o, const std::str
             } else if (group == "stop") {
                 group_from_json(v, o.stop, stop_fields(), where, group);
             } else if (group == "scene") {
-                if (!v.is_object())
-                    throw Error(ErrorLocation{where, "/scene"}, "expected an object");
-                json rest = json::object();
-                for (auto s = v.begin(); s != v.end(); ++s) {
-                    const std::string& key = s.key();
-                    const std::string pointer = "/scene/" + key;
-                    const json& x = s.value();
-                    auto str = [&]() {
-                        if (!x.is_string())
-                            throw Error(ErrorLocation{where, pointer}, "expected a string");
-                        return x.get<std::string>();
-                    };
-                    if (key == "scene_path") {
-                        o.scene.scene_path = str();
-                    } else if (key == "env_file") {
-                        o.scene.env_file = str();
-                    } else if (key == "env_mapping") {
-                        o.scene.env_mapping = str();
-                    } else if (key == "cache_dir") {
-                        o.scene.cache_dir = str();
-                    } else if (key == "env_intensity") {
-                        if (!x.is_number())
-                            throw Error(ErrorLocation{where, pointer}, "expected a number");
-                        o.scene.env_intensity = x.get<float>();
-                    } else if (key == "camera") {
-                        if (!x.is_object())
-                            throw Error(ErrorLocation{where, pointer}, "expected an object");
-                        CameraDesc c;
-                        for (auto k = x.begin(); k != x.end(); ++k) {
-                            const std::string p = pointer + "/" + k.key();
-                            if (k.key() == "eye") {
-                                c.eye = vec_from_json(k.value(), where, p);
-                            } else if (k.key() == "target") {
-                                c.target = vec_from_json(k.value(), where, p);
-                            } else if (k.key() == "up") {
-                                c.up = vec_from_json(k.value(), where, p);
-                            } else if (k.key() == "vfov_degrees" && k.value().is_number()) {
-                                c.vfov_degrees = k.value().get<float>();
-                            } else {
-                                throw Error(ErrorLocation{where, p}, "unknown key or wrong type");
-                            }
-                        }
-                        o.scene.camera = c;
-                    } else {
-                        rest[key] = x;
-                    }
-                }
-                group_from_json(rest, o.scene, scene_fields(), where, group);
+                scene_from_json(v, o.scene, where);
             } else {
                 throw Error(ErrorLocation{where, "/" + group}, "unknown key");
             }

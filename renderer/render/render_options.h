@@ -37,10 +37,14 @@ struct SceneOptions {
     std::optional<float> env_intensity;  ///< replaces the scene's intensity (finite, >= 0)
     float env_rotation_degrees = 0.0f;   ///< added to the scene's rotation about +y
     std::optional<CameraDesc> camera;    ///< replaces the scene's camera when set
-    int width = 640, height = 480;       ///< image size in pixels
-    bool use_cache = true;               ///< kd-tree cache (get_or_build_kdtree)
-    std::string cache_dir;               ///< empty = the default cache places
-    bool drop_invalid = false;           ///< drop faces with non-finite vertices
+    /// Each replaces one part of the camera (after `camera`): the command line's --eye,
+    /// --target, --up and --fov.
+    std::optional<Vec3f> eye, target, up;
+    std::optional<float> vfov_degrees;
+    int width = 640, height = 480;  ///< image size in pixels
+    bool use_cache = true;          ///< kd-tree cache (get_or_build_kdtree)
+    std::string cache_dir;          ///< empty = the default cache places
+    bool drop_invalid = false;      ///< drop faces with non-finite vertices
 };
 
 struct RenderOptions {

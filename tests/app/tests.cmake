@@ -98,3 +98,50 @@ add_test(NAME smoke.build_output_is_directory COMMAND ${_kdt} build
          /usr/share/assimp/models/PLY/cube.ply -o ${_tmp})
 set_tests_properties(smoke.build_output_is_directory PROPERTIES
   PASS_REGULAR_EXPRESSION "cannot write the tree: is a directory \\(give a file name\\)")
+
+# --session FILE sets every option it names, and flags given with it override them: the same
+# image as the flags alone, bit for bit.
+file(WRITE ${_tmp}/session.json
+     "{\"trace\": {\"seed\": 5, \"max_depth\": 2}, \"stop\": {\"spp\": 2},\n"
+     " \"scene\": {\"width\": 32, \"height\": 24, \"eye\": [0, 1, 6]}, \"film\": {\"exposure\": 3}}\n")
+add_test(NAME smoke.session_render COMMAND ${_kdt} render --session ${_tmp}/session.json
+         --height 20 --quiet -o ${_tmp}/session.pfm)
+add_test(NAME smoke.session_flags_render COMMAND ${_kdt} render --seed 5 --path-depth 2 --spp 2
+         --width 32 --height 20 --eye 0,1,6 --exposure 3 --quiet -o ${_tmp}/session_flags.pfm)
+add_test(NAME smoke.session_equals_flags COMMAND ${CMAKE_COMMAND} -E compare_files
+         ${_tmp}/session.pfm ${_tmp}/session_flags.pfm)
+set_tests_properties(smoke.session_equals_flags PROPERTIES
+  DEPENDS "smoke.session_render;smoke.session_flags_render")
+add_test(NAME smoke.session_bad_key COMMAND ${_kdt} render --session ${_tmp}/session_bad.json)
+file(WRITE ${_tmp}/session_bad.json "{\"trace\": {\"max_depht\": 2}}")
+set_tests_properties(smoke.session_bad_key PROPERTIES
+  PASS_REGULAR_EXPRESSION "session_bad.json: /trace/max_depht: unknown key")
+
+# Camera flags override the scene's camera; a malformed one is an error naming the flag.
+add_test(NAME smoke.camera_flags COMMAND ${_kdt} render --eye 0,1,5 --target 0,0,0 --up 0,1,0
+         --fov 30 --spp 1 --width 16 --height 12 --quiet -o ${_tmp}/camera.png)
+add_test(NAME smoke.camera_bad_eye COMMAND ${_kdt} render --eye 0,1 -o ${_tmp}/camera.png)
+set_tests_properties(smoke.camera_bad_eye PROPERTIES
+  PASS_REGULAR_EXPRESSION "--eye must be three numbers X,Y,Z \\(got '0,1'\\)")
+add_test(NAME smoke.camera_bad_fov COMMAND ${_kdt} render --fov 180 -o ${_tmp}/camera.png)
+set_tests_properties(smoke.camera_bad_fov PROPERTIES
+  PASS_REGULAR_EXPRESSION "--fov must be a vertical field of view in \\(0, 180\\) degrees")
+add_test(NAME smoke.seed_out_of_range COMMAND ${_kdt} render --seed 18446744073709551616)
+set_tests_properties(smoke.seed_out_of_range PROPERTIES
+  PASS_REGULAR_EXPRESSION "--seed must be a whole number in \\[0, 18446744073709551615\\]")
+add_test(NAME smoke.seed_negative COMMAND ${_kdt} render --seed -1)
+set_tests_properties(smoke.seed_negative PROPERTIES
+  PASS_REGULAR_EXPRESSION "--seed must be a whole number")
+
+# An unknown command is named, with the closest one.
+add_test(NAME smoke.unknown_command COMMAND ${_kdt} rendr)
+set_tests_properties(smoke.unknown_command PROPERTIES
+  PASS_REGULAR_EXPRESSION "unknown command 'rendr' \\(did you mean 'render'\\?\\)")
+add_test(NAME smoke.unknown_bench COMMAND ${_kdt} bench kdtre)
+set_tests_properties(smoke.unknown_bench PROPERTIES
+  PASS_REGULAR_EXPRESSION "unknown command 'kdtre' \\(did you mean 'kdtree'\\?\\)")
+
+# --view finds the shipped views file from any working directory.
+add_test(NAME smoke.view_from_elsewhere COMMAND ${_kdt} render --view A --spp 1 --width 8
+         --height 6 --quiet -o ${_tmp}/view.png)
+set_tests_properties(smoke.view_from_elsewhere PROPERTIES WORKING_DIRECTORY /)

@@ -1,0 +1,178 @@
+// The option structs as data: every table's defaults are valid, its ranges are enforced with
+// the field's name, the JSON of all options reads back to the same options, and the rules of
+// resolve() hold.
+#include "renderer/render/render_options.h"
+
+#include <cmath>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "renderer/core/error.h"
+
+namespace kdt {
+namespace {
+
+template <class F>
+std::string error_of(F&& f) {
+    try {
+        f();
+    } catch (const Error& e) {
+        return e.what();
+    }
+    return "";
+}
+
+// Every field of a table: the default is valid, a value past either end of its range is
+// refused by parse_field with a reason, and the range's ends are accepted.
+template <class S>
+void check_table(std::span<const Field<S>> fields, const char* group) {
+    ASSERT_FALSE(fields.empty()) << group;
+    for (const Field<S>& f : fields) {
+        SCOPED_TRACE(std::string(group) + "." + f.name);
+        S s{};
+        EXPECT_EQ(check_field(f, s), "");
+        const FieldRef r = f.at(s);
+        if (std::holds_alternative<bool*>(r)) {
+            EXPECT_EQ(parse_field(f, s, "maybe").empty(), false);
+            EXPECT_EQ(parse_field(f, s, "true"), "");
+            EXPECT_TRUE(*std::get<bool*>(r));
+            continue;
+        }
+        if (std::holds_alternative<ChoiceRef>(r)) {
+            ASSERT_FALSE(f.choices.empty());
+            for (const char* name : f.choices) {
+                EXPECT_EQ(parse_field(f, s, name), "");
+                EXPECT_EQ(field_text(f, s), name);
+            }
+            EXPECT_NE(parse_field(f, s, "no-such-name"), "");
+            continue;
+        }
+        if (std::holds_alternative<uint64_t*>(r)) {
+            EXPECT_EQ(parse_field(f, s, "18446744073709551615"), "");
+            EXPECT_EQ(*std::get<uint64_t*>(r), ~uint64_t(0));
+            EXPECT_NE(parse_field(f, s, "18446744073709551616"), "");
+            EXPECT_NE(parse_field(f, s, "-1"), "");
+            EXPECT_EQ(*std::get<uint64_t*>(r), ~uint64_t(0));  // unchanged by a refusal
+            continue;
+        }
+        const bool integral = field_is_integral(r);
+        const double below = f.min_open ? f.min : f.min - (integral ? 1.0 : std::fabs(f.min) + 1.0);
+        const double before = field_number(r);
+        EXPECT_NE(parse_field(f, s, detail::number_text(below)), "");
+        EXPECT_EQ(field_number(r), before);
+        EXPECT_NE(parse_field(f, s, "nan"), "");
+        EXPECT_NE(parse_field(f, s, "inf"), "");
+        EXPECT_NE(parse_field(f, s, "12abc"), "");
+        if (f.max < 1e30) {
+            EXPECT_NE(parse_field(f, s, detail::number_text(f.max * 2.0 + 1.0)), "");
+        }
+        EXPECT_EQ(parse_field(f, s, detail::number_text(f.max)), "") << f.max;
+        if (integral) {
+            EXPECT_NE(parse_field(f, s, "1.5"), "");
+        }
+    }
+}
+
+TEST(RenderOptions, EveryTableHasValidDefaultsAndEnforcedRanges) {
+    check_table(scene_fields(), "scene");
+    check_table(kd_tree_fields(), "tree");
+    check_table(trace_fields(), "trace");
+    check_table(film_fields(), "film");
+    check_table(stop_fields(), "stop");
+    EXPECT_NO_THROW(validate(RenderOptions{}));
+}
+
+TEST(RenderOptions, ErrorsNameTheField) {
+    RenderOptions o;
+    o.trace.max_depth = -1;
+    EXPECT_EQ(error_of([&] { validate(o); }), "trace.max_depth must be in [0, 1024] (got -1)");
+    o = RenderOptions{};
+    o.tree.q = 1.5f;
+    EXPECT_EQ(error_of([&] { validate(o); }), "tree.q must be in (0, 1] (got 1.5)");
+    o = RenderOptions{};
+    o.film.adaptive_threshold = std::nanf("");
+    EXPECT_NE(error_of([&] { validate(o); }).find("film.adaptive_threshold"), std::string::npos);
+    o = RenderOptions{};
+    o.stop.seconds = -1.0;
+    EXPECT_NE(error_of([&] { validate(o); }).find("stop.seconds"), std::string::npos);
+    o = RenderOptions{};
+    o.scene.width = 0;
+    EXPECT_NE(error_of([&] { validate(o); }).find("scene.width"), std::string::npos);
+    o = RenderOptions{};
+    o.scene.env_intensity = -2.0f;
+    EXPECT_NE(error_of([&] { validate(o); }).find("scene.env_intensity"), std::string::npos);
+    o = RenderOptions{};
+    o.trace.filter = PixelFilter(9);
+    EXPECT_NE(error_of([&] { validate(o); }).find("trace.filter must be one of: box, tent"),
+              std::string::npos);
+}
+
+TEST(RenderOptions, ResolveHoldsTheRules) {
+    RenderOptions o;
+    RenderOptions r = resolve(o);
+    EXPECT_EQ(r.stop.spp, kDefaultSpp);  // no stop condition
+    EXPECT_FALSE(r.film.adaptive);
+    o.stop.error = 0.05f;
+    o.trace.threads = 3;
+    r = resolve(o);
+    EXPECT_EQ(r.stop.spp, 0);  // the error target is a stop condition
+    EXPECT_TRUE(r.film.adaptive);
+    EXPECT_EQ(r.film.adaptive_threshold, 0.05f);
+    EXPECT_EQ(r.tree.threads, 3);
+    o.tree.threads = 1;
+    EXPECT_EQ(resolve(o).tree.threads, 1);  // a tree's own threads stay
+}
+
+TEST(RenderOptions, JsonReadsBackTheSameOptions) {
+    RenderOptions o;
+    o.scene.scene_path = "models/dragon.ply";
+    o.scene.env_file = "probes/grace.hdr";
+    o.scene.env_intensity = 2.6f;
+    o.scene.width = 123;
+    o.scene.eye = Vec3f(0.1f, 2.6f, -3.0f);
+    CameraDesc c;
+    c.eye = Vec3f(1, 2, 3);
+    c.vfov_degrees = 33.3f;
+    o.scene.camera = c;
+    o.tree.builder = KdBuilder::thesis;
+    o.tree.q = 0.9f;
+    o.tree.use_center_split = false;
+    o.trace.seed = ~uint64_t(0) - 7;
+    o.trace.light_sampling = LightSampling::nee;
+    o.film.adaptive_threshold = 0.013f;
+    o.stop.seconds = 2.5;
+    const std::string text = options_to_json(o);
+    // Floats as the shortest text that reads back the same float.
+    EXPECT_NE(text.find("\"q\":0.9,"), std::string::npos) << text;
+    EXPECT_NE(text.find("2.6"), std::string::npos);
+    EXPECT_EQ(text.find("2.5999"), std::string::npos) << text;
+    RenderOptions back;
+    options_from_json(text, back, "test");
+    EXPECT_EQ(options_to_json(back), text);
+    EXPECT_EQ(back.trace.seed, o.trace.seed);
+    EXPECT_EQ(back.tree.q, 0.9f);
+    EXPECT_EQ(*back.scene.env_intensity, 2.6f);
+    EXPECT_EQ(back.scene.camera->vfov_degrees, 33.3f);
+    EXPECT_EQ(*back.scene.eye, o.scene.eye);
+}
+
+TEST(RenderOptions, JsonRefusesWhatItCannotHonour) {
+    RenderOptions o;
+    auto bad = [&](const std::string& text) {
+        return error_of([&] { options_from_json(text, o, "s.json"); });
+    };
+    EXPECT_EQ(bad("{\"trace\": {\"max_depht\": 3}}"), "s.json: /trace/max_depht: unknown key");
+    EXPECT_EQ(bad("{\"traec\": {}}"), "s.json: /traec: unknown key");
+    EXPECT_NE(bad("{\"trace\": {\"max_depth\": -3}}").find("/trace/max_depth"), std::string::npos);
+    EXPECT_NE(bad("{\"trace\": {\"filter\": \"gauss\"}}").find("one of: box, tent"),
+              std::string::npos);
+    EXPECT_NE(bad("{\"trace\": {\"seed\": -1}}"), "");
+    EXPECT_NE(bad("{\"scene\": {\"eye\": [1, 2]}}").find("/scene/eye"), std::string::npos);
+    EXPECT_NE(bad("{\"scene\": {\"width\": 1.5}}").find("whole number"), std::string::npos);
+    EXPECT_NE(bad("[1, 2]"), "");
+    EXPECT_NE(bad("{"), "");
+}
+
+}  // namespace
+}  // namespace kdt
