@@ -43,11 +43,13 @@ void draw_progress(const RenderProgress& p, double pixels) {
     const int filled = int(p.fraction * kWidth + 0.5);
     std::string bar(size_t(filled), '#');
     bar.resize(kWidth, '.');
-    const double eta = p.fraction > 0.0 ? p.seconds * (1.0 - p.fraction) / p.fraction : 0.0;
-    std::fprintf(stderr, "\r[%s] %3d%% %s ETA %s  %.1f spp  err %.4f  active %zu   ", bar.c_str(),
-                 int(p.fraction * 100.0), human_seconds(p.seconds).c_str(),
-                 human_seconds(eta).c_str(), double(p.samples) / pixels, p.mean_relative_error,
-                 p.active_pixels);
+    const std::string eta =
+        p.fraction > 0.0 ? human_seconds(p.seconds * (1.0 - p.fraction) / p.fraction) : "?";
+    char err[32] = "err ?";
+    if (p.error_known) std::snprintf(err, sizeof err, "err %.4f", p.mean_relative_error);
+    std::fprintf(stderr, "\r[%s] %3d%% %s ETA %s  %.1f spp  %s  active %zu   ", bar.c_str(),
+                 int(p.fraction * 100.0), human_seconds(p.seconds).c_str(), eta.c_str(),
+                 double(p.samples) / pixels, err, p.active_pixels);
     std::fflush(stderr);
 }
 
@@ -136,15 +138,18 @@ void run(const RenderCommand& cmd) {
     write_image(cmd.output, image, tone, meta);
 
     const double mrays = p.seconds > 0.0 ? double(c.rays()) / p.seconds * 1e-6 : 0.0;
+    char error_buf[32];
+    std::snprintf(error_buf, sizeof error_buf, "%.4f", p.mean_relative_error);
+    const std::string error_text = p.error_known ? error_buf : "unknown (below 2 spp)";
     std::printf(
         "render: %s: %dx%d, %.2f s, %.1f spp, %.2f Mrays/s (%llu rays: %llu camera, %llu bounce, "
-        "%llu shadow; %.1f nodes, %.1f triangles per ray), est. rel. error %.4f, %llu non-finite "
+        "%llu shadow; %.1f nodes, %.1f triangles per ray), est. rel. error %s, %llu non-finite "
         "dropped, tree %.2f s%s -> %s\n",
         scene.empty() ? "default scene" : scene.c_str(), film.width(), film.height(), p.seconds,
         spp, mrays, (unsigned long long)c.rays(), (unsigned long long)c.camera_rays,
         (unsigned long long)c.bounce_rays, (unsigned long long)c.shadow_rays,
         double(c.nodes_visited) / double(std::max<uint64_t>(c.rays(), 1)),
-        double(c.triangles_tested) / double(std::max<uint64_t>(c.rays(), 1)), p.mean_relative_error,
+        double(c.triangles_tested) / double(std::max<uint64_t>(c.rays(), 1)), error_text.c_str(),
         (unsigned long long)c.nonfinite_dropped, prep.tree_seconds,
         prep.tree_from_cache ? " (cached)" : "", cmd.output.c_str());
 }

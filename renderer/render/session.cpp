@@ -218,22 +218,27 @@ RenderProgress run_render(RenderSession& session, const StopConditions& stop,
         double frac = 0.0;
         if (budget > 0) frac = std::max(frac, double(p.samples) / double(budget));
         if (stop.seconds > 0.0) frac = std::max(frac, p.seconds / stop.seconds);
-        if (stop.error > 0.0f && p.mean_relative_error > 0.0) {
-            // Error falls as 1/sqrt(samples): fraction of the way in log terms is a fair ETA.
-            frac = std::max(
-                frac, std::min(1.0, std::pow(double(stop.error) / p.mean_relative_error, 2.0)));
+        p.error_known = film.total_samples() >= 2 * uint64_t(pixels);
+        if (stop.error > 0.0f && adaptive) {
+            // Adaptive: done when every pixel is below the target, so the share of pixels
+            // that stopped, not the mean error (below the target long before the last pixel).
+            frac = std::max(frac, 1.0 - double(ps.active_pixels) / pixels);
+        } else if (stop.error > 0.0f && p.error_known && p.mean_relative_error > 0.0) {
+            // Error falls as 1/sqrt(samples): (target / error)^2 is the share of samples done.
+            frac = std::max(frac, std::pow(double(stop.error) / p.mean_relative_error, 2.0));
         }
-        p.fraction = std::min(frac, 1.0);
+        p.fraction = std::min(frac, 0.99);  // 100 % only when done
         bool done = ps.cancelled || ps.active_pixels == 0;
         if (budget > 0 && p.samples >= budget) done = true;
         if (stop.seconds > 0.0 && p.seconds >= stop.seconds) done = true;
-        if (stop.error > 0.0f && !adaptive && p.mean_relative_error > 0.0 &&
+        if (stop.error > 0.0f && !adaptive && p.error_known && p.mean_relative_error > 0.0 &&
             p.mean_relative_error <= stop.error) {
             done = true;
         }
         if (done) p.fraction = 1.0;
         if (done && !(progress || stop.error > 0.0f))
             p.mean_relative_error = film.mean_relative_error();
+        if (done) p.error_known = film.total_samples() >= 2 * uint64_t(pixels);
         if (progress) progress(p);
         if (done) break;
     }

@@ -95,6 +95,9 @@ struct RenderProgress {
     uint64_t samples = 0;
     size_t active_pixels = 0;
     double mean_relative_error = 0.0;
+    /// False until every pixel has 2 samples: with fewer, no variance is known, and
+    /// mean_relative_error is not an estimate (0 at 1 spp).
+    bool error_known = false;
 };
 
 /// Runs passes until a stop condition holds (or cancel). Calls progress after each pass.

@@ -1,0 +1,76 @@
+// run_render's progress is honest: 100 % only at the end, whatever the stop condition, and no
+// error estimate before there is a variance to estimate it from.
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "renderer/render/session.h"
+#include "tests/renderer/integrator/test_scenes.h"
+
+namespace kdt {
+namespace {
+
+std::shared_ptr<const RenderSnapshot> scene_snapshot() {
+    const TraceScene scene = test::make_scene(
+        {{test::make_icosphere({0, 0.5f, 0}, 0.5f, 2), test::smooth(test::diffuse(0.7f))},
+         {test::make_box({-1, -1, -1}, {1, 0, 1}), test::flat(test::diffuse(0.5f))}},
+        std::make_shared<test::GradientEnv>());
+    return compile_snapshot(scene, make_camera({2, 2, 3}, {0, 0, 0}, {0, 1, 0}, 40.0f, 24, 16));
+}
+
+std::vector<RenderProgress> run(const TraceParams& tp, const FilmParams& fp,
+                                const StopConditions& stop) {
+    RenderSession s(scene_snapshot(), tp, fp);
+    std::vector<RenderProgress> seen;
+    run_render(s, stop, [&](const RenderProgress& p) { seen.push_back(p); });
+    return seen;
+}
+
+void expect_full_only_at_the_end(const std::vector<RenderProgress>& seen) {
+    ASSERT_GE(seen.size(), 2u);
+    for (size_t i = 0; i + 1 < seen.size(); ++i) {
+        EXPECT_LT(seen[i].fraction, 1.0) << "pass " << i << " of " << seen.size();
+        EXPECT_GE(seen[i].fraction, 0.0);
+    }
+    EXPECT_EQ(seen.back().fraction, 1.0);
+}
+
+TEST(RunRender, AdaptiveErrorTargetReachesFullOnlyWhenDone) {
+    // The mean error falls below the target long before the last pixel does: the bar must
+    // follow the pixels still sampling, not the mean.
+    TraceParams tp;
+    tp.samples_per_pass = 4;
+    FilmParams fp;
+    fp.adaptive = true;
+    fp.adaptive_threshold = 0.03f;
+    fp.adaptive_min_spp = 8;
+    StopConditions stop;
+    stop.error = 0.03f;
+    const auto seen = run(tp, fp, stop);
+    expect_full_only_at_the_end(seen);
+    EXPECT_EQ(seen.back().active_pixels, 0u);
+}
+
+TEST(RunRender, ErrorTargetWithoutAdaptivityReachesFullOnlyWhenDone) {
+    TraceParams tp;
+    StopConditions stop;
+    stop.error = 0.1f;
+    expect_full_only_at_the_end(run(tp, FilmParams{}, stop));
+}
+
+TEST(RunRender, NoErrorEstimateBelowTwoSamples) {
+    TraceParams tp;
+    StopConditions stop;
+    stop.spp = 1;
+    auto seen = run(tp, FilmParams{}, stop);
+    ASSERT_EQ(seen.size(), 1u);
+    EXPECT_FALSE(seen.back().error_known);
+    stop.spp = 2;
+    seen = run(tp, FilmParams{}, stop);
+    EXPECT_FALSE(seen.front().error_known);
+    EXPECT_TRUE(seen.back().error_known);
+    EXPECT_GT(seen.back().mean_relative_error, 0.0);
+}
+
+}  // namespace
+}  // namespace kdt
