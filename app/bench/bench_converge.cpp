@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "app/bench/bench_rays.h"
+#include "app/bench/bench_table.h"
 #include "app/commands.h"
 #include "renderer/core/error.h"
 #include "renderer/core/timer.h"
@@ -216,10 +217,6 @@ void run_throughput(const ConvergeArgs& a, const RenderSnapshot& snap,
             (unsigned long long)hits);
         std::fflush(stdout);
     }
-    auto median = [](std::vector<double> v) {
-        std::sort(v.begin(), v.end());
-        return v[v.size() / 2];
-    };
     const double pt = median(pt_rates), pt_nc = median(pt_nc_rates), raw = median(raw_rates);
     std::printf(
         "throughput: path tracer %.3f Mrays/s, raw traversal %.3f Mrays/s, ratio %.3f (without "

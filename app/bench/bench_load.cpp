@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "app/bench/bench_table.h"
 #include "app/commands.h"
 #include "renderer/core/error.h"
 #include "renderer/core/timer.h"
@@ -43,13 +44,6 @@ double cpu_seconds() {
     timespec ts{};
     clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
     return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
-}
-
-double median(std::vector<double> v) {
-    if (v.empty()) return 0.0;
-    std::sort(v.begin(), v.end());
-    size_t n = v.size();
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 struct Row {

@@ -60,36 +60,37 @@ double trace_occluded_batch(const std::vector<Ray>& rays, int threads,
 
 // ---- implementation of the templates ----
 
-template <class IntersectBatch>
-double trace_closest_batch(const std::vector<Ray>& rays, std::vector<Hit>& hits, int threads,
-                           const IntersectBatch& intersect) {
-    hits.assign(rays.size(), Hit{});
-    const int64_t chunks = int64_t((rays.size() + kRayChunk - 1) / kRayChunk);
+// Calls chunk(begin, count) for consecutive ranges of kRayChunk of [0, n) (the last may be
+// shorter) on `threads` OpenMP threads (0 = default); returns wall seconds.
+template <class Chunk>
+double time_chunks(size_t n, int threads, const Chunk& chunk) {
+    const int64_t chunks = int64_t((n + kRayChunk - 1) / kRayChunk);
     const int nthreads = threads > 0 ? threads : omp_get_max_threads();
     Timer timer;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
     for (int64_t c = 0; c < chunks; ++c) {
         const size_t begin = size_t(c) * kRayChunk;
-        const size_t end = std::min(rays.size(), begin + kRayChunk);
-        intersect(rays.data() + begin, end - begin, hits.data() + begin);
+        chunk(begin, std::min(n, begin + kRayChunk) - begin);
     }
     return timer.seconds();
+}
+
+template <class IntersectBatch>
+double trace_closest_batch(const std::vector<Ray>& rays, std::vector<Hit>& hits, int threads,
+                           const IntersectBatch& intersect) {
+    hits.assign(rays.size(), Hit{});
+    return time_chunks(rays.size(), threads, [&](size_t begin, size_t count) {
+        intersect(rays.data() + begin, count, hits.data() + begin);
+    });
 }
 
 template <class OccludedBatch>
 double trace_occluded_batch(const std::vector<Ray>& rays, int threads,
                             const OccludedBatch& occluded, uint64_t* occluded_count) {
-    const int64_t chunks = int64_t((rays.size() + kRayChunk - 1) / kRayChunk);
-    const int nthreads = threads > 0 ? threads : omp_get_max_threads();
     std::vector<uint8_t> flags(rays.size(), 0);
-    Timer timer;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
-    for (int64_t c = 0; c < chunks; ++c) {
-        const size_t begin = size_t(c) * kRayChunk;
-        const size_t end = std::min(rays.size(), begin + kRayChunk);
-        occluded(rays.data() + begin, end - begin, flags.data() + begin);
-    }
-    const double seconds = timer.seconds();
+    const double seconds = time_chunks(rays.size(), threads, [&](size_t begin, size_t count) {
+        occluded(rays.data() + begin, count, flags.data() + begin);
+    });
     uint64_t count = 0;
     for (uint8_t f : flags) count += f;
     if (occluded_count) *occluded_count = count;

@@ -56,6 +56,22 @@ void to_embree(const Ray& ray, RTCRay& r) {
     r.flags = 0;
 }
 
+// A ray and an empty hit record, ready for rtcIntersect*.
+void to_embree(const Ray& ray, RTCRayHit& rh) {
+    to_embree(ray, rh.ray);
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+}
+
+// The context of the stream queries, with Embree's hint for coherent or incoherent rays.
+RTCIntersectContext stream_context(bool coherent) {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    context.flags =
+        coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+    return context;
+}
+
 // Our Hit from an RTCRayHit after rtcIntersect*: false (and a miss) when nothing was hit.
 bool from_embree(const RTCRayHit& rh, Hit& hit) {
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
@@ -126,9 +142,7 @@ bool EmbreePeer::intersect(const Ray& ray, Hit& hit) const {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     RTCRayHit rh;
-    to_embree(ray, rh.ray);
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+    to_embree(ray, rh);
     rtcIntersect1(static_cast<RTCScene>(scene_), &context, &rh);
     return from_embree(rh, hit);
 }
@@ -144,28 +158,18 @@ bool EmbreePeer::occluded(const Ray& ray) const {
 }
 
 void EmbreePeer::intersect(const Ray* rays, size_t n, Hit* hits, bool coherent) const {
-    RTCIntersectContext context;
-    rtcInitIntersectContext(&context);
-    context.flags =
-        coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+    RTCIntersectContext context = stream_context(coherent);
     RTCRayHit rh[kStream];
     for (size_t begin = 0; begin < n; begin += kStream) {
         const size_t m = std::min(kStream, n - begin);
-        for (size_t i = 0; i < m; ++i) {
-            to_embree(rays[begin + i], rh[i].ray);
-            rh[i].hit.geomID = RTC_INVALID_GEOMETRY_ID;
-            rh[i].hit.primID = RTC_INVALID_GEOMETRY_ID;
-        }
+        for (size_t i = 0; i < m; ++i) to_embree(rays[begin + i], rh[i]);
         rtcIntersect1M(static_cast<RTCScene>(scene_), &context, rh, unsigned(m), sizeof(RTCRayHit));
         for (size_t i = 0; i < m; ++i) from_embree(rh[i], hits[begin + i]);
     }
 }
 
 void EmbreePeer::occluded(const Ray* rays, size_t n, uint8_t* occluded, bool coherent) const {
-    RTCIntersectContext context;
-    rtcInitIntersectContext(&context);
-    context.flags =
-        coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+    RTCIntersectContext context = stream_context(coherent);
     RTCRay r[kStream];
     for (size_t begin = 0; begin < n; begin += kStream) {
         const size_t m = std::min(kStream, n - begin);

@@ -1,0 +1,210 @@
+// `kdtrace bench kdtree`: the best tree of table 6.1 against Embree on the same primary and
+// one-bounce diffuse rays, same threads: single rays, batches or streams, and (ours) diffuse
+// rays that start from the leaf of the hit they leave from.
+#include <algorithm>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "app/bench/bench_kdtree.h"
+#include "app/bench/bench_rays.h"
+
+namespace kdt::app::kdtree_bench {
+namespace {
+
+#ifdef KDT_HAVE_EMBREE
+// Embree's scene (built --repeat times, the median build time kept), queried by single rays
+// and by rtcIntersect1M streams.
+void add_embree_engines(const Context& ctx, bool robust, EngineSet& set) {
+    EmbreePeerParams ep;
+    ep.threads = ctx.threads;
+    ep.robust = robust;
+    std::vector<double> builds;
+    std::unique_ptr<EmbreePeer> peer;
+    for (int k = 0; k < ctx.repeat; ++k) {
+        peer.reset();
+        peer = std::make_unique<EmbreePeer>(*ctx.mesh, ep);
+        builds.push_back(peer->build_seconds());
+    }
+    const EmbreePeer* p = peer.get();
+    Engine e;
+    e.name = robust ? "Embree 3 (robust)" : "Embree 3";
+    e.peer = p;
+    e.build_seconds = median(builds);
+    e.bytes_per_triangle = double(p->bvh_bytes()) / ctx.triangles;
+    e.peak_mb = double(p->peak_build_bytes()) / (1024.0 * 1024.0);
+    set.peers.push_back(std::move(peer));
+    Engine stream = e;
+    stream.name += robust ? ", rtcIntersect1M" : " rtcIntersect1M";
+    stream.batch = true;
+    set.engines.push_back(std::move(e));
+    set.engines.push_back(std::move(stream));
+}
+#endif
+
+}  // namespace
+
+const RowResult& best_row(const std::vector<RowResult>& rows) {
+    const RowResult* best = &rows[0];
+    for (const RowResult& r : rows) {
+        if (r.mrays > best->mrays) best = &r;
+    }
+    return *best;
+}
+
+EngineSet make_engines(const Context& ctx, const RowResult& best) {
+    EngineSet set;
+    const KdTree& tree = *best.tree;
+    Engine ours;
+    ours.name = "kdtrace row " + best.config.id + " (" +
+                kKdBuilderNames[size_t(best.config.params.builder)] + ")";
+    ours.tree = &tree;
+    ours.build_seconds = best.build_seconds;
+    ours.bytes_per_triangle = double(tree_size(tree).bytes) / ctx.triangles;
+    ours.peak_mb = double(tree.stats().peak_build_bytes) / (1024.0 * 1024.0);
+    Engine ours_batch = ours;
+    ours_batch.name += ", batch";
+    ours_batch.batch = true;
+    Engine ours_from_leaf = ours;
+    ours_from_leaf.name += ", from the hit's leaf";
+    ours_from_leaf.from_leaf = true;
+    set.engines.push_back(std::move(ours));
+    set.engines.push_back(std::move(ours_batch));
+    set.engines.push_back(std::move(ours_from_leaf));
+#ifdef KDT_HAVE_EMBREE
+    if (ctx.opt.embree) {
+        add_embree_engines(ctx, false, set);
+        if (ctx.opt.embree_robust) add_embree_engines(ctx, true, set);
+    }
+#endif
+    return set;
+}
+
+LeafPaths make_leaf_paths(const KdTree& tree, RaySets& rays) {
+    LeafPaths paths;
+    paths.diffuse = rays.diffuse.data();
+    paths.first.assign(1, 0);
+    paths.first.reserve(rays.diffuse.size() + 1);
+    for (uint32_t src : rays.diffuse_sources) {
+        Hit h;
+        KdPath path;
+        tree.intersect(rays.primary[src], h, path);
+        paths.nodes.insert(paths.nodes.end(), path.nodes, path.nodes + path.length);
+        paths.first.push_back(paths.nodes.size());
+    }
+    rays.diffuse_sources.clear();
+    rays.diffuse_sources.shrink_to_fit();
+    return paths;
+}
+
+// Engines interleaved within each repeat so drift (thermal, other load) hits all alike.
+void time_engines(const Context& ctx, const RaySets& rays, const LeafPaths& paths,
+                  std::vector<Engine>& engines) {
+    const int threads = ctx.threads;
+    const std::vector<Ray>& primary = rays.primary;
+    const std::vector<Ray>& diffuse = rays.diffuse;
+    for (int k = 0; k < ctx.repeat; ++k) {
+        for (Engine& e : engines) {
+            if (e.from_leaf) {
+                const KdTree* t = e.tree;
+                e.primary_s.push_back(
+                    trace_closest(primary, e.primary_hits, threads, [t](const Ray& r, Hit& h) {
+                        KdPath path;
+                        t->intersect(r, h, path);
+                    }));
+                e.diffuse_s.push_back(
+                    trace_closest(diffuse, e.diffuse_hits, threads, [&](const Ray& r, Hit& h) {
+                        const auto [start, length] = paths.start_of(r);
+                        t->intersect_from(start, length, r, h);
+                    }));
+                e.shadow_s.push_back(trace_occluded(
+                    diffuse, threads,
+                    [&](const Ray& r) {
+                        const auto [start, length] = paths.start_of(r);
+                        return t->occluded_from(start, length, r);
+                    },
+                    &e.diffuse_occluded));
+                continue;
+            }
+            if (e.batch) {
+                with_batch_queries(
+                    e, [&](const auto& coherent, const auto& incoherent, const auto& occ) {
+                        e.primary_s.push_back(
+                            trace_closest_batch(primary, e.primary_hits, threads, coherent));
+                        e.diffuse_s.push_back(
+                            trace_closest_batch(diffuse, e.diffuse_hits, threads, incoherent));
+                        e.shadow_s.push_back(
+                            trace_occluded_batch(diffuse, threads, occ, &e.diffuse_occluded));
+                    });
+                continue;
+            }
+            with_queries(e, [&](const auto& isect, const auto& occ) {
+                e.primary_s.push_back(trace_closest(primary, e.primary_hits, threads, isect));
+                e.diffuse_s.push_back(trace_closest(diffuse, e.diffuse_hits, threads, isect));
+                e.shadow_s.push_back(trace_occluded(diffuse, threads, occ, &e.diffuse_occluded));
+            });
+        }
+    }
+}
+
+Table embree_table(const Context& ctx, const RowResult& best, const RaySets& rays,
+                   const std::vector<Engine>& engines) {
+    const std::vector<Ray>& primary = rays.primary;
+    const std::vector<Ray>& diffuse = rays.diffuse;
+    Table t2;
+    t2.name = "embree";
+    t2.title = "Best tree (row " + best.config.id +
+               ") against Embree (single rays: rtcIntersect1/rtcOccluded1; batch: "
+               "rtcIntersect1M/rtcOccluded1M, ratios against single-ray Embree): " +
+               std::to_string(primary.size()) + " primary rays, " + std::to_string(diffuse.size()) +
+               " one-bounce diffuse rays, " + std::to_string(ctx.threads) +
+               " threads, medians of " + std::to_string(ctx.repeat);
+    t2.header = {"engine",
+                 "build s",
+                 "bytes/tri",
+                 "peak build MB",
+                 "primary Mrays/s",
+                 "diffuse Mrays/s",
+                 "diffuse occluded Mrays/s",
+                 "primary x Embree",
+                 "diffuse x Embree",
+                 "occluded x Embree",
+                 "primary hit diffs",
+                 "diffuse hit diffs"};
+    const Engine* ref = nullptr;
+    for (const Engine& e : engines) {
+#ifdef KDT_HAVE_EMBREE
+        if (e.peer && !e.batch) {
+            ref = &e;
+            break;
+        }
+#endif
+    }
+    auto mr = [](size_t n, double s) { return double(n) / s * 1e-6; };
+    for (const Engine& e : engines) {
+        const double p = mr(primary.size(), median(e.primary_s));
+        const double d = mr(diffuse.size(), median(e.diffuse_s));
+        const double o = mr(diffuse.size(), median(e.shadow_s));
+        std::vector<std::string> row = {e.name,
+                                        fmt("%.3f", e.build_seconds),
+                                        fmt("%.1f", e.bytes_per_triangle),
+                                        fmt("%.1f", e.peak_mb),
+                                        fmt("%.2f", p),
+                                        fmt("%.2f", d),
+                                        fmt("%.2f", o)};
+        if (ref) {
+            row.push_back(fmt("%.2f", p / mr(primary.size(), median(ref->primary_s))));
+            row.push_back(fmt("%.2f", d / mr(diffuse.size(), median(ref->diffuse_s))));
+            row.push_back(fmt("%.2f", o / mr(diffuse.size(), median(ref->shadow_s))));
+            row.push_back(std::to_string(count_disagreements(e.primary_hits, ref->primary_hits)));
+            row.push_back(std::to_string(count_disagreements(e.diffuse_hits, ref->diffuse_hits)));
+        } else {
+            row.insert(row.end(), {"-", "-", "-", "-", "-"});
+        }
+        t2.rows.push_back(std::move(row));
+    }
+    return t2;
+}
+
+}  // namespace kdt::app::kdtree_bench
