@@ -9,9 +9,22 @@
 #include <cstdint>
 
 #include "renderer/core/math.h"
-#include "renderer/scene/scene.h"
 
 namespace kdt {
+
+enum class MaterialType : uint8_t { diffuse, mirror, dielectric, emissive, conductor };
+inline constexpr std::array<const char*, 5> kMaterialTypeNames = {"diffuse", "mirror", "dielectric",
+                                                                  "emissive", "conductor"};
+
+/// A material as a scene file gives it (the editable form). Every material is two-sided.
+/// Unused fields are ignored by the type.
+struct MaterialDesc {
+    MaterialType type = MaterialType::diffuse;
+    Vec3f albedo{0.8f};      ///< diffuse reflectance; tint of mirror and conductor
+    float ior = 1.5f;        ///< dielectric index of refraction (outside is 1)
+    Vec3f emission{0.0f};    ///< emissive radiance
+    float roughness = 0.2f;  ///< conductor: GGX alpha
+};
 
 /// How the diffuse BSDF samples directions: cosine-weighted (default) or uniform over the
 /// hemisphere (the naive baseline of `kdtrace bench converge`).

@@ -12,21 +12,9 @@
 #include "renderer/core/math.h"
 #include "renderer/geometry/mesh.h"
 #include "renderer/light/environment.h"
+#include "renderer/material/material.h"
 
 namespace kdt {
-
-enum class MaterialType : uint8_t { diffuse, mirror, dielectric, emissive, conductor };
-inline constexpr std::array<const char*, 5> kMaterialTypeNames = {"diffuse", "mirror", "dielectric",
-                                                                  "emissive", "conductor"};
-
-/// Every material is two-sided. Unused fields are ignored by the type.
-struct MaterialDesc {
-    MaterialType type = MaterialType::diffuse;
-    Vec3f albedo{0.8f};      ///< diffuse reflectance; tint of mirror and conductor
-    float ior = 1.5f;        ///< dielectric index of refraction (outside is 1)
-    Vec3f emission{0.0f};    ///< emissive radiance
-    float roughness = 0.2f;  ///< conductor: GGX alpha
-};
 
 /// One mesh placed in the world. The mesh itself is loaded by load_scene().
 struct MeshInstance {
