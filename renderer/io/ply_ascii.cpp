@@ -275,6 +275,10 @@ uint64_t PlyParser::parallel_chunk(const Element& el, uint64_t i, bool faces, bo
             poor = true;
             return 0;
         }
+        // The arrays hold the lines the buffer can hold: a byte and a separator per value.
+        const uint64_t fit = std::min<uint64_t>(remaining, in_.avail() / (2 * el.props.size()) + 1);
+        if (is_vertex) grow_vertices(el, i + fit);
+        if (faces) grow_capacity(mesh_.triangles, i + fit, el);
         LinesResult r =
             parse_lines(el, faces, is_vertex, in_.pos(), in_.end(), i, remaining, faces);
         if (faces) source_faces_ += r.lines;
@@ -322,7 +326,11 @@ uint64_t PlyParser::parallel_chunk(const Element& el, uint64_t i, bool faces, bo
         lines[used] = std::min(lines[used], remaining - total);
         total += lines[used];
     }
-    if (faces) mesh_.triangles.resize(size_t(i + total));
+    if (is_vertex) grow_vertices(el, i + total);
+    if (faces) {
+        grow_capacity(mesh_.triangles, i + total, el);
+        mesh_.triangles.resize(size_t(i + total));
+    }
     std::vector<LinesResult> result(used);
     helper_->parallel_for(used, [&](size_t k) {
         result[k] =

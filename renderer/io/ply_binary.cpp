@@ -44,6 +44,7 @@ void PlyParser::read_binary_vertices_fixed(Element& el) {
             // Runs of finite positions through a small array and one insert each; a
             // non-finite one goes to store_vertex (an error, or flagged with drop_invalid).
             n = std::min<uint64_t>(n, kRun);
+            grow_capacity(mesh_.positions, i + n, el);
             const char* r = base + plan[0].offset;
             uint64_t k = decode_positions<Swap>(r, size_t(n), rec, run);
             mesh_.positions.insert(mesh_.positions.end(), run, run + k);
@@ -59,7 +60,7 @@ void PlyParser::read_binary_vertices_fixed(Element& el) {
             }
             n = k;
         } else {
-            mesh_.positions.resize(size_t(i + n));
+            grow_vertices(el, i + n);
             for (uint64_t k = 0; k < n; ++k) {
                 const char* r = base + k * rec;
                 for (const Plan& pl : plan)
@@ -149,6 +150,7 @@ void PlyParser::read_binary_faces_fast(Element& el) {
             const size_t n = size_t(std::min<uint64_t>(
                 {el.count - i, uint64_t(in_.avail() / kTriangleRecord), uint64_t(kRun)}));
             const size_t k = decode_triangles<Swap>(in_.pos(), n, limit, run);
+            grow_capacity(mesh_.triangles, mesh_.triangles.size() + k, el);
             mesh_.triangles.insert(mesh_.triangles.end(), run, run + k);
             source_faces_ += k;
             in_.advance(k * kTriangleRecord);

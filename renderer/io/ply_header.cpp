@@ -251,7 +251,9 @@ void PlyParser::check_counts() {
             fail_header("element " + el.name + ": count " + std::to_string(el.count) +
                         " needs at least " + bytes(need) + " bytes" + with_before +
                         ", more than the " + std::to_string(remaining - (ascii_ ? 1 : 0)) +
-                        (reader_.gzip() ? " bytes the compressed file can hold"
+                        (reader_.gzip() ? " bytes this compressed file may inflate to (gzip "
+                                          "data is read up to " +
+                                              std::to_string(kMaxInflationRatio) + ":1)"
                                         : " bytes of data in the file"));
         }
     }

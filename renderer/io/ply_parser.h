@@ -3,13 +3,17 @@
 // ply_binary.cpp, ply_ascii.cpp and ply_reader.cpp. Internal to renderer/io/ply_*.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <memory>
+#include <new>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "renderer/core/error.h"
+#include "renderer/core/huge_pages.h"
+#include "renderer/core/timer.h"
 #include "renderer/geometry/mesh.h"
 #include "renderer/io/file_reader.h"
 #include "renderer/io/mesh_io.h"
@@ -101,6 +105,30 @@ private:
     }
     void finish(TriangleMesh& mesh);
 
+    // Memory: arrays sized up front for input of known size, grown with the data otherwise.
+    void allocate_arrays();
+    /// Makes positions (and normals, colours when kept) hold at least n entries, n at most
+    /// the vertex count.
+    void grow_vertices(const Element& el, uint64_t n);
+    /// Gives v capacity for n entries, doubling but not past the element's count unless n
+    /// is (polygons make more triangles than faces); out of memory is an Error naming el.
+    template <typename T>
+    void grow_capacity(std::vector<T>& v, uint64_t n, const Element& el) {
+        if (n <= v.capacity()) return;
+        const uint64_t doubled = std::max<uint64_t>(n, 2 * uint64_t(v.capacity()));
+        const uint64_t cap = n > el.count ? doubled : std::min(doubled, el.count);
+        try {
+            reserve_huge(v, size_t(cap));
+        } catch (const std::bad_alloc&) {
+            out_of_memory(el, cap, sizeof(T));
+        }
+    }
+    [[noreturn]] void out_of_memory(const Element& el, uint64_t elements,
+                                    size_t element_bytes) const;
+    void read_elements();
+    void check_trailing_text();
+    void report(MeshLoadInfo* info, const Timer& timer) const;
+
     FileReader& reader_;
     Input in_;
     MeshLoadOptions options_;
@@ -129,6 +157,8 @@ private:
 };
 
 inline void PlyParser::store_vertex(const Element& el, uint64_t i, const float* v) {
+    if (i >= mesh_.positions.size()) [[unlikely]]
+        grow_vertices(el, i + 1);
     Vec3f p(v[kPosX], v[kPosY], v[kPosZ]);
     mesh_.positions[i] = p;
     if (has_normals_) mesh_.normals[i] = Vec3f(v[kNormX], v[kNormY], v[kNormZ]);

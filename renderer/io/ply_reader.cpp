@@ -1,6 +1,8 @@
 #include "renderer/io/ply_reader.h"
 
 #include <algorithm>
+#include <cstdio>
+#include <new>
 #include <string>
 #include <vector>
 
@@ -18,7 +20,9 @@ void PlyParser::non_finite_vertex(const Element& el, uint64_t i, const Vec3f& p)
         fail_at(el, i,
                 "non-finite coordinate (" + std::to_string(p.x) + ", " + std::to_string(p.y) +
                     ", " + std::to_string(p.z) + "); --drop-invalid drops the faces using it");
-    if (bad_vertex_.empty()) bad_vertex_.assign(vertex_count_, 0);
+    // Sized with the positions, which grow with the data; completed after the element.
+    if (bad_vertex_.size() <= i)
+        bad_vertex_.resize(std::max(size_t(i) + 1, mesh_.positions.size()));
     bad_vertex_[i] = 1;
     ++bad_vertices_;
 }
@@ -131,60 +135,150 @@ void PlyParser::finish(TriangleMesh& mesh) {
     for (Vec3u& t : mesh.triangles) t = Vec3u(remap[t.x], remap[t.y], remap[t.z]);
 }
 
-TriangleMesh PlyParser::parse(MeshLoadInfo* info) {
-    Timer timer;
-    parse_header();
-    plan_elements();
-    check_counts();
-
-    // Huge pages for the output arrays before anything touches them: first-touch faults of
-    // 4 KiB pages would cost more than parsing a binary file.
-    reserve_huge(mesh_.positions, vertex_count_);
-    // read_binary_vertices_fixed appends the positions; other layouts write them by index.
-    if (ascii_ || elements_[size_t(vertex_el_)].has_lists) mesh_.positions.resize(vertex_count_);
+void PlyParser::grow_vertices(const Element& el, uint64_t n) {
+    grow_capacity(mesh_.positions, n, el);
+    if (mesh_.positions.size() < n) mesh_.positions.resize(size_t(n));
     if (has_normals_) {
-        reserve_huge(mesh_.normals, vertex_count_);
-        mesh_.normals.resize(vertex_count_);
+        grow_capacity(mesh_.normals, n, el);
+        if (mesh_.normals.size() < n) mesh_.normals.resize(size_t(n));
     }
     if (has_colors_) {
-        reserve_huge(mesh_.colors, vertex_count_);
-        mesh_.colors.resize(vertex_count_);
+        grow_capacity(mesh_.colors, n, el);
+        if (mesh_.colors.size() < n) mesh_.colors.resize(size_t(n));
     }
-    if (face_el_ >= 0) reserve_huge(mesh_.triangles, elements_[size_t(face_el_)].count);
+}
 
+void PlyParser::out_of_memory(const Element& el, uint64_t elements, size_t element_bytes) const {
+    ErrorLocation w;
+    w.path = reader_.path();
+    w.element = el.name;
+    throw Error(w, "out of memory growing an array to " + std::to_string(elements) +
+                       " elements of " + std::to_string(element_bytes) + " bytes (the header " +
+                       "declares " + std::to_string(el.count) + " " + el.name + " elements)");
+}
+
+// Input of known size was checked against the counts (check_counts), so its arrays are
+// allocated once, with huge pages, before anything touches them: first-touch faults of 4 KiB
+// pages would cost more than parsing a binary file. Input of unknown size (gzip) gets arrays
+// that grow as its data arrives (grow_capacity), so a header's count costs memory only once
+// the data behind it exists.
+void PlyParser::allocate_arrays() {
+    const Element& v = elements_[size_t(vertex_el_)];
+    const uint64_t first =
+        reader_.size_known() ? vertex_count_ : std::min<uint64_t>(vertex_count_, kFirstRecords);
+    grow_capacity(mesh_.positions, first, v);
+    // read_binary_vertices_fixed appends the positions; other layouts write them by index.
+    if (ascii_ || v.has_lists) mesh_.positions.resize(size_t(first));
+    if (has_normals_ || has_colors_) grow_vertices(v, first);
+    if (face_el_ >= 0) {
+        const Element& f = elements_[size_t(face_el_)];
+        grow_capacity(mesh_.triangles,
+                      reader_.size_known() ? f.count : std::min<uint64_t>(f.count, kFirstRecords),
+                      f);
+    }
+}
+
+// Non-blank text after the last ascii element means the header's counts do not match the
+// data. Only the first kTrailingLookBytes are looked at: a stream of blank lines after the
+// data (gzip makes gigabytes of them from a few kilobytes) is not read to its end.
+void PlyParser::check_trailing_text() {
+    uint64_t looked = 0, newlines = 0;
+    while (looked < kTrailingLookBytes && (in_.avail() > 0 || in_.fill(1))) {
+        const size_t n = size_t(std::min<uint64_t>(in_.avail(), kTrailingLookBytes - looked));
+        const char* p = in_.pos();
+        for (size_t k = 0; k < n; ++k) {
+            if (p[k] == '\n') {
+                ++newlines;
+            } else if (!is_blank(p[k])) {
+                in_.advance(k);
+                in_.fill(64);
+                ErrorLocation w;
+                w.path = reader_.path();
+                w.line = line_ + 1 + int64_t(newlines);
+                throw Error(w, "data after the last element ('" + token_text(in_.pos(), in_.end()) +
+                                   "'): the header's element counts do not match the data");
+            }
+        }
+        in_.advance(n);
+        looked += n;
+    }
+}
+
+TriangleMesh PlyParser::parse(MeshLoadInfo* info) {
+    Timer timer;
+    try {
+        parse_header();
+        plan_elements();
+        check_counts();
+        read_elements();
+    } catch (const Error& e) {
+        report(info, timer);
+        // An absurd inflation ratio is the likelier cause of whatever went wrong.
+        if (!reader_.gzip() || reader_.over_inflation_limit() ||
+            reader_.bytes_read() < kInflationNoteBytes ||
+            reader_.inflation_ratio() < double(kAbsurdInflationRatio))
+            throw;
+        char ratio[32];
+        std::snprintf(ratio, sizeof(ratio), "%.0f:1", reader_.inflation_ratio());
+        throw Error(e.where(), e.message() + " (the gzip data inflated " + ratio +
+                                   " up to here, far more than mesh data does: a gzip bomb?)");
+    } catch (...) {
+        report(info, timer);
+        throw;
+    }
+    report(info, timer);
+    return std::move(mesh_);
+}
+
+void PlyParser::read_elements() {
+    allocate_arrays();
     line_ = header_lines_;
     for (Element& el : elements_) {
-        if (ascii_)
-            read_ascii_element(el);
-        else if (swap_)
-            read_binary_element<true>(el);
-        else
-            read_binary_element<false>(el);
-        if (&el == &elements_[size_t(vertex_el_)]) vertices_read_ = true;
-    }
-    if (ascii_) {
-        const char* b;
-        const char* e;
-        if (next_data_line(b, e)) {
+        try {
+            if (ascii_)
+                read_ascii_element(el);
+            else if (swap_)
+                read_binary_element<true>(el);
+            else
+                read_binary_element<false>(el);
+        } catch (const std::bad_alloc&) {
             ErrorLocation w;
             w.path = reader_.path();
-            w.line = line_;
-            throw Error(w, "data after the last element ('" + token_text(skip_blanks(b, e), e) +
-                               "'): the header's element counts do not match the data");
+            w.element = el.name;
+            throw Error(w, "out of memory while reading the " + std::to_string(el.count) + " " +
+                               el.name + " elements the header declares");
+        }
+        if (&el == &elements_[size_t(vertex_el_)]) {
+            // Arrays grown with the data are now complete; flags cover every vertex.
+            grow_vertices(el, vertex_count_);
+            if (!bad_vertex_.empty()) bad_vertex_.resize(size_t(vertex_count_), 0);
+            vertices_read_ = true;
         }
     }
-    finish(mesh_);
-    if (info) {
-        info->format = "ply";
-        info->encoding = kPlyEncodingNames[size_t(encoding_)];
-        info->gzip = reader_.gzip();
-        info->file_bytes = in_.offset();
-        info->source_faces = source_faces_;
-        info->dropped_faces = dropped_faces_;
-        info->degenerate_faces = degenerate_faces_;
-        info->seconds = timer.seconds();
+    if (ascii_) check_trailing_text();
+    try {
+        finish(mesh_);
+    } catch (const std::bad_alloc&) {
+        ErrorLocation w;
+        w.path = reader_.path();
+        throw Error(w, "out of memory while dropping non-finite vertices");
     }
-    return std::move(mesh_);
+}
+
+void PlyParser::report(MeshLoadInfo* info, const Timer& timer) const {
+    if (!info) return;
+    info->format = "ply";
+    info->encoding = kPlyEncodingNames[size_t(encoding_)];
+    info->gzip = reader_.gzip();
+    info->file_bytes = in_.offset();
+    info->input_bytes_read = reader_.bytes_read();
+    info->array_bytes =
+        mesh_.positions.capacity() * sizeof(Vec3f) + mesh_.normals.capacity() * sizeof(Vec3f) +
+        mesh_.colors.capacity() * sizeof(Vec3f) + mesh_.triangles.capacity() * sizeof(Vec3u);
+    info->source_faces = source_faces_;
+    info->dropped_faces = dropped_faces_;
+    info->degenerate_faces = degenerate_faces_;
+    info->seconds = timer.seconds();
 }
 
 }  // namespace ply
