@@ -416,12 +416,14 @@ void PlyParser::read_ascii_line(Element& el, uint64_t i, float* v) {
     if (!next_data_line(b, e))
         fail_data(el, i, line_ + 1, -1,
                   "unexpected end of data (file truncated? the header declares " +
-                      std::to_string(el.count) + " " + el.name + " elements)");
+                      std::to_string(el.count) + " " + printable(el.name) + " elements)");
     const char* p = b;
     bool have_face = false;
     for (const Property& prop : el.props) {
         p = skip_blanks(p, e);
-        if (p == e) fail_at(el, i, "missing value for property " + prop.name + " (line too short)");
+        if (p == e)
+            fail_at(el, i,
+                    "missing value for property " + printable(prop.name) + " (line too short)");
         if (!prop.is_list()) {
             if (prop.slot < 0) {
                 p = skip_token(p, e);
@@ -441,13 +443,14 @@ void PlyParser::read_ascii_line(Element& el, uint64_t i, float* v) {
                 ok = r == IntResult::ok;
                 if (ok && (x < type_min(prop.type) || x > type_max(prop.type)))
                     fail_at(el, i,
-                            "value " + token_text(start, e) + " of property " + prop.name +
-                                " out of range for its type");
+                            "value " + token_text(start, e) + " of property " +
+                                printable(prop.name) + " out of range for its type");
                 v[prop.slot] = float(x) * prop.scale;
             }
             if (!ok)
                 fail_at(el, i,
-                        "invalid number '" + token_text(p, e) + "' for property " + prop.name);
+                        "invalid number '" + token_text(p, e) + "' for property " +
+                            printable(prop.name));
             continue;
         }
         int64_t count = 0;
@@ -455,22 +458,27 @@ void PlyParser::read_ascii_line(Element& el, uint64_t i, float* v) {
         IntResult r = parse_int(p, e, count);
         if (r != IntResult::ok || count > type_max(prop.count_type) ||
             count < type_min(prop.count_type))
-            fail_at(el, i, "invalid list count '" + token_text(start, e) + "' for " + prop.name);
+            fail_at(
+                el, i,
+                "invalid list count '" + token_text(start, e) + "' for " + printable(prop.name));
         if (count < 0)
-            fail_at(el, i, "negative list count " + std::to_string(count) + " in " + prop.name);
+            fail_at(el, i,
+                    "negative list count " + std::to_string(count) + " in " + printable(prop.name));
         if (prop.slot != kIndices) {
             for (int64_t k = 0; k < count; ++k) {
                 p = skip_blanks(p, e);
                 if (p == e)
                     fail_at(el, i,
-                            "list " + prop.name + " has " + std::to_string(k) + " of " +
+                            "list " + printable(prop.name) + " has " + std::to_string(k) + " of " +
                                 std::to_string(count) + " values");
                 p = skip_token(p, e);
             }
             continue;
         }
         if (count < 3 && !is_strip(el))
-            fail_at(el, i, "face has " + std::to_string(count) + " vertices (at least 3 needed)");
+            fail_at(el, i,
+                    std::to_string(count) + (count == 1 ? " index" : " indices") +
+                        ", a face needs at least 3");
         poly_.clear();
         for (int64_t k = 0; k < count; ++k) {
             p = skip_blanks(p, e);

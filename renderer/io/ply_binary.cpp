@@ -94,7 +94,8 @@ void PlyParser::read_binary_record(Element& el, uint64_t i) {
         int64_t count = load_int<Swap>(in_.pos(), p.count_type);
         in_.advance(csz);
         if (count < 0)
-            fail_at(el, i, "negative list count " + std::to_string(count) + " in " + p.name);
+            fail_at(el, i,
+                    "negative list count " + std::to_string(count) + " in " + printable(p.name));
         if (p.slot != kIndices) {
             if (!in_.skip(uint64_t(count) * isz))
                 fail_data(el, i, -1, int64_t(in_.offset()),
@@ -102,7 +103,9 @@ void PlyParser::read_binary_record(Element& el, uint64_t i) {
             continue;
         }
         if (count < 3 && !is_strip(el))
-            fail_at(el, i, "face has " + std::to_string(count) + " vertices (at least 3 needed)");
+            fail_at(el, i,
+                    std::to_string(count) + (count == 1 ? " index" : " indices") +
+                        ", a face needs at least 3");
         poly_.clear();
         if (uint64_t(count) * isz <= kBlockBytes) {
             need(el, i, size_t(count) * isz);
@@ -159,7 +162,12 @@ void PlyParser::read_binary_faces_fast(Element& el) {
             if (i == el.count) break;
         }
         record_offset_ = in_.offset();
-        if (in_.avail() < 1 + 3 * isz) need(el, i, 1 + 3 * isz);
+        // Fewer bytes than a triangle left: the record path reads what there is and says
+        // what is wrong with it (a short face, or data cut short).
+        if (in_.avail() < 1 + 3 * isz && !in_.fill(1 + 3 * isz)) {
+            read_binary_record<Swap>(el, i++);
+            continue;
+        }
         const char* r = in_.pos();
         if (uint8_t(*r) != 3) {
             read_binary_record<Swap>(el, i++);

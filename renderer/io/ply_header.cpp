@@ -52,7 +52,7 @@ void PlyParser::parse_header() {
             if (have_format) fail_header("second format line");
             if (tok.size() != 3 || (tok[2] != "1.0" && tok[2] != "1"))
                 fail_header(
-                    "unknown format line '" + std::string(b, size_t(e - b)) +
+                    "unknown format line '" + printable(std::string_view(b, size_t(e - b))) +
                     "' (expected 'format ascii|binary_little_endian|binary_big_endian 1.0')");
             if (tok[1] == "ascii")
                 encoding_ = PlyEncoding::ascii;
@@ -61,7 +61,7 @@ void PlyParser::parse_header() {
             else if (tok[1] == "binary_big_endian")
                 encoding_ = PlyEncoding::binary_big_endian;
             else
-                fail_header("unknown format '" + std::string(tok[1]) + "'");
+                fail_header("unknown format '" + printable(tok[1]) + "'");
             have_format = true;
         } else if (kw == "element") {
             if (tok.size() != 3)
@@ -73,16 +73,18 @@ void PlyParser::parse_header() {
             int64_t count = 0;
             IntResult r = parse_int(p, tok[2].data() + tok[2].size(), count);
             if (r == IntResult::invalid)
-                fail_header("element " + el.name + ": count '" + std::string(tok[2]) +
+                fail_header("element " + printable(el.name) + ": count '" + printable(tok[2]) +
                             "' is not an integer");
             if (r == IntResult::overflow || count > int64_t(1) << 48)
-                fail_header("element " + el.name + ": count " + std::string(tok[2]) +
+                fail_header("element " + printable(el.name) + ": count " + printable(tok[2]) +
                             " is too large");
             if (count < 0)
-                fail_header("element " + el.name + ": negative count " + std::to_string(count));
+                fail_header("element " + printable(el.name) + ": negative count " +
+                            std::to_string(count));
             el.count = uint64_t(count);
             for (const Element& other : elements_)
-                if (other.name == el.name) fail_header("second element named '" + el.name + "'");
+                if (other.name == el.name)
+                    fail_header("second element named '" + printable(el.name) + "'");
             elements_.push_back(std::move(el));
         } else if (kw == "property") {
             if (elements_.empty()) fail_header("property before any element");
@@ -96,11 +98,11 @@ void PlyParser::parse_header() {
                 prop.count_type = parse_type(tok[2]);
                 prop.type = parse_type(tok[3]);
                 if (prop.count_type == PlyType::none)
-                    fail_header("unknown property type '" + std::string(tok[2]) + "'");
+                    fail_header("unknown property type '" + printable(tok[2]) + "'");
                 if (prop.type == PlyType::none)
-                    fail_header("unknown property type '" + std::string(tok[3]) + "'");
+                    fail_header("unknown property type '" + printable(tok[3]) + "'");
                 if (!is_integer(prop.count_type))
-                    fail_header("list count type '" + std::string(tok[2]) +
+                    fail_header("list count type '" + printable(tok[2]) +
                                 "' is not an integer type");
                 prop.name = std::string(tok[4]);
                 el.has_lists = true;
@@ -109,14 +111,14 @@ void PlyParser::parse_header() {
                     fail_header("malformed property line (expected 'property TYPE NAME')");
                 prop.type = parse_type(tok[1]);
                 if (prop.type == PlyType::none)
-                    fail_header("unknown property type '" + std::string(tok[1]) + "'");
+                    fail_header("unknown property type '" + printable(tok[1]) + "'");
                 prop.name = std::string(tok[2]);
                 el.scalar_bytes += type_size(prop.type);
             }
             for (const Property& other : el.props)
                 if (other.name == prop.name)
-                    fail_header("element " + el.name + ": second property named '" + prop.name +
-                                "'");
+                    fail_header("element " + printable(el.name) + ": second property named '" +
+                                printable(prop.name) + "'");
             el.props.push_back(std::move(prop));
         } else if (kw == "end_header") {
             have_end = true;
@@ -217,28 +219,35 @@ void PlyParser::plan_elements() {
     }
 }
 
-// Rejects counts the file cannot hold before anything is allocated for them: binary
-// records need at least their scalar bytes plus list counts (a face at least three
-// indices); ascii needs at least two bytes (digit and separator) per value, except the
-// file's last value, which needs no separator.
+// Least bytes one record of el takes: binary records their scalar bytes plus list counts;
+// ascii at least two bytes (digit and separator) per value. With `full_faces`, a face's
+// index list holds at least three indices, as a valid face's does.
+uint64_t PlyParser::min_record_bytes(const Element& el, bool full_faces) const {
+    uint64_t min_bytes = 0;
+    for (const Property& p : el.props) {
+        // A strip may be empty.
+        const bool indices = full_faces && p.slot == kIndices && !is_strip(el);
+        if (ascii_) {
+            min_bytes += indices ? 8 : 2;
+        } else if (p.is_list()) {
+            min_bytes += type_size(p.type) * (indices ? 3 : 0) + type_size(p.count_type);
+        } else {
+            min_bytes += type_size(p.type);
+        }
+    }
+    return min_bytes;
+}
+
+// Rejects counts the input cannot hold before anything is allocated for them, the file's
+// last ascii value needing no separator. Lists may be empty here, so a face of fewer than
+// three indices is reported as such when it is read; the triangle array reserved up front
+// is bounded by faces of three (face_records_bound_).
 void PlyParser::check_counts() {
     const uint64_t bound = reader_.size_bound();
     const uint64_t remaining = (bound > data_offset_ ? bound - data_offset_ : 0) + (ascii_ ? 1 : 0);
     unsigned __int128 total = 0;
     for (const Element& el : elements_) {
-        uint64_t min_bytes = 0;
-        for (const Property& p : el.props) {
-            // A face lists at least three indices; a strip may be empty.
-            const bool indices = p.slot == kIndices && !is_strip(el);
-            if (ascii_) {
-                min_bytes += indices ? 8 : 2;
-            } else if (p.is_list()) {
-                min_bytes += type_size(p.count_type) + (indices ? 3 * type_size(p.type) : 0);
-            } else {
-                min_bytes += type_size(p.type);
-            }
-        }
-        unsigned __int128 need = (unsigned __int128)el.count * min_bytes;
+        const unsigned __int128 need = (unsigned __int128)el.count * min_record_bytes(el, false);
         total += need;
         if (total > remaining) {
             line_ = el.line;
@@ -248,7 +257,7 @@ void PlyParser::check_counts() {
             // Name the running total when earlier elements took part of the file.
             const std::string with_before =
                 total == need ? "" : " (" + bytes(total) + " with the elements before it)";
-            fail_header("element " + el.name + ": count " + std::to_string(el.count) +
+            fail_header("element " + printable(el.name) + ": count " + std::to_string(el.count) +
                         " needs at least " + bytes(need) + " bytes" + with_before +
                         ", more than the " + std::to_string(remaining - (ascii_ ? 1 : 0)) +
                         (reader_.gzip() ? " bytes this compressed file may inflate to (gzip "
@@ -256,6 +265,11 @@ void PlyParser::check_counts() {
                                               std::to_string(kMaxInflationRatio) + ":1)"
                                         : " bytes of data in the file"));
         }
+    }
+    if (face_el_ >= 0) {
+        const Element& f = elements_[size_t(face_el_)];
+        face_records_bound_ = std::min<uint64_t>(
+            f.count, remaining / std::max<uint64_t>(min_record_bytes(f, true), 1));
     }
 }
 

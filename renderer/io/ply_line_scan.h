@@ -23,6 +23,7 @@
 #endif
 #endif
 
+#include "renderer/core/error.h"
 #include "renderer/geometry/mesh.h"
 #include "renderer/io/ply_numbers.h"
 
@@ -367,11 +368,11 @@ constexpr double kInvPow10Hi[8] = {1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14
 }
 #endif
 
+// The token at p for a message: at most 40 bytes, through printable().
 inline std::string token_text(const char* p, const char* e) {
     const char* t = skip_token(p, e);
-    std::string s(p, size_t(t - p));
-    if (s.size() > 40) s = s.substr(0, 40) + "...";
-    return s;
+    std::string_view s(p, size_t(t - p));
+    return s.size() > 40 ? printable(s.substr(0, 40)) + "..." : printable(s);
 }
 
 }  // namespace kdt::ply

@@ -64,6 +64,7 @@ private:
     void parse_header();
     void plan_elements();
     void check_counts();
+    uint64_t min_record_bytes(const Element& el, bool full_faces) const;
 
     // Binary
     template <bool Swap>
@@ -145,6 +146,7 @@ private:
     bool xyz_only_ = false;  // vertex properties: float x, y, z and nothing else
     bool vertices_read_ = false;
     uint64_t vertex_count_ = 0;
+    uint64_t face_records_bound_ = 0;  // faces of three indices the input can hold
 
     TriangleMesh mesh_;
     std::vector<uint8_t> bad_vertex_;  // only allocated once a non-finite vertex is seen

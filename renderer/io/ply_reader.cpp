@@ -154,7 +154,8 @@ void PlyParser::out_of_memory(const Element& el, uint64_t elements, size_t eleme
     w.element = el.name;
     throw Error(w, "out of memory growing an array to " + std::to_string(elements) +
                        " elements of " + std::to_string(element_bytes) + " bytes (the header " +
-                       "declares " + std::to_string(el.count) + " " + el.name + " elements)");
+                       "declares " + std::to_string(el.count) + " " + printable(el.name) +
+                       " elements)");
 }
 
 // Input of known size was checked against the counts (check_counts), so its arrays are
@@ -173,7 +174,8 @@ void PlyParser::allocate_arrays() {
     if (face_el_ >= 0) {
         const Element& f = elements_[size_t(face_el_)];
         grow_capacity(mesh_.triangles,
-                      reader_.size_known() ? f.count : std::min<uint64_t>(f.count, kFirstRecords),
+                      reader_.size_known() ? face_records_bound_
+                                           : std::min<uint64_t>(face_records_bound_, kFirstRecords),
                       f);
     }
 }
@@ -246,7 +248,7 @@ void PlyParser::read_elements() {
             w.path = reader_.path();
             w.element = el.name;
             throw Error(w, "out of memory while reading the " + std::to_string(el.count) + " " +
-                               el.name + " elements the header declares");
+                               printable(el.name) + " elements the header declares");
         }
         if (&el == &elements_[size_t(vertex_el_)]) {
             // Arrays grown with the data are now complete; flags cover every vertex.
