@@ -475,10 +475,7 @@ void PlyParser::read_ascii_line(Element& el, uint64_t i, float* v) {
             }
             continue;
         }
-        if (count < 3 && !is_strip(el))
-            fail_at(el, i,
-                    std::to_string(count) + (count == 1 ? " index" : " indices") +
-                        ", a face needs at least 3");
+        check_face_size(el, i, count);
         poly_.clear();
         for (int64_t k = 0; k < count; ++k) {
             p = skip_blanks(p, e);

@@ -102,10 +102,7 @@ void PlyParser::read_binary_record(Element& el, uint64_t i) {
                           "unexpected end of data (file truncated?)");
             continue;
         }
-        if (count < 3 && !is_strip(el))
-            fail_at(el, i,
-                    std::to_string(count) + (count == 1 ? " index" : " indices") +
-                        ", a face needs at least 3");
+        check_face_size(el, i, count);
         poly_.clear();
         if (uint64_t(count) * isz <= kBlockBytes) {
             need(el, i, size_t(count) * isz);

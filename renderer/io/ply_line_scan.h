@@ -10,22 +10,10 @@
 #include <cstring>
 #include <string>
 
-#if defined(__SSE2__)
-// GCC 12 warns about the deliberately undefined vectors inside its own AVX-512 intrinsics
-// (GCC PR 105593); the pragma covers the header's lines only.
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#endif
-#include <immintrin.h>
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic pop
-#endif
-#endif
-
 #include "renderer/core/error.h"
 #include "renderer/geometry/mesh.h"
 #include "renderer/io/ply_numbers.h"
+#include "renderer/io/ply_simd.h"
 
 namespace kdt::ply {
 

@@ -101,6 +101,13 @@ private:
     [[gnu::noinline]] void non_finite_vertex(const Element& el, uint64_t i, const Vec3f& p);
     void emit_face(const Element& el, uint64_t i, const int64_t* idx, size_t n);
     void emit_strip(const Element& el, uint64_t i, const int64_t* idx, size_t n);
+    // A face lists at least three indices; a strip may hold any number.
+    void check_face_size(const Element& el, uint64_t i, int64_t count) const {
+        if (count < 3 && !is_strip(el))
+            fail_at(el, i,
+                    std::to_string(count) + (count == 1 ? " index" : " indices") +
+                        ", a face needs at least 3");
+    }
     bool is_strip(const Element& el) const {
         return strip_el_ >= 0 && &el == &elements_[size_t(strip_el_)];
     }
