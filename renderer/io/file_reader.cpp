@@ -49,7 +49,9 @@ FileReader FileReader::open(const std::string& path) {
             ::close(fd2);
             fail(path, "cannot open gzip stream");
         }
-        ::gzbuffer(gz, 1u << 20);
+        // zlib's input buffer (its output buffer is twice as big): 1 MiB for big files,
+        // less for small ones, which would not fill it.
+        ::gzbuffer(gz, unsigned(std::clamp<uint64_t>(r.file_bytes_, 64u << 10, 1u << 20)));
         r.gz_ = gz;
         r.gzip_ = true;
         r.size_bound_ =

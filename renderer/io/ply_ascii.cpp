@@ -276,7 +276,8 @@ uint64_t PlyParser::parallel_chunk(const Element& el, uint64_t i, bool faces, bo
             return 0;
         }
         // The arrays hold the lines the buffer can hold: a byte and a separator per value.
-        const uint64_t fit = std::min<uint64_t>(remaining, in_.avail() / (2 * el.props.size()) + 1);
+        const uint64_t fit = std::min<uint64_t>(
+            remaining, in_.avail() / (2 * std::max<size_t>(el.props.size(), 1)) + 1);
         if (is_vertex) grow_vertices(el, i + fit);
         if (faces) grow_capacity(mesh_.triangles, i + fit, el);
         LinesResult r =

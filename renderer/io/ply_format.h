@@ -124,9 +124,9 @@ constexpr size_t kBlockBytes = size_t(4) << 20;      // read() block; reused buf
 constexpr size_t kMaxHeaderBytes = size_t(4) << 20;  // "missing end_header" beyond this
 constexpr size_t kMaxLineBytes = size_t(256) << 20;  // one ascii element per line
 // Input of unknown size (gzip): records the arrays hold before the data shows there are more.
-constexpr uint64_t kFirstRecords = uint64_t(1) << 16;
+constexpr uint64_t kFirstRecords = uint64_t(1) << 12;
 // Blank bytes after the last ascii element looked at before the rest is taken as blank.
-constexpr uint64_t kTrailingLookBytes = uint64_t(1) << 20;
+constexpr uint64_t kTrailingLookBytes = uint64_t(64) << 10;
 // An error from gzip input that inflated at least kAbsurdInflationRatio:1 over at least
 // kInflationNoteBytes says so (mesh data compresses about 2-10:1).
 constexpr uint64_t kAbsurdInflationRatio = 50;

@@ -14,15 +14,20 @@ constexpr int kPopulateRead = MADV_POPULATE_READ;
 constexpr int kPopulateRead = 22;
 #endif
 
+// Mesh data inflate about 2-10:1; the buffer for gzip input is sized for that.
+constexpr uint64_t kLikelyInflation = 16;
+
 }  // namespace
 
 // Plain files of at least kMapBytes are mapped: no copy, no buffer to fault in.
-// Small files and gzip/memory input get a buffer, small inputs one of their own size.
+// Small files and gzip/memory input get a buffer, small inputs one of their own size;
+// gzip input one for what its compressed size makes likely (it grows when a line needs
+// more).
 Input::Input(FileReader& reader) : reader_(reader) {
     if (map_file()) return;
-    buf_.resize(
-        size_t(std::min<uint64_t>(kBlockBytes, std::max<uint64_t>(reader.size_bound(), 4096))) +
-        kPad);
+    const uint64_t likely =
+        reader.size_known() ? reader.size_bound() : reader.file_bytes() * kLikelyInflation;
+    buf_.resize(size_t(std::min<uint64_t>(kBlockBytes, std::max<uint64_t>(likely, 4096))) + kPad);
     pos_ = end_ = buf_.data();
 }
 
