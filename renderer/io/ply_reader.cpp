@@ -224,6 +224,13 @@ TriangleMesh PlyParser::parse(MeshLoadInfo* info) {
         std::snprintf(ratio, sizeof(ratio), "%.0f:1", reader_.inflation_ratio());
         throw Error(e.where(), e.message() + " (the gzip data inflated " + ratio +
                                    " up to here, far more than mesh data does: a gzip bomb?)");
+    } catch (const std::bad_alloc&) {
+        // Elements name themselves (read_elements); this is the header or the input buffer.
+        report(info, timer);
+        ErrorLocation w;
+        w.path = reader_.path();
+        w.element = "header";
+        throw Error(w, "out of memory while reading the header");
     } catch (...) {
         report(info, timer);
         throw;
@@ -243,18 +250,18 @@ void PlyParser::read_elements() {
                 read_binary_element<true>(el);
             else
                 read_binary_element<false>(el);
+            if (&el == &elements_[size_t(vertex_el_)]) {
+                // Arrays grown with the data are now complete; flags cover every vertex.
+                grow_vertices(el, vertex_count_);
+                if (!bad_vertex_.empty()) bad_vertex_.resize(size_t(vertex_count_), 0);
+                vertices_read_ = true;
+            }
         } catch (const std::bad_alloc&) {
             ErrorLocation w;
             w.path = reader_.path();
             w.element = el.name;
             throw Error(w, "out of memory while reading the " + std::to_string(el.count) + " " +
                                printable(el.name) + " elements the header declares");
-        }
-        if (&el == &elements_[size_t(vertex_el_)]) {
-            // Arrays grown with the data are now complete; flags cover every vertex.
-            grow_vertices(el, vertex_count_);
-            if (!bad_vertex_.empty()) bad_vertex_.resize(size_t(vertex_count_), 0);
-            vertices_read_ = true;
         }
     }
     if (ascii_) check_trailing_text();
