@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Fuzzes the readers of untrusted files with libFuzzer under ASan+UBSan, each target on a
 # copy of its seed corpus (tests/fuzz/corpus/<target>) for its share of CI's budget (below,
-# 125 s in all), or for KDT_FUZZ_SECONDS each when that is set.
+# 125 s in all), or for KDT_FUZZ_SECONDS each when that is set. The ply target takes plain
+# and gzip PLY in its one budget (see tests/fuzz/ply_fuzzer.cpp).
 #   scripts/run_fuzz.sh [target...]        configures and builds the `fuzz` preset (clang)
 #                                          and runs the targets given, default all
 #   scripts/run_fuzz.sh --no-build target  runs the fuzzer KDT_FUZZER names (ctest does this)

@@ -5,10 +5,19 @@
 #include <cstdint>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 namespace kdt {
 
-/// Where in a file an error was found; unset fields are left out of the message.
+/// `text` made safe to print inside a message: printable ASCII and well-formed UTF-8 are
+/// kept; tab, newline and carriage return become \t, \n, \r; other control bytes (NUL,
+/// BEL, ESC, DEL) and bytes that are not valid UTF-8 become \xNN; C1 controls and
+/// the invisible Unicode format and bidirectional controls become \uXXXX. So a token echoed
+/// from a file can neither drive a terminal nor hide or cut short the rest of the message.
+std::string printable(std::string_view text);
+
+/// Where in a file an error was found; unset fields are left out of the message. The path
+/// and element are shown through printable().
 struct ErrorLocation {
     std::string path;     ///< file name as the user gave it; may be empty (flags)
     std::string element;  ///< e.g. "face", "vertex", "header", a JSON pointer

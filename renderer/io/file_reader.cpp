@@ -6,6 +6,7 @@
 #include <zlib.h>
 #include <algorithm>
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 
 #include "renderer/core/error.h"
@@ -14,8 +15,15 @@
 namespace kdt {
 namespace {
 
-// deflate cannot expand data by more than 1032:1 (zlib FAQ); a little slack covers headers.
-constexpr uint64_t kMaxDeflateRatio = 1032;
+// gzread is called for at most this many bytes at a time, so the inflation limit is
+// checked at least this often.
+constexpr size_t kGzipStep = size_t(1) << 20;
+
+std::string mib(uint64_t bytes) {
+    char buf[32];
+    std::snprintf(buf, sizeof(buf), "%.1f MiB", double(bytes) / double(1 << 20));
+    return buf;
+}
 
 [[noreturn]] void fail(const std::string& path, const std::string& message) {
     ErrorLocation where;
@@ -41,10 +49,13 @@ FileReader FileReader::open(const std::string& path) {
             ::close(fd2);
             fail(path, "cannot open gzip stream");
         }
-        ::gzbuffer(gz, 1u << 20);
+        // zlib's input buffer (its output buffer is twice as big): 1 MiB for big files,
+        // less for small ones, which would not fill it.
+        ::gzbuffer(gz, unsigned(std::clamp<uint64_t>(r.file_bytes_, 64u << 10, 1u << 20)));
         r.gz_ = gz;
         r.gzip_ = true;
-        r.size_bound_ = r.file_bytes_ * kMaxDeflateRatio + 4096;
+        r.size_bound_ =
+            std::max(kInflationFreeBytes, r.file_bytes_ * kMaxInflationRatio) + kGzipStep;
     }
     return r;
 }
@@ -71,8 +82,10 @@ FileReader& FileReader::operator=(FileReader&& o) noexcept {
         mem_size_ = o.mem_size_;
         mem_pos_ = o.mem_pos_;
         gzip_ = o.gzip_;
+        over_limit_ = o.over_limit_;
         file_bytes_ = o.file_bytes_;
         size_bound_ = o.size_bound_;
+        bytes_read_ = o.bytes_read_;
         o.fd_ = -1;
         o.gz_ = nullptr;
         o.mem_ = nullptr;
@@ -90,49 +103,74 @@ void FileReader::close() {
 }
 
 size_t FileReader::read(char* dst, size_t n) {
+    size_t total = 0;
     if (mem_) {
-        size_t k = std::min(n, mem_size_ - mem_pos_);
-        std::memcpy(dst, mem_ + mem_pos_, k);
-        mem_pos_ += k;
-        return k;
-    }
-    if (gz_) {
-        auto gz = static_cast<gzFile>(gz_);
-        size_t total = 0;
+        total = std::min(n, mem_size_ - mem_pos_);
+        std::memcpy(dst, mem_ + mem_pos_, total);
+        mem_pos_ += total;
+    } else if (gz_) {
+        total = read_gzip(dst, n);
+    } else if (fd_ >= 0) {
         while (total < n) {
-            // gzread takes an unsigned count; stay well below its limit.
-            unsigned chunk = static_cast<unsigned>(std::min<size_t>(n - total, 1u << 30));
-            int got = ::gzread(gz, dst + total, chunk);
+            ssize_t got = ::read(fd_, dst + total, n - total);
             if (got < 0) {
-                int code = 0;
-                const char* msg = ::gzerror(gz, &code);
-                fail(path_, std::string("corrupt gzip data: ") + (msg ? msg : "unknown error"));
+                if (errno == EINTR) continue;
+                fail(path_, std::string("read error: ") + std::strerror(errno));
             }
-            if (got == 0) {
-                // gzread reports a stream cut short only through gzerror.
-                int code = 0;
-                const char* msg = ::gzerror(gz, &code);
-                if (code != Z_OK && code != Z_STREAM_END)
-                    fail(path_, std::string("corrupt gzip data: ") + (msg ? msg : "unknown error"));
-                break;
-            }
+            if (got == 0) break;
             total += static_cast<size_t>(got);
         }
-        return total;
     }
-    if (fd_ < 0) return 0;
+    bytes_read_ += total;
+    return total;
+}
+
+size_t FileReader::read_gzip(char* dst, size_t n) {
+    auto gz = static_cast<gzFile>(gz_);
     size_t total = 0;
     while (total < n) {
-        ssize_t got = ::read(fd_, dst + total, n - total);
+        unsigned chunk = static_cast<unsigned>(std::min(n - total, kGzipStep));
+        int got = ::gzread(gz, dst + total, chunk);
         if (got < 0) {
-            if (errno == EINTR) continue;
-            fail(path_, std::string("read error: ") + std::strerror(errno));
+            int code = 0;
+            const char* msg = ::gzerror(gz, &code);
+            fail(path_, std::string("corrupt gzip data: ") + (msg ? msg : "unknown error"));
         }
-        if (got == 0) break;
+        if (got == 0) {
+            // gzread reports a stream cut short only through gzerror.
+            int code = 0;
+            const char* msg = ::gzerror(gz, &code);
+            if (code != Z_OK && code != Z_STREAM_END)
+                fail(path_, std::string("corrupt gzip data: ") + (msg ? msg : "unknown error"));
+            break;
+        }
         total += static_cast<size_t>(got);
+        const uint64_t inflated = bytes_read_ + total;
+        if (inflated > kInflationFreeBytes && inflation_ratio_of(inflated) > kMaxInflationRatio) {
+            over_limit_ = true;
+            bytes_read_ = inflated;
+            char ratio[32];
+            std::snprintf(ratio, sizeof(ratio), "%.0f:1", inflation_ratio_of(inflated));
+            fail(path_, "the gzip data inflate " + std::string(ratio) + " (" + mib(inflated) +
+                            " from " + mib(compressed_read()) + "), beyond the " +
+                            std::to_string(kMaxInflationRatio) +
+                            ":1 that mesh data ever needs; stopped reading (a gzip bomb?)");
+        }
     }
     return total;
 }
+
+uint64_t FileReader::compressed_read() const {
+    if (!gz_) return bytes_read_;
+    const z_off_t off = ::gzoffset(static_cast<gzFile>(gz_));
+    return off > 0 ? uint64_t(off) : 0;
+}
+
+double FileReader::inflation_ratio_of(uint64_t inflated) const {
+    return double(inflated) / double(std::max<uint64_t>(compressed_read(), 1));
+}
+
+double FileReader::inflation_ratio() const { return gz_ ? inflation_ratio_of(bytes_read_) : 1.0; }
 
 bool is_gzip_file(const std::string& path) {
     int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);

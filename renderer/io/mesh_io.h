@@ -24,7 +24,11 @@ struct MeshLoadInfo {
     std::string format;    ///< "ply", "obj"
     std::string encoding;  ///< "ascii", "binary_little_endian", "binary_big_endian", "text"
     bool gzip = false;
-    uint64_t file_bytes = 0;        ///< bytes of file data parsed (uncompressed)
+    uint64_t file_bytes = 0;  ///< bytes of file data parsed (uncompressed)
+    /// Bytes taken from the file (inflated bytes for gzip), parsed or read ahead. PLY sets
+    /// this and array_bytes also when the load fails after its header.
+    uint64_t input_bytes_read = 0;
+    uint64_t array_bytes = 0;       ///< bytes the mesh arrays had allocated (their capacity)
     uint64_t source_faces = 0;      ///< polygons in the file
     uint64_t dropped_faces = 0;     ///< with drop_invalid: faces dropped for non-finite vertices
     uint64_t degenerate_faces = 0;  ///< faces with repeated indices (kept)

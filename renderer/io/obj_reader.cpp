@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <string_view>
 #include <unordered_map>
 #include <vector>
 
@@ -23,23 +24,10 @@ constexpr uint32_t kNone = UINT32_MAX;
 bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\v' || c == '\f'; }
 bool is_letter(char c) { return (c | 0x20) >= 'a' && (c | 0x20) <= 'z'; }
 
-// A token for messages: quoted, at most 40 bytes, other than printable ASCII as \xNN.
+// A token for messages: quoted, at most 40 bytes, through printable().
 std::string quoted(const char* b, const char* e) {
-    static const char kHex[] = "0123456789abcdef";
-    std::string s = "'";
-    const char* stop = b + std::min<ptrdiff_t>(e - b, 40);
-    for (const char* p = b; p < stop; ++p) {
-        const unsigned char c = static_cast<unsigned char>(*p);
-        if (c >= 0x20 && c < 0x7f) {
-            s += char(c);
-        } else {
-            s += "\\x";
-            s += kHex[c >> 4];
-            s += kHex[c & 15];
-        }
-    }
-    if (e - b > 40) s += "...";
-    return s + "'";
+    const std::string_view token(b, size_t(std::min<ptrdiff_t>(e - b, 40)));
+    return "'" + printable(token) + (e - b > 40 ? "...'" : "'");
 }
 
 // The next blank-separated token of [b, e) in [tb, te); false at the end of the statement
@@ -325,7 +313,9 @@ void ObjParser::face(const char* b, const char* e) {
         corner(tb, te, f);
         ++n;
     }
-    if (n < 3) fail("face", f, "has " + std::to_string(n) + " vertices (at least 3 needed)");
+    if (n < 3)
+        fail("face", f,
+             std::to_string(n) + (n == 1 ? " index" : " indices") + ", a face needs at least 3");
     face_sizes_.push_back(uint32_t(n));
     triangles_ += n - 2;
 }
@@ -374,7 +364,9 @@ uint32_t ObjParser::index(const char* b, const char* e, uint64_t count, const ch
         if (k < (uint64_t(1) << 40)) k = 10 * k + uint64_t(*q - '0');
     }
     // The index as written, for messages (not built on the common path).
-    auto text = [&] { return std::string(b, size_t(std::min<ptrdiff_t>(e - b, 40))); };
+    auto text = [&] {
+        return printable(std::string_view(b, size_t(std::min<ptrdiff_t>(e - b, 40))));
+    };
     if (k == 0) fail("face", f, std::string(what) + " index 0 (OBJ indices start at 1)");
     if (negative) {
         if (k > count)

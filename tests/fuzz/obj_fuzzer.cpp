@@ -1,6 +1,6 @@
 // libFuzzer target for the OBJ reader: any input must load or throw a kdt::Error naming the
-// file, never crash, leak, hang or trip a sanitizer. Built by tests/fuzz/tests.cmake
-// (KDT_FUZZ=ON, clang); run by scripts/run_fuzz.sh.
+// file with a message safe to print, never crash, leak, hang or trip a sanitizer. Built by
+// tests/fuzz/tests.cmake (KDT_FUZZ=ON, clang); run by scripts/run_fuzz.sh.
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
@@ -34,6 +34,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
             std::fprintf(stderr, "error without the file name: %s\n", e.what());
             __builtin_trap();
         }
+        // Messages are safe to print: bytes from the file come out escaped.
+        for (const char* p = e.what(); *p; ++p)
+            if (static_cast<unsigned char>(*p) < 0x20 || *p == 0x7f) __builtin_trap();
     }
     return 0;
 }

@@ -314,9 +314,9 @@ TEST_F(ObjReader, HostileInputsGiveClearErrors) {
         {tri + "v 1 1 0\nf 1 2 3 99\n",
          "t.obj: line 5: face 0: vertex index 99 out of range (4 vertices)"},
         {tri + "f 1 2 3 4 5 6 7 8 9 10\n", "t.obj: line 4: face 0: vertex index 10 out of range"},
-        {tri + "f\n", "t.obj: line 4: face 0: has 0 vertices (at least 3 needed)"},
-        {tri + "f 1\n", "t.obj: line 4: face 0: has 1 vertices (at least 3 needed)"},
-        {tri + "f 1 2 3\nf 1 2\n", "t.obj: line 5: face 1: has 2 vertices (at least 3 needed)"},
+        {tri + "f\n", "t.obj: line 4: face 0: 0 indices, a face needs at least 3"},
+        {tri + "f 1\n", "t.obj: line 4: face 0: 1 index, a face needs at least 3"},
+        {tri + "f 1 2 3\nf 1 2\n", "t.obj: line 5: face 1: 2 indices, a face needs at least 3"},
         {tri + "vn 0 0 1\nf 1//1 2//1 3//2\n",
          "t.obj: line 5: face 0: normal index 2 out of range (1 normals)"},
         {tri + "f 1//-1 2//1 3//1\n",
@@ -437,7 +437,8 @@ const Expectation kCorpus[] = {
     {"invalid/empty.obj", "empty.obj: no vertices (an empty file, or not an OBJ file)"},
     {"invalid/malformed.obj",
      "malformed.obj: line 28: face 5: vertex index 0 (OBJ indices start at 1)"},
-    {"invalid/malformed2.obj", "malformed2.obj: line 23: face 0: has 0 vertices"},
+    {"invalid/malformed2.obj",
+     "malformed2.obj: line 23: face 0: 0 indices, a face needs at least 3"},
 };
 
 using Tri = std::array<Vec3f, 3>;

@@ -789,11 +789,16 @@ TEST(PlyReaderErrors, CountsTheFileCannotHold) {
     EXPECT_ERROR(other, "element normals: count 999999999999 needs at least");
     std::string b = std::string(kHeaderXYZ) + xyz_body();
     b.replace(b.find("element face 1"), 14, "element face 4000000000");
-    EXPECT_ERROR(b, "element face: count 4000000000 needs at least 52000000000 bytes (");
+    // Lists may be empty in this check, so a face takes at least its count byte.
+    EXPECT_ERROR(b, "element face: count 4000000000 needs at least 4000000000 bytes (");
     // When the element alone would fit, the message gives the total with those before it.
-    EXPECT_ERROR(header_body_of_two_faces(),
-                 "element face: count 2 needs at least 16 bytes (34 with the elements before it), "
+    std::string twenty = header_body_of_two_faces();
+    twenty.replace(twenty.find("element face 2"), 14, "element face 20");
+    EXPECT_ERROR(twenty,
+                 "element face: count 20 needs at least 40 bytes (58 with the elements before it), "
                  "more than the 32 bytes of data in the file");
+    // Two faces fit that check; the short second face is reported as read.
+    EXPECT_ERROR(header_body_of_two_faces(), "line 14: face 1: face lists 2 of 3 vertex indices");
     std::string huge = kCubeAscii;
     huge.replace(huge.find("element vertex 5"), 16, "element vertex 99999999999999999999999");
     EXPECT_ERROR(huge, "element vertex: count 99999999999999999999999 is too large");
@@ -831,10 +836,10 @@ TEST(PlyReaderErrors, IndicesOutOfRange) {
 TEST(PlyReaderErrors, FacesWithFewerThanThreeVertices) {
     std::string t = kCubeAscii;
     t.replace(t.find("3 0 1 4"), 7, "2 0 1");
-    EXPECT_ERROR(t, "line 18: face 1: face has 2 vertices (at least 3 needed)");
+    EXPECT_ERROR(t, "line 18: face 1: 2 indices, a face needs at least 3");
     std::string bin =
         std::string(kHeaderXYZ) + xyz_body() + Bytes().put(uint8_t(0)).put(0).put(1).put(2).s;
-    EXPECT_ERROR(bin, "test.ply: byte 205: face 0: face has 0 vertices (at least 3 needed)");
+    EXPECT_ERROR(bin, "test.ply: byte 205: face 0: 0 indices, a face needs at least 3");
 }
 
 TEST(PlyReaderErrors, HeaderErrors) {
@@ -1003,7 +1008,7 @@ TEST(PlyReader, TwoThreadAsciiMatchesOneThread) {
     } catch (const Error& e) {
         e2 = e.what();
     }
-    EXPECT_NE(e1.find("vertices (at least 3 needed)"), std::string::npos) << e1;
+    EXPECT_NE(e1.find("indices, a face needs at least 3"), std::string::npos) << e1;
     EXPECT_EQ(e1, e2);
 }
 
