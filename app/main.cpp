@@ -40,7 +40,7 @@ std::string unknown_subcommand(const CLI::App& app, const std::string& word) {
         const size_t d = edit_distance(word, name);
         if (d < best_distance) best_distance = d, best = name;
     }
-    std::string message = "unknown command '" + word + "'";
+    std::string message = "unknown command '" + kdt::printable(word) + "'";
     if (best_distance <= std::max<size_t>(2, word.size() / 3)) {
         message += " (did you mean '" + best + "'?)";
     } else {

@@ -16,21 +16,6 @@ namespace kdt::app {
 
 namespace {
 
-// Text from the command line as it may be printed: control and non-ASCII bytes as \xHH.
-std::string printable(const std::string& s) {
-    std::string out;
-    for (unsigned char c : s) {
-        if (c >= 0x20 && c < 0x7f) {
-            out += char(c);
-        } else {
-            char buf[8];
-            std::snprintf(buf, sizeof buf, "\\x%02x", c);
-            out += buf;
-        }
-    }
-    return out;
-}
-
 // "X,Y,Z" with three finite numbers, else an error naming the flag.
 Vec3f parse_vec3(const std::string& flag, const std::string& text) {
     Vec3f v(0.0f);

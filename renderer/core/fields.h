@@ -96,6 +96,8 @@ std::string choices_text(std::span<const char* const> names);
 std::string check_number(double v, double min, double max, bool min_open, bool integral);
 bool parse_number(const std::string& text, double& out);
 void throw_field_error(const char* group, const char* name, const std::string& reason);
+/// "(got 'text')" with the text made safe to print.
+std::string got(const std::string& text);
 }  // namespace detail
 
 inline bool field_is_integral(const FieldRef& r) {
@@ -147,28 +149,28 @@ std::string parse_field(const Field<S>& f, S& s, const std::string& text) {
     if (auto* b = std::get_if<bool*>(&r)) {
         if (text == "true" || text == "1" || text == "on") return **b = true, std::string();
         if (text == "false" || text == "0" || text == "off") return **b = false, std::string();
-        return "must be true or false (got '" + text + "')";
+        return "must be true or false " + detail::got(text);
     }
     if (auto* c = std::get_if<ChoiceRef>(&r)) {
         for (size_t i = 0; i < f.choices.size(); ++i) {
             if (text == f.choices[i]) return *c->value = uint8_t(i), std::string();
         }
-        return "must be " + detail::choices_text(f.choices) + " (got '" + text + "')";
+        return "must be " + detail::choices_text(f.choices) + " " + detail::got(text);
     }
     if (auto* u = std::get_if<uint64_t*>(&r)) {
         // Digits only: "-1" must not wrap around to 2^64 - 1, nor "2^64" to 0.
         if (text.empty() || text.size() > 20 || text.find_first_not_of("0123456789") != text.npos)
-            return "must be a whole number in " + field_range_text(f) + " (got '" + text + "')";
+            return "must be a whole number in " + field_range_text(f) + " " + detail::got(text);
         const unsigned long long v = std::strtoull(text.c_str(), nullptr, 10);
         if (text.size() == 20 && text > "18446744073709551615")
-            return "must be a whole number in " + field_range_text(f) + " (got '" + text + "')";
+            return "must be a whole number in " + field_range_text(f) + " " + detail::got(text);
         const uint64_t old = **u;
         **u = uint64_t(v);
         if (std::string why = check_field(f, s); !why.empty()) return **u = old, why;
         return {};
     }
     double v = 0.0;
-    if (!detail::parse_number(text, v)) return "must be a number (got '" + text + "')";
+    if (!detail::parse_number(text, v)) return "must be a number " + detail::got(text);
     std::string why = detail::check_number(v, f.min, f.max, f.min_open, field_is_integral(r));
     if (why.empty()) set_field_number(r, v);
     return why;
