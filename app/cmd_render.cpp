@@ -12,6 +12,8 @@
 #include "app/bench_rays.h"
 #include "app/commands.h"
 #include "renderer/core/error.h"
+#include "renderer/core/interrupt.h"
+#include "renderer/core/output_path.h"
 #include "renderer/io/image_io.h"
 #include "renderer/render/prepare.h"
 #include "renderer/render/session.h"
@@ -128,6 +130,7 @@ void run(const RenderArgs& a) {
     // Fail before loading and rendering, not after.
     validate(stop);
     check_image_output(a.output);
+    check_output(a.output, {a.scene, a.env, a.views}, "the image");
 
     PrepareOptions po;
     po.scene_path = a.scene;
@@ -151,12 +154,16 @@ void run(const RenderArgs& a) {
     };
     const Prepared prep = prepare_render(po);
     const RenderSnapshot& snap = *prep.snapshot;
+    check_output(a.output, scene_input_files(prep.scene), "the image");
 
     RenderSession session(prep.snapshot, tp, fp);
     const bool tty = !a.quiet && isatty(fileno(stderr));
     const double pixels = double(session.film().pixel_count());
     std::function<void(const RenderProgress&)> progress;
     if (tty) progress = [&](const RenderProgress& pr) { draw_progress(pr, pixels); };
+    // The first SIGINT/SIGTERM ends the render after the tiles in flight; the image is saved.
+    interrupt::install(interrupt::Mode::finish_work);
+    interrupt::Watcher watcher([&session] { session.cancel(); });
     const RenderProgress p = run_render(session, stop, progress);
     if (tty) std::fprintf(stderr, "\n");
 
@@ -175,6 +182,9 @@ void run(const RenderArgs& a) {
     meta.emplace_back("kdtrace:spp", std::to_string(spp));
     meta.emplace_back("kdtrace:passes", std::to_string(p.passes));
     meta.emplace_back("kdtrace:command", rerender_command(a, tp, fp, spp));
+    if (interrupt::requested())
+        meta.emplace_back("kdtrace:interrupted", std::string(interrupt::signal_name()) + " at " +
+                                                     std::to_string(spp) + " spp");
     ToneParams tone;
     tone.exposure = fp.exposure;
     write_image(a.output, image, tone, meta);
@@ -259,7 +269,9 @@ void add_render_command(CLI::App& parent) {
             throw Error("render: --time must be a positive number of seconds (got 0)");
         if (error->count() > 0 && a.error == 0.0f)
             throw Error("render: --error must be a positive relative error (got 0)");
+        interrupt::install();
         run(a);
+        if (interrupt::requested()) interrupt::exit_interrupted();  // 130 or 143
     });
 }
 

@@ -1,10 +1,12 @@
 // `kdtrace scene`: checks a scene file (or model) and prints what it holds, or writes the
 // built-in default scene as JSON so it can be edited and rendered elsewhere.
 #include <cstdio>
-#include <fstream>
 
 #include "app/commands.h"
 #include "renderer/core/error.h"
+#include "renderer/core/interrupt.h"
+#include "renderer/core/output_path.h"
+#include "renderer/core/temp_file.h"
 #include "renderer/scene/scene.h"
 
 namespace kdt::app {
@@ -19,6 +21,9 @@ void add_scene_command(CLI::App& parent) {
     cmd->add_option("-o,--output", output, "Write the scene as JSON to this file");
     cmd->add_flag("--drop-invalid", drop_invalid, "Drop faces with non-finite vertices");
     cmd->callback([] {
+        interrupt::install();
+        // Fail before loading, not after; the files the scene references are checked below.
+        if (!output.empty()) check_output(output, {input}, "the scene");
         SceneLoadOptions opts;
         opts.drop_invalid = drop_invalid;
         Scene scene = input.empty() ? make_default_scene() : load_scene_or_model(input, opts);
@@ -47,10 +52,9 @@ void add_scene_command(CLI::App& parent) {
                         kEnvMappingNames[size_t(e.mapping)], e.rotation_degrees, e.intensity);
         }
         if (!output.empty()) {
-            std::ofstream out(output);
-            if (!out) throw Error(ErrorLocation{output}, "cannot open for writing");
-            out << scene_to_json(scene);
-            if (!out) throw Error(ErrorLocation{output}, "write error");
+            check_output(output, scene_input_files(scene), "the scene");
+            const std::string text = scene_to_json(scene);
+            write_file_atomically(output, text.data(), text.size());
             std::printf("wrote %s\n", output.c_str());
         }
     });

@@ -1,6 +1,5 @@
 #include "renderer/accel/kdtree_cache.h"
 
-#include <atomic>
 #include <cerrno>
 #include <cinttypes>
 #include <cmath>
@@ -18,6 +17,7 @@
 
 #include "renderer/core/error.h"
 #include "renderer/core/open_file.h"
+#include "renderer/core/temp_file.h"
 #include "renderer/core/timer.h"
 
 namespace kdt {
@@ -336,23 +336,15 @@ void save_kdtree(const std::string& path, const KdTree& tree) {
     h.payload_checksum = checksum64(payload.data(), payload.size());
     h.header_checksum = checksum64(&h, offsetof(FileHeader, header_checksum));
 
-    static std::atomic<uint64_t> counter{0};
-    const std::string tmp =
-        path + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(counter.fetch_add(1));
-    auto fail = [&](const std::string& what) {
-        const int err = errno;
-        std::remove(tmp.c_str());
-        throw Error(ErrorLocation{path},
-                    "cannot write tree cache: " + what + ": " + std::strerror(err));
-    };
-    std::FILE* f = std::fopen(tmp.c_str(), "wb");
-    if (!f) fail("create " + tmp);
-    bool ok = std::fwrite(&h, sizeof(h), 1, f) == 1;
-    if (ok && !payload.empty()) ok = std::fwrite(payload.data(), payload.size(), 1, f) == 1;
-    ok = ok && std::fflush(f) == 0 && ::fsync(fileno(f)) == 0;
-    if (std::fclose(f) != 0) ok = false;
-    if (!ok) fail("write " + tmp);
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) fail("rename " + tmp);
+    // The temporary file is removed on every exit path, signals included.
+    try {
+        TempFile tmp(path);
+        tmp.write(&h, sizeof(h));
+        tmp.write(payload.data(), payload.size());
+        tmp.commit();
+    } catch (const Error& e) {
+        throw Error(ErrorLocation{path}, "cannot write tree cache: " + e.message());
+    }
 }
 
 std::shared_ptr<const KdTree> load_kdtree(const std::string& path,

@@ -342,6 +342,14 @@ Scene load_scene_or_model(const std::string& path, const SceneLoadOptions& optio
     return scene_from_model(path, options);
 }
 
+std::vector<std::string> scene_input_files(const Scene& scene) {
+    std::vector<std::string> files;
+    for (const MeshInstance& m : scene.meshes)
+        if (!m.file.empty() && m.file.rfind("builtin:", 0) != 0) files.push_back(m.file);
+    if (!scene.environment.file.empty()) files.push_back(scene.environment.file);
+    return files;
+}
+
 std::string scene_to_json(const Scene& scene) {
     json root;
     root["name"] = scene.name;

@@ -90,6 +90,9 @@ TriangleMesh make_icosphere(int levels);         ///< unit sphere, 20 * 4^levels
 TriangleMesh make_displaced_sphere(int levels);  ///< the default scene's object, radius ~1
 TriangleMesh make_ground_plane(float half_size, float height);  ///< two triangles facing +y
 
+/// The files a scene reads: its mesh files (not builtins) and its environment map, if any.
+std::vector<std::string> scene_input_files(const Scene& scene);
+
 /// Writes a scene as JSON that load_scene() reads back (generated meshes as "builtin:" names).
 std::string scene_to_json(const Scene& scene);
 

@@ -98,3 +98,16 @@ add_test(NAME smoke.build_output_is_directory COMMAND ${_kdt} build
          /usr/share/assimp/models/PLY/cube.ply -o ${_tmp})
 set_tests_properties(smoke.build_output_is_directory PROPERTIES
   PASS_REGULAR_EXPRESSION "cannot write the tree: is a directory \\(give a file name\\)")
+
+# SIGINT/SIGTERM against a running kdtrace: the image is saved and marked interrupted, a
+# second signal quits at once, and no temporary file is left (tests/app/interrupt_test.sh).
+foreach(_case render_int render_term render_twice build_int)
+  add_test(NAME smoke.interrupt_${_case} COMMAND bash
+           ${CMAKE_CURRENT_LIST_DIR}/interrupt_test.sh ${_kdt} ${_case} ${_tmp}/interrupt_${_case})
+  set_tests_properties(smoke.interrupt_${_case} PROPERTIES PASS_REGULAR_EXPRESSION "PASS: "
+                       FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)
+endforeach()
+add_test(NAME smoke.outputs_never_destroy_inputs COMMAND bash
+         ${CMAKE_CURRENT_LIST_DIR}/outputs_test.sh ${_kdt} ${_tmp}/outputs)
+set_tests_properties(smoke.outputs_never_destroy_inputs PROPERTIES PASS_REGULAR_EXPRESSION
+                     "PASS: outputs" FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)
