@@ -7,6 +7,7 @@
 #include "renderer/core/interrupt.h"
 #include "renderer/core/output_path.h"
 #include "renderer/core/temp_file.h"
+#include "renderer/light/environment.h"
 #include "renderer/scene/scene.h"
 
 namespace kdt::app {
@@ -27,6 +28,14 @@ void add_scene_command(CLI::App& parent) {
         SceneLoadOptions opts;
         opts.drop_invalid = drop_invalid;
         Scene scene = input.empty() ? make_default_scene() : load_scene_or_model(input, opts);
+        // The environment map is decoded as `render` would (the meshes were read above).
+        if (!scene.environment.file.empty()) {
+            try {
+                make_environment_light(scene.environment);
+            } catch (const Error& e) {
+                throw Error(ErrorLocation{input, "environment/file"}, e.what());
+            }
+        }
         size_t tris = 0, verts = 0;
         for (const MeshInstance& m : scene.meshes) {
             tris += m.mesh->triangle_count();

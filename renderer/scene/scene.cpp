@@ -2,7 +2,10 @@
 // types are errors naming the file and the key's path.
 #include "renderer/scene/scene.h"
 
+#include <unistd.h>
+
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -107,6 +110,41 @@ private:
     std::string where_;
 };
 
+std::string format_row(float a, float b, float c, float d) {
+    char buf[128];
+    std::snprintf(buf, sizeof(buf), "%g %g %g %g", double(a), double(b), double(c), double(d));
+    return buf;
+}
+
+// A file name as the scene file gives it: no control characters (a NUL would cut the name
+// short at the system call, "tri.ply\u0000.obj" opening tri.ply).
+std::string file_name(const Reader& r, const char* key) {
+    const std::string name = r.string(key, "");
+    if (name.empty()) r.fail_key(key, "empty file name");
+    for (size_t i = 0; i < name.size(); ++i) {
+        const unsigned char c = static_cast<unsigned char>(name[i]);
+        if (c < 0x20 || c == 0x7f) {
+            char buf[96];
+            std::snprintf(buf, sizeof(buf),
+                          "file name contains a control character (byte 0x%02x at offset %zu)",
+                          unsigned(c), i);
+            r.fail_key(key, buf);
+        }
+    }
+    return name;
+}
+
+// The file must be a regular file kdtrace can open (checked without blocking on a FIFO or
+// reading a device), reported as the scene file and key; the reader's own message follows.
+void check_referenced_file(const Reader& r, const char* key, const std::string& path,
+                           const char* what) {
+    try {
+        ::close(open_regular_file(path, what));
+    } catch (const Error& e) {
+        r.fail_key(key, e.what());
+    }
+}
+
 Mat4f read_transform(const Reader& r) {
     r.allow({"translate", "rotate", "scale", "matrix"});
     if (r.has("matrix")) {
@@ -124,6 +162,12 @@ Mat4f read_transform(const Reader& r) {
                     r.fail_key("matrix", "expected 16 finite numbers (row-major)");
                 out[col][row] = v.get<float>();
             }
+        }
+        // Points are transformed as (x, y, z, 1) and the result used without a division:
+        // a projective bottom row would be silently ignored, so it is refused.
+        if (out[0][3] != 0.0f || out[1][3] != 0.0f || out[2][3] != 0.0f || out[3][3] != 1.0f) {
+            r.fail_key("matrix", "the bottom row must be 0 0 0 1 (an affine transform); got " +
+                                     format_row(out[0][3], out[1][3], out[2][3], out[3][3]));
         }
         // Singular when its columns are (nearly) dependent, whatever their lengths: the
         // determinant relative to the product of the column lengths, in double, so a uniform
@@ -180,15 +224,17 @@ CameraDesc read_camera(const Reader& r) {
     return c;
 }
 
-EnvironmentDesc read_environment(const Reader& r, const fs::path& base) {
+EnvironmentDesc read_environment(const Reader& r, const fs::path& base,
+                                 const SceneLoadOptions& options) {
     r.allow({"color", "file", "mapping", "rotation", "intensity"});
     EnvironmentDesc e;
     e.color = r.vec3("color", e.color, true);
     if (glm::any(glm::lessThan(e.color, Vec3f(0.0f))))
         r.fail_key("color", "colour must be non-negative");
     if (r.has("file")) {
-        fs::path f = r.string("file", "");
+        fs::path f = file_name(r, "file");
         e.file = (f.is_relative() ? base / f : f).lexically_normal().string();
+        if (options.check_files) check_referenced_file(r, "file", e.file, "an environment map");
     }
     e.mapping = EnvMapping(r.choice("mapping", kEnvMappingNames, int(e.mapping)));
     e.rotation_degrees = r.number("rotation", e.rotation_degrees);
@@ -241,7 +287,8 @@ Scene load_scene_text(const std::string& text, const std::string& path,
 
     Scene scene;
     scene.name = r.string("name", fs::path(path).stem().string());
-    if (r.has("environment")) scene.environment = read_environment(r.object("environment"), base);
+    if (r.has("environment"))
+        scene.environment = read_environment(r.object("environment"), base, options);
 
     std::map<std::string, std::shared_ptr<const TriangleMesh>> loaded;
     Bounds3f world;
@@ -253,7 +300,7 @@ Scene load_scene_text(const std::string& text, const std::string& path,
         m.allow({"file", "transform", "material", "smooth"});
         MeshInstance inst;
         if (!m.has("file")) m.fail("missing \"file\"");
-        std::string file = m.string("file", "");
+        std::string file = file_name(m, "file");
         if (file.rfind("builtin:", 0) == 0) {
             inst.file = file;
             inst.mesh = builtin_mesh(file.substr(8), options.mesh_source);

@@ -63,6 +63,9 @@ struct SceneLoadOptions {
     /// Empty: mesh files are read with load_mesh() and builtins generated. Tests and fuzzers
     /// substitute their own (so that a scene can be checked without its meshes).
     SceneMeshSource mesh_source;
+    /// Check that the environment map is a regular file that can be opened (mesh files are
+    /// read anyway). Off only for fuzzers, which must not touch the file system.
+    bool check_files = true;
 };
 
 /// Loads a JSON scene file; mesh paths are relative to the scene file. Unknown keys,

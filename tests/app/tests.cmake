@@ -111,3 +111,7 @@ add_test(NAME smoke.outputs_never_destroy_inputs COMMAND bash
          ${CMAKE_CURRENT_LIST_DIR}/outputs_test.sh ${_kdt} ${_tmp}/outputs)
 set_tests_properties(smoke.outputs_never_destroy_inputs PROPERTIES PASS_REGULAR_EXPRESSION
                      "PASS: outputs" FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)
+add_test(NAME smoke.scene_checks_referenced_files COMMAND bash
+         ${CMAKE_CURRENT_LIST_DIR}/scene_check_test.sh ${_kdt} ${_tmp}/scene_checks)
+set_tests_properties(smoke.scene_checks_referenced_files PROPERTIES PASS_REGULAR_EXPRESSION
+                     "PASS: scene checks" FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)

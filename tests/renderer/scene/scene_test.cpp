@@ -57,6 +57,7 @@ TEST(Scene, DefaultSceneIsLargeAndClosed) {
 TEST(Scene, LoadsFileWithTransformMaterialCameraEnvironment) {
     auto dir = test::temp_dir("scene_load");
     write_file(dir, "cube.ply", kCubePly);
+    write_file(dir, "sky.hdr", "read by the renderer, only opened by the scene");
     auto path = write_file(dir, "s.json", R"({
       "name": "t",
       "meshes": [{"file": "cube.ply", "transform": {"translate": [1, 2, 3], "scale": 2},
@@ -248,6 +249,93 @@ TEST(Scene, ModelSceneFramesTheModel) {
     float dist = glm::length(s.camera.target - s.camera.eye);
     EXPECT_GT(dist * std::sin(glm::radians(s.camera.vfov_degrees / 2)), std::sqrt(3.0f));
     EXPECT_NEAR(glm::length(to_center), 1.0f, 1e-6f);
+}
+
+// A projective bottom row cannot be honoured (points are used without a division): refused.
+TEST(Scene, TransformBottomRowMustBeAffine) {
+    auto dir = test::temp_dir("scene_bottom_row");
+    write_file(dir, "cube.ply", kCubePly);
+    const char* rows[] = {"0, 0, 0, 2",  "0, 0, 1, 1",     "1e-30, 0, 0, 1",    "0, 0, 0, 0",
+                          "0, 0, 0, -1", "0.5, 0.5, 0, 1", "0, 0, 0, 1.0000001"};
+    int i = 0;
+    for (const char* row : rows) {
+        const std::string json =
+            std::string(R"({"meshes": [{"file": "cube.ply", "transform": {"matrix": )") +
+            "[2, 0, 0, 1, 0, 2, 0, 0, 0, 0, 2, 0, " + row + "]}}]}";
+        const std::string path = write_file(dir, "s" + std::to_string(i++) + ".json", json);
+        const std::string msg = error_of(path);
+        EXPECT_EQ(
+            msg.rfind(path + ": meshes/0/transform/matrix: the bottom row must be 0 0 0 1", 0), 0u)
+            << row << ": " << msg;
+    }
+    const std::string ok = write_file(dir, "ok.json",
+                                      R"({"meshes": [{"file": "cube.ply", "transform": {"matrix": )"
+                                      R"([2, 0, 0, 1, 0, 2, 0, 0, 0, 0, 2, 0, 0, 0, 0, 1]}}]})");
+    EXPECT_EQ(error_of(ok), "");
+}
+
+// A NUL would cut the name short ("tri.ply\u0000.obj" opened tri.ply); no control
+// character is a plausible part of a file name.
+TEST(Scene, ControlCharactersInFileNamesAreErrors) {
+    auto dir = test::temp_dir("scene_control");
+    write_file(dir, "cube.ply", kCubePly);
+    write_file(dir, "sky.pfm", "PF\n1 1\n-1\n");
+    int i = 0;
+    for (const char* escape : {"\\u0000", "\\u0001", "\\t", "\\n", "\\r", "\\u001b", "\\u007f"}) {
+        for (const bool env : {false, true}) {
+            const std::string name = std::string("cube.ply") + escape + ".obj";
+            const std::string json =
+                env ? R"({"meshes": [{"file": "cube.ply"}], "environment": {"file": ")" + name +
+                          "\"}}"
+                    : R"({"meshes": [{"file": ")" + name + "\"}]}";
+            const std::string path = write_file(dir, "s" + std::to_string(i++) + ".json", json);
+            const std::string msg = error_of(path);
+            const std::string key = env ? "environment/file" : "meshes/0/file";
+            EXPECT_EQ(
+                msg.rfind(path + ": " + key + ": file name contains a control character (byte 0x",
+                          0),
+                0u)
+                << escape << ": " << msg;
+            EXPECT_NE(msg.find("at offset 8)"), std::string::npos) << msg;
+        }
+    }
+    EXPECT_NE(error_of(write_file(dir, "empty.json", R"({"meshes": [{"file": ""}]})"))
+                  .find("meshes/0/file: empty file name"),
+              std::string::npos);
+}
+
+// The environment map a scene names is checked when the scene is read (not only when a
+// render decodes it), and the message names the scene file and the key, then the problem.
+TEST(Scene, EnvironmentFileIsCheckedNamingSceneAndKey) {
+    auto dir = test::temp_dir("scene_env_file");
+    write_file(dir, "cube.ply", kCubePly);
+    std::filesystem::create_directories(dir / "probe_dir.hdr");
+    ASSERT_EQ(::mkfifo((dir / "probe_fifo.hdr").c_str(), 0600), 0);
+    write_file(dir, "locked.hdr", "#?RADIANCE\n");
+    ASSERT_EQ(::chmod((dir / "locked.hdr").c_str(), 0), 0);
+    struct Case {
+        std::string file, expect;
+    };
+    std::vector<Case> cases = {
+        {"missing.hdr", "cannot open file: No such file or directory"},
+        {"probe_dir.hdr", "is a directory"},
+        {"probe_fifo.hdr", "is a FIFO (pipe), not an environment map"},
+        {"/dev/zero", "is a character device, not an environment map"},
+        {"cube.ply/inside.hdr", "cannot open file: Not a directory"},
+    };
+    // Root reads any file whatever its mode: the unreadable case only means something
+    // for other users.
+    if (::geteuid() != 0) cases.push_back({"locked.hdr", "Permission denied"});
+    int i = 0;
+    for (const Case& c : cases) {
+        const std::string path = write_file(
+            dir, "s" + std::to_string(i++) + ".json",
+            R"({"meshes": [{"file": "cube.ply"}], "environment": {"file": ")" + c.file + "\"}}");
+        const std::string msg = error_of(path);
+        EXPECT_EQ(msg.rfind(path + ": environment/file: ", 0), 0u) << c.file << ": " << msg;
+        EXPECT_NE(msg.find(c.file), std::string::npos) << msg;
+        EXPECT_NE(msg.find(c.expect), std::string::npos) << c.file << ": " << msg;
+    }
 }
 
 }  // namespace
