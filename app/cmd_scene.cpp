@@ -21,12 +21,19 @@ void add_scene_command(CLI::App& parent) {
                     "Scene (.json) or model file; omitted = the built-in default scene");
     cmd->add_option("-o,--output", output, "Write the scene as JSON to this file");
     cmd->add_flag("--drop-invalid", drop_invalid, "Drop faces with non-finite vertices");
+    static uint64_t max_triangles = kDefaultMaxSceneTriangles;
+    cmd->add_option("--max-triangles", max_triangles,
+                    "Refuse scenes whose instances add up to more triangles (also bounded by "
+                    "the memory available)")
+        ->capture_default_str()
+        ->check(CLI::PositiveNumber);
     cmd->callback([] {
         interrupt::install();
         // Fail before loading, not after; the files the scene references are checked below.
         if (!output.empty()) check_output(output, {input}, "the scene");
         SceneLoadOptions opts;
         opts.drop_invalid = drop_invalid;
+        opts.max_triangles = max_triangles;
         Scene scene = input.empty() ? make_default_scene() : load_scene_or_model(input, opts);
         // The environment map is decoded as `render` would (the meshes were read above).
         if (!scene.environment.file.empty()) {

@@ -4,6 +4,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -256,6 +257,30 @@ std::shared_ptr<const TriangleMesh> builtin_mesh(const std::string& name,
     return nullptr;
 }
 
+// Physical memory available now (MemAvailable), 0 when unknown.
+uint64_t available_memory_bytes() {
+    std::FILE* f = std::fopen("/proc/meminfo", "r");
+    if (!f) return 0;
+    char line[256];
+    uint64_t kb = 0;
+    while (std::fgets(line, sizeof(line), f)) {
+        unsigned long long v = 0;
+        if (std::sscanf(line, "MemAvailable: %llu kB", &v) == 1) {
+            kb = v;
+            break;
+        }
+    }
+    std::fclose(f);
+    return kb * 1024;
+}
+
+std::string describe_budget(const SceneLoadOptions& options) {
+    const uint64_t memory = available_memory_bytes();
+    return "at most " + std::to_string(options.max_triangles) + " triangles, and about " +
+           std::to_string(kRenderBytesPerTriangle) + " bytes each must fit the " +
+           std::to_string(memory >> 20) + " MiB of memory available";
+}
+
 std::string read_text_file(const std::string& path) {
     const std::vector<uint8_t> bytes = read_regular_file(path, uint64_t(64) << 20, "a scene file");
     return std::string(bytes.begin(), bytes.end());
@@ -291,6 +316,7 @@ Scene load_scene_text(const std::string& text, const std::string& path,
         scene.environment = read_environment(r.object("environment"), base, options);
 
     std::map<std::string, std::shared_ptr<const TriangleMesh>> loaded;
+    uint64_t instanced_triangles = 0;
     Bounds3f world;
     if (!r.has("meshes") || !r.raw("meshes").is_array() || r.raw("meshes").empty())
         r.fail_key("meshes", "expected a non-empty array of meshes");
@@ -303,7 +329,10 @@ Scene load_scene_text(const std::string& text, const std::string& path,
         std::string file = file_name(m, "file");
         if (file.rfind("builtin:", 0) == 0) {
             inst.file = file;
-            inst.mesh = builtin_mesh(file.substr(8), options.mesh_source);
+            // Generated once per scene and shared by every instance, like a mesh file.
+            auto& slot = loaded[file];
+            if (!slot) slot = builtin_mesh(file.substr(8), options.mesh_source);
+            inst.mesh = slot;
             if (!inst.mesh)
                 m.fail_key("file", "unknown builtin mesh \"" + file +
                                        "\" (expected builtin:displaced_sphere, builtin:icosphere "
@@ -339,7 +368,18 @@ Scene load_scene_text(const std::string& text, const std::string& path,
                 world.extend(Vec3f(inst.world_from_object * Vec4f(p, 1.0f)));
             }
         }
+        instanced_triangles += inst.mesh->triangle_count();
         scene.meshes.push_back(std::move(inst));
+    }
+    // Instances share their meshes here, but a render flattens them into one mesh and tree:
+    // a few bytes of JSON can ask for any number of copies, so the total is bounded before
+    // anything is allocated for it.
+    const uint64_t budget = scene_triangle_budget(options.max_triangles);
+    if (instanced_triangles > budget) {
+        r.fail_key("meshes", std::to_string(scene.meshes.size()) + " instances make " +
+                                 std::to_string(instanced_triangles) +
+                                 " triangles to render, over the budget of " +
+                                 std::to_string(budget) + " (" + describe_budget(options) + ")");
     }
     scene.camera = r.has("camera") ? read_camera(r.object("camera")) : frame_bounds(world);
     return scene;
@@ -387,6 +427,18 @@ Scene load_scene_or_model(const std::string& path, const SceneLoadOptions& optio
     for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
     if (ext == ".json") return load_scene(path, options);
     return scene_from_model(path, options);
+}
+
+uint64_t scene_triangle_budget(uint64_t max_triangles) {
+    const uint64_t memory = available_memory_bytes();
+    if (memory == 0) return max_triangles;
+    return std::min<uint64_t>(max_triangles, memory / kRenderBytesPerTriangle);
+}
+
+uint64_t instanced_triangle_count(const Scene& scene) {
+    uint64_t n = 0;
+    for (const MeshInstance& m : scene.meshes) n += m.mesh ? m.mesh->triangle_count() : 0;
+    return n;
 }
 
 std::vector<std::string> scene_input_files(const Scene& scene) {

@@ -338,5 +338,58 @@ TEST(Scene, EnvironmentFileIsCheckedNamingSceneAndKey) {
     }
 }
 
+// Instances of one file or builtin share one mesh: a scene of many copies loads one.
+TEST(Scene, InstancesShareOneMesh) {
+    auto dir = test::temp_dir("scene_share");
+    write_file(dir, "cube.ply", kCubePly);
+    std::string json = R"({"meshes": [)";
+    for (int i = 0; i < 60; ++i) {
+        json += std::string(i ? ", " : "") + R"({"file": ")" +
+                (i % 3 == 0 ? "cube.ply" : (i % 3 == 1 ? "builtin:icosphere" : "./cube.ply")) +
+                R"(", "transform": {"translate": [)" + std::to_string(i) + ", 0, 0]}}";
+    }
+    const Scene s = load_scene(write_file(dir, "many.json", json + "]}"));
+    ASSERT_EQ(s.meshes.size(), 60u);
+    for (size_t i = 0; i < s.meshes.size(); ++i) {
+        const size_t first_of_kind = i % 3 == 1 ? 1 : 0;
+        EXPECT_EQ(s.meshes[i].mesh.get(), s.meshes[first_of_kind].mesh.get()) << i;
+    }
+    EXPECT_EQ(instanced_triangle_count(s), 40u * 12u + 20u * 20480u);
+}
+
+// A few bytes of JSON can ask for any number of copies: the total after instancing is
+// bounded, with an error naming the scene file, before a render allocates it.
+TEST(Scene, TriangleBudgetAfterInstancingIsEnforced) {
+    auto dir = test::temp_dir("scene_budget");
+    SceneLoadOptions options;
+    options.max_triangles = 100000;
+    EXPECT_LE(scene_triangle_budget(options.max_triangles), options.max_triangles);
+    EXPECT_GT(scene_triangle_budget(), 0u);
+    for (int n = 1; n <= 9; ++n) {
+        std::string json = R"({"meshes": [)";
+        for (int i = 0; i < n; ++i)
+            json += std::string(i ? ", " : "") + R"({"file": "builtin:icosphere"})";
+        const std::string path = write_file(dir, "s" + std::to_string(n) + ".json", json + "]}");
+        const uint64_t triangles = uint64_t(n) * 20480u;
+        std::string msg;
+        try {
+            load_scene(path, options);
+        } catch (const Error& e) {
+            msg = e.what();
+        }
+        if (triangles <= scene_triangle_budget(options.max_triangles)) {
+            EXPECT_EQ(msg, "") << n;
+        } else {
+            EXPECT_EQ(msg.rfind(path + ": meshes: " + std::to_string(n) + " instances make " +
+                                    std::to_string(triangles) +
+                                    " triangles to render, over the budget of 100000 (at most "
+                                    "100000 triangles",
+                                0),
+                      0u)
+                << msg;
+        }
+    }
+}
+
 }  // namespace
 }  // namespace kdt
