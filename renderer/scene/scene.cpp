@@ -111,6 +111,16 @@ private:
     std::string where_;
 };
 
+std::string format_vec(const Vec3f& v) {
+    char buf[128];
+    std::snprintf(buf, sizeof(buf), "%g %g %g", double(v.x), double(v.y), double(v.z));
+    return buf;
+}
+
+double max_abs(const Vec3d& v) {
+    return std::max(std::fabs(v.x), std::max(std::fabs(v.y), std::fabs(v.z)));
+}
+
 std::string format_row(float a, float b, float c, float d) {
     char buf[128];
     std::snprintf(buf, sizeof(buf), "%g %g %g %g", double(a), double(b), double(c), double(d));
@@ -218,9 +228,18 @@ CameraDesc read_camera(const Reader& r) {
     c.vfov_degrees = r.number("vfov", c.vfov_degrees);
     if (!(c.vfov_degrees > 0.0f && c.vfov_degrees < 180.0f))
         r.fail_key("vfov", "vertical field of view must lie in (0, 180) degrees");
-    Vec3f fwd = c.target - c.eye;
-    if (!(glm::length(fwd) > 0.0f)) r.fail("eye and target coincide");
-    if (!(glm::length(glm::cross(fwd, c.up)) > 0.0f))
+    // In double, on unit vectors: in float the difference of two coordinates near 3e38
+    // overflows, and products of large components overflow to inf or NaN, which read as
+    // "parallel" before.
+    const Vec3d fwd = Vec3d(c.target) - Vec3d(c.eye);
+    if (fwd == Vec3d(0.0)) r.fail("eye and target coincide");
+    if (!is_finite(Vec3f(fwd))) {
+        r.fail("eye and target are too far apart: their difference overflows float (eye " +
+               format_vec(c.eye) + ", target " + format_vec(c.target) + ")");
+    }
+    if (c.up == Vec3f(0.0f)) r.fail_key("up", "up vector is zero");
+    auto unit = [](const Vec3d& v) { return v / glm::length(v / max_abs(v)) / max_abs(v); };
+    if (!(glm::length(glm::cross(unit(fwd), unit(Vec3d(c.up)))) > 1e-6))
         r.fail("up is parallel to the view direction");
     return c;
 }

@@ -391,5 +391,62 @@ TEST(Scene, TriangleBudgetAfterInstancingIsEnforced) {
     }
 }
 
+// An eye or target near the float limit, or an up vector of huge components, is an
+// overflow, not "up is parallel to the view direction" (which NaN products used to say).
+TEST(Scene, CameraOverflowIsReportedAsOverflow) {
+    auto dir = test::temp_dir("scene_camera_overflow");
+    struct Case {
+        const char* camera;
+        const char* expect;
+    } cases[] = {
+        {R"("eye": [3e38, 3e38, 3e38], "target": [-3e38, -3e38, -3e38])",
+         "eye and target are too far apart: their difference overflows float"},
+        {R"("eye": [-3e38, 0, 0], "target": [3e38, 0, 0])",
+         "eye and target are too far apart: their difference overflows float"},
+        {R"("eye": [0, 0, 2e38], "target": [0, 0, -2e38])", "overflows float"},
+        {R"("eye": [0, 0, 0], "target": [0, 0, 0])", "eye and target coincide"},
+        {R"("eye": [0, 0, 5], "target": [0, 0, 0], "up": [0, 0, 0])",
+         "camera/up: up vector is zero"},
+        {R"("eye": [0, 0, 5], "target": [0, 0, 0], "up": [0, 0, 3e38])",
+         "up is parallel to the view direction"},
+    };
+    int i = 0;
+    for (const Case& c : cases) {
+        const std::string path =
+            write_file(dir, "c" + std::to_string(i++) + ".json",
+                       std::string(R"({"meshes": [{"file": "builtin:icosphere"}], "camera": {)") +
+                           c.camera + "}}");
+        const std::string msg = error_of(path);
+        EXPECT_EQ(msg.rfind(path + ": camera", 0), 0u) << msg;
+        EXPECT_NE(msg.find(c.expect), std::string::npos) << c.camera << ": " << msg;
+    }
+    // Huge but representable cameras still load: up of huge components, a far eye.
+    const std::string ok = write_file(
+        dir, "ok.json",
+        R"({"meshes": [{"file": "builtin:icosphere"}], "camera": {"eye": [3e38, 3e38, 3e38], )"
+        R"("target": [1e38, 1e38, 1e38], "up": [0, 3e38, 0]}})");
+    EXPECT_EQ(error_of(ok), "");
+    // make_camera (views, the command line) says which vector is not finite.
+    auto camera_error = [](Vec3f eye, Vec3f target, Vec3f up) {
+        try {
+            make_camera(eye, target, up, 40.0f, 8, 8);
+        } catch (const Error& e) {
+            return std::string(e.what());
+        }
+        return std::string();
+    };
+    const float inf = INFINITY, big = 3e38f;
+    EXPECT_NE(camera_error({inf, 0, 0}, {0, 0, 0}, {0, 1, 0}).find("camera: eye (inf"),
+              std::string::npos);
+    EXPECT_NE(camera_error({0, 0, 5}, {NAN, 0, 0}, {0, 1, 0}).find("camera: target (nan"),
+              std::string::npos);
+    EXPECT_NE(camera_error({0, 0, 5}, {0, 0, 0}, {0, inf, 0}).find("camera: up (0"),
+              std::string::npos);
+    EXPECT_NE(camera_error({-big, 0, 0}, {big, 0, 0}, {0, 1, 0})
+                  .find("eye and target are too far apart: their difference overflows float"),
+              std::string::npos);
+    EXPECT_EQ(camera_error({big, big, big}, {0, 0, 0}, {0, big, 0}), "");
+}
+
 }  // namespace
 }  // namespace kdt
