@@ -7,22 +7,11 @@
 #include <filesystem>
 
 #include "renderer/core/error.h"
+#include "renderer/core/open_file.h"
 
 namespace kdt {
-namespace {
 
 namespace fs = std::filesystem;
-
-const char* special_kind(mode_t mode) {
-    if (S_ISDIR(mode)) return "a directory";
-    if (S_ISFIFO(mode)) return "a FIFO (pipe)";
-    if (S_ISSOCK(mode)) return "a socket";
-    if (S_ISCHR(mode)) return "a character device";
-    if (S_ISBLK(mode)) return "a block device";
-    return nullptr;
-}
-
-}  // namespace
 
 void check_output(const std::string& output, const std::vector<std::string>& inputs,
                   const char* what) {
@@ -44,7 +33,7 @@ void check_output(const std::string& output, const std::vector<std::string>& inp
     const bool resolves = ::stat(output.c_str(), &target) == 0;
     const bool is_link = S_ISLNK(link.st_mode);
     if (resolves) {
-        if (const char* kind = special_kind(target.st_mode)) {
+        if (const char* kind = special_file_kind(target.st_mode)) {
             fail(std::string(is_link ? "is a symlink to " : "is ") + kind +
                  (S_ISDIR(target.st_mode)
                       ? " (give a file name)"
