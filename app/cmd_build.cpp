@@ -1,7 +1,6 @@
 // `kdtrace build MODEL`: builds (or reuses from the cache) the kd-tree of a model and prints
 // what the build produced; with -o writes the tree to a cache file of the user's choice.
 #include <cstdio>
-#include <filesystem>
 #include <memory>
 #include <string>
 
@@ -9,6 +8,8 @@
 #include "app/options_cli.h"
 #include "renderer/accel/kdtree_cache.h"
 #include "renderer/core/error.h"
+#include "renderer/core/interrupt.h"
+#include "renderer/core/output_path.h"
 #include "renderer/core/timer.h"
 #include "renderer/io/mesh_io.h"
 #include "renderer/render/settings.h"
@@ -56,18 +57,10 @@ void add_build_command(CLI::App& parent) {
                     "Cache directory (default: next to the model, else $KDT_CACHE_DIR/trees, "
                     "$XDG_CACHE_HOME/kdtrace/trees or ~/.cache/kdtrace/trees)");
     cmd->callback([] {
+        interrupt::install();
         validate(params);
-        if (!output.empty()) {
-            // Fail before a long build, not after it.
-            const std::filesystem::path dir = std::filesystem::absolute(output).parent_path();
-            std::error_code ec;
-            if (!std::filesystem::is_directory(dir, ec))
-                throw Error(ErrorLocation{output},
-                            "cannot write the tree: directory " + dir.string() + " does not exist");
-            if (std::filesystem::is_directory(output, ec))
-                throw Error(ErrorLocation{output},
-                            "cannot write the tree: is a directory (give a file name)");
-        }
+        // Fail before a long build, not after it.
+        if (!output.empty()) check_output(output, {model}, "the tree");
         MeshLoadInfo info;
         auto mesh = std::make_shared<TriangleMesh>(load_mesh(model, {}, &info));
         std::printf("%s: %zu vertices, %zu triangles, loaded in %.3f s\n", model.c_str(),

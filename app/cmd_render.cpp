@@ -12,6 +12,8 @@
 #include "app/commands.h"
 #include "app/options_cli.h"
 #include "renderer/core/error.h"
+#include "renderer/core/interrupt.h"
+#include "renderer/core/output_path.h"
 #include "renderer/io/image_io.h"
 #include "renderer/render/prepare.h"
 #include "renderer/render/session.h"
@@ -103,17 +105,22 @@ void run(const RenderCommand& cmd) {
     // Fail before loading and rendering, not after.
     validate(o);
     check_image_output(cmd.output);
+    check_output(cmd.output, {o.scene.scene_path, o.scene.env_file}, "the image");
 
     const Prepared prep = prepare_render(o, [&](const std::string& line) {
         if (!cmd.quiet) std::fprintf(stderr, "kdtrace: %s\n", line.c_str());
     });
     const RenderSnapshot& snap = *prep.snapshot;
+    check_output(cmd.output, scene_input_files(prep.scene), "the image");
 
     RenderSession session(prep.snapshot, o.trace, o.film);
     const bool tty = !cmd.quiet && isatty(fileno(stderr));
     const double pixels = double(session.film().pixel_count());
     std::function<void(const RenderProgress&)> progress;
     if (tty) progress = [&](const RenderProgress& pr) { draw_progress(pr, pixels); };
+    // The first SIGINT/SIGTERM ends the render after the tiles in flight; the image is saved.
+    interrupt::install(interrupt::Mode::finish_work);
+    interrupt::Watcher watcher([&session] { session.cancel(); });
     const RenderProgress p = run_render(session, o.stop, progress);
     if (tty) std::fprintf(stderr, "\n");
 
@@ -133,6 +140,9 @@ void run(const RenderCommand& cmd) {
     meta.emplace_back("kdtrace:spp", std::to_string(spp));
     meta.emplace_back("kdtrace:passes", std::to_string(p.passes));
     meta.emplace_back("kdtrace:command", rerender_command(o, spp));
+    if (interrupt::requested())
+        meta.emplace_back("kdtrace:interrupted", std::string(interrupt::signal_name()) + " at " +
+                                                     std::to_string(spp) + " spp");
     ToneParams tone;
     tone.exposure = o.film.exposure;
     write_image(cmd.output, image, tone, meta);
@@ -166,11 +176,13 @@ void add_render_command(CLI::App& parent) {
         ->capture_default_str();
     sub->add_flag("--quiet", cmd.quiet, "No progress bar or cache messages");
     sub->callback([] {
+        interrupt::install();
         try {
             run(cmd);
         } catch (const Error& e) {
             throw Error(with_flags(e.what()));
         }
+        if (interrupt::requested()) interrupt::exit_interrupted();  // 130 or 143
     });
 }
 

@@ -1,10 +1,13 @@
 // `kdtrace scene`: checks a scene file (or model) and prints what it holds, or writes the
 // built-in default scene as JSON so it can be edited and rendered elsewhere.
 #include <cstdio>
-#include <fstream>
 
 #include "app/commands.h"
 #include "renderer/core/error.h"
+#include "renderer/core/interrupt.h"
+#include "renderer/core/output_path.h"
+#include "renderer/core/temp_file.h"
+#include "renderer/light/environment.h"
 #include "renderer/scene/scene.h"
 
 namespace kdt::app {
@@ -18,10 +21,28 @@ void add_scene_command(CLI::App& parent) {
                     "Scene (.json) or model file; omitted = the built-in default scene");
     cmd->add_option("-o,--output", output, "Write the scene as JSON to this file");
     cmd->add_flag("--drop-invalid", drop_invalid, "Drop faces with non-finite vertices");
+    static uint64_t max_triangles = kDefaultMaxSceneTriangles;
+    cmd->add_option("--max-triangles", max_triangles,
+                    "Refuse scenes whose instances add up to more triangles (also bounded by "
+                    "the memory available)")
+        ->capture_default_str()
+        ->check(CLI::PositiveNumber);
     cmd->callback([] {
+        interrupt::install();
+        // Fail before loading, not after; the files the scene references are checked below.
+        if (!output.empty()) check_output(output, {input}, "the scene");
         SceneLoadOptions opts;
         opts.drop_invalid = drop_invalid;
+        opts.max_triangles = max_triangles;
         Scene scene = input.empty() ? make_default_scene() : load_scene_or_model(input, opts);
+        // The environment map is decoded as `render` would (the meshes were read above).
+        if (!scene.environment.file.empty()) {
+            try {
+                make_environment_light(scene.environment);
+            } catch (const Error& e) {
+                throw Error(ErrorLocation{input, "environment/file"}, e.what());
+            }
+        }
         size_t tris = 0, verts = 0;
         for (const MeshInstance& m : scene.meshes) {
             tris += m.mesh->triangle_count();
@@ -47,10 +68,9 @@ void add_scene_command(CLI::App& parent) {
                         kEnvMappingNames[size_t(e.mapping)], e.rotation_degrees, e.intensity);
         }
         if (!output.empty()) {
-            std::ofstream out(output);
-            if (!out) throw Error(ErrorLocation{output}, "cannot open for writing");
-            out << scene_to_json(scene);
-            if (!out) throw Error(ErrorLocation{output}, "write error");
+            check_output(output, scene_input_files(scene), "the scene");
+            const std::string text = scene_to_json(scene);
+            write_file_atomically(output, text.data(), text.size());
             std::printf("wrote %s\n", output.c_str());
         }
     });

@@ -15,6 +15,7 @@
 #include "app/bench/bench_table.h"
 #include "app/commands.h"
 #include "renderer/core/error.h"
+#include "renderer/core/output_path.h"
 #include "renderer/core/timer.h"
 #include "renderer/io/mesh_io.h"
 #include "renderer/io/ply_writer.h"
@@ -81,6 +82,7 @@ double assimp_load_ms(const std::string& path, size_t* triangles, double* cpu_ms
 #endif
 
 void run_bench_load(const BenchLoadArgs& args) {
+    if (!args.csv.empty()) check_output(args.csv, args.files, "the CSV table");
     std::vector<std::string> files = args.files;
     if (!args.make_binary.empty()) {
         std::filesystem::create_directories(args.make_binary);

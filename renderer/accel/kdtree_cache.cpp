@@ -1,6 +1,5 @@
 #include "renderer/accel/kdtree_cache.h"
 
-#include <atomic>
 #include <cerrno>
 #include <cinttypes>
 #include <cmath>
@@ -18,6 +17,7 @@
 
 #include "renderer/core/error.h"
 #include "renderer/core/open_file.h"
+#include "renderer/core/temp_file.h"
 #include "renderer/core/timer.h"
 
 namespace kdt {
@@ -155,6 +155,7 @@ public:
         uint64_t size = 0;
         fd_ = open_regular_file(path, "a cache file", &size);
         size_ = size_t(size);
+        if (::fstat(fd_, &stat_) != 0) fail(std::string("cannot stat: ") + std::strerror(errno));
         if (size_ == 0) return;
         void* p = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, fd_, 0);
         if (p == MAP_FAILED) fail(std::string("cannot map: ") + std::strerror(errno));
@@ -169,6 +170,7 @@ public:
 
     const unsigned char* data() const { return data_; }
     size_t size() const { return size_; }
+    const struct stat& stat() const { return stat_; }
 
 private:
     [[noreturn]] void fail(const std::string& message) {
@@ -181,7 +183,66 @@ private:
     int fd_ = -1;
     const unsigned char* data_ = nullptr;
     size_t size_ = 0;
+    struct stat stat_ {};
 };
+
+// Verified-stamps. check_kdtree_complete() costs a sizeable fraction of a build, so a file
+// is verified once and a stamp records it in the user's private cache directory (mode
+// 0700): the file's device, inode, size and status-change time (ctime, which no write,
+// rename or utime() call can preserve, nor an unprivileged user set), its header checksum
+// (which covers the payload's) and the mesh hash. Any change to the file, or another file
+// in its place, no longer matches its stamp and is verified again.
+std::string stamp_key(const struct stat& st, uint64_t header_checksum, uint64_t mesh_hash) {
+    char buf[256];
+    std::snprintf(buf, sizeof(buf),
+                  "kdtrace verified v%u %" PRIu64 " %" PRIu64 " %" PRIu64 " %" PRId64
+                  ".%09ld %016" PRIx64 " %016" PRIx64 "\n",
+                  kKdCacheVersion, uint64_t(st.st_dev), uint64_t(st.st_ino), uint64_t(st.st_size),
+                  int64_t(st.st_ctim.tv_sec), long(st.st_ctim.tv_nsec), header_checksum, mesh_hash);
+    return buf;
+}
+
+// Where the stamp of the file with this identity lives; empty without a cache directory.
+fs::path stamp_path(const struct stat& st) {
+    const std::string dir = default_kdtree_cache_dir();
+    if (dir.empty()) return {};
+    const uint64_t id[2] = {uint64_t(st.st_dev), uint64_t(st.st_ino)};
+    return fs::path(dir) / "verified" / (hex64(checksum64(id, sizeof(id))) + ".stamp");
+}
+
+bool stamped(const struct stat& st, const std::string& key) {
+    const fs::path p = stamp_path(st);
+    if (p.empty()) return false;
+    std::FILE* f = std::fopen(p.c_str(), "rb");
+    if (!f) return false;
+    char buf[256] = {};
+    const size_t n = std::fread(buf, 1, sizeof(buf) - 1, f);
+    std::fclose(f);
+    return std::string(buf, n) == key;
+}
+
+void create_private_directories(const fs::path& dir);
+
+// Best effort: a stamp that cannot be written only means verifying again next time.
+void write_stamp(const struct stat& st, const std::string& key) {
+    const fs::path p = stamp_path(st);
+    if (p.empty()) return;
+    try {
+        create_private_directories(p.parent_path());
+        write_file_atomically(p.string(), key.data(), key.size());
+    } catch (const Error&) {
+    }
+}
+
+// mkdir -p with mode 0700 for every directory it creates (existing ones are left alone):
+// cache and stamp directories are the user's own.
+void create_private_directories(const fs::path& dir) {
+    fs::path partial;
+    for (const fs::path& part : dir) {
+        partial /= part;
+        if (::mkdir(partial.c_str(), 0700) != 0 && errno != EEXIST) return;
+    }
+}
 
 [[noreturn]] void fail_at(const std::string& path, const char* element, int64_t index,
                           int64_t offset, const std::string& message) {
@@ -276,7 +337,10 @@ std::string kdtree_cache_file_name(const std::string& model_path, const KdTreePa
            hex64(kdtree_params_hash(params)) + ".kdt";
 }
 
-void save_kdtree(const std::string& path, const KdTree& tree) {
+namespace {
+
+// save_kdtree(), and when `stamp` (a tree this process built), a verified-stamp for the file.
+void save_kdtree_file(const std::string& path, const KdTree& tree, bool stamp) {
     const TriangleMesh& mesh = tree.mesh();
     const KdTreeParams& p = tree.params();
     const KdTreeStats& s = tree.stats();
@@ -336,36 +400,72 @@ void save_kdtree(const std::string& path, const KdTree& tree) {
     h.payload_checksum = checksum64(payload.data(), payload.size());
     h.header_checksum = checksum64(&h, offsetof(FileHeader, header_checksum));
 
-    static std::atomic<uint64_t> counter{0};
-    const std::string tmp =
-        path + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(counter.fetch_add(1));
-    auto fail = [&](const std::string& what) {
-        const int err = errno;
-        std::remove(tmp.c_str());
-        throw Error(ErrorLocation{path},
-                    "cannot write tree cache: " + what + ": " + std::strerror(err));
-    };
-    std::FILE* f = std::fopen(tmp.c_str(), "wb");
-    if (!f) fail("create " + tmp);
-    bool ok = std::fwrite(&h, sizeof(h), 1, f) == 1;
-    if (ok && !payload.empty()) ok = std::fwrite(payload.data(), payload.size(), 1, f) == 1;
-    ok = ok && std::fflush(f) == 0 && ::fsync(fileno(f)) == 0;
-    if (std::fclose(f) != 0) ok = false;
-    if (!ok) fail("write " + tmp);
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) fail("rename " + tmp);
+    // The temporary file is removed on every exit path, signals included.
+    try {
+        TempFile tmp(path);
+        tmp.write(&h, sizeof(h));
+        tmp.write(payload.data(), payload.size());
+        tmp.commit();
+    } catch (const Error& e) {
+        throw Error(ErrorLocation{path}, "cannot write tree cache: " + e.message());
+    }
+    // A tree the builder just made needs no verification when it is loaded back (a tree
+    // given to save_kdtree() may come from anywhere: its file is verified on first use).
+    struct stat st {};
+    if (stamp && ::stat(path.c_str(), &st) == 0)
+        write_stamp(st, stamp_key(st, h.header_checksum, h.mesh_hash));
 }
+
+}  // namespace
+
+void save_kdtree(const std::string& path, const KdTree& tree) {
+    save_kdtree_file(path, tree, false);
+}
+
+namespace {
+// load_kdtree_memory() with check_kdtree_complete() optional (a stamped file).
+std::shared_ptr<const KdTree> load_kdtree_image(const unsigned char* data, size_t size,
+                                                const std::string& path,
+                                                std::shared_ptr<const TriangleMesh> mesh,
+                                                const KdTreeParams& params, bool verify,
+                                                double* verify_seconds);
+}  // namespace
 
 std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
                                           std::shared_ptr<const TriangleMesh> mesh,
-                                          const KdTreeParams& params) {
+                                          const KdTreeParams& params, double* verify_seconds) {
     MappedFile file(path);
-    return load_kdtree_memory(file.data(), file.size(), path, std::move(mesh), params);
+    // The header checksum sits at a fixed offset; the full checks below validate it.
+    uint64_t header_checksum = 0;
+    if (file.size() >= sizeof(FileHeader)) {
+        std::memcpy(&header_checksum, file.data() + offsetof(FileHeader, header_checksum), 8);
+    }
+    const std::string key =
+        mesh ? stamp_key(file.stat(), header_checksum, mesh->content_hash()) : std::string();
+    const bool verified = !key.empty() && stamped(file.stat(), key);
+    double seconds = 0.0;
+    auto tree = load_kdtree_image(file.data(), file.size(), path, std::move(mesh), params,
+                                  !verified, &seconds);
+    if (!verified) write_stamp(file.stat(), key);
+    if (verify_seconds) *verify_seconds = seconds;
+    return tree;
 }
 
 std::shared_ptr<const KdTree> load_kdtree_memory(const unsigned char* data, size_t size,
                                                  const std::string& path,
                                                  std::shared_ptr<const TriangleMesh> mesh,
-                                                 const KdTreeParams& params) {
+                                                 const KdTreeParams& params,
+                                                 double* verify_seconds) {
+    return load_kdtree_image(data, size, path, std::move(mesh), params, true, verify_seconds);
+}
+
+namespace {
+
+std::shared_ptr<const KdTree> load_kdtree_image(const unsigned char* data, size_t size,
+                                                const std::string& path,
+                                                std::shared_ptr<const TriangleMesh> mesh,
+                                                const KdTreeParams& params, bool verify,
+                                                double* verify_seconds) {
     if (!mesh) throw Error(ErrorLocation{path}, "no mesh to check the tree cache against");
     if (size == 0) fail_at(path, "", -1, -1, "empty file");
     if (size < sizeof(kMagic) || std::memcmp(data, kMagic, sizeof(kMagic)) != 0) {
@@ -484,14 +584,24 @@ std::shared_ptr<const KdTree> load_kdtree_memory(const unsigned char* data, size
     // bytes and bytes_per_triangle: the KdTree counts them from its arrays.
     s.build_seconds = h.build_seconds;
     s.peak_build_bytes = h.peak_build_bytes;
+    std::shared_ptr<const KdTree> tree;
     try {
-        return std::make_shared<const KdTree>(std::move(mesh), bounds, std::move(nodes),
+        tree = std::make_shared<const KdTree>(std::move(mesh), bounds, std::move(nodes),
                                               std::move(indices), params, std::move(s));
     } catch (const Error& e) {
         // The tree re-checks what it is given; whatever it still finds names this file.
         throw Error(ErrorLocation{path}, e.what());
     }
+    // A resealed file can hold a well-formed tree that loses triangles.
+    if (verify) {
+        Timer timer;
+        check_kdtree_complete(*tree, path);
+        if (verify_seconds) *verify_seconds = timer.seconds();
+    }
+    return tree;
 }
+
+}  // namespace
 
 void reseal_kdtree_cache_image(std::vector<unsigned char>& bytes) {
     if (bytes.size() < sizeof(FileHeader)) throw Error("tree cache image shorter than a header");
@@ -549,12 +659,18 @@ std::shared_ptr<const KdTree> get_or_build_kdtree(const std::string& model_path,
         std::error_code ec;
         if (!fs::exists(fs::symlink_status(file, ec))) continue;
         try {
-            auto tree = load_kdtree(file.string(), mesh, params);
+            auto tree = load_kdtree(file.string(), mesh, params, &rep.verify_seconds);
             rep.path = file.string();
             rep.loaded = true;
             rep.seconds = timer.seconds();
-            char buf[64];
-            std::snprintf(buf, sizeof(buf), " (%.3f s)", rep.seconds);
+            char buf[96];
+            if (rep.verify_seconds > 0.0) {
+                std::snprintf(buf, sizeof(buf), " (%.3f s, of which %.3f s verifying the tree)",
+                              rep.seconds, rep.verify_seconds);
+            } else {
+                std::snprintf(buf, sizeof(buf), " (%.3f s; tree verified on an earlier run)",
+                              rep.seconds);
+            }
             say("kd-tree cache: loaded " + rep.path + buf);
             if (report) *report = rep;
             return tree;
@@ -570,7 +686,7 @@ std::shared_ptr<const KdTree> get_or_build_kdtree(const std::string& model_path,
     for (const fs::path& dir : dirs) {
         std::error_code ec;
         // Only the cache directory is ours to create; the model's directory must exist.
-        if (&dir == &dirs.back() && !fs::exists(dir, ec)) fs::create_directories(dir, ec);
+        if (&dir == &dirs.back() && !fs::exists(dir, ec)) create_private_directories(dir);
         if (!directory_writable(dir)) {
             if (&dir == &dirs.back() || !cache_dir.empty()) {
                 say("kd-tree cache: cannot write to " + dir.string() +
@@ -580,7 +696,7 @@ std::shared_ptr<const KdTree> get_or_build_kdtree(const std::string& model_path,
         }
         const fs::path file = dir / name;
         try {
-            save_kdtree(file.string(), *tree);
+            save_kdtree_file(file.string(), *tree, true);
             rep.path = file.string();
             rep.written = true;
             say("kd-tree cache: wrote " + rep.path);

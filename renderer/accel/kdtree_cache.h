@@ -34,17 +34,30 @@ void save_kdtree(const std::string& path, const KdTree& tree);
 /// parent, each node referenced once, depth <= 64, leaf ranges in range, triangle indices
 /// < triangle count). Returns a tree sharing `mesh` (nodes and indices copied out of the
 /// mapping). Throws kdt::Error with the path, the element and the byte offset on any
-/// mismatch; never trusts a file it has not fully checked.
+/// mismatch; never trusts a file it has not fully checked: last, check_kdtree_complete()
+/// (whose time goes to `verify_seconds` when given).
 std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
                                           std::shared_ptr<const TriangleMesh> mesh,
-                                          const KdTreeParams& params);
+                                          const KdTreeParams& params,
+                                          double* verify_seconds = nullptr);
 
 /// load_kdtree() on a file image already in memory (`size` bytes at `data`, which need not
 /// be aligned); `path` names it in error messages. For tests and fuzzers.
 std::shared_ptr<const KdTree> load_kdtree_memory(const unsigned char* data, size_t size,
                                                  const std::string& path,
                                                  std::shared_ptr<const TriangleMesh> mesh,
-                                                 const KdTreeParams& params);
+                                                 const KdTreeParams& params,
+                                                 double* verify_seconds = nullptr);
+
+/// Verifies that `tree` is complete for its mesh, as the builders' contract (KdNode) says:
+/// every split lies inside its node's box, and every hittable triangle is referenced by
+/// every leaf whose box its clipped polygon reaches into, beyond a tolerance of 2^-20 of
+/// the tree's largest coordinate (so that float rounding in a builder's clipping is never
+/// taken for a missing reference; a triangle lying within that distance of a split plane
+/// may be on either side). A checksum proves only that a file was not damaged; this proves
+/// that the tree cannot lose a hit that a ray through the triangle's interior would find.
+/// Throws kdt::Error naming `name`, the node and the triangle. Runs in parallel (OpenMP).
+void check_kdtree_complete(const KdTree& tree, const std::string& name);
 
 /// Recomputes both checksums of a cache file held in memory, for tests and tools that forge
 /// or patch files (so that only the structural checks can catch what they changed).
@@ -59,11 +72,12 @@ using KdCacheLog = std::function<void(const std::string& line)>;
 
 /// What get_or_build_kdtree() did, for reports and tests.
 struct KdCacheReport {
-    std::string path;      ///< cache file used or written; empty when none could be
-    bool loaded = false;   ///< true: tree came from the cache file
-    bool written = false;  ///< true: a fresh cache file was written
-    std::string reason;    ///< why a cache file was not used (empty when loaded or absent)
-    double seconds = 0.0;  ///< load or build (+ write) wall time
+    std::string path;             ///< cache file used or written; empty when none could be
+    bool loaded = false;          ///< true: tree came from the cache file
+    bool written = false;         ///< true: a fresh cache file was written
+    std::string reason;           ///< why a cache file was not used (empty when loaded or absent)
+    double seconds = 0.0;         ///< load or build (+ write) wall time
+    double verify_seconds = 0.0;  ///< of `seconds`, check_kdtree_complete() on a loaded file
 };
 
 /// The default cache directory: $KDT_CACHE_DIR/trees, else $XDG_CACHE_HOME/kdtrace/trees,

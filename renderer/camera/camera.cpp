@@ -38,9 +38,16 @@ Camera make_camera(const Vec3f& eye, const Vec3f& target, const Vec3f& up, float
         throw Error("camera: vertical field of view must be in (0, 180) degrees (got " +
                     std::to_string(vfov_degrees) + ")");
     }
-    if (!is_finite(eye) || !is_finite(target) || !is_finite(up)) {
-        throw Error("camera: eye, target and up must be finite");
-    }
+    // Name the vector: an overflowed or NaN coordinate is not "parallel" to anything.
+    auto check_finite = [](const char* name, const Vec3f& v) {
+        if (is_finite(v)) return;
+        throw Error(std::string("camera: ") + name + " (" + std::to_string(v.x) + ", " +
+                    std::to_string(v.y) + ", " + std::to_string(v.z) +
+                    ") is not finite (infinite, NaN or overflowed float)");
+    };
+    check_finite("eye", eye);
+    check_finite("target", target);
+    check_finite("up", up);
     // Directions are scaled by their largest component before normalizing, so that the
     // squares in the length neither overflow nor underflow for huge or tiny scenes.
     auto unit = [](const Vec3f& v) {
@@ -48,7 +55,9 @@ Camera make_camera(const Vec3f& eye, const Vec3f& target, const Vec3f& up, float
         return m > 0.0f ? glm::normalize(v / m) : Vec3f(0.0f);
     };
     const Vec3f view = target - eye;
-    if (!is_finite(view)) throw Error("camera: eye and target are too far apart for float");
+    if (!is_finite(view)) {
+        throw Error("camera: eye and target are too far apart: their difference overflows float");
+    }
     if (view == Vec3f(0.0f)) throw Error("camera: eye and target coincide");
     if (up == Vec3f(0.0f)) throw Error("camera: up vector is zero");
     Camera c;

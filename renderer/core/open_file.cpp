@@ -16,16 +16,18 @@ namespace {
     throw Error(ErrorLocation{path}, message);
 }
 
-const char* kind_of(mode_t mode) {
+}  // namespace
+
+const char* special_file_kind(uint32_t st_mode) {
+    const mode_t mode = mode_t(st_mode);
     if (S_ISDIR(mode)) return "a directory";
     if (S_ISFIFO(mode)) return "a FIFO (pipe)";
     if (S_ISSOCK(mode)) return "a socket";
     if (S_ISCHR(mode)) return "a character device";
     if (S_ISBLK(mode)) return "a block device";
-    return "not a regular file";
+    if (!S_ISREG(mode)) return "not a regular file";
+    return nullptr;
 }
-
-}  // namespace
 
 int open_regular_file(const std::string& path, const char* what, uint64_t* size) {
     const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
@@ -39,7 +41,7 @@ int open_regular_file(const std::string& path, const char* what, uint64_t* size)
     if (::fstat(fd, &st) != 0)
         fail_closed(std::string("cannot stat file: ") + std::strerror(errno));
     if (!S_ISREG(st.st_mode))
-        fail_closed(std::string("is ") + kind_of(st.st_mode) + ", not " + what);
+        fail_closed(std::string("is ") + special_file_kind(st.st_mode) + ", not " + what);
     const int flags = ::fcntl(fd, F_GETFL);
     if (flags < 0 || ::fcntl(fd, F_SETFL, flags & ~O_NONBLOCK) != 0)
         fail_closed(std::string("cannot configure file: ") + std::strerror(errno));

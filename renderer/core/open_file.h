@@ -8,6 +8,10 @@
 
 namespace kdt {
 
+/// What a file of this st_mode is when it is not a regular file ("a directory", "a FIFO
+/// (pipe)", "a socket", "a character device", "a block device"); nullptr for a regular file.
+const char* special_file_kind(uint32_t st_mode);
+
 /// Opens path read-only (close-on-exec) and returns the descriptor. The file is opened
 /// non-blocking, so a FIFO without a writer cannot hang the caller, and then checked: a
 /// directory, FIFO, socket or device (/dev/zero would never end) is refused with an Error

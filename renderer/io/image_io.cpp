@@ -17,6 +17,7 @@
 
 #include "renderer/core/error.h"
 #include "renderer/core/open_file.h"
+#include "renderer/core/temp_file.h"
 
 // stb_image for .hdr and .png decoding, stb_image_write for .hdr encoding; the
 // implementations are compiled into this translation unit only, with internal linkage
@@ -613,21 +614,10 @@ ImageRGB load_exr(const std::string& path, const std::vector<uint8_t>& data,
 
 // Writes to a temporary file beside path and renames it over path, so a failed write
 // (a full disk, say) leaves any earlier file at path whole instead of truncated.
+// The temporary file is removed on every exit path, signals included, and an existing
+// file's mode is kept (core/temp_file.h).
 void write_bytes(const std::string& path, const void* data, size_t size) {
-    const std::string tmp = path + ".kdtrace-" + std::to_string(::getpid()) + ".tmp";
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) fail(path, "cannot open file for writing");
-    out.write(static_cast<const char*>(data), std::streamsize(size));
-    out.close();
-    if (!out) {
-        std::remove(tmp.c_str());
-        fail(path, "write error");
-    }
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-        const int err = errno;
-        std::remove(tmp.c_str());
-        fail(path, std::string("cannot replace the file: ") + std::strerror(err));
-    }
+    write_file_atomically(path, data, size);
 }
 
 void check_image(const std::string& path, const ImageRGB& image) {

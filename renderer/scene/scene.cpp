@@ -2,7 +2,11 @@
 // types are errors naming the file and the key's path.
 #include "renderer/scene/scene.h"
 
+#include <unistd.h>
+
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -107,6 +111,51 @@ private:
     std::string where_;
 };
 
+std::string format_vec(const Vec3f& v) {
+    char buf[128];
+    std::snprintf(buf, sizeof(buf), "%g %g %g", double(v.x), double(v.y), double(v.z));
+    return buf;
+}
+
+double max_abs(const Vec3d& v) {
+    return std::max(std::fabs(v.x), std::max(std::fabs(v.y), std::fabs(v.z)));
+}
+
+std::string format_row(float a, float b, float c, float d) {
+    char buf[128];
+    std::snprintf(buf, sizeof(buf), "%g %g %g %g", double(a), double(b), double(c), double(d));
+    return buf;
+}
+
+// A file name as the scene file gives it: no control characters (a NUL would cut the name
+// short at the system call, "tri.ply\u0000.obj" opening tri.ply).
+std::string file_name(const Reader& r, const char* key) {
+    const std::string name = r.string(key, "");
+    if (name.empty()) r.fail_key(key, "empty file name");
+    for (size_t i = 0; i < name.size(); ++i) {
+        const unsigned char c = static_cast<unsigned char>(name[i]);
+        if (c < 0x20 || c == 0x7f) {
+            char buf[96];
+            std::snprintf(buf, sizeof(buf),
+                          "file name contains a control character (byte 0x%02x at offset %zu)",
+                          unsigned(c), i);
+            r.fail_key(key, buf);
+        }
+    }
+    return name;
+}
+
+// The file must be a regular file kdtrace can open (checked without blocking on a FIFO or
+// reading a device), reported as the scene file and key; the reader's own message follows.
+void check_referenced_file(const Reader& r, const char* key, const std::string& path,
+                           const char* what) {
+    try {
+        ::close(open_regular_file(path, what));
+    } catch (const Error& e) {
+        r.fail_key(key, e.what());
+    }
+}
+
 Mat4f read_transform(const Reader& r) {
     r.allow({"translate", "rotate", "scale", "matrix"});
     if (r.has("matrix")) {
@@ -124,6 +173,12 @@ Mat4f read_transform(const Reader& r) {
                     r.fail_key("matrix", "expected 16 finite numbers (row-major)");
                 out[col][row] = v.get<float>();
             }
+        }
+        // Points are transformed as (x, y, z, 1) and the result used without a division:
+        // a projective bottom row would be silently ignored, so it is refused.
+        if (out[0][3] != 0.0f || out[1][3] != 0.0f || out[2][3] != 0.0f || out[3][3] != 1.0f) {
+            r.fail_key("matrix", "the bottom row must be 0 0 0 1 (an affine transform); got " +
+                                     format_row(out[0][3], out[1][3], out[2][3], out[3][3]));
         }
         // Singular when its columns are (nearly) dependent, whatever their lengths: the
         // determinant relative to the product of the column lengths, in double, so a uniform
@@ -173,22 +228,33 @@ CameraDesc read_camera(const Reader& r) {
     c.vfov_degrees = r.number("vfov", c.vfov_degrees);
     if (!(c.vfov_degrees > 0.0f && c.vfov_degrees < 180.0f))
         r.fail_key("vfov", "vertical field of view must lie in (0, 180) degrees");
-    Vec3f fwd = c.target - c.eye;
-    if (!(glm::length(fwd) > 0.0f)) r.fail("eye and target coincide");
-    if (!(glm::length(glm::cross(fwd, c.up)) > 0.0f))
+    // In double, on unit vectors: in float the difference of two coordinates near 3e38
+    // overflows, and products of large components overflow to inf or NaN, which read as
+    // "parallel" before.
+    const Vec3d fwd = Vec3d(c.target) - Vec3d(c.eye);
+    if (fwd == Vec3d(0.0)) r.fail("eye and target coincide");
+    if (!is_finite(Vec3f(fwd))) {
+        r.fail("eye and target are too far apart: their difference overflows float (eye " +
+               format_vec(c.eye) + ", target " + format_vec(c.target) + ")");
+    }
+    if (c.up == Vec3f(0.0f)) r.fail_key("up", "up vector is zero");
+    auto unit = [](const Vec3d& v) { return v / glm::length(v / max_abs(v)) / max_abs(v); };
+    if (!(glm::length(glm::cross(unit(fwd), unit(Vec3d(c.up)))) > 1e-6))
         r.fail("up is parallel to the view direction");
     return c;
 }
 
-EnvironmentDesc read_environment(const Reader& r, const fs::path& base) {
+EnvironmentDesc read_environment(const Reader& r, const fs::path& base,
+                                 const SceneLoadOptions& options) {
     r.allow({"color", "file", "mapping", "rotation", "intensity"});
     EnvironmentDesc e;
     e.color = r.vec3("color", e.color, true);
     if (glm::any(glm::lessThan(e.color, Vec3f(0.0f))))
         r.fail_key("color", "colour must be non-negative");
     if (r.has("file")) {
-        fs::path f = r.string("file", "");
+        fs::path f = file_name(r, "file");
         e.file = (f.is_relative() ? base / f : f).lexically_normal().string();
+        if (options.check_files) check_referenced_file(r, "file", e.file, "an environment map");
     }
     e.mapping = EnvMapping(r.choice("mapping", kEnvMappingNames, int(e.mapping)));
     e.rotation_degrees = r.number("rotation", e.rotation_degrees);
@@ -208,6 +274,30 @@ std::shared_ptr<const TriangleMesh> builtin_mesh(const std::string& name,
     if (name == "ground_plane")
         return std::make_shared<const TriangleMesh>(make_ground_plane(20.0f, 0.0f));
     return nullptr;
+}
+
+// Physical memory available now (MemAvailable), 0 when unknown.
+uint64_t available_memory_bytes() {
+    std::FILE* f = std::fopen("/proc/meminfo", "r");
+    if (!f) return 0;
+    char line[256];
+    uint64_t kb = 0;
+    while (std::fgets(line, sizeof(line), f)) {
+        unsigned long long v = 0;
+        if (std::sscanf(line, "MemAvailable: %llu kB", &v) == 1) {
+            kb = v;
+            break;
+        }
+    }
+    std::fclose(f);
+    return kb * 1024;
+}
+
+std::string describe_budget(const SceneLoadOptions& options) {
+    const uint64_t memory = available_memory_bytes();
+    return "at most " + std::to_string(options.max_triangles) + " triangles, and about " +
+           std::to_string(kRenderBytesPerTriangle) + " bytes each must fit the " +
+           std::to_string(memory >> 20) + " MiB of memory available";
 }
 
 std::string read_text_file(const std::string& path) {
@@ -241,9 +331,11 @@ Scene load_scene_text(const std::string& text, const std::string& path,
 
     Scene scene;
     scene.name = r.string("name", fs::path(path).stem().string());
-    if (r.has("environment")) scene.environment = read_environment(r.object("environment"), base);
+    if (r.has("environment"))
+        scene.environment = read_environment(r.object("environment"), base, options);
 
     std::map<std::string, std::shared_ptr<const TriangleMesh>> loaded;
+    uint64_t instanced_triangles = 0;
     Bounds3f world;
     if (!r.has("meshes") || !r.raw("meshes").is_array() || r.raw("meshes").empty())
         r.fail_key("meshes", "expected a non-empty array of meshes");
@@ -253,10 +345,13 @@ Scene load_scene_text(const std::string& text, const std::string& path,
         m.allow({"file", "transform", "material", "smooth"});
         MeshInstance inst;
         if (!m.has("file")) m.fail("missing \"file\"");
-        std::string file = m.string("file", "");
+        std::string file = file_name(m, "file");
         if (file.rfind("builtin:", 0) == 0) {
             inst.file = file;
-            inst.mesh = builtin_mesh(file.substr(8), options.mesh_source);
+            // Generated once per scene and shared by every instance, like a mesh file.
+            auto& slot = loaded[file];
+            if (!slot) slot = builtin_mesh(file.substr(8), options.mesh_source);
+            inst.mesh = slot;
             if (!inst.mesh)
                 m.fail_key("file", "unknown builtin mesh \"" + file +
                                        "\" (expected builtin:displaced_sphere, builtin:icosphere "
@@ -292,7 +387,18 @@ Scene load_scene_text(const std::string& text, const std::string& path,
                 world.extend(Vec3f(inst.world_from_object * Vec4f(p, 1.0f)));
             }
         }
+        instanced_triangles += inst.mesh->triangle_count();
         scene.meshes.push_back(std::move(inst));
+    }
+    // Instances share their meshes here, but a render flattens them into one mesh and tree:
+    // a few bytes of JSON can ask for any number of copies, so the total is bounded before
+    // anything is allocated for it.
+    const uint64_t budget = scene_triangle_budget(options.max_triangles);
+    if (instanced_triangles > budget) {
+        r.fail_key("meshes", std::to_string(scene.meshes.size()) + " instances make " +
+                                 std::to_string(instanced_triangles) +
+                                 " triangles to render, over the budget of " +
+                                 std::to_string(budget) + " (" + describe_budget(options) + ")");
     }
     scene.camera = r.has("camera") ? read_camera(r.object("camera")) : frame_bounds(world);
     return scene;
@@ -340,6 +446,26 @@ Scene load_scene_or_model(const std::string& path, const SceneLoadOptions& optio
     for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
     if (ext == ".json") return load_scene(path, options);
     return scene_from_model(path, options);
+}
+
+uint64_t scene_triangle_budget(uint64_t max_triangles) {
+    const uint64_t memory = available_memory_bytes();
+    if (memory == 0) return max_triangles;
+    return std::min<uint64_t>(max_triangles, memory / kRenderBytesPerTriangle);
+}
+
+uint64_t instanced_triangle_count(const Scene& scene) {
+    uint64_t n = 0;
+    for (const MeshInstance& m : scene.meshes) n += m.mesh ? m.mesh->triangle_count() : 0;
+    return n;
+}
+
+std::vector<std::string> scene_input_files(const Scene& scene) {
+    std::vector<std::string> files;
+    for (const MeshInstance& m : scene.meshes)
+        if (!m.file.empty() && m.file.rfind("builtin:", 0) != 0) files.push_back(m.file);
+    if (!scene.environment.file.empty()) files.push_back(scene.environment.file);
+    return files;
 }
 
 std::string scene_to_json(const Scene& scene) {

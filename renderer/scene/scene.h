@@ -45,16 +45,29 @@ struct Scene {
 /// the scene file and the key.
 using SceneMeshSource = std::function<std::shared_ptr<const TriangleMesh>(const std::string&)>;
 
+/// Default limit on a scene's triangles after instancing (each instance counts its mesh's).
+inline constexpr uint64_t kDefaultMaxSceneTriangles = 200'000'000;
+/// Peak bytes per triangle of a render, after instancing, for the memory budget: measured
+/// about 90 on the dragon (flattened mesh, normals, kd-tree, its build), rounded up.
+inline constexpr uint64_t kRenderBytesPerTriangle = 100;
+
 /// Options for loading mesh files referenced by a scene.
 struct SceneLoadOptions {
+    /// A scene file whose instances add up to more triangles than
+    /// scene_triangle_budget(max_triangles) is an error (before the render allocates them).
+    uint64_t max_triangles = kDefaultMaxSceneTriangles;
     bool drop_invalid = false;  ///< drop faces with non-finite vertices instead of failing
     /// Empty: mesh files are read with load_mesh() and builtins generated. Tests and fuzzers
     /// substitute their own (so that a scene can be checked without its meshes).
     SceneMeshSource mesh_source;
+    /// Check that the environment map is a regular file that can be opened (mesh files are
+    /// read anyway). Off only for fuzzers, which must not touch the file system.
+    bool check_files = true;
 };
 
 /// Loads a JSON scene file; mesh paths are relative to the scene file. Unknown keys,
-/// wrong types and missing files throw kdt::Error naming the file and the key.
+/// wrong types and missing files throw kdt::Error naming the file and the key. Each mesh
+/// file and builtin is loaded once and shared by all its instances.
 Scene load_scene(const std::string& path, const SceneLoadOptions& options = {});
 
 /// load_scene() on a scene file's text already in memory; `path` names it in messages and
@@ -77,6 +90,16 @@ Scene make_default_scene();
 TriangleMesh make_icosphere(int levels);         ///< unit sphere, 20 * 4^levels triangles
 TriangleMesh make_displaced_sphere(int levels);  ///< the default scene's object, radius ~1
 TriangleMesh make_ground_plane(float half_size, float height);  ///< two triangles facing +y
+
+/// The triangle budget: max_triangles, or fewer when kRenderBytesPerTriangle times it
+/// would not fit the physical memory available now.
+uint64_t scene_triangle_budget(uint64_t max_triangles = kDefaultMaxSceneTriangles);
+
+/// Triangles a render of the scene holds: every instance's mesh counted once per instance.
+uint64_t instanced_triangle_count(const Scene& scene);
+
+/// The files a scene reads: its mesh files (not builtins) and its environment map, if any.
+std::vector<std::string> scene_input_files(const Scene& scene);
 
 /// Writes a scene as JSON that load_scene() reads back (generated meshes as "builtin:" names).
 std::string scene_to_json(const Scene& scene);

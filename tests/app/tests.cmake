@@ -145,3 +145,20 @@ set_tests_properties(smoke.unknown_bench PROPERTIES
 add_test(NAME smoke.view_from_elsewhere COMMAND ${_kdt} render --view A --spp 1 --width 8
          --height 6 --quiet -o ${_tmp}/view.png)
 set_tests_properties(smoke.view_from_elsewhere PROPERTIES WORKING_DIRECTORY /)
+
+# SIGINT/SIGTERM against a running kdtrace: the image is saved and marked interrupted, a
+# second signal quits at once, and no temporary file is left (tests/app/interrupt_test.sh).
+foreach(_case render_int render_term render_twice build_int)
+  add_test(NAME smoke.interrupt_${_case} COMMAND bash
+           ${CMAKE_CURRENT_LIST_DIR}/interrupt_test.sh ${_kdt} ${_case} ${_tmp}/interrupt_${_case})
+  set_tests_properties(smoke.interrupt_${_case} PROPERTIES PASS_REGULAR_EXPRESSION "PASS: "
+                       FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)
+endforeach()
+add_test(NAME smoke.outputs_never_destroy_inputs COMMAND bash
+         ${CMAKE_CURRENT_LIST_DIR}/outputs_test.sh ${_kdt} ${_tmp}/outputs)
+set_tests_properties(smoke.outputs_never_destroy_inputs PROPERTIES PASS_REGULAR_EXPRESSION
+                     "PASS: outputs" FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)
+add_test(NAME smoke.scene_checks_referenced_files COMMAND bash
+         ${CMAKE_CURRENT_LIST_DIR}/scene_check_test.sh ${_kdt} ${_tmp}/scene_checks)
+set_tests_properties(smoke.scene_checks_referenced_files PROPERTIES PASS_REGULAR_EXPRESSION
+                     "PASS: scene checks" FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)

@@ -540,5 +540,195 @@ TEST(CacheParams, BadParametersStillThrow) {
         Error);
 }
 
+// Sets KDT_CACHE_DIR (where verified-stamps go) for one test and restores it.
+class ScopedCacheDirEnv {
+public:
+    explicit ScopedCacheDirEnv(const fs::path& dir) {
+        const char* old = std::getenv("KDT_CACHE_DIR");
+        had_ = old != nullptr;
+        if (old) old_ = old;
+        ::setenv("KDT_CACHE_DIR", dir.c_str(), 1);
+    }
+    ~ScopedCacheDirEnv() {
+        if (had_) {
+            ::setenv("KDT_CACHE_DIR", old_.c_str(), 1);
+        } else {
+            ::unsetenv("KDT_CACHE_DIR");
+        }
+    }
+
+private:
+    bool had_ = false;
+    std::string old_;
+};
+
+// Well-formed trees that lose triangles, each with a correct checksum (save_kdtree writes
+// them as it would a real tree): only the completeness check can refuse them.
+struct Forgery {
+    std::string name;
+    std::vector<KdNode> nodes;
+    std::vector<uint32_t> indices;
+    std::string expected;  ///< part of the refusal
+};
+
+// A leaf of at least two references and the index slot of one whose triangle's centroid
+// lies strictly inside the leaf's box.
+std::pair<uint32_t, uint32_t> required_reference(const KdTree& t) {
+    struct Item {
+        uint32_t node;
+        Bounds3f box;
+    };
+    std::vector<Item> stack{{0, t.bounds()}};
+    while (!stack.empty()) {
+        const Item it = stack.back();
+        stack.pop_back();
+        const KdNode& n = t.nodes()[it.node];
+        if (!n.is_leaf()) {
+            Item lo{n.child(), it.box}, hi{n.child() + 1, it.box};
+            lo.box.upper[n.axis()] = n.split;
+            hi.box.lower[n.axis()] = n.split;
+            stack.push_back(lo);
+            stack.push_back(hi);
+            continue;
+        }
+        for (uint32_t k = n.first; n.count() >= 2 && k < n.first + n.count(); ++k) {
+            const Vec3u& tri = t.mesh().triangles[t.indices()[k]];
+            const auto& p = t.mesh().positions;
+            const Vec3f c = (p[tri.x] + p[tri.y] + p[tri.z]) / 3.0f;
+            if (glm::all(glm::greaterThan(c, it.box.lower)) &&
+                glm::all(glm::lessThan(c, it.box.upper)))
+                return {it.node, k};
+        }
+    }
+    ADD_FAILURE() << "no leaf holds a triangle's centroid";
+    return {0, 0};
+}
+
+std::vector<Forgery> forgeries(const KdTree& t) {
+    std::vector<Forgery> out;
+    const std::string incomplete = "the tree is incomplete for its mesh";
+    out.push_back({"empty tree", {KdNode::make_leaf(0, 0)}, {}, "triangle 0 reaches into"});
+    out.push_back({"one triangle", {KdNode::make_leaf(1, 0)}, {7}, "triangle 0 reaches into"});
+    // The root split moved by a quarter of the box: its children keep their triangles.
+    {
+        Forgery f{"moved root split", t.nodes(), t.indices(), incomplete};
+        const int a = f.nodes[0].axis();
+        const float extent = t.bounds().upper[a] - t.bounds().lower[a];
+        f.nodes[0].split +=
+            (f.nodes[0].split - t.bounds().lower[a] > 0.5f * extent ? -0.25f : 0.25f) * extent;
+        out.push_back(f);
+    }
+    // The root split outside the box altogether.
+    {
+        Forgery f{"split outside its box", t.nodes(), t.indices(), "outside the node's box"};
+        f.nodes[0].split = t.bounds().upper[f.nodes[0].axis()] + 1.0f;
+        out.push_back(f);
+    }
+    {
+        Forgery f{"zeroed indices", t.nodes(), t.indices(), incomplete};
+        std::fill(f.indices.begin(), f.indices.end(), 0u);
+        out.push_back(f);
+    }
+    // A reference a ray must find there (its triangle's centroid strictly inside the leaf's
+    // box; a builder may add others) dropped: the leaf's range one shorter, or the
+    // reference overwritten by its neighbour (counts unchanged).
+    const auto [leaf, slot] = required_reference(t);
+    {
+        Forgery f{"dropped leaf reference", t.nodes(), t.indices(), "is not referenced by it"};
+        const KdNode n = f.nodes[leaf];
+        std::swap(f.indices[slot], f.indices[n.first + n.count() - 1]);
+        f.nodes[leaf] = KdNode::make_leaf(n.count() - 1, n.first);
+        out.push_back(f);
+    }
+    {
+        Forgery f{"overwritten reference", t.nodes(), t.indices(), "is not referenced by it"};
+        const KdNode n = f.nodes[leaf];
+        f.indices[slot] = f.indices[slot == n.first ? slot + 1 : n.first];
+        out.push_back(f);
+    }
+    return out;
+}
+
+TEST(CacheCompleteness, ForgedTreesWithGoodChecksumsAreRefusedAndRebuilt) {
+    const fs::path dir = test::temp_dir("kdt_cache_forged");
+    ScopedCacheDirEnv env(dir / "user_cache");
+    const auto mesh = sphere_mesh(3);
+    KdTreeParams sah;
+    for (const KdTreeParams& params : {thesis_params(), sah}) {
+        const auto built = build_kdtree(mesh, params);
+        ASSERT_FALSE(built->nodes()[0].is_leaf());
+        const fs::path model = dir / "sphere.ply";
+        const fs::path file = dir / kdtree_cache_file_name(model.string(), params);
+        for (const Forgery& f : forgeries(*built)) {
+            const std::string what =
+                std::string(kKdBuilderNames[size_t(params.builder)]) + ", " + f.name;
+            const KdTree forged(mesh, built->bounds(), f.nodes, f.indices, params, built->stats());
+            save_kdtree(file.string(), forged);
+            const std::string err = load_error(file, mesh, params);
+            EXPECT_EQ(err.rfind(file.string() + ": node ", 0), 0u) << what << ": " << err;
+            EXPECT_NE(err.find(f.expected), std::string::npos) << what << ": " << err;
+            // Refused every time (no stamp for a file that failed), and rebuilt by the cache.
+            EXPECT_EQ(load_error(file, mesh, params), err) << what;
+            CacheRun r = run_cache(model, mesh, params, dir);
+            EXPECT_FALSE(r.report.loaded) << what;
+            EXPECT_NE(r.report.reason.find(f.expected), std::string::npos) << what << ": " << r.log;
+            expect_same_tree(*built, *r.tree);
+            fs::remove(file);
+        }
+        // The genuine tree, saved the same way, loads (and is verified doing so).
+        save_kdtree(file.string(), *built);
+        EXPECT_EQ(load_error(file, mesh, params), "");
+    }
+}
+
+TEST(CacheCompleteness, VerifiedOnFirstUseThenStampedUntilTheFileChanges) {
+    const fs::path dir = test::temp_dir("kdt_cache_stamp");
+    ScopedCacheDirEnv env(dir / "user_cache");
+    const auto mesh = sphere_mesh(3);
+    const KdTreeParams params = thesis_params();
+    const auto built = build_kdtree(mesh, params);
+    const fs::path file = dir / "t.kdt";
+    save_kdtree(file.string(), *built);  // from outside: not stamped
+    double first = -1.0, second = -1.0;
+    load_kdtree(file.string(), mesh, params, &first);
+    load_kdtree(file.string(), mesh, params, &second);
+    EXPECT_GT(first, 0.0);   // verified ...
+    EXPECT_EQ(second, 0.0);  // ... once
+    // The stamp lives in the private cache directory, created with mode 0700.
+    const fs::path stamps = dir / "user_cache" / "trees" / "verified";
+    ASSERT_TRUE(fs::is_directory(stamps));
+    for (const fs::path& p : {dir / "user_cache", dir / "user_cache" / "trees", stamps}) {
+        struct stat st {};
+        ASSERT_EQ(::stat(p.c_str(), &st), 0);
+        EXPECT_EQ(st.st_mode & 0777, 0700u) << p;
+    }
+    // The same path now holding a forged tree (a new file, or the old one rewritten in
+    // place) does not match the stamp: verified again, and refused.
+    const Forgery f = forgeries(*built)[4];  // zeroed indices
+    const KdTree forged(mesh, built->bounds(), f.nodes, f.indices, params, built->stats());
+    save_kdtree(file.string(), forged);
+    EXPECT_NE(load_error(file, mesh, params).find("incomplete"), std::string::npos);
+    save_kdtree((dir / "good.kdt").string(), *built);
+    const std::vector<unsigned char> bad = read_bytes(file);
+    load_kdtree((dir / "good.kdt").string(), mesh, params);  // stamped now
+    {
+        std::fstream out(dir / "good.kdt", std::ios::in | std::ios::out | std::ios::binary);
+        out.write(reinterpret_cast<const char*>(bad.data()), std::streamsize(bad.size()));
+    }
+    EXPECT_NE(load_error(dir / "good.kdt", mesh, params).find("incomplete"), std::string::npos);
+    // Trees the cache builds itself are stamped as they are written.
+    CacheRun r = run_cache(dir / "m.ply", mesh, params, dir / "a" / "b");
+    EXPECT_TRUE(r.report.written);
+    CacheRun again = run_cache(dir / "m.ply", mesh, params, dir / "a" / "b");
+    EXPECT_TRUE(again.report.loaded);
+    EXPECT_EQ(again.report.verify_seconds, 0.0);
+    EXPECT_NE(again.log.find("verified on an earlier run"), std::string::npos) << again.log;
+    for (const fs::path& p : {dir / "a", dir / "a" / "b"}) {
+        struct stat st {};
+        ASSERT_EQ(::stat(p.c_str(), &st), 0);
+        EXPECT_EQ(st.st_mode & 0777, 0700u) << p;
+    }
+}
+
 }  // namespace
 }  // namespace kdt

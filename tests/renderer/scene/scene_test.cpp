@@ -57,6 +57,7 @@ TEST(Scene, DefaultSceneIsLargeAndClosed) {
 TEST(Scene, LoadsFileWithTransformMaterialCameraEnvironment) {
     auto dir = test::temp_dir("scene_load");
     write_file(dir, "cube.ply", kCubePly);
+    write_file(dir, "sky.hdr", "read by the renderer, only opened by the scene");
     auto path = write_file(dir, "s.json", R"({
       "name": "t",
       "meshes": [{"file": "cube.ply", "transform": {"translate": [1, 2, 3], "scale": 2},
@@ -248,6 +249,203 @@ TEST(Scene, ModelSceneFramesTheModel) {
     float dist = glm::length(s.camera.target - s.camera.eye);
     EXPECT_GT(dist * std::sin(glm::radians(s.camera.vfov_degrees / 2)), std::sqrt(3.0f));
     EXPECT_NEAR(glm::length(to_center), 1.0f, 1e-6f);
+}
+
+// A projective bottom row cannot be honoured (points are used without a division): refused.
+TEST(Scene, TransformBottomRowMustBeAffine) {
+    auto dir = test::temp_dir("scene_bottom_row");
+    write_file(dir, "cube.ply", kCubePly);
+    const char* rows[] = {"0, 0, 0, 2",  "0, 0, 1, 1",     "1e-30, 0, 0, 1",    "0, 0, 0, 0",
+                          "0, 0, 0, -1", "0.5, 0.5, 0, 1", "0, 0, 0, 1.0000001"};
+    int i = 0;
+    for (const char* row : rows) {
+        const std::string json =
+            std::string(R"({"meshes": [{"file": "cube.ply", "transform": {"matrix": )") +
+            "[2, 0, 0, 1, 0, 2, 0, 0, 0, 0, 2, 0, " + row + "]}}]}";
+        const std::string path = write_file(dir, "s" + std::to_string(i++) + ".json", json);
+        const std::string msg = error_of(path);
+        EXPECT_EQ(
+            msg.rfind(path + ": meshes/0/transform/matrix: the bottom row must be 0 0 0 1", 0), 0u)
+            << row << ": " << msg;
+    }
+    const std::string ok = write_file(dir, "ok.json",
+                                      R"({"meshes": [{"file": "cube.ply", "transform": {"matrix": )"
+                                      R"([2, 0, 0, 1, 0, 2, 0, 0, 0, 0, 2, 0, 0, 0, 0, 1]}}]})");
+    EXPECT_EQ(error_of(ok), "");
+}
+
+// A NUL would cut the name short ("tri.ply\u0000.obj" opened tri.ply); no control
+// character is a plausible part of a file name.
+TEST(Scene, ControlCharactersInFileNamesAreErrors) {
+    auto dir = test::temp_dir("scene_control");
+    write_file(dir, "cube.ply", kCubePly);
+    write_file(dir, "sky.pfm", "PF\n1 1\n-1\n");
+    int i = 0;
+    for (const char* escape : {"\\u0000", "\\u0001", "\\t", "\\n", "\\r", "\\u001b", "\\u007f"}) {
+        for (const bool env : {false, true}) {
+            const std::string name = std::string("cube.ply") + escape + ".obj";
+            const std::string json =
+                env ? R"({"meshes": [{"file": "cube.ply"}], "environment": {"file": ")" + name +
+                          "\"}}"
+                    : R"({"meshes": [{"file": ")" + name + "\"}]}";
+            const std::string path = write_file(dir, "s" + std::to_string(i++) + ".json", json);
+            const std::string msg = error_of(path);
+            const std::string key = env ? "environment/file" : "meshes/0/file";
+            EXPECT_EQ(
+                msg.rfind(path + ": " + key + ": file name contains a control character (byte 0x",
+                          0),
+                0u)
+                << escape << ": " << msg;
+            EXPECT_NE(msg.find("at offset 8)"), std::string::npos) << msg;
+        }
+    }
+    EXPECT_NE(error_of(write_file(dir, "empty.json", R"({"meshes": [{"file": ""}]})"))
+                  .find("meshes/0/file: empty file name"),
+              std::string::npos);
+}
+
+// The environment map a scene names is checked when the scene is read (not only when a
+// render decodes it), and the message names the scene file and the key, then the problem.
+TEST(Scene, EnvironmentFileIsCheckedNamingSceneAndKey) {
+    auto dir = test::temp_dir("scene_env_file");
+    write_file(dir, "cube.ply", kCubePly);
+    std::filesystem::create_directories(dir / "probe_dir.hdr");
+    ASSERT_EQ(::mkfifo((dir / "probe_fifo.hdr").c_str(), 0600), 0);
+    write_file(dir, "locked.hdr", "#?RADIANCE\n");
+    ASSERT_EQ(::chmod((dir / "locked.hdr").c_str(), 0), 0);
+    struct Case {
+        std::string file, expect;
+    };
+    std::vector<Case> cases = {
+        {"missing.hdr", "cannot open file: No such file or directory"},
+        {"probe_dir.hdr", "is a directory"},
+        {"probe_fifo.hdr", "is a FIFO (pipe), not an environment map"},
+        {"/dev/zero", "is a character device, not an environment map"},
+        {"cube.ply/inside.hdr", "cannot open file: Not a directory"},
+    };
+    // Root reads any file whatever its mode: the unreadable case only means something
+    // for other users.
+    if (::geteuid() != 0) cases.push_back({"locked.hdr", "Permission denied"});
+    int i = 0;
+    for (const Case& c : cases) {
+        const std::string path = write_file(
+            dir, "s" + std::to_string(i++) + ".json",
+            R"({"meshes": [{"file": "cube.ply"}], "environment": {"file": ")" + c.file + "\"}}");
+        const std::string msg = error_of(path);
+        EXPECT_EQ(msg.rfind(path + ": environment/file: ", 0), 0u) << c.file << ": " << msg;
+        EXPECT_NE(msg.find(c.file), std::string::npos) << msg;
+        EXPECT_NE(msg.find(c.expect), std::string::npos) << c.file << ": " << msg;
+    }
+}
+
+// Instances of one file or builtin share one mesh: a scene of many copies loads one.
+TEST(Scene, InstancesShareOneMesh) {
+    auto dir = test::temp_dir("scene_share");
+    write_file(dir, "cube.ply", kCubePly);
+    std::string json = R"({"meshes": [)";
+    for (int i = 0; i < 60; ++i) {
+        json += std::string(i ? ", " : "") + R"({"file": ")" +
+                (i % 3 == 0 ? "cube.ply" : (i % 3 == 1 ? "builtin:icosphere" : "./cube.ply")) +
+                R"(", "transform": {"translate": [)" + std::to_string(i) + ", 0, 0]}}";
+    }
+    const Scene s = load_scene(write_file(dir, "many.json", json + "]}"));
+    ASSERT_EQ(s.meshes.size(), 60u);
+    for (size_t i = 0; i < s.meshes.size(); ++i) {
+        const size_t first_of_kind = i % 3 == 1 ? 1 : 0;
+        EXPECT_EQ(s.meshes[i].mesh.get(), s.meshes[first_of_kind].mesh.get()) << i;
+    }
+    EXPECT_EQ(instanced_triangle_count(s), 40u * 12u + 20u * 20480u);
+}
+
+// A few bytes of JSON can ask for any number of copies: the total after instancing is
+// bounded, with an error naming the scene file, before a render allocates it.
+TEST(Scene, TriangleBudgetAfterInstancingIsEnforced) {
+    auto dir = test::temp_dir("scene_budget");
+    SceneLoadOptions options;
+    options.max_triangles = 100000;
+    EXPECT_LE(scene_triangle_budget(options.max_triangles), options.max_triangles);
+    EXPECT_GT(scene_triangle_budget(), 0u);
+    for (int n = 1; n <= 9; ++n) {
+        std::string json = R"({"meshes": [)";
+        for (int i = 0; i < n; ++i)
+            json += std::string(i ? ", " : "") + R"({"file": "builtin:icosphere"})";
+        const std::string path = write_file(dir, "s" + std::to_string(n) + ".json", json + "]}");
+        const uint64_t triangles = uint64_t(n) * 20480u;
+        std::string msg;
+        try {
+            load_scene(path, options);
+        } catch (const Error& e) {
+            msg = e.what();
+        }
+        if (triangles <= scene_triangle_budget(options.max_triangles)) {
+            EXPECT_EQ(msg, "") << n;
+        } else {
+            EXPECT_EQ(msg.rfind(path + ": meshes: " + std::to_string(n) + " instances make " +
+                                    std::to_string(triangles) +
+                                    " triangles to render, over the budget of 100000 (at most "
+                                    "100000 triangles",
+                                0),
+                      0u)
+                << msg;
+        }
+    }
+}
+
+// An eye or target near the float limit, or an up vector of huge components, is an
+// overflow, not "up is parallel to the view direction" (which NaN products used to say).
+TEST(Scene, CameraOverflowIsReportedAsOverflow) {
+    auto dir = test::temp_dir("scene_camera_overflow");
+    struct Case {
+        const char* camera;
+        const char* expect;
+    } cases[] = {
+        {R"("eye": [3e38, 3e38, 3e38], "target": [-3e38, -3e38, -3e38])",
+         "eye and target are too far apart: their difference overflows float"},
+        {R"("eye": [-3e38, 0, 0], "target": [3e38, 0, 0])",
+         "eye and target are too far apart: their difference overflows float"},
+        {R"("eye": [0, 0, 2e38], "target": [0, 0, -2e38])", "overflows float"},
+        {R"("eye": [0, 0, 0], "target": [0, 0, 0])", "eye and target coincide"},
+        {R"("eye": [0, 0, 5], "target": [0, 0, 0], "up": [0, 0, 0])",
+         "camera/up: up vector is zero"},
+        {R"("eye": [0, 0, 5], "target": [0, 0, 0], "up": [0, 0, 3e38])",
+         "up is parallel to the view direction"},
+    };
+    int i = 0;
+    for (const Case& c : cases) {
+        const std::string path =
+            write_file(dir, "c" + std::to_string(i++) + ".json",
+                       std::string(R"({"meshes": [{"file": "builtin:icosphere"}], "camera": {)") +
+                           c.camera + "}}");
+        const std::string msg = error_of(path);
+        EXPECT_EQ(msg.rfind(path + ": camera", 0), 0u) << msg;
+        EXPECT_NE(msg.find(c.expect), std::string::npos) << c.camera << ": " << msg;
+    }
+    // Huge but representable cameras still load: up of huge components, a far eye.
+    const std::string ok = write_file(
+        dir, "ok.json",
+        R"({"meshes": [{"file": "builtin:icosphere"}], "camera": {"eye": [3e38, 3e38, 3e38], )"
+        R"("target": [1e38, 1e38, 1e38], "up": [0, 3e38, 0]}})");
+    EXPECT_EQ(error_of(ok), "");
+    // make_camera (views, the command line) says which vector is not finite.
+    auto camera_error = [](Vec3f eye, Vec3f target, Vec3f up) {
+        try {
+            make_camera(eye, target, up, 40.0f, 8, 8);
+        } catch (const Error& e) {
+            return std::string(e.what());
+        }
+        return std::string();
+    };
+    const float inf = INFINITY, big = 3e38f;
+    EXPECT_NE(camera_error({inf, 0, 0}, {0, 0, 0}, {0, 1, 0}).find("camera: eye (inf"),
+              std::string::npos);
+    EXPECT_NE(camera_error({0, 0, 5}, {NAN, 0, 0}, {0, 1, 0}).find("camera: target (nan"),
+              std::string::npos);
+    EXPECT_NE(camera_error({0, 0, 5}, {0, 0, 0}, {0, inf, 0}).find("camera: up (0"),
+              std::string::npos);
+    EXPECT_NE(camera_error({-big, 0, 0}, {big, 0, 0}, {0, 1, 0})
+                  .find("eye and target are too far apart: their difference overflows float"),
+              std::string::npos);
+    EXPECT_EQ(camera_error({big, big, big}, {0, 0, 0}, {0, big, 0}), "");
 }
 
 }  // namespace

@@ -1,0 +1,154 @@
+#include "renderer/core/interrupt.h"
+
+#include <signal.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <mutex>
+
+namespace kdt::interrupt {
+namespace {
+
+// A slot is free (0), being written or cleared by its owner (1), or holds a path the signal
+// handler may remove (2). The handler reads only slots in state 2 and never writes them.
+struct Slot {
+    std::atomic<int> state{0};
+    char path[kMaxTempPath];
+};
+Slot g_slots[kMaxTempFiles];
+std::atomic<int> g_signal{0};
+std::atomic<int> g_mode{int(Mode::exit_now)};
+static_assert(std::atomic<int>::is_always_lock_free, "the handler needs lock-free atomics");
+
+void write_stderr(const char* s) {
+    // write(2) is async-signal-safe; a short or failed write of a notice is harmless.
+    const ssize_t ignored = ::write(STDERR_FILENO, s, std::strlen(s));
+    (void)ignored;
+}
+
+void remove_registered_temps() {
+    for (Slot& s : g_slots)
+        if (s.state.load() == 2) ::unlink(s.path);
+}
+
+// Dies of `sig` itself (so a parent shell sees a death by signal, status 128 + sig), after
+// removing the temporary files. Only async-signal-safe calls.
+[[noreturn]] void die(int sig) {
+    remove_registered_temps();
+    struct sigaction dfl {};
+    dfl.sa_handler = SIG_DFL;
+    sigemptyset(&dfl.sa_mask);
+    ::sigaction(sig, &dfl, nullptr);
+    sigset_t set;
+    sigemptyset(&set);
+    sigaddset(&set, sig);
+    ::raise(sig);  // pending while the handler blocks it; delivered at the unblock
+    ::sigprocmask(SIG_UNBLOCK, &set, nullptr);
+    ::_exit(128 + sig);  // not reached unless the signal was somehow not fatal
+}
+
+void handler(int sig) {
+    int none = 0;
+    const bool first = g_signal.compare_exchange_strong(none, sig);
+    if (first && g_mode.load() == int(Mode::finish_work)) {
+        write_stderr(sig == SIGINT ? "\nkdtrace: SIGINT: finishing the tiles in flight and saving "
+                                     "(interrupt again to quit at once)\n"
+                                   : "\nkdtrace: SIGTERM: finishing the tiles in flight and "
+                                     "saving (signal again to quit at once)\n");
+        return;
+    }
+    die(sig);
+}
+
+}  // namespace
+
+void install(Mode mode) {
+    g_mode.store(int(mode));
+    install_handlers();
+}
+
+void install_handlers() {
+    static std::once_flag once;
+    std::call_once(once, [] {
+        for (int sig : {SIGINT, SIGTERM}) {
+            struct sigaction old {};
+            if (::sigaction(sig, nullptr, &old) == 0 && old.sa_handler == SIG_IGN) continue;
+            struct sigaction sa {};
+            sa.sa_handler = handler;
+            sigemptyset(&sa.sa_mask);
+            sigaddset(&sa.sa_mask, SIGINT);  // one handler at a time, whichever signal
+            sigaddset(&sa.sa_mask, SIGTERM);
+            sa.sa_flags = SA_RESTART;
+            ::sigaction(sig, &sa, nullptr);
+        }
+    });
+}
+
+bool requested() { return g_signal.load() != 0; }
+
+int signal_number() { return g_signal.load(); }
+
+const char* signal_name() {
+    switch (g_signal.load()) {
+        case SIGINT:
+            return "SIGINT";
+        case SIGTERM:
+            return "SIGTERM";
+        default:
+            return "";
+    }
+}
+
+int exit_code() {
+    const int sig = g_signal.load();
+    return sig ? 128 + sig : 0;
+}
+
+void exit_interrupted() {
+    std::fflush(stdout);
+    std::fflush(stderr);
+    std::exit(exit_code());
+}
+
+int register_temp(const char* path) {
+    const size_t n = std::strlen(path);
+    if (n >= size_t(kMaxTempPath)) return -1;
+    for (int i = 0; i < kMaxTempFiles; ++i) {
+        int expected = 0;
+        if (!g_slots[i].state.compare_exchange_strong(expected, 1)) continue;
+        std::memcpy(g_slots[i].path, path, n + 1);
+        g_slots[i].state.store(2);
+        return i;
+    }
+    return -1;
+}
+
+void unregister_temp(int slot) {
+    if (slot >= 0 && slot < kMaxTempFiles) g_slots[slot].state.store(0);
+}
+
+int registered_temp_count() {
+    int n = 0;
+    for (const Slot& s : g_slots) n += s.state.load() == 2;
+    return n;
+}
+
+Watcher::Watcher(std::function<void()> on_request, int poll_ms)
+    : thread_([this, f = std::move(on_request), poll_ms] {
+          while (!stop_.load()) {
+              if (requested()) f();
+              std::this_thread::sleep_for(std::chrono::milliseconds(poll_ms));
+          }
+      }) {}
+
+Watcher::~Watcher() {
+    stop_.store(true);
+    thread_.join();
+}
+
+void reset_for_testing() { g_signal.store(0); }
+
+}  // namespace kdt::interrupt

@@ -1,0 +1,73 @@
+// SIGINT and SIGTERM: a flag that long-running work polls, and removal of temporary files
+// on every exit path, signals included. Depends on the standard library and POSIX only.
+#pragma once
+
+#include <atomic>
+#include <functional>
+#include <thread>
+
+namespace kdt::interrupt {
+
+/// What the first SIGINT/SIGTERM does.
+enum class Mode {
+    /// Removes the registered temporary files and dies of the signal at once (the default:
+    /// loading, building, writing).
+    exit_now,
+    /// Only records the signal (requested() turns true) so that the work in flight can stop
+    /// cleanly and save what it has; a second signal then behaves as exit_now.
+    finish_work,
+};
+
+/// Installs the SIGINT and SIGTERM handlers (install_handlers()) and sets the mode of the
+/// first signal.
+void install(Mode mode = Mode::exit_now);
+/// Installs the handlers once, leaving the mode as it is (exit_now unless set). A signal the
+/// process inherited as ignored (nohup, a background job) stays ignored. TempFile calls it,
+/// so that every temporary file is covered even in a command that never calls install().
+void install_handlers();
+
+/// True once a SIGINT or SIGTERM arrived (in finish_work mode; in exit_now mode the process
+/// is gone). Async-signal-safe, lock-free.
+bool requested();
+/// The signal that arrived (SIGINT or SIGTERM), 0 when none.
+int signal_number();
+/// "SIGINT", "SIGTERM", or "" when none.
+const char* signal_name();
+/// The shell's exit status for the signal: 130 (SIGINT), 143 (SIGTERM), 0 when none.
+int exit_code();
+/// Flushes stdout and stderr and exits with exit_code() (static destructors run; the
+/// caller has removed or committed its temporary files).
+[[noreturn]] void exit_interrupted();
+
+/// Temporary file registry: a fixed table the signal handler can read without locking.
+/// Paths longer than kMaxTempPath (or beyond kMaxTempFiles at once) are still removed on
+/// normal and exception exits by their owner (TempFile), only not from a signal.
+inline constexpr int kMaxTempFiles = 64;
+inline constexpr int kMaxTempPath = 4096;
+/// Registers `path` for removal if a signal ends the process; returns a slot for
+/// unregister_temp(), or -1 when it could not be registered.
+int register_temp(const char* path);
+/// Forgets a slot (the file was renamed or removed); ignores -1.
+void unregister_temp(int slot);
+/// Paths registered now (for tests).
+int registered_temp_count();
+
+/// Calls `on_request` from a thread of its own every `poll_ms` milliseconds once requested()
+/// is true, until destroyed: e.g. RenderSession::cancel(), whose flag a new pass clears, so
+/// it is repeated until the render loop has seen it. Joins its thread on destruction.
+class Watcher {
+public:
+    explicit Watcher(std::function<void()> on_request, int poll_ms = 10);
+    ~Watcher();
+    Watcher(const Watcher&) = delete;
+    Watcher& operator=(const Watcher&) = delete;
+
+private:
+    std::atomic<bool> stop_{false};
+    std::thread thread_;
+};
+
+/// For tests: forgets a received signal (requested() false again).
+void reset_for_testing();
+
+}  // namespace kdt::interrupt

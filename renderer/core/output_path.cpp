@@ -1,0 +1,57 @@
+#include "renderer/core/output_path.h"
+
+#include <sys/stat.h>
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+
+#include "renderer/core/error.h"
+#include "renderer/core/open_file.h"
+
+namespace kdt {
+
+namespace fs = std::filesystem;
+
+void check_output(const std::string& output, const std::vector<std::string>& inputs,
+                  const char* what) {
+    auto fail = [&](const std::string& message) {
+        throw Error(ErrorLocation{output}, std::string("cannot write ") + what + ": " + message);
+    };
+    if (output.empty()) throw Error(std::string("no file name given for ") + what);
+    struct stat link {};
+    if (::lstat(output.c_str(), &link) != 0) {
+        if (errno != ENOENT) fail(std::string("cannot stat: ") + std::strerror(errno));
+        // A new file: its directory must exist (checked now, not after a long run). A
+        // dangling symlink is caught above (lstat succeeds on it) and handled below.
+        std::error_code ec;
+        const fs::path dir = fs::absolute(output, ec).parent_path();
+        if (!fs::is_directory(dir, ec)) fail("directory " + dir.string() + " does not exist");
+        return;
+    }
+    struct stat target {};
+    const bool resolves = ::stat(output.c_str(), &target) == 0;
+    const bool is_link = S_ISLNK(link.st_mode);
+    if (resolves) {
+        if (const char* kind = special_file_kind(target.st_mode)) {
+            fail(std::string(is_link ? "is a symlink to " : "is ") + kind +
+                 (S_ISDIR(target.st_mode)
+                      ? " (give a file name)"
+                      : ", not a regular file (refusing to replace it or to write into it)"));
+        }
+    }
+    for (const std::string& input : inputs) {
+        if (input.empty()) continue;
+        struct stat in {};
+        if (::stat(input.c_str(), &in) != 0) continue;
+        // stat() follows symlinks on both sides, so this catches a symlink either way round,
+        // a hard link, `..` and any other spelling of the same file.
+        if (resolves && target.st_dev == in.st_dev && target.st_ino == in.st_ino) {
+            fail("it is the input " + input +
+                 (output == input ? "" : " (the same file by another path or link)") +
+                 "; writing it would destroy the input");
+        }
+    }
+}
+
+}  // namespace kdt

@@ -1,0 +1,24 @@
+// Output paths that cannot destroy a command's inputs: the check every command that writes a
+// file makes before it starts. Depends on core/error.h.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace kdt {
+
+/// Throws kdt::Error naming `output` when writing it (a new file renamed over the path) could
+/// destroy an input or cannot do what the user expects:
+///  - `output` is the same file as one of `inputs`, however it is spelt: the same path, a
+///    path through `..`, a symlink to it, a hard link (same device and inode) -- the
+///    message names the input;
+///  - `output` is (or is a symlink to) a directory, FIFO, socket or device: it would be
+///    replaced by a regular file, or (written through) never end or hang;
+///  - the directory that would hold it does not exist.
+/// A missing output, or an existing regular file that is no input, is fine. Inputs that do
+/// not exist (yet) are skipped; empty strings in `inputs` are ignored. `what` names the
+/// output in messages ("the image", "the tree").
+void check_output(const std::string& output, const std::vector<std::string>& inputs,
+                  const char* what);
+
+}  // namespace kdt

@@ -1,0 +1,99 @@
+#include "renderer/core/temp_file.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+
+#include "renderer/core/error.h"
+#include "renderer/core/interrupt.h"
+
+namespace kdt {
+
+TempFile::TempFile(const std::string& target) : target_(target) {
+    interrupt::install_handlers();
+    static std::atomic<uint64_t> counter{0};
+    path_ = target + ".kdtrace-" + std::to_string(::getpid()) + "-" +
+            std::to_string(counter.fetch_add(1)) + ".tmp";
+    // Registered before it exists, so that no signal can come between creating and
+    // registering it (removing a file that does not exist yet is harmless).
+    slot_ = interrupt::register_temp(path_.c_str());
+    fd_ = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+    if (fd_ < 0) {
+        const int err = errno;
+        interrupt::unregister_temp(slot_);
+        slot_ = -1;
+        throw Error(ErrorLocation{target_},
+                    "cannot create temporary file " + path_ + ": " + std::strerror(err));
+    }
+}
+
+TempFile::~TempFile() { discard(); }
+
+void TempFile::discard() {
+    if (fd_ >= 0) {
+        ::close(fd_);
+        fd_ = -1;
+        ::unlink(path_.c_str());
+    }
+    interrupt::unregister_temp(slot_);
+    slot_ = -1;
+}
+
+void TempFile::fail(const std::string& message) {
+    const int err = errno;
+    discard();
+    throw Error(ErrorLocation{target_}, message + ": " + std::strerror(err));
+}
+
+void TempFile::write(const void* data, size_t size) {
+    if (fd_ < 0) throw Error(ErrorLocation{target_}, "write after commit");
+    const auto* p = static_cast<const unsigned char*>(data);
+    while (size > 0) {
+        const ssize_t n = ::write(fd_, p, size);
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) fail("write error in " + path_);
+        p += n;
+        size -= size_t(n);
+    }
+}
+
+void TempFile::commit() {
+    if (fd_ < 0) throw Error(ErrorLocation{target_}, "commit after commit");
+    struct stat st {};
+    if (::stat(target_.c_str(), &st) == 0 && S_ISREG(st.st_mode) &&
+        ::fchmod(fd_, st.st_mode & 07777) != 0) {
+        fail("cannot copy the file mode of the existing file");
+    }
+    if (::fsync(fd_) != 0) fail("cannot flush " + path_);
+    const int fd = fd_;
+    fd_ = -1;
+    if (::close(fd) != 0) {
+        const int err = errno;
+        ::unlink(path_.c_str());
+        errno = err;
+        fail("cannot close " + path_);
+    }
+    if (std::rename(path_.c_str(), target_.c_str()) != 0) {
+        const int err = errno;
+        ::unlink(path_.c_str());
+        interrupt::unregister_temp(slot_);
+        slot_ = -1;
+        throw Error(ErrorLocation{target_},
+                    std::string("cannot replace the file: ") + std::strerror(err));
+    }
+    interrupt::unregister_temp(slot_);
+    slot_ = -1;
+}
+
+void write_file_atomically(const std::string& path, const void* data, size_t size) {
+    TempFile tmp(path);
+    tmp.write(data, size);
+    tmp.commit();
+}
+
+}  // namespace kdt

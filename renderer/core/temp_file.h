@@ -1,0 +1,42 @@
+// Writing a file without ever leaving it half-written: a temporary file beside the target,
+// removed on every exit path (signals included, through core/interrupt.h), renamed over the
+// target when complete. Depends on core/error.h and core/interrupt.h.
+#pragma once
+
+#include <cstddef>
+#include <string>
+
+namespace kdt {
+
+/// A temporary file "<target>.kdtrace-<pid>-<n>.tmp" in the target's directory, created
+/// exclusively (mode 0666 less the umask) and registered for removal if a signal ends the
+/// process. Without commit(), the destructor closes and removes it.
+class TempFile {
+public:
+    /// Throws kdt::Error naming `target` when the file cannot be created.
+    explicit TempFile(const std::string& target);
+    ~TempFile();
+    TempFile(const TempFile&) = delete;
+    TempFile& operator=(const TempFile&) = delete;
+
+    const std::string& path() const { return path_; }
+    /// Appends bytes; throws kdt::Error naming the target on a write error (a full disk).
+    void write(const void* data, size_t size);
+    /// Flushes the data to disk, gives the file the mode of an existing regular target (so
+    /// overwriting keeps the user's permissions), and renames it over the target. Throws
+    /// kdt::Error naming the target on failure (the temporary file is then removed).
+    void commit();
+
+private:
+    [[noreturn]] void fail(const std::string& message);
+    void discard();
+
+    std::string target_, path_;
+    int fd_ = -1;
+    int slot_ = -1;
+};
+
+/// Writes `size` bytes to `path` through a TempFile.
+void write_file_atomically(const std::string& path, const void* data, size_t size);
+
+}  // namespace kdt

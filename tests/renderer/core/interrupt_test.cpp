@@ -1,0 +1,98 @@
+#include <signal.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "renderer/core/interrupt.h"
+#include "renderer/core/temp_file.h"
+#include "tests/test_util.h"
+
+namespace kdt {
+namespace {
+
+namespace fs = std::filesystem;
+
+TEST(Interrupt, RegistryHoldsPathsUntilUnregistered) {
+    interrupt::reset_for_testing();
+    std::vector<int> slots;
+    for (int i = 0; i < 5; ++i) {
+        const std::string p = "/tmp/kdt-registry-" + std::to_string(i);
+        slots.push_back(interrupt::register_temp(p.c_str()));
+        EXPECT_GE(slots.back(), 0);
+    }
+    EXPECT_EQ(interrupt::registered_temp_count(), 5);
+    for (int s : slots) interrupt::unregister_temp(s);
+    EXPECT_EQ(interrupt::registered_temp_count(), 0);
+    // Too long for the handler's table: refused (the owner still removes it itself).
+    EXPECT_EQ(interrupt::register_temp(std::string(size_t(interrupt::kMaxTempPath), 'x').c_str()),
+              -1);
+    interrupt::unregister_temp(-1);  // harmless
+    // A full table refuses further paths instead of overwriting one.
+    slots.clear();
+    for (int i = 0; i < interrupt::kMaxTempFiles; ++i)
+        slots.push_back(interrupt::register_temp("p"));
+    EXPECT_EQ(interrupt::register_temp("q"), -1);
+    for (int s : slots) interrupt::unregister_temp(s);
+    EXPECT_EQ(interrupt::registered_temp_count(), 0);
+}
+
+TEST(Interrupt, FinishWorkModeRecordsTheSignalAndTheWatcherReacts) {
+    for (int sig : {SIGINT, SIGTERM}) {
+        interrupt::reset_for_testing();
+        interrupt::install(interrupt::Mode::finish_work);
+        EXPECT_FALSE(interrupt::requested());
+        EXPECT_EQ(interrupt::exit_code(), 0);
+        std::atomic<int> calls{0};
+        {
+            interrupt::Watcher watcher([&calls] { ++calls; }, 1);
+            std::this_thread::sleep_for(std::chrono::milliseconds(20));
+            EXPECT_EQ(calls.load(), 0);  // nothing before a signal
+            ASSERT_EQ(::raise(sig), 0);
+            EXPECT_TRUE(interrupt::requested());
+            for (int i = 0; i < 2000 && calls.load() < 3; ++i)
+                std::this_thread::sleep_for(std::chrono::milliseconds(1));
+            EXPECT_GE(calls.load(), 3);  // repeated, not once
+        }
+        EXPECT_EQ(interrupt::signal_number(), sig);
+        EXPECT_STREQ(interrupt::signal_name(), sig == SIGINT ? "SIGINT" : "SIGTERM");
+        EXPECT_EQ(interrupt::exit_code(), sig == SIGINT ? 130 : 143);
+    }
+    interrupt::reset_for_testing();
+    interrupt::install(interrupt::Mode::exit_now);
+}
+
+// In exit_now mode the first signal, and in finish_work mode the second, removes the
+// temporary files and kills the process with the signal.
+void die_with_temp_files(const fs::path& dir, interrupt::Mode mode, int sig) {
+    interrupt::reset_for_testing();
+    interrupt::install(mode);
+    TempFile a((dir / "a.png").string());
+    TempFile b((dir / "b.kdt").string());
+    a.write("data", 4);
+    ::raise(sig);
+    if (mode == interrupt::Mode::finish_work) ::raise(sig);
+    std::fprintf(stderr, "still alive\n");
+    std::_Exit(0);
+}
+
+TEST(InterruptDeathTest, SignalsRemoveTemporaryFiles) {
+    GTEST_FLAG_SET(death_test_style, "threadsafe");
+    int n = 0;
+    for (interrupt::Mode mode : {interrupt::Mode::exit_now, interrupt::Mode::finish_work}) {
+        for (int sig : {SIGINT, SIGTERM}) {
+            const fs::path dir = test::temp_dir("interrupt_death_" + std::to_string(n++));
+            EXPECT_EXIT(die_with_temp_files(dir, mode, sig), ::testing::KilledBySignal(sig), "");
+            EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 0)
+                << dir;
+        }
+    }
+}
+
+}  // namespace
+}  // namespace kdt
