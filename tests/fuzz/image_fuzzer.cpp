@@ -1,8 +1,8 @@
-// libFuzzer target for the image loaders (Radiance HDR via stb_image, OpenEXR via tinyexr,
-// PFM, PNG via stb_image and our chunk walker): any input must load or throw a kdt::Error
-// naming the file, never crash, leak, hang or trip a sanitizer. tinyexr is compiled into the
-// fuzzer from Debian's header (tinyexr_impl.cpp) so that its code is instrumented too.
-// Built by tests/fuzz/tests.cmake.
+// libFuzzer target for the image loaders (Radiance HDR via stb_image, OpenEXR via the
+// OpenEXR library, PFM, PNG via stb_image and our chunk walker): any input must load or
+// throw a kdt::Error naming the file, never crash, leak, hang or trip a sanitizer. OpenEXR
+// is Debian's (uninstrumented) shared library. Built by tests/fuzz/tests.cmake; OpenEXR
+// seeds by tests/fuzz/exr_seeds.cpp.
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
