@@ -9,6 +9,7 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <limits>
 
 #include <gtest/gtest.h>
 
@@ -130,6 +131,69 @@ TEST_F(ImageIoTest, ToneCurves) {
         float x = float(i) / 255.0f;
         EXPECT_NEAR(srgb_to_linear(linear_to_srgb(x)), x, 1e-6f);
     }
+}
+
+// Every curve maps 0, negatives and NaN to 0, never decreases, stays in [0,1] and reaches 1
+// (at infinity at the latest); the compressive ones keep highlights below white where the
+// clamp clips them.
+TEST_F(ImageIoTest, EveryToneCurveIsMonotoneFromZeroToOne) {
+    static_assert(kToneCurveNames.size() == size_t(ToneCurve::filmic) + 1);
+    for (size_t c = 0; c < kToneCurveNames.size(); ++c) {
+        const ToneCurve curve = ToneCurve(c);
+        SCOPED_TRACE(kToneCurveNames[c]);
+        EXPECT_EQ(apply_tone_curve(0.0f, curve), 0.0f);
+        EXPECT_EQ(apply_tone_curve(-1.0f, curve), 0.0f);
+        EXPECT_EQ(apply_tone_curve(std::nanf(""), curve), 0.0f);
+        EXPECT_EQ(apply_tone_curve(kInfinity, curve), 1.0f);
+        EXPECT_EQ(apply_tone_curve(std::numeric_limits<float>::max(), curve), 1.0f);
+        float prev = 0.0f;
+        uint8_t prev8 = 0;
+        for (float x = 1e-12f; x < 1e30f; x *= 1.0005f) {
+            const float y = apply_tone_curve(x, curve);
+            ASSERT_GE(y, prev) << "at " << x;
+            ASSERT_LE(y, 1.0f) << "at " << x;
+            const uint8_t y8 = tonemap_to_srgb8(x, {0.0f, curve});
+            ASSERT_GE(y8, prev8) << "at " << x;
+            prev = y;
+            prev8 = y8;
+        }
+        EXPECT_GT(apply_tone_curve(1e-6f, curve), 0.0f);
+        EXPECT_EQ(prev8, 255);
+        if (curve != ToneCurve::clamp) {
+            EXPECT_LT(tonemap_to_srgb8(1.0f, {0.0f, curve}), 255);
+        }
+    }
+    // Names are distinct (the CLI and metadata spell curves by them).
+    for (size_t i = 0; i < kToneCurveNames.size(); ++i) {
+        for (size_t j = 0; j < i; ++j) EXPECT_STRNE(kToneCurveNames[i], kToneCurveNames[j]);
+    }
+}
+
+// The default curve, clamp, gives bit for bit the PNG values the writer gave before tone
+// curves existed: radiance * 2^exposure clamped to [0,1], sRGB-encoded, rounded.
+TEST_F(ImageIoTest, ClampCurveMatchesThePlainClampBitwise) {
+    auto plain = [](float linear, float exposure) {
+        const float scaled = linear * std::exp2(exposure);
+        const float clamped = !(scaled > 0.0f) ? 0.0f : (scaled < 1.0f ? scaled : 1.0f);
+        return uint8_t(linear_to_srgb(clamped) * 255.0f + 0.5f);
+    };
+    HashRng rng(31);
+    for (float exposure : {-3.0f, 0.0f, 1.5f}) {
+        for (int i = 0; i < 200000; ++i) {
+            const float x = std::ldexp(rng.next(), int(rng.next_u64() % 40) - 30);
+            ASSERT_EQ(tonemap_to_srgb8(x, {exposure, ToneCurve::clamp}), plain(x, exposure))
+                << x << " at exposure " << exposure;
+        }
+    }
+    const ImageRGB img = random_image(17, 5, 4, 4.0f);
+    write_png(path("default.png"), img);
+    write_png(path("clamp.png"), img, {0.0f, ToneCurve::clamp});
+    EXPECT_EQ(read_bytes(path("default.png")), read_bytes(path("clamp.png")));
+    write_image(path("aces.png"), img, {0.0f, ToneCurve::aces});
+    EXPECT_NE(read_bytes(path("default.png")), read_bytes(path("aces.png")));
+    // Linear formats ignore the tone parameters.
+    write_image(path("a.pfm"), img, {2.0f, ToneCurve::filmic});
+    EXPECT_EQ(load_image(path("a.pfm")).rgb, img.rgb);
 }
 
 TEST_F(ImageIoTest, HdrRoundTripWithinRgbePrecision) {
