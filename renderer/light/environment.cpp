@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 
 #include "renderer/core/color.h"
@@ -35,7 +36,73 @@ Vec2f disk_from_uv(const Vec2f& uv) { return {2.0f * uv.x - 1.0f, 1.0f - 2.0f * 
 
 std::string where(const std::string& name) { return name.empty() ? "environment map" : name; }
 
+std::string xy(size_t i, int w) {
+    return "(x " + std::to_string(i % size_t(w)) + ", y " + std::to_string(i / size_t(w)) + ")";
+}
+
+std::string number(double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof(buf), "%g", v);
+    return buf;
+}
+
+/// Throws unless radiance (the largest channel of a colour or texel, times the intensity,
+/// computed in double) is within kMaxEnvironmentRadiance.
+void check_radiance_bound(double channel, float intensity, const std::string& path,
+                          const std::string& what) {
+    const double radiance = channel * double(intensity);
+    if (radiance > double(kMaxEnvironmentRadiance)) {
+        throw Error(ErrorLocation{path}, what + " " + number(channel) + " times intensity " +
+                                             number(intensity) + " is radiance " +
+                                             number(radiance) + ", above the limit " +
+                                             number(kMaxEnvironmentRadiance) +
+                                             " (path throughput products would overflow float)");
+    }
+}
+
 }  // namespace
+
+void check_environment_texels(const ImageRGB& image, float intensity, const std::string& path) {
+    uint64_t nonfinite = 0, negative = 0;
+    size_t first_nonfinite = 0, first_negative = 0, brightest = 0;
+    float max_channel = 0.0f;
+    for (size_t i = 0; i < image.pixel_count(); ++i) {
+        for (int c = 0; c < 3; ++c) {
+            const float v = image.rgb[i * 3 + size_t(c)];
+            if (!std::isfinite(v)) {
+                if (nonfinite++ == 0) first_nonfinite = i;
+                break;
+            }
+            if (v < 0.0f) {
+                if (negative++ == 0) first_negative = i;
+                break;
+            }
+            if (v > max_channel) {
+                max_channel = v;
+                brightest = i;
+            }
+        }
+    }
+    const std::string count = std::to_string(image.pixel_count());
+    if (nonfinite > 0) {
+        const Vec3f v = image.at(int(first_nonfinite % size_t(image.width)),
+                                 int(first_nonfinite / size_t(image.width)));
+        throw Error(ErrorLocation{path, "pixel", int64_t(first_nonfinite)},
+                    xy(first_nonfinite, image.width) + " is " +
+                        (std::isnan(v.x + v.y + v.z) ? "NaN" : "infinite") + "; " +
+                        std::to_string(nonfinite) + " of " + count + " texels are not finite");
+    }
+    if (negative > 0) {
+        const Vec3f v = image.at(int(first_negative % size_t(image.width)),
+                                 int(first_negative / size_t(image.width)));
+        throw Error(ErrorLocation{path, "pixel", int64_t(first_negative)},
+                    xy(first_negative, image.width) + " is negative (" + number(v.x) + ", " +
+                        number(v.y) + ", " + number(v.z) + "); " + std::to_string(negative) +
+                        " of " + count + " texels have a negative channel");
+    }
+    check_radiance_bound(max_channel, intensity, path,
+                         "the brightest texel " + xy(brightest, image.width) + " has a channel");
+}
 
 EnvSample ConstantEnvironment::sample(const Vec2f& u) const {
     float z = 1.0f - 2.0f * u.x;
@@ -65,23 +132,7 @@ ImageEnvironment::ImageEnvironment(ImageRGB image, EnvMapping mapping, float rot
     cos_rot_ = std::cos(radians);
     sin_rot_ = std::sin(radians);
 
-    for (size_t i = 0; i < image_.pixel_count(); ++i) {
-        bool clamped = false;
-        for (int c = 0; c < 3; ++c) {
-            float& v = image_.rgb[i * 3 + size_t(c)];
-            if (!std::isfinite(v)) {
-                ErrorLocation loc{where(name), "pixel", int64_t(i)};
-                throw Error(loc, "(x " + std::to_string(i % size_t(w)) + ", y " +
-                                     std::to_string(i / size_t(w)) + ") is " +
-                                     (std::isnan(v) ? "NaN" : "infinite"));
-            }
-            if (v < 0.0f) {
-                v = 0.0f;
-                clamped = true;
-            }
-        }
-        clamped_pixels_ += clamped ? 1 : 0;
-    }
+    check_environment_texels(image_, intensity, where(name));
 
     // Sampling weights: the mean luminance of the bilinear reconstruction over the pixel
     // times the pixel's solid angle per unit uv area, so that the solid-angle pdf is close
@@ -290,6 +341,29 @@ std::shared_ptr<const EnvironmentLight> make_environment_light(const Environment
                                               desc.intensity, desc.file);
 }
 
+std::string environment_mapping_warning(EnvMapping mapping, int width, int height) {
+    const std::string size = std::to_string(width) + "x" + std::to_string(height);
+    if (mapping == EnvMapping::angular && width == 2 * height) {
+        return "mapping angular for a " + size +
+               " image, which looks like a lat-long map (2:1); angular maps are square";
+    }
+    if (mapping == EnvMapping::latlong && width == height) {
+        return "mapping latlong for a square " + size +
+               " image, which looks like an angular map; lat-long maps are 2:1";
+    }
+    return "";
+}
+
+std::shared_ptr<const EnvironmentLight> make_environment_light(const EnvironmentDesc& desc,
+                                                               const EnvLog& log) {
+    if (desc.file.empty()) return make_environment_light(desc);
+    ImageRGB image = load_image(desc.file);
+    const std::string warning =
+        environment_mapping_warning(desc.mapping, image.width, image.height);
+    if (log && !warning.empty()) log(desc.file + ": " + warning);
+    return make_environment_light(desc, std::move(image));
+}
+
 std::shared_ptr<const EnvironmentLight> make_environment_light(const EnvironmentDesc& desc) {
     if (desc.file.empty()) {
         if (!is_finite(desc.color) || desc.color.x < 0.0f || desc.color.y < 0.0f ||
@@ -299,6 +373,8 @@ std::shared_ptr<const EnvironmentLight> make_environment_light(const Environment
         if (!std::isfinite(desc.intensity) || desc.intensity < 0.0f) {
             throw Error("environment intensity must be finite and >= 0");
         }
+        check_radiance_bound(std::max({desc.color.x, desc.color.y, desc.color.z}), desc.intensity,
+                             "", "environment colour channel");
         return std::make_shared<ConstantEnvironment>(desc.color * desc.intensity);
     }
     return make_environment_light(desc, load_image(desc.file));

@@ -41,8 +41,7 @@ private:
 /// estimates stay unbiased; the density only follows eval() less closely within a pixel.
 class ImageEnvironment final : public EnvironmentLight {
 public:
-    /// `image` must hold finite values; negative values are clamped to 0 and counted.
-    /// `name` (usually the file) is used in error messages.
+    /// Throws kdt::Error (naming `name`, usually the file) as check_environment_texels().
     ImageEnvironment(ImageRGB image, EnvMapping mapping, float rotation_degrees, float intensity,
                      const std::string& name = "");
 
@@ -52,11 +51,9 @@ public:
     bool is_constant() const override { return false; }
 
     EnvMapping mapping() const { return mapping_; }
-    /// The map after clamping, not multiplied by intensity.
+    /// The map, not multiplied by intensity.
     const ImageRGB& image() const { return image_; }
     float intensity() const { return intensity_; }
-    /// Number of pixels that had a negative channel (clamped to 0 at load).
-    uint64_t clamped_pixels() const { return clamped_pixels_; }
     /// Image coordinates (u, v) of a world direction (rotation applied).
     Vec2f uv_from_dir(const Vec3f& world_dir) const;
     /// World direction of image coordinates (u, v); nullopt outside the angular disk.
@@ -85,10 +82,14 @@ private:
     EnvMapping mapping_;
     float intensity_;
     float cos_rot_, sin_rot_;
-    uint64_t clamped_pixels_ = 0;
     Distribution2D distribution_;
     std::vector<float> density_;  ///< per pixel, w.r.t. uv area
 };
+
+/// Throws kdt::Error naming path unless every texel is finite and >= 0 (naming the first
+/// bad one, its position and the count) and the brightest channel times intensity is
+/// within kMaxEnvironmentRadiance.
+void check_environment_texels(const ImageRGB& image, float intensity, const std::string& path);
 
 /// Builds the light from an image already in memory (same checks as for a file).
 std::shared_ptr<const EnvironmentLight> make_environment_light(const EnvironmentDesc& desc,

@@ -8,6 +8,8 @@
 #include <cstdint>
 #include <cstdio>
 #include <fstream>
+#include <functional>
+#include <utility>
 
 #include <gtest/gtest.h>
 
@@ -406,6 +408,126 @@ TEST_P(MapTest, LookupsAreContinuousAcrossPixels) {
     }
 }
 
+/// The message of the kdt::Error that building the light throws ("" and a failure if none).
+std::string env_error(const std::function<void()>& build) {
+    try {
+        build();
+    } catch (const Error& e) {
+        return e.what();
+    }
+    ADD_FAILURE() << "no error";
+    return "";
+}
+
+// Issue 29: radiance that overflows, and negative or non-finite texels, are refused when
+// the light is built, naming the file, the texel and the count (they rendered black with
+// "non-finite dropped" or without a word).
+TEST(Environment, OverflowingNegativeAndNonFiniteRadianceIsRefused) {
+    auto dir = test::temp_dir("env_overflow");
+    auto probe = [&](const std::string& name, float value, int bad_x = -1, float bad = 0.0f) {
+        ImageRGB img(8, 4);
+        for (float& v : img.rgb) v = value;
+        if (bad_x >= 0) img.set(bad_x, 2, Vec3f(0.5f, bad, 0.5f));
+        const std::string file = (dir / name).string();
+        write_pfm(file, img);
+        return file;
+    };
+    struct Case {
+        std::string file;
+        float intensity;
+        const char* expect;
+    } cases[] = {
+        {probe("huge.pfm", 3.4e38f), 1.0f, "(x 0, y 0) has a channel 3.4e+38 times intensity 1"},
+        {probe("big.pfm", 1e20f), 1e11f, "is radiance 1e+31, above the limit 1e+30"},
+        {probe("one.pfm", 1.0f), 3e38f, "times intensity 3e+38 is radiance 3e+38"},
+        {probe("minus.pfm", -1.0f), 1.0f,
+         "(x 0, y 0) is negative (-1, -1, -1); 32 of 32 texels have a negative channel"},
+        {probe("dip.pfm", 1.0f, 5, -1e-6f), 1.0f,
+         "(x 5, y 2) is negative (0.5, -1e-06, 0.5); 1 of 32 texels"},
+    };
+    for (const Case& c : cases) {
+        EnvironmentDesc desc;
+        desc.file = c.file;
+        desc.intensity = c.intensity;
+        const std::string msg = env_error([&] { make_environment_light(desc); });
+        EXPECT_EQ(msg.rfind(c.file + ": ", 0), 0u) << msg;
+        EXPECT_NE(msg.find(c.expect), std::string::npos) << msg;
+    }
+    // Just inside the limit is accepted.
+    EnvironmentDesc ok;
+    ok.file = probe("limit.pfm", 1e15f);
+    ok.intensity = 1e15f;
+    EXPECT_NO_THROW(make_environment_light(ok));
+    // NaN and infinite texels in memory (files with them are refused by the loader).
+    for (float bad : {std::nanf(""), kInfinity}) {
+        ImageRGB img(8, 4);
+        img.set(6, 1, Vec3f(1.0f, bad, 1.0f));
+        img.set(7, 3, Vec3f(bad));
+        EnvironmentDesc desc;
+        desc.file = "mem.exr";
+        const std::string msg = env_error([&] { make_environment_light(desc, img); });
+        EXPECT_NE(msg.find("mem.exr: pixel 14: (x 6, y 1) is " +
+                           std::string(std::isnan(bad) ? "NaN" : "infinite") +
+                           "; 2 of 32 texels are not finite"),
+                  std::string::npos)
+            << msg;
+    }
+    // A NaN texel in a file: the loader names it.
+    ImageRGB nan_img(8, 4);
+    nan_img.set(2, 3, Vec3f(std::nanf("")));
+    const std::string nan_file = (dir / "nan.pfm").string();
+    write_pfm(nan_file, nan_img);
+    EnvironmentDesc nan_desc;
+    nan_desc.file = nan_file;
+    const std::string msg = env_error([&] { make_environment_light(nan_desc); });
+    EXPECT_NE(msg.find("(x 2, y 3) channel R is NaN"), std::string::npos) << msg;
+    // Constant colours: the colour times the intensity.
+    for (auto [colour, intensity] :
+         {std::pair{3e38f, 1.0f}, std::pair{1e20f, 1e20f}, std::pair{1.0f, 3e38f}}) {
+        EnvironmentDesc desc;
+        desc.color = Vec3f(0.5f, colour, 0.5f);
+        desc.intensity = intensity;
+        const std::string m = env_error([&] { make_environment_light(desc); });
+        EXPECT_NE(m.find("environment colour channel"), std::string::npos) << m;
+        EXPECT_NE(m.find("above the limit 1e+30"), std::string::npos) << m;
+    }
+    std::filesystem::remove_all(dir);
+}
+
+// Issue 29: `--env-mapping angular` on a 2:1 image warns (through the log callback) that
+// it looks lat-long; a square lat-long map warns the other way; matching shapes are quiet.
+TEST(Environment, MappingThatContradictsTheImageShapeWarns) {
+    EXPECT_NE(
+        environment_mapping_warning(EnvMapping::angular, 512, 256).find("looks like a lat-long"),
+        std::string::npos);
+    EXPECT_NE(
+        environment_mapping_warning(EnvMapping::latlong, 64, 64).find("looks like an angular"),
+        std::string::npos);
+    EXPECT_EQ(environment_mapping_warning(EnvMapping::angular, 64, 64), "");
+    EXPECT_EQ(environment_mapping_warning(EnvMapping::latlong, 512, 256), "");
+    EXPECT_EQ(environment_mapping_warning(EnvMapping::angular, 300, 200), "");
+
+    auto dir = test::temp_dir("env_warn");
+    ImageRGB img(16, 8);
+    for (float& v : img.rgb) v = 1.0f;
+    EnvironmentDesc desc;
+    desc.file = (dir / "sky.pfm").string();
+    write_pfm(desc.file, img);
+    desc.mapping = EnvMapping::angular;
+    std::vector<std::string> lines;
+    auto light = make_environment_light(desc, [&](const std::string& l) { lines.push_back(l); });
+    EXPECT_NE(light, nullptr);
+    ASSERT_EQ(lines.size(), 1u);
+    EXPECT_EQ(lines[0], desc.file +
+                            ": mapping angular for a 16x8 image, which looks like a lat-long map "
+                            "(2:1); angular maps are square");
+    desc.mapping = EnvMapping::latlong;
+    lines.clear();
+    make_environment_light(desc, [&](const std::string& l) { lines.push_back(l); });
+    EXPECT_TRUE(lines.empty());
+    std::filesystem::remove_all(dir);
+}
+
 TEST(Environment, BadInputThrows) {
     EnvironmentDesc desc;
     desc.file = "/nonexistent/probe.hdr";
@@ -435,23 +557,17 @@ TEST(Environment, BadInputThrows) {
     }
 
     ImageRGB neg(4, 2);
-    neg.set(0, 0, Vec3f(-1.0f, 1.0f, 1.0f));
-    neg.set(1, 0, Vec3f(-1.0f, -1.0f, 1.0f));
-    ImageEnvironment clamped(neg, EnvMapping::latlong, 0.0f, 1.0f);
-    EXPECT_EQ(clamped.clamped_pixels(), 2u);
-    EXPECT_EQ(clamped.image().at(1, 0), Vec3f(0.0f, 0.0f, 1.0f));
-
-    // Huge but finite pixels must not overflow the sampling weights.
+    // Huge but allowed pixels must not overflow the sampling weights.
     for (EnvMapping m : {EnvMapping::latlong, EnvMapping::angular}) {
         ImageRGB huge(8, 8);
         for (float& v : huge.rgb) v = 1.0f;
-        huge.set(3, 3, Vec3f(3e38f));
+        huge.set(3, 3, Vec3f(kMaxEnvironmentRadiance));
         ImageEnvironment env(huge, m, 0.0f, 1.0f);
         EnvSample s = env.sample({0.5f, 0.5f});
         EXPECT_GT(s.pdf_solid_angle, 0.0f);
         EXPECT_TRUE(std::isfinite(s.pdf_solid_angle));
         // The brightest pixel takes all samples; its interpolated values stay finite.
-        EXPECT_GT(s.radiance.x, 1e38f);
+        EXPECT_GT(s.radiance.x, 1e28f);
         EXPECT_TRUE(is_finite(s.radiance));
     }
 
