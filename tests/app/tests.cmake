@@ -98,3 +98,9 @@ add_test(NAME smoke.build_output_is_directory COMMAND ${_kdt} build
          /usr/share/assimp/models/PLY/cube.ply -o ${_tmp})
 set_tests_properties(smoke.build_output_is_directory PROPERTIES
   PASS_REGULAR_EXPRESSION "cannot write the tree: is a directory \\(give a file name\\)")
+
+# `kdtrace info IMAGE` prints the size, the compression and the render command stored in it.
+add_test(NAME smoke.info_image COMMAND sh -c "\"$0\" render --width 16 --height 12 --spp 2 \
+--quiet -o \"$1\" >/dev/null && \"$0\" info \"$1\"" ${_kdt} ${_tmp}/info.exr)
+set_tests_properties(smoke.info_image PROPERTIES PASS_REGULAR_EXPRESSION
+  "format: +OpenEXR\nsize: +16x12\nencoding: +zip compression[^\n]*\nkdtrace:command: kdtrace render --width 16 --height 12 [^\n]*--spp 2\n")

@@ -196,6 +196,31 @@ TEST_F(ImageIoTest, ClampCurveMatchesThePlainClampBitwise) {
     EXPECT_EQ(load_image(path("a.pfm")).rgb, img.rgb);
 }
 
+// What `kdtrace info` prints: size, format, encoding and the metadata, for every format.
+TEST_F(ImageIoTest, ImageInfoOfEveryFormat) {
+    const ImageRGB img = random_image(7, 3, 12, 2.0f);
+    const ImageMetadata md = {{"kdtrace:spp", "4"}, {"kdtrace:command", "kdtrace render"}};
+    write_png(path("a.png"), img, {}, md);
+    ImageInfo info = read_image_info(path("a.png"));
+    EXPECT_EQ(info.format, "PNG");
+    EXPECT_EQ(info.width, 7);
+    EXPECT_EQ(info.height, 3);
+    EXPECT_EQ(info.encoding, "8-bit sRGB");
+    EXPECT_EQ(info.metadata, md);
+    write_hdr(path("a.hdr"), img);
+    info = read_image_info(path("a.hdr"));
+    EXPECT_EQ(info.format, "Radiance HDR");
+    EXPECT_EQ(info.width, 7);
+    EXPECT_TRUE(info.metadata.empty());
+    write_pfm(path("a.pfm"), img);
+    info = read_image_info(path("a.pfm"));
+    EXPECT_EQ(info.format, "PFM");
+    EXPECT_EQ(info.height, 3);
+    EXPECT_EQ(info.encoding, "colour 32-bit float");
+    write_text(dir_ / "bad.png", "\x89PNG\r\n\x1a\nshort");
+    EXPECT_THROW(read_image_info(path("bad.png")), Error);
+}
+
 TEST_F(ImageIoTest, HdrRoundTripWithinRgbePrecision) {
     ImageRGB img = random_image(40, 12, 4, 50.0f);
     write_hdr(path("a.hdr"), img);
