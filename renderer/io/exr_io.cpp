@@ -22,10 +22,7 @@ namespace kdt {
 namespace {
 
 [[noreturn]] void fail(const std::string& path, const std::string& message, int64_t offset = -1) {
-    ErrorLocation where;
-    where.path = path;
-    where.offset = offset;
-    throw Error(where, message);
+    throw_file_error(path, message, offset);
 }
 
 /// An IStream over bytes in memory. Reads past the end throw, as the library expects.
@@ -47,24 +44,6 @@ public:
 private:
     const std::vector<uint8_t>& data_;
     uint64_t pos_ = 0;
-};
-
-/// An OStream into a growing byte vector (the writer seeks back to fill in its offsets).
-class MemoryOStream final : public Imf::OStream {
-public:
-    explicit MemoryOStream(const std::string& path) : Imf::OStream(path.c_str()) {}
-    void write(const char c[], int n) override {
-        if (pos_ + size_t(n) > data_.size()) data_.resize(pos_ + size_t(n));
-        std::memcpy(data_.data() + pos_, c, size_t(n));
-        pos_ += size_t(n);
-    }
-    uint64_t tellp() override { return pos_; }
-    void seekp(uint64_t pos) override { pos_ = size_t(pos); }
-    std::vector<uint8_t> take() { return std::move(data_); }
-
-private:
-    std::vector<uint8_t> data_;
-    size_t pos_ = 0;
 };
 
 constexpr Imf::Compression kCompression[] = {
@@ -369,6 +348,19 @@ ImageRGB decode(const std::vector<uint8_t>& data, const std::string& path,
 
 }  // namespace
 
+void throw_file_error(const std::string& path, const std::string& message, int64_t offset) {
+    ErrorLocation where;
+    where.path = path;
+    where.offset = offset;
+    throw Error(where, message);
+}
+
+void ExrMemoryOStream::write(const char c[], int n) {
+    if (pos_ + size_t(n) > data_.size()) data_.resize(pos_ + size_t(n));
+    std::memcpy(data_.data() + pos_, c, size_t(n));
+    pos_ += size_t(n);
+}
+
 bool is_exr(const std::vector<uint8_t>& data) {
     return data.size() >= 4 && Imf::isImfMagic(reinterpret_cast<const char*>(data.data()));
 }
@@ -423,7 +415,7 @@ std::vector<uint8_t> encode_exr(const std::string& path, const ImageRGB& image,
         header.insert(key, Imf::StringAttribute(value));
     }
     return guarded(path, "cannot write OpenEXR", [&] {
-        MemoryOStream stream(path);
+        ExrMemoryOStream stream(path);
         {
             Imf::OutputFile file(stream, header, 0);
             Imf::FrameBuffer fb;

@@ -7,9 +7,30 @@
 #include <string>
 #include <vector>
 
+#include <ImfIO.h>
+
 #include "renderer/io/image_io.h"
 
 namespace kdt {
+
+/// Throws kdt::Error for `path` with the message (and the byte offset when >= 0).
+[[noreturn]] void throw_file_error(const std::string& path, const std::string& message,
+                                   int64_t offset = -1);
+
+/// An OpenEXR output stream into a growing byte vector (writers seek back to fill in
+/// their offset tables). `name` only names the stream in the library's messages.
+class ExrMemoryOStream final : public Imf::OStream {
+public:
+    explicit ExrMemoryOStream(const std::string& name) : Imf::OStream(name.c_str()) {}
+    void write(const char c[], int n) override;
+    uint64_t tellp() override { return pos_; }
+    void seekp(uint64_t pos) override { pos_ = size_t(pos); }
+    std::vector<uint8_t> take() { return std::move(data_); }
+
+private:
+    std::vector<uint8_t> data_;
+    size_t pos_ = 0;
+};
 
 /// True when data starts with the OpenEXR magic number.
 bool is_exr(const std::vector<uint8_t>& data);

@@ -37,10 +37,7 @@ namespace kdt {
 namespace {
 
 [[noreturn]] void fail(const std::string& path, const std::string& message, int64_t offset = -1) {
-    ErrorLocation where;
-    where.path = path;
-    where.offset = offset;
-    throw Error(where, message);
+    throw_file_error(path, message, offset);
 }
 
 std::string lower_extension(const std::string& path) {

@@ -12,35 +12,18 @@
 #include "renderer/core/error.h"
 #include "renderer/io/image_io.h"
 #include "tests/renderer/io/exr_variants.h"
+#include "tests/renderer/io/image_test_util.h"
 #include "tests/test_util.h"
 
 namespace kdt {
 namespace {
 
+using test::expect_load_error;
 using test::ExrVariant;
 using test::HashRng;
+using test::random_image;
 using test::read_bytes;
 using test::write_bytes;
-
-ImageRGB random_image(int w, int h, uint64_t seed, float scale) {
-    ImageRGB img(w, h);
-    HashRng rng(seed);
-    for (float& v : img.rgb) v = scale * rng.next();
-    return img;
-}
-
-/// The message of the kdt::Error that loading p throws, which must start with p; "" and a
-/// test failure when it loads.
-std::string load_error(const std::string& p) {
-    try {
-        load_image(p);
-    } catch (const Error& e) {
-        EXPECT_EQ(std::string(e.what()).rfind(p + ": ", 0), 0u) << e.what();
-        return e.what();
-    }
-    ADD_FAILURE() << "no error for " << p;
-    return "";
-}
 
 class ExrIoTest : public ::testing::Test {
 protected:
@@ -228,7 +211,7 @@ TEST_F(ExrIoTest, TruncatedAndCorruptedFilesOfEveryCompressionAreErrors) {
         // And one truncated file from disk.
         const std::vector<uint8_t> good = read_bytes(file);
         write_bytes(file, std::vector<uint8_t>(good.begin(), good.begin() + 100));
-        load_error(file);
+        expect_load_error(file);
     }
     ExrVariant tiled_piz{24, 20, Imf::HALF, Imf::PIZ_COMPRESSION, false, 8};
     expect_truncated_and_corrupted_fail("tiled_piz.exr", test::exr_variant(tiled_piz));
@@ -263,39 +246,39 @@ TEST_F(ExrIoTest, HostileHeadersAreRefusedBeforeAllocating) {
         return bytes;
     };
     write_bytes(path("huge.exr"), with_window(good, 59999, 59999));
-    std::string msg = load_error(path("huge.exr"));
+    std::string msg = expect_load_error(path("huge.exr"));
     EXPECT_NE(msg.find("60000x60000 is out of range"), std::string::npos) << msg;
     write_bytes(path("wide.exr"), with_window(good, 2000000000, 0));
-    load_error(path("wide.exr"));
+    expect_load_error(path("wide.exr"));
     write_bytes(path("negative.exr"), with_window(good, -5, 2));
-    load_error(path("negative.exr"));
+    expect_load_error(path("negative.exr"));
     // 4000x4000 pixels in 1x1 tiles: an offset table of 128 MB in a file of a few hundred bytes.
     ExrVariant tiny_tiles{2, 2, Imf::HALF, Imf::NO_COMPRESSION, false, 1};
     write_bytes(path("tiles.exr"), with_window(test::exr_variant(tiny_tiles), 3999, 3999));
-    msg = load_error(path("tiles.exr"));
+    msg = expect_load_error(path("tiles.exr"));
     EXPECT_NE(msg.find("offset table of 16000000 blocks does not fit"), std::string::npos) << msg;
     // Tiles far larger than the image (the library buffers a row of them).
     std::vector<uint8_t> big_tiles = test::exr_variant(tiny_tiles);
     const uint32_t huge_tile = 60000;
     std::memcpy(&big_tiles[attribute_value(big_tiles, "tiles")], &huge_tile, 4);
     write_bytes(path("big_tiles.exr"), big_tiles);
-    msg = load_error(path("big_tiles.exr"));
+    msg = expect_load_error(path("big_tiles.exr"));
     EXPECT_NE(msg.find("tiles of 60000x1 are larger than the 2x2 image"), std::string::npos) << msg;
     // The same for scanlines: 60000 lines of ZIP blocks.
     write_bytes(path("lines.exr"), with_window(good, 3, 59999));
-    msg = load_error(path("lines.exr"));
+    msg = expect_load_error(path("lines.exr"));
     EXPECT_NE(msg.find("offset table of 3750 blocks does not fit"), std::string::npos) << msg;
     // Not an OpenEXR feature we read: multi-part or deep (version flags).
     std::vector<uint8_t> multi = good;
     multi[5] |= 0x10;
     write_bytes(path("multi.exr"), multi);
-    msg = load_error(path("multi.exr"));
+    msg = expect_load_error(path("multi.exr"));
     EXPECT_NE(msg.find("multi-part"), std::string::npos) << msg;
     // An attribute value running past the end of the file.
     std::vector<uint8_t> past(good.begin(), good.begin() + 8);
     for (char ch : std::string("channels\0chlist\0\xff\xff\0\0", 20)) past.push_back(uint8_t(ch));
     write_bytes(path("past.exr"), past);
-    msg = load_error(path("past.exr"));
+    msg = expect_load_error(path("past.exr"));
     EXPECT_NE(msg.find("attribute 'channels' runs past the end of the file"), std::string::npos)
         << msg;
 }
@@ -306,7 +289,7 @@ TEST_F(ExrIoTest, HostileHeadersAreRefusedBeforeAllocating) {
 TEST_F(ExrIoTest, ChannelListLongerThanItsSizeIsAnError) {
     const std::string file =
         std::string(KDT_SOURCE_DIR) + "/tests/fuzz/corpus/image/regress_chlist_size.exr";
-    const std::string msg = load_error(file);
+    const std::string msg = expect_load_error(file);
     EXPECT_NE(msg.find("malformed attribute 'channels' of type chlist (54 bytes)"),
               std::string::npos)
         << msg;
@@ -316,8 +299,9 @@ TEST_F(ExrIoTest, ChannelListLongerThanItsSizeIsAnError) {
     const size_t at = attribute_value(bytes, "dataWindow");
     bytes[at - 4] = 12;
     write_bytes(path("box.exr"), bytes);
-    EXPECT_NE(load_error(path("box.exr")).find("malformed attribute 'dataWindow' of type box2i"),
-              std::string::npos);
+    EXPECT_NE(
+        expect_load_error(path("box.exr")).find("malformed attribute 'dataWindow' of type box2i"),
+        std::string::npos);
 }
 
 // The seed corpus of the image fuzzer, and the reproducers kept in it, must load or fail

@@ -11,11 +11,12 @@
 #include <ImfChannelList.h>
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
-#include <ImfIO.h>
 #include <ImfOutputFile.h>
 #include <ImfStringAttribute.h>
 #include <ImfTiledOutputFile.h>
 #include <half.h>
+
+#include "renderer/io/exr_io.h"
 
 namespace kdt::test {
 
@@ -35,19 +36,7 @@ inline float exr_variant_value(int x, int y, int c) {
 
 /// Writes variant v into memory and returns the file's bytes.
 inline std::vector<uint8_t> exr_variant(const ExrVariant& v) {
-    class Sink final : public Imf::OStream {
-    public:
-        Sink() : Imf::OStream("exr_variant") {}
-        void write(const char c[], int n) override {
-            if (pos + size_t(n) > bytes.size()) bytes.resize(pos + size_t(n));
-            std::memcpy(bytes.data() + pos, c, size_t(n));
-            pos += size_t(n);
-        }
-        uint64_t tellp() override { return pos; }
-        void seekp(uint64_t p) override { pos = size_t(p); }
-        std::vector<uint8_t> bytes;
-        size_t pos = 0;
-    } sink;
+    ExrMemoryOStream sink("exr_variant");
     Imf::Header header(v.width, v.height);
     header.compression() = v.compression;
     const std::vector<std::string> names =
@@ -86,7 +75,7 @@ inline std::vector<uint8_t> exr_variant(const ExrVariant& v) {
         file.setFrameBuffer(fb);
         file.writePixels(v.height);
     }
-    return sink.bytes;
+    return sink.take();
 }
 
 }  // namespace kdt::test

@@ -15,36 +15,20 @@
 
 #include "renderer/core/color.h"
 #include "renderer/core/error.h"
+#include "tests/renderer/io/image_test_util.h"
 #include "tests/test_util.h"
 
 namespace kdt {
 namespace {
 
+using test::expect_load_error;
 using test::HashRng;
+using test::random_image;
 using test::read_bytes;
 using test::write_bytes;
 
-ImageRGB random_image(int w, int h, uint64_t seed, float scale) {
-    ImageRGB img(w, h);
-    HashRng rng(seed);
-    for (float& v : img.rgb) v = scale * rng.next();
-    return img;
-}
-
 void write_text(const std::filesystem::path& p, const std::string& s) {
     write_bytes(p, std::vector<uint8_t>(s.begin(), s.end()));
-}
-
-/// load_image must throw kdt::Error whose message names the file; returns the message.
-std::string expect_load_error(const std::filesystem::path& p) {
-    try {
-        load_image(p.string());
-    } catch (const Error& e) {
-        EXPECT_NE(std::string(e.what()).find(p.string()), std::string::npos) << e.what();
-        return e.what();
-    }
-    ADD_FAILURE() << "no error for " << p;
-    return "";
 }
 
 class ImageIoTest : public ::testing::Test {
