@@ -1,10 +1,14 @@
-// `kdtrace info FILE [--drop-invalid]`: loads a mesh and prints what the loader found.
+// `kdtrace info FILE [--drop-invalid] [--all]`: loads a mesh and prints what the loader
+// found, or prints an image's size, format and the render settings stored in it.
+#include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <memory>
 #include <string>
 
 #include "app/commands.h"
 #include "renderer/core/timer.h"
+#include "renderer/io/image_io.h"
 #include "renderer/io/mesh_io.h"
 
 namespace kdt::app {
@@ -13,10 +17,76 @@ namespace {
 struct InfoArgs {
     std::string file;
     bool drop_invalid = false;
+    bool all = false;
     int threads = 1;
 };
 
+bool is_image_file(const std::string& path) {
+    std::string lower = path;
+    std::transform(lower.begin(), lower.end(), lower.begin(),
+                   [](unsigned char c) { return char(std::tolower(c)); });
+    for (const char* ext : {".png", ".exr", ".pfm", ".hdr"}) {
+        const size_t n = std::char_traits<char>::length(ext);
+        if (lower.size() > n && lower.compare(lower.size() - n, n, ext) == 0) return true;
+    }
+    return false;
+}
+
+/// Metadata text as it is safe to print: control bytes other than newline and tab become
+/// \xHH, and each new line is indented under the key.
+std::string printable(const std::string& value) {
+    std::string out;
+    for (unsigned char c : value) {
+        if (c == '\n') {
+            out += "\n             ";
+        } else if ((c < 0x20 && c != '\t') || c == 0x7f) {
+            char buf[8];
+            std::snprintf(buf, sizeof(buf), "\\x%02x", c);
+            out += buf;
+        } else {
+            out += char(c);
+        }
+    }
+    return out;
+}
+
+void print_image_info(const InfoArgs& args) {
+    const ImageInfo info = read_image_info(args.file);
+    std::printf("file:        %s\n", printable(args.file).c_str());
+    std::printf("format:      %s\n", info.format.c_str());
+    std::printf("size:        %dx%d\n", info.width, info.height);
+    std::printf("encoding:    %s\n", printable(info.encoding).c_str());
+    bool rendered = false;
+    for (const auto& [key, value] : info.metadata) rendered |= key.rfind("kdtrace:", 0) == 0;
+    if (!rendered) std::printf("render:      no kdtrace settings stored\n");
+    // The render settings first, in a fixed order; then any other metadata.
+    const char* order[] = {"kdtrace:command", "kdtrace:scene",     "kdtrace:spp",
+                           "kdtrace:passes",  "kdtrace:seed",      "kdtrace:camera",
+                           "kdtrace:params",  "kdtrace:scene_json"};
+    auto print = [&](const std::string& key, const std::string& value) {
+        if (key == "kdtrace:scene_json" && !args.all) {
+            std::printf("%s: %zu bytes of scene JSON (--all prints it)\n", key.c_str(),
+                        value.size());
+            return;
+        }
+        std::printf("%s: %s\n", printable(key).c_str(), printable(value).c_str());
+    };
+    for (const char* key : order) {
+        for (const auto& [k, v] : info.metadata) {
+            if (k == key) print(k, v);
+        }
+    }
+    for (const auto& [k, v] : info.metadata) {
+        if (std::none_of(std::begin(order), std::end(order), [&](const char* o) { return k == o; }))
+            print(k, v);
+    }
+}
+
 void run_info(const InfoArgs& args) {
+    if (is_image_file(args.file)) {
+        print_image_info(args);
+        return;
+    }
     MeshLoadOptions options;
     options.drop_invalid = args.drop_invalid;
     options.threads = args.threads;
@@ -61,9 +131,12 @@ void run_info(const InfoArgs& args) {
 
 void add_info_command(CLI::App& parent) {
     auto args = std::make_shared<InfoArgs>();
-    CLI::App* cmd =
-        parent.add_subcommand("info", "Load a mesh (PLY, PLY.gz, OBJ) and print its statistics");
-    cmd->add_option("file", args->file, "Mesh file")->required();
+    CLI::App* cmd = parent.add_subcommand(
+        "info",
+        "Print a mesh's statistics (PLY, PLY.gz, OBJ), or an image's size, format and the render "
+        "settings and command stored in it (PNG, EXR, PFM, HDR)");
+    cmd->add_option("file", args->file, "Mesh or image file")->required();
+    cmd->add_flag("--all", args->all, "Images: print the stored scene JSON in full");
     cmd->add_flag(
         "--drop-invalid", args->drop_invalid,
         "Drop faces that use non-finite vertices instead of failing (and report how many)");

@@ -30,7 +30,7 @@ find_package(glm REQUIRED)
 find_package(nlohmann_json REQUIRED)
 find_package(CLI11 QUIET)
 find_package(tinyobjloader REQUIRED)
-find_package(tinyexr QUIET)
+find_package(OpenEXR 3 REQUIRED)
 
 if(KDT_WITH_EMBREE)
   find_package(embree 3 QUIET)

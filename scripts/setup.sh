@@ -5,7 +5,7 @@ set -euo pipefail
 
 packages=(
     cmake ninja-build g++ clang clang-format libclang-rt-14-dev libomp-14-dev pkg-config
-    libglm-dev zlib1g-dev libcli11-dev nlohmann-json3-dev libstb-dev libtinyexr-dev
+    libglm-dev zlib1g-dev libcli11-dev nlohmann-json3-dev libstb-dev libopenexr-dev
     libtinyobjloader-dev libgtest-dev libgmock-dev libbenchmark-dev
     libembree-dev libassimp-dev assimp-testmodels
     libglfw3-dev libimgui-dev libosmesa6-dev xvfb libopenmpi-dev openmpi-bin

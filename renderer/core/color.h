@@ -31,31 +31,54 @@ inline float srgb_to_linear(float x) {
 }
 
 /// How linear radiance (after exposure) is compressed into [0,1] before sRGB encoding.
-enum class ToneCurve : uint8_t { clamp, reinhard, aces };
-inline constexpr std::array<const char*, 3> kToneCurveNames = {"clamp", "reinhard", "aces"};
+/// Every curve maps 0 (and negatives, NaN) to 0, is monotone non-decreasing, and reaches 1
+/// at +infinity at the latest.
+enum class ToneCurve : uint8_t { clamp, reinhard, aces, filmic };
+inline constexpr std::array<const char*, 4> kToneCurveNames = {"clamp", "reinhard", "aces",
+                                                               "filmic"};
 
-/// Parameters of 8-bit output. exposure is in stops: radiance is multiplied by 2^exposure.
+/// Parameters of 8-bit output (PNG; EXR, PFM and HDR stay linear). exposure is in stops:
+/// radiance is multiplied by 2^exposure before the curve.
 struct ToneParams {
     float exposure = 0.0f;
     ToneCurve curve = ToneCurve::clamp;
 };
 
+/// Hable's filmic curve ("Filmic Tonemapping Operators", Uncharted 2, GDC 2010) with his
+/// constants; 0 at 0.
+inline double hable_filmic(double x) {
+    constexpr double a = 0.15, b = 0.50, c = 0.10, d = 0.20, e = 0.02, f = 0.30;
+    return (x * (a * x + c * b) + d * e) / (x * (a * x + b) + d * f) - e / f;
+}
+
 /// Applies the tone curve to one linear channel value (after exposure); result in [0,1].
-/// reinhard: x / (1 + x); aces: Narkowicz's 2015 fit of the ACES filmic curve.
+/// clamp: min(x, 1) (the default; highlights clip). reinhard: x / (1 + x).
+/// aces: Narkowicz's 2015 fit of the ACES filmic curve (white above about 10).
+/// filmic: Hable's curve of 2x (his exposure bias) over its value at the white point 11.2,
+/// clamped to 1. The compressive curves are evaluated in double: consecutive floats then
+/// never map to decreasing values (in float, x / (1 + x) drops where 1 + x rounds up).
 inline float apply_tone_curve(float x, ToneCurve curve) {
     if (!(x > 0.0f)) return 0.0f;
+    if (std::isinf(x)) return 1.0f;
+    const double xd = x;
+    double y = 0.0;
     switch (curve) {
         case ToneCurve::clamp:
             return x < 1.0f ? x : 1.0f;
         case ToneCurve::reinhard:
-            return std::isinf(x) ? 1.0f : x / (1.0f + x);
-        case ToneCurve::aces: {
-            if (std::isinf(x)) return 1.0f;
-            float y = (x * (2.51f * x + 0.03f)) / (x * (2.43f * x + 0.59f) + 0.14f);
-            return y < 0.0f ? 0.0f : (y > 1.0f ? 1.0f : y);
+            y = xd / (1.0 + xd);
+            break;
+        case ToneCurve::aces:
+            // 1 from x = 7.25 on (the limit is 2.51 / 2.43 > 1); the squares would overflow.
+            y = xd > 1e6 ? 1.0 : (xd * (2.51 * xd + 0.03)) / (xd * (2.43 * xd + 0.59) + 0.14);
+            break;
+        case ToneCurve::filmic: {
+            constexpr double kWhite = 11.2;
+            y = 2.0 * xd >= kWhite ? 1.0 : hable_filmic(2.0 * xd) / hable_filmic(kWhite);
+            break;
         }
     }
-    return 0.0f;
+    return y < 0.0 ? 0.0f : (y > 1.0 ? 1.0f : float(y));
 }
 
 /// Linear channel value -> 8-bit sRGB code value with exposure and tone curve; NaN -> 0.

@@ -18,6 +18,7 @@
 #include "renderer/core/error.h"
 #include "renderer/core/open_file.h"
 #include "renderer/core/temp_file.h"
+#include "renderer/io/exr_io.h"
 
 // stb_image for .hdr and .png decoding, stb_image_write for .hdr encoding; the
 // implementations are compiled into this translation unit only, with internal linkage
@@ -33,21 +34,11 @@
 #define STB_IMAGE_WRITE_STATIC
 #include <stb/stb_image_write.h>
 
-#if __has_include(<tinyexr.h>)
-#include <tinyexr.h>
-#define KDT_HAVE_TINYEXR 1
-#else
-#define KDT_HAVE_TINYEXR 0
-#endif
-
 namespace kdt {
 namespace {
 
 [[noreturn]] void fail(const std::string& path, const std::string& message, int64_t offset = -1) {
-    ErrorLocation where;
-    where.path = path;
-    where.offset = offset;
-    throw Error(where, message);
+    throw_file_error(path, message, offset);
 }
 
 std::string lower_extension(const std::string& path) {
@@ -398,218 +389,6 @@ ImageRGB load_pfm(const std::string& path, const std::vector<uint8_t>& data) {
 }
 
 // ---------------------------------------------------------------------------------------
-// OpenEXR
-
-#if KDT_HAVE_TINYEXR
-std::string exr_message(int code, const char* err) {
-    std::string s = err ? err : ("tinyexr error " + std::to_string(code));
-    if (err) FreeEXRErrorMessage(err);
-    while (!s.empty() && (s.back() == '\n' || s.back() == ' ')) s.pop_back();
-    return s;
-}
-
-/// Owns a parsed EXR header (tinyexr allocates its arrays even when parsing fails).
-struct ExrHeaderOwner {
-    EXRHeader header;
-    ExrHeaderOwner() { InitEXRHeader(&header); }
-    ~ExrHeaderOwner() { FreeEXRHeader(&header); }
-    ExrHeaderOwner(const ExrHeaderOwner&) = delete;
-    ExrHeaderOwner& operator=(const ExrHeaderOwner&) = delete;
-};
-
-/// Walks a single-part header's attributes (name, type, 32-bit size, value; an empty name
-/// ends the list) and checks what tinyexr 1.0.1 reads without checking (found by the image
-/// fuzzer): every value inside the file, "tiles" 9 bytes (it only asserts), "compression"
-/// and "lineOrder" 1 byte, and each attribute's name and type fields NUL-terminated within
-/// 256 bytes (it runs strlen on them).
-void check_exr_attributes(const std::string& path, const std::vector<uint8_t>& data) {
-    size_t pos = 8;  // magic and version
-    auto text = [&](const char* what, size_t at) {
-        const size_t end = std::min(data.size(), pos + 256);
-        const void* nul = std::memchr(&data[pos], 0, end - pos);
-        if (!nul) fail(path, std::string("unterminated attribute ") + what, int64_t(at));
-        std::string s(reinterpret_cast<const char*>(&data[pos]));
-        pos += s.size() + 1;
-        return s;
-    };
-    for (;;) {
-        if (pos >= data.size()) fail(path, "truncated OpenEXR header", int64_t(pos));
-        if (data[pos] == 0) return;
-        const size_t at = pos;
-        const std::string name = text("name", at);
-        if (pos >= data.size()) fail(path, "truncated OpenEXR header", int64_t(pos));
-        text("type", at);
-        if (data.size() - pos < 4) fail(path, "truncated OpenEXR header", int64_t(pos));
-        const uint32_t size = uint32_t(data[pos]) | uint32_t(data[pos + 1]) << 8 |
-                              uint32_t(data[pos + 2]) << 16 | uint32_t(data[pos + 3]) << 24;
-        pos += 4;
-        if (size > data.size() - pos)
-            fail(path, "attribute '" + name + "' runs past the end of the file", int64_t(at));
-        const bool bad = (name == "tiles" && size != 9) ||
-                         ((name == "compression" || name == "lineOrder") && size != 1);
-        if (bad) {
-            fail(path, "malformed attribute '" + name + "' (" + std::to_string(size) + " bytes)",
-                 int64_t(at));
-        }
-        pos += size;
-    }
-}
-
-/// Parses the header only and checks the image size before any pixel allocation.
-/// (We avoid tinyexr's LoadEXRFromMemory: it leaks the header on its error paths.)
-void parse_exr_header(const std::string& path, const std::vector<uint8_t>& data,
-                      ExrHeaderOwner& owner, ImageMetadata* metadata) {
-    EXRVersion version;
-    int ret = ParseEXRVersionFromMemory(&version, data.data(), data.size());
-    if (ret != TINYEXR_SUCCESS) fail(path, "not an OpenEXR file", 0);
-    if (version.multipart || version.non_image) {
-        fail(path, "multi-part and deep OpenEXR files are not supported");
-    }
-    check_exr_attributes(path, data);
-    const char* err = nullptr;
-    EXRHeader& header = owner.header;
-    ret = ParseEXRHeaderFromMemory(&header, &version, data.data(), data.size(), &err);
-    if (ret != TINYEXR_SUCCESS) fail(path, "bad OpenEXR header: " + exr_message(ret, err));
-    int64_t w = int64_t(header.data_window.max_x) - header.data_window.min_x + 1;
-    int64_t h = int64_t(header.data_window.max_y) - header.data_window.min_y + 1;
-    check_dimensions(path, w, h);
-    if (header.num_channels < 1) fail(path, "OpenEXR file without channels");
-    // tinyexr 1.0.1's PIZ decoder trusts the sizes inside each compressed block (it copies
-    // past the end of the file on corrupt data, found by tests/fuzz/image_fuzzer), and those
-    // cannot be checked without decoding the block: refuse PIZ rather than read out of bounds.
-    if (header.compression_type == TINYEXR_COMPRESSIONTYPE_PIZ) {
-        fail(path,
-             "PIZ-compressed OpenEXR is not supported (its decoder is unsafe on corrupt "
-             "files); re-save with ZIP, ZIPS, RLE or no compression");
-    }
-    // tinyexr allocates its offset table (8 bytes per block) from the header before reading
-    // it, and takes a scanline file's block count from the chunkCount attribute when there is
-    // one: a table that cannot fit in the file is corrupt (found by the image fuzzer: a
-    // chunkCount of 1.7e9 asked for 13 GB).
-    uint64_t blocks = 0;
-    if (header.tiled) {
-        if (header.tile_size_x < 1 || header.tile_size_y < 1) {
-            fail(path, "invalid tile size " + std::to_string(header.tile_size_x) + "x" +
-                           std::to_string(header.tile_size_y));
-        }
-        // The first level alone; mipmap and ripmap levels only add to it.
-        blocks = uint64_t((w + header.tile_size_x - 1) / header.tile_size_x) *
-                 uint64_t((h + header.tile_size_y - 1) / header.tile_size_y);
-    } else if (header.chunk_count != 0) {
-        if (header.chunk_count < 0) fail(path, "negative chunkCount");
-        blocks = uint64_t(header.chunk_count);
-    } else {
-        const int c = header.compression_type;
-        const int64_t lines = c == TINYEXR_COMPRESSIONTYPE_NONE ||
-                                      c == TINYEXR_COMPRESSIONTYPE_RLE ||
-                                      c == TINYEXR_COMPRESSIONTYPE_ZIPS
-                                  ? 1
-                              : c == TINYEXR_COMPRESSIONTYPE_ZIP ? 16
-                                                                 : 32;
-        blocks = uint64_t((h + lines - 1) / lines);
-    }
-    if (blocks > data.size() / 8) {
-        fail(path, "offset table of " + std::to_string(blocks) + " blocks does not fit in the " +
-                       std::to_string(data.size()) + "-byte file");
-    }
-    if (metadata) {
-        for (int i = 0; i < header.num_custom_attributes; ++i) {
-            const EXRAttribute& a = header.custom_attributes[i];
-            if (std::strcmp(a.type, "string") == 0 && a.value && a.size >= 0) {
-                metadata->emplace_back(
-                    a.name, std::string(reinterpret_cast<const char*>(a.value), size_t(a.size)));
-            }
-        }
-    }
-}
-
-ImageRGB load_exr(const std::string& path, const std::vector<uint8_t>& data,
-                  ImageMetadata* metadata) {
-    ExrHeaderOwner owner;
-    parse_exr_header(path, data, owner, metadata);
-    EXRHeader& header = owner.header;
-    // Channels: R, G, B by name; else a single channel or "Y" as grey.
-    int src[3] = {-1, -1, -1};
-    for (int c = 0; c < header.num_channels; ++c) {
-        const char* name = header.channels[c].name;
-        if (std::strcmp(name, "R") == 0) src[0] = c;
-        if (std::strcmp(name, "G") == 0) src[1] = c;
-        if (std::strcmp(name, "B") == 0) src[2] = c;
-    }
-    if (src[0] < 0 && src[1] < 0 && src[2] < 0) {
-        int grey = header.num_channels == 1 ? 0 : -1;
-        for (int c = 0; c < header.num_channels; ++c) {
-            if (std::strcmp(header.channels[c].name, "Y") == 0) grey = c;
-        }
-        if (grey < 0) fail(path, "no R, G, B or Y channel");
-        src[0] = src[1] = src[2] = grey;
-    }
-    for (int c = 0; c < 3; ++c) {
-        if (src[c] < 0)
-            fail(path, std::string("has some of R, G, B but no ") + "RGB"[c] + " channel");
-    }
-    for (int c = 0; c < header.num_channels; ++c) {
-        if (header.pixel_types[c] == TINYEXR_PIXELTYPE_HALF) {
-            header.requested_pixel_types[c] = TINYEXR_PIXELTYPE_FLOAT;
-        }
-    }
-    EXRImage exr;
-    InitEXRImage(&exr);
-    // tinyexr 1.0.1 frees a half-decoded image with FreeEXRImage, which frees num_channels
-    // planes, but sets num_channels only on success: preset it so that corrupt files do
-    // not leak the planes.
-    exr.num_channels = header.num_channels;
-    const char* err = nullptr;
-    // tinyexr 1.0.1 checks only that a 4-byte pixel read of an uncompressed block starts
-    // inside the data, so a block ending at the end of the file is read up to 3 bytes past
-    // it (found by tests/fuzz/image_fuzzer): decode from a copy with zero padding behind it.
-    std::vector<uint8_t> padded(data.size() + 8, 0);
-    std::memcpy(padded.data(), data.data(), data.size());
-    int ret = LoadEXRImageFromMemory(&exr, &header, padded.data(), data.size(), &err);
-    // On failure tinyexr has already freed the image (and FreeEXRImage does not reset it).
-    if (ret != TINYEXR_SUCCESS) fail(path, "cannot decode: " + exr_message(ret, err));
-    struct ImageOwner {
-        EXRImage* image;
-        ~ImageOwner() { FreeEXRImage(image); }
-    } image_owner{&exr};
-
-    const int w = exr.width, h = exr.height;
-    check_dimensions(path, w, h);
-    ImageRGB image(w, h);
-    auto value = [&](unsigned char* plane, int c, size_t i) {
-        int type = header.requested_pixel_types[c];
-        if (type == TINYEXR_PIXELTYPE_UINT) return float(reinterpret_cast<unsigned int*>(plane)[i]);
-        return reinterpret_cast<float*>(plane)[i];
-    };
-    if (exr.tiles) {
-        for (int t = 0; t < exr.num_tiles; ++t) {
-            const EXRTile& tile = exr.tiles[t];
-            for (int j = 0; j < tile.height; ++j) {
-                for (int i = 0; i < tile.width; ++i) {
-                    int64_t x = int64_t(tile.offset_x) * header.tile_size_x + i;
-                    int64_t y = int64_t(tile.offset_y) * header.tile_size_y + j;
-                    if (x < 0 || y < 0 || x >= w || y >= h) continue;
-                    size_t k = size_t(j) * size_t(header.tile_size_x) + size_t(i);
-                    for (int c = 0; c < 3; ++c) {
-                        image.rgb[(size_t(y) * size_t(w) + size_t(x)) * 3 + size_t(c)] =
-                            value(tile.images[src[c]], src[c], k);
-                    }
-                }
-            }
-        }
-    } else if (exr.images) {
-        for (size_t i = 0; i < image.pixel_count(); ++i) {
-            for (int c = 0; c < 3; ++c)
-                image.rgb[i * 3 + size_t(c)] = value(exr.images[src[c]], src[c], i);
-        }
-    } else {
-        fail(path, "cannot decode: no pixel data");
-    }
-    return image;
-}
-#endif
-
-// ---------------------------------------------------------------------------------------
 // Writing
 
 // Writes to a temporary file beside path and renames it over path, so a failed write
@@ -708,12 +487,8 @@ ImageRGB load_image_memory(const std::vector<uint8_t>& data, const std::string& 
     };
     if (starts("#?", 2)) {
         image = load_hdr(path, data);
-    } else if (starts("\x76\x2f\x31\x01", 4)) {
-#if KDT_HAVE_TINYEXR
-        image = load_exr(path, data, metadata);
-#else
-        fail(path, "OpenEXR support was not built (tinyexr not found)");
-#endif
+    } else if (is_exr(data)) {
+        image = load_exr(data, path, metadata);
     } else if (starts("PF", 2) || starts("Pf", 2)) {
         image = load_pfm(path, data);
     } else if (starts(reinterpret_cast<const char*>(kPngSignature), 8)) {
@@ -747,89 +522,11 @@ void write_pfm(const std::string& path, const ImageRGB& image) {
     write_bytes(path, out.data(), out.size());
 }
 
-void write_exr(const std::string& path, const ImageRGB& image, const ImageMetadata& metadata) {
+void write_exr(const std::string& path, const ImageRGB& image, const ImageMetadata& metadata,
+               ExrCompression compression) {
     check_image(path, image);
-#if KDT_HAVE_TINYEXR
-    static const char* kReserved[] = {"channels",
-                                      "compression",
-                                      "dataWindow",
-                                      "displayWindow",
-                                      "lineOrder",
-                                      "pixelAspectRatio",
-                                      "screenWindowCenter",
-                                      "screenWindowWidth",
-                                      "tiles",
-                                      "type",
-                                      "name",
-                                      "chunkCount",
-                                      "version",
-                                      "view"};
-    if (metadata.size() > TINYEXR_MAX_CUSTOM_ATTRIBUTES) {
-        fail(path, "too many metadata entries for OpenEXR (" + std::to_string(metadata.size()) +
-                       ", at most " + std::to_string(TINYEXR_MAX_CUSTOM_ATTRIBUTES) + ")");
-    }
-    std::vector<EXRAttribute> attributes(metadata.size());
-    for (size_t i = 0; i < metadata.size(); ++i) {
-        // Not a structured binding: clang 14 cannot capture those in the lambda below.
-        const std::string& key = metadata[i].first;
-        const std::string& value = metadata[i].second;
-        bool reserved = std::any_of(std::begin(kReserved), std::end(kReserved),
-                                    [&](const char* r) { return key == r; });
-        if (key.empty() || key.size() > 255 || key.find('\0') != std::string::npos || reserved) {
-            fail(path, "invalid OpenEXR metadata key '" + key + "'");
-        }
-        if (value.size() > size_t(std::numeric_limits<int>::max() / 2)) {
-            fail(path, "metadata value too long for key '" + key + "'");
-        }
-        EXRAttribute& a = attributes[i];
-        std::memset(&a, 0, sizeof(a));
-        std::memcpy(a.name, key.data(), key.size());
-        std::memcpy(a.type, "string", 6);
-        a.value = reinterpret_cast<unsigned char*>(const_cast<char*>(value.data()));
-        a.size = int(value.size());
-    }
-
-    // tinyexr wants planar channels; B, G, R is the alphabetical order readers expect.
-    const size_t n = image.pixel_count();
-    std::vector<float> planes[3];
-    for (int c = 0; c < 3; ++c) {
-        planes[c].resize(n);
-        for (size_t i = 0; i < n; ++i) planes[c][i] = image.rgb[i * 3 + size_t(2 - c)];
-    }
-    float* plane_ptrs[3] = {planes[0].data(), planes[1].data(), planes[2].data()};
-    EXRChannelInfo channels[3];
-    std::memset(channels, 0, sizeof(channels));
-    int pixel_types[3] = {TINYEXR_PIXELTYPE_FLOAT, TINYEXR_PIXELTYPE_FLOAT,
-                          TINYEXR_PIXELTYPE_FLOAT};
-    int requested[3] = {TINYEXR_PIXELTYPE_FLOAT, TINYEXR_PIXELTYPE_FLOAT, TINYEXR_PIXELTYPE_FLOAT};
-    channels[0].name[0] = 'B';
-    channels[1].name[0] = 'G';
-    channels[2].name[0] = 'R';
-
-    EXRImage exr_image;
-    InitEXRImage(&exr_image);
-    exr_image.num_channels = 3;
-    exr_image.images = reinterpret_cast<unsigned char**>(plane_ptrs);
-    exr_image.width = image.width;
-    exr_image.height = image.height;
-
-    EXRHeader header;
-    InitEXRHeader(&header);
-    header.num_channels = 3;
-    header.channels = channels;
-    header.pixel_types = pixel_types;
-    header.requested_pixel_types = requested;
-    header.compression_type = TINYEXR_COMPRESSIONTYPE_ZIP;
-    header.num_custom_attributes = int(attributes.size());
-    header.custom_attributes = attributes.empty() ? nullptr : attributes.data();
-
-    const char* err = nullptr;
-    int ret = SaveEXRImageToFile(&exr_image, &header, path.c_str(), &err);
-    if (ret != TINYEXR_SUCCESS) fail(path, "cannot write OpenEXR: " + exr_message(ret, err));
-#else
-    (void)metadata;
-    fail(path, "OpenEXR support was not built (tinyexr not found)");
-#endif
+    const std::vector<uint8_t> bytes = encode_exr(path, image, metadata, compression);
+    write_bytes(path, bytes.data(), bytes.size());
 }
 
 void write_png(const std::string& path, const ImageRGB& image, const ToneParams& tone,
@@ -926,14 +623,38 @@ ImageMetadata read_png_metadata(const std::string& path) {
 }
 
 ImageMetadata read_exr_metadata(const std::string& path) {
-#if KDT_HAVE_TINYEXR
-    ExrHeaderOwner owner;
-    ImageMetadata metadata;
-    parse_exr_header(path, read_file(path), owner, &metadata);
-    return metadata;
-#else
-    fail(path, "OpenEXR support was not built (tinyexr not found)");
-#endif
+    return read_exr_info(read_file(path), path).metadata;
+}
+
+ImageInfo read_image_info(const std::string& path) {
+    const std::vector<uint8_t> data = read_file(path);
+    if (is_exr(data)) return read_exr_info(data, path);
+    ImageInfo info;
+    auto starts = [&](const char* magic, size_t n) {
+        return data.size() >= n && std::memcmp(data.data(), magic, n) == 0;
+    };
+    if (starts(reinterpret_cast<const char*>(kPngSignature), 8)) {
+        info.metadata = parse_png_metadata(path, data);
+        const ImageRGB image = load_png(path, data);
+        info.format = "PNG";
+        info.width = image.width;
+        info.height = image.height;
+        const bool deep = stbi_is_16_bit_from_memory(data.data(), int(data.size()));
+        info.encoding = std::string(deep ? "16" : "8") + "-bit sRGB";
+        return info;
+    }
+    // PFM and Radiance HDR hold no metadata and are small: decode them to check them whole.
+    const ImageRGB image = load_image_memory(data, path);
+    info.width = image.width;
+    info.height = image.height;
+    if (starts("#?", 2)) {
+        info.format = "Radiance HDR";
+        info.encoding = "RGBE";
+    } else {
+        info.format = "PFM";
+        info.encoding = std::string(data[1] == 'F' ? "colour" : "grey") + " 32-bit float";
+    }
+    return info;
 }
 
 }  // namespace kdt

@@ -1,8 +1,9 @@
-// Loading and writing images: Radiance .hdr (stb_image), OpenEXR (tinyexr), PFM (our own),
-// 8-bit PNG (written with zlib, read with stb_image) with tEXt/iTXt metadata.
-// The only module that touches files. Depends on core.
+// Loading and writing images: Radiance .hdr (stb_image), OpenEXR (the OpenEXR library, see
+// exr_io.h), PFM (our own), 8-bit PNG (written with zlib, read with stb_image) with
+// tEXt/iTXt metadata. The only module that touches files. Depends on core and OpenEXR.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <utility>
@@ -36,7 +37,26 @@ struct ImageRGB {
 };
 
 /// Ordered key/value text pairs stored in PNG tEXt/iTXt chunks and EXR string attributes.
+/// PNG keeps their order and repeated keys; an EXR header holds each key once and reads
+/// them back sorted by key.
 using ImageMetadata = std::vector<std::pair<std::string, std::string>>;
+
+/// The standard OpenEXR compressions. Lossless: none, rle, zips, zip, piz. pxr24 rounds
+/// float channels to 24 bits; b44 and b44a are lossy for half channels only (lossless for
+/// the float files write_exr() makes); dwaa and dwab quantise R, G, B (float ones too) in
+/// a DCT, to about 1% here.
+enum class ExrCompression : uint8_t { none, rle, zips, zip, piz, pxr24, b44, b44a, dwaa, dwab };
+inline constexpr std::array<const char*, 10> kExrCompressionNames = {
+    "none", "rle", "zips", "zip", "piz", "pxr24", "b44", "b44a", "dwaa", "dwab"};
+
+/// What an image file holds, read without decoding the pixels where the format allows.
+struct ImageInfo {
+    std::string format;  ///< "OpenEXR", "PNG", "PFM" or "Radiance HDR"
+    int width = 0;
+    int height = 0;
+    std::string encoding;  ///< e.g. "piz compression, scanlines; channels B G R (float)"
+    ImageMetadata metadata;
+};
 
 /// Images larger than this many pixels (or wider/taller than kMaxImageDimension) are rejected
 /// as corrupt before anything is allocated.
@@ -59,9 +79,11 @@ ImageRGB load_image_memory(const std::vector<uint8_t>& data, const std::string& 
 /// Writes linear float PFM ("PF", little-endian, rows bottom-to-top as the format wants).
 void write_pfm(const std::string& path, const ImageRGB& image);
 
-/// Writes OpenEXR with 32-bit float R, G, B channels (ZIP compression); metadata become
-/// custom attributes of type "string" (tinyexr supports up to 128; names up to 255 bytes).
-void write_exr(const std::string& path, const ImageRGB& image, const ImageMetadata& metadata = {});
+/// Writes OpenEXR with 32-bit float R, G, B scanline channels; metadata become attributes of
+/// type "string" (keys of 1-255 bytes without NUL, each once, none of the structural ones
+/// such as "channels" or "compression"; a bad key throws kdt::Error).
+void write_exr(const std::string& path, const ImageRGB& image, const ImageMetadata& metadata = {},
+               ExrCompression compression = ExrCompression::zip);
 
 /// Writes an 8-bit sRGB PNG: radiance * 2^exposure, tone curve, sRGB encoding, rounding.
 /// Metadata become tEXt chunks (iTXt when a value is not 7-bit ASCII). Keys must be 1-79
@@ -86,7 +108,11 @@ void check_image_output(const std::string& path);
 /// Throws kdt::Error for a file that is not a well-formed PNG chunk stream.
 ImageMetadata read_png_metadata(const std::string& path);
 
-/// Reads the custom string attributes of an EXR file's header.
+/// Reads the string attributes of an EXR file's header (sorted by key).
 ImageMetadata read_exr_metadata(const std::string& path);
+
+/// Size, format, encoding and metadata of an image file (.exr, .png, .pfm, .hdr by content).
+/// Throws kdt::Error naming path as load_image() does.
+ImageInfo read_image_info(const std::string& path);
 
 }  // namespace kdt

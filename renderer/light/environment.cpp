@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 
 #include "renderer/core/color.h"
@@ -35,7 +36,73 @@ Vec2f disk_from_uv(const Vec2f& uv) { return {2.0f * uv.x - 1.0f, 1.0f - 2.0f * 
 
 std::string where(const std::string& name) { return name.empty() ? "environment map" : name; }
 
+std::string xy(size_t i, int w) {
+    return "(x " + std::to_string(i % size_t(w)) + ", y " + std::to_string(i / size_t(w)) + ")";
+}
+
+std::string number(double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof(buf), "%g", v);
+    return buf;
+}
+
+/// Throws unless radiance (the largest channel of a colour or texel, times the intensity,
+/// computed in double) is within kMaxEnvironmentRadiance.
+void check_radiance_bound(double channel, float intensity, const std::string& path,
+                          const std::string& what) {
+    const double radiance = channel * double(intensity);
+    if (radiance > double(kMaxEnvironmentRadiance)) {
+        throw Error(ErrorLocation{path}, what + " " + number(channel) + " times intensity " +
+                                             number(intensity) + " is radiance " +
+                                             number(radiance) + ", above the limit " +
+                                             number(kMaxEnvironmentRadiance) +
+                                             " (path throughput products would overflow float)");
+    }
+}
+
 }  // namespace
+
+void check_environment_texels(const ImageRGB& image, float intensity, const std::string& path) {
+    uint64_t nonfinite = 0, negative = 0;
+    size_t first_nonfinite = 0, first_negative = 0, brightest = 0;
+    float max_channel = 0.0f;
+    for (size_t i = 0; i < image.pixel_count(); ++i) {
+        for (int c = 0; c < 3; ++c) {
+            const float v = image.rgb[i * 3 + size_t(c)];
+            if (!std::isfinite(v)) {
+                if (nonfinite++ == 0) first_nonfinite = i;
+                break;
+            }
+            if (v < 0.0f) {
+                if (negative++ == 0) first_negative = i;
+                break;
+            }
+            if (v > max_channel) {
+                max_channel = v;
+                brightest = i;
+            }
+        }
+    }
+    const std::string count = std::to_string(image.pixel_count());
+    if (nonfinite > 0) {
+        const Vec3f v = image.at(int(first_nonfinite % size_t(image.width)),
+                                 int(first_nonfinite / size_t(image.width)));
+        throw Error(ErrorLocation{path, "pixel", int64_t(first_nonfinite)},
+                    xy(first_nonfinite, image.width) + " is " +
+                        (std::isnan(v.x + v.y + v.z) ? "NaN" : "infinite") + "; " +
+                        std::to_string(nonfinite) + " of " + count + " texels are not finite");
+    }
+    if (negative > 0) {
+        const Vec3f v = image.at(int(first_negative % size_t(image.width)),
+                                 int(first_negative / size_t(image.width)));
+        throw Error(ErrorLocation{path, "pixel", int64_t(first_negative)},
+                    xy(first_negative, image.width) + " is negative (" + number(v.x) + ", " +
+                        number(v.y) + ", " + number(v.z) + "); " + std::to_string(negative) +
+                        " of " + count + " texels have a negative channel");
+    }
+    check_radiance_bound(max_channel, intensity, path,
+                         "the brightest texel " + xy(brightest, image.width) + " has a channel");
+}
 
 EnvSample ConstantEnvironment::sample(const Vec2f& u) const {
     float z = 1.0f - 2.0f * u.x;
@@ -65,27 +132,13 @@ ImageEnvironment::ImageEnvironment(ImageRGB image, EnvMapping mapping, float rot
     cos_rot_ = std::cos(radians);
     sin_rot_ = std::sin(radians);
 
-    for (size_t i = 0; i < image_.pixel_count(); ++i) {
-        bool clamped = false;
-        for (int c = 0; c < 3; ++c) {
-            float& v = image_.rgb[i * 3 + size_t(c)];
-            if (!std::isfinite(v)) {
-                ErrorLocation loc{where(name), "pixel", int64_t(i)};
-                throw Error(loc, "(x " + std::to_string(i % size_t(w)) + ", y " +
-                                     std::to_string(i / size_t(w)) + ") is " +
-                                     (std::isnan(v) ? "NaN" : "infinite"));
-            }
-            if (v < 0.0f) {
-                v = 0.0f;
-                clamped = true;
-            }
-        }
-        clamped_pixels_ += clamped ? 1 : 0;
-    }
+    check_environment_texels(image_, intensity, where(name));
 
-    // Sampling weights: luminance times the pixel's solid angle per unit uv area, so that
-    // the solid-angle pdf is close to proportional to luminance.
+    // Sampling weights: the mean luminance of the bilinear reconstruction over the pixel
+    // times the pixel's solid angle per unit uv area, so that the solid-angle pdf is close
+    // to proportional to what eval() returns, and positive wherever eval() is.
     // In double: luminance times a Jacobian of up to 4 pi^2 overflows float for huge pixels.
+    const std::vector<double> lum = cell_mean_luminance();
     std::vector<double> weights(image_.pixel_count(), 0.0);
     std::vector<float> coverage(image_.pixel_count(), 1.0f);
     if (mapping_ == EnvMapping::latlong) {
@@ -95,8 +148,7 @@ ImageEnvironment::ImageEnvironment(ImageRGB image, EnvMapping mapping, float rot
             double mean_sin = (std::cos(t0) - std::cos(t1)) / (t1 - t0);
             for (int x = 0; x < w; ++x) {
                 size_t i = size_t(y) * size_t(w) + size_t(x);
-                Vec3f c = image_.at(x, y);
-                weights[i] = (0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z) * mean_sin;
+                weights[i] = lum[i] * mean_sin;
             }
         }
     } else {
@@ -113,9 +165,7 @@ ImageEnvironment::ImageEnvironment(ImageRGB image, EnvMapping mapping, float rot
                 double cov =
                     inside ? 1.0 : disk_rect_area(a0, a1, b0, b1) / ((a1 - a0) * (b1 - b0));
                 coverage[i] = float(cov);
-                Vec3f c = image_.at(x, y);
-                double lum = 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
-                if (!(cov > 0.0) || lum <= 0.0) continue;
+                if (!(cov > 0.0) || lum[i] <= 0.0) continue;
                 // Mean Jacobian over the pixel (zero outside the disk): the centre value for
                 // pixels inside the disk, a kSub^2 grid for pixels cut by the rim. It only
                 // shapes the weights; the density below stays exact.
@@ -135,7 +185,7 @@ ImageEnvironment::ImageEnvironment(ImageRGB image, EnvMapping mapping, float rot
                 }
                 // A floor keeps pixels cut by the rim with no grid point inside samplable,
                 // so that pdf > 0 wherever eval > 0.
-                weights[i] = lum * std::max(mean_j, cov * 1e-3);
+                weights[i] = lum[i] * std::max(mean_j, cov * 1e-3);
             }
         }
     }
@@ -156,6 +206,53 @@ ImageEnvironment::ImageEnvironment(ImageRGB image, EnvMapping mapping, float rot
             }
         }
     }
+}
+
+int ImageEnvironment::column(int x) const {
+    if (mapping_ == EnvMapping::latlong)
+        return x < 0 ? x + image_.width : (x >= image_.width ? x - image_.width : x);
+    return std::clamp(x, 0, image_.width - 1);
+}
+
+std::vector<double> ImageEnvironment::cell_mean_luminance() const {
+    // Over a pixel, the bilinear reconstruction's mean is the pixel and its neighbours
+    // weighted 1/8, 3/4, 1/8 along each axis (each half of the pixel interpolates towards
+    // one neighbour), with the neighbours eval() uses at the edges.
+    const int w = image_.width, h = image_.height;
+    std::vector<double> row(image_.pixel_count()), out(image_.pixel_count());
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            auto l = [&](int xx) { return double(luminance(image_.at(column(xx), y))); };
+            row[size_t(y) * size_t(w) + size_t(x)] =
+                0.125 * l(x - 1) + 0.75 * l(x) + 0.125 * l(x + 1);
+        }
+    }
+    for (int y = 0; y < h; ++y) {
+        const int up = std::max(y - 1, 0), down = std::min(y + 1, h - 1);
+        for (int x = 0; x < w; ++x) {
+            out[size_t(y) * size_t(w) + size_t(x)] =
+                0.125 * row[size_t(up) * size_t(w) + size_t(x)] +
+                0.75 * row[size_t(y) * size_t(w) + size_t(x)] +
+                0.125 * row[size_t(down) * size_t(w) + size_t(x)];
+        }
+    }
+    return out;
+}
+
+Vec3f ImageEnvironment::lookup(const Vec2f& uv) const {
+    // Pixel centres sit at (x + 1/2) / W; between them the map is interpolated bilinearly,
+    // wrapping around in longitude (lat-long) and clamped at the other edges.
+    const float fx = uv.x * float(image_.width) - 0.5f, fy = uv.y * float(image_.height) - 0.5f;
+    const float x_floor = std::floor(fx), y_floor = std::floor(fy);
+    const float tx = fx - x_floor, ty = fy - y_floor;
+    const int x0 = int(x_floor), y0 = int(y_floor);
+    const int xa = column(std::clamp(x0, -1, image_.width)),
+              xb = column(std::clamp(x0 + 1, -1, image_.width));
+    const int ya = std::clamp(y0, 0, image_.height - 1),
+              yb = std::clamp(y0 + 1, 0, image_.height - 1);
+    const Vec3f top = image_.at(xa, ya) * (1.0f - tx) + image_.at(xb, ya) * tx;
+    const Vec3f bottom = image_.at(xa, yb) * (1.0f - tx) + image_.at(xb, yb) * tx;
+    return top * (1.0f - ty) + bottom * ty;
 }
 
 float ImageEnvironment::coverage(int x, int y) const {
@@ -198,8 +295,7 @@ std::optional<Vec3f> ImageEnvironment::dir_from_uv(const Vec2f& uv) const {
 }
 
 Vec3f ImageEnvironment::eval(const Vec3f& dir) const {
-    const float* p = &image_.rgb[pixel_index(to_map(dir)) * 3];
-    return Vec3f(p[0], p[1], p[2]) * intensity_;
+    return lookup(env_uv_from_dir(mapping_, to_map(dir))) * intensity_;
 }
 
 float ImageEnvironment::pdf(const Vec3f& dir) const {
@@ -232,12 +328,10 @@ EnvSample ImageEnvironment::sample(const Vec2f& u) const {
     s.dir = rotate_y(*map_dir, cos_rot_, sin_rot_);
     // Radiance and pdf are looked up again from the final direction, exactly as eval() and
     // pdf() do, so that they agree bit for bit (a sample on a pixel edge may round into the
-    // neighbouring pixel; it is then that pixel's radiance and density that count).
+    // neighbouring pixel; it is then that pixel's density that counts).
     Vec3f d = to_map(s.dir);
-    size_t pixel = pixel_index(d);
-    const float* p = &image_.rgb[pixel * 3];
-    s.radiance = Vec3f(p[0], p[1], p[2]) * intensity_;
-    s.pdf_solid_angle = pdf_map(d, pixel);
+    s.radiance = lookup(env_uv_from_dir(mapping_, d)) * intensity_;
+    s.pdf_solid_angle = pdf_map(d, pixel_index(d));
     return s;
 }
 
@@ -245,6 +339,29 @@ std::shared_ptr<const EnvironmentLight> make_environment_light(const Environment
                                                                ImageRGB image) {
     return std::make_shared<ImageEnvironment>(std::move(image), desc.mapping, desc.rotation_degrees,
                                               desc.intensity, desc.file);
+}
+
+std::string environment_mapping_warning(EnvMapping mapping, int width, int height) {
+    const std::string size = std::to_string(width) + "x" + std::to_string(height);
+    if (mapping == EnvMapping::angular && width == 2 * height) {
+        return "mapping angular for a " + size +
+               " image, which looks like a lat-long map (2:1); angular maps are square";
+    }
+    if (mapping == EnvMapping::latlong && width == height) {
+        return "mapping latlong for a square " + size +
+               " image, which looks like an angular map; lat-long maps are 2:1";
+    }
+    return "";
+}
+
+std::shared_ptr<const EnvironmentLight> make_environment_light(const EnvironmentDesc& desc,
+                                                               const EnvLog& log) {
+    if (desc.file.empty()) return make_environment_light(desc);
+    ImageRGB image = load_image(desc.file);
+    const std::string warning =
+        environment_mapping_warning(desc.mapping, image.width, image.height);
+    if (log && !warning.empty()) log(desc.file + ": " + warning);
+    return make_environment_light(desc, std::move(image));
 }
 
 std::shared_ptr<const EnvironmentLight> make_environment_light(const EnvironmentDesc& desc) {
@@ -256,6 +373,8 @@ std::shared_ptr<const EnvironmentLight> make_environment_light(const Environment
         if (!std::isfinite(desc.intensity) || desc.intensity < 0.0f) {
             throw Error("environment intensity must be finite and >= 0");
         }
+        check_radiance_bound(std::max({desc.color.x, desc.color.y, desc.color.z}), desc.intensity,
+                             "", "environment colour channel");
         return std::make_shared<ConstantEnvironment>(desc.color * desc.intensity);
     }
     return make_environment_light(desc, load_image(desc.file));

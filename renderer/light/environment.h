@@ -4,6 +4,7 @@
 #pragma once
 
 #include <array>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -45,7 +46,27 @@ public:
     virtual bool is_constant() const = 0;
 };
 
-/// Builds the light; throws kdt::Error for a missing or malformed map file.
+/// Radiance (colour or brightest texel channel, times intensity) beyond this is refused:
+/// the path tracer multiplies radiance by throughputs and divides by pdfs in float, and
+/// the film sums samples, so this leaves a factor of 3e8 below FLT_MAX for those products.
+inline constexpr float kMaxEnvironmentRadiance = 1e30f;
+
+/// Receives warnings (one line each, without a trailing newline) for the caller to print.
+using EnvLog = std::function<void(const std::string&)>;
+
+/// Builds the light; throws kdt::Error for a missing or malformed map file, a colour or
+/// intensity that is negative or not finite, texels that are negative or not finite
+/// (naming the first one and the count), and radiance above kMaxEnvironmentRadiance.
 std::shared_ptr<const EnvironmentLight> make_environment_light(const EnvironmentDesc& desc);
+
+/// The same, passing log the mapping warning (environment_mapping_warning) prefixed with
+/// the file name, e.g. "probe.hdr: mapping angular for a 512x256 image, which looks like a
+/// lat-long map (2:1); angular maps are square".
+std::shared_ptr<const EnvironmentLight> make_environment_light(const EnvironmentDesc& desc,
+                                                               const EnvLog& log);
+
+/// A warning when the image's shape contradicts the mapping (angular for a 2:1 image,
+/// lat-long for a square one), else "". The map is still used as asked.
+std::string environment_mapping_warning(EnvMapping mapping, int width, int height);
 
 }  // namespace kdt

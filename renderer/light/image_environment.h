@@ -7,6 +7,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "renderer/io/image_io.h"
 #include "renderer/light/distribution.h"
@@ -27,16 +28,20 @@ private:
     Vec3f radiance_;
 };
 
-/// An HDR environment map. eval() is a nearest-pixel (piecewise-constant) lookup, so eval,
-/// sample and pdf agree exactly, as MIS wants. Sampling picks a pixel with probability
-/// proportional to luminance times the pixel's solid angle, then a point uniformly inside
-/// the pixel (for the angular map: inside the pixel's part of the unit disk), hence
+/// An HDR environment map. eval() interpolates bilinearly between pixel centres (wrapping
+/// in longitude for lat-long maps, clamped at other edges), so the map shows no pixel
+/// blocks. Sampling stays piecewise constant per pixel: it picks a pixel with probability
+/// proportional to the mean luminance of the interpolated map over the pixel times the
+/// pixel's solid angle, then a point uniformly inside the pixel (for the angular map:
+/// inside the pixel's part of the unit disk), hence
 ///   pdf_solid_angle(d) = density_uv(pixel(d)) / jacobian(d),
 /// jacobian = 2 pi^2 sin(theta) (lat-long) or 4 pi^2 sin(theta')/theta' (angular).
+/// sample() and pdf() agree exactly, and the pdf is positive wherever eval() is (a pixel's
+/// interpolated values come from it and its 8 neighbours, which all weigh in its mean), so
+/// estimates stay unbiased; the density only follows eval() less closely within a pixel.
 class ImageEnvironment final : public EnvironmentLight {
 public:
-    /// `image` must hold finite values; negative values are clamped to 0 and counted.
-    /// `name` (usually the file) is used in error messages.
+    /// Throws kdt::Error (naming `name`, usually the file) as check_environment_texels().
     ImageEnvironment(ImageRGB image, EnvMapping mapping, float rotation_degrees, float intensity,
                      const std::string& name = "");
 
@@ -46,11 +51,9 @@ public:
     bool is_constant() const override { return false; }
 
     EnvMapping mapping() const { return mapping_; }
-    /// The map after clamping, not multiplied by intensity.
+    /// The map, not multiplied by intensity.
     const ImageRGB& image() const { return image_; }
     float intensity() const { return intensity_; }
-    /// Number of pixels that had a negative channel (clamped to 0 at load).
-    uint64_t clamped_pixels() const { return clamped_pixels_; }
     /// Image coordinates (u, v) of a world direction (rotation applied).
     Vec2f uv_from_dir(const Vec3f& world_dir) const;
     /// World direction of image coordinates (u, v); nullopt outside the angular disk.
@@ -66,6 +69,12 @@ public:
 private:
     /// World direction -> unit map direction (rotation undone); zero stays zero.
     Vec3f to_map(const Vec3f& world_dir) const;
+    /// Bilinear lookup of the map (no intensity) at image coordinates uv.
+    Vec3f lookup(const Vec2f& uv) const;
+    /// Column x of the map for x in [-1, width]: wrapped (lat-long) or clamped (angular).
+    int column(int x) const;
+    /// Per pixel, the mean luminance of the bilinear reconstruction over the pixel.
+    std::vector<double> cell_mean_luminance() const;
     size_t pixel_index(const Vec3f& map_dir) const;
     float pdf_map(const Vec3f& map_dir, size_t pixel) const;
 
@@ -73,10 +82,14 @@ private:
     EnvMapping mapping_;
     float intensity_;
     float cos_rot_, sin_rot_;
-    uint64_t clamped_pixels_ = 0;
     Distribution2D distribution_;
     std::vector<float> density_;  ///< per pixel, w.r.t. uv area
 };
+
+/// Throws kdt::Error naming path unless every texel is finite and >= 0 (naming the first
+/// bad one, its position and the count) and the brightest channel times intensity is
+/// within kMaxEnvironmentRadiance.
+void check_environment_texels(const ImageRGB& image, float intensity, const std::string& path);
 
 /// Builds the light from an image already in memory (same checks as for a file).
 std::shared_ptr<const EnvironmentLight> make_environment_light(const EnvironmentDesc& desc,

@@ -162,3 +162,9 @@ add_test(NAME smoke.scene_checks_referenced_files COMMAND bash
          ${CMAKE_CURRENT_LIST_DIR}/scene_check_test.sh ${_kdt} ${_tmp}/scene_checks)
 set_tests_properties(smoke.scene_checks_referenced_files PROPERTIES PASS_REGULAR_EXPRESSION
                      "PASS: scene checks" FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)
+
+# `kdtrace info IMAGE` prints the size, the compression and the render command stored in it.
+add_test(NAME smoke.info_image COMMAND sh -c "\"$0\" render --width 16 --height 12 --spp 2 \
+--quiet -o \"$1\" >/dev/null && \"$0\" info \"$1\"" ${_kdt} ${_tmp}/info.exr)
+set_tests_properties(smoke.info_image PROPERTIES PASS_REGULAR_EXPRESSION
+  "format: +OpenEXR\nsize: +16x12\nencoding: +zip compression[^\n]*\nkdtrace:command: kdtrace render --width 16 --height 12 [^\n]*--spp 2\n")

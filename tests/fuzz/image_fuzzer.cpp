@@ -1,8 +1,8 @@
-// libFuzzer target for the image loaders (Radiance HDR via stb_image, OpenEXR via tinyexr,
-// PFM, PNG via stb_image and our chunk walker): any input must load or throw a kdt::Error
-// naming the file, never crash, leak, hang or trip a sanitizer. tinyexr is compiled into the
-// fuzzer from Debian's header (tinyexr_impl.cpp) so that its code is instrumented too.
-// Built by tests/fuzz/tests.cmake.
+// libFuzzer target for the image loaders (Radiance HDR via stb_image, OpenEXR via the
+// OpenEXR library, PFM, PNG via stb_image and our chunk walker): any input must load or
+// throw a kdt::Error naming the file, never crash, leak, hang or trip a sanitizer. OpenEXR
+// is Debian's (uninstrumented) shared library. Built by tests/fuzz/tests.cmake; OpenEXR
+// seeds by tests/fuzz/exr_seeds.cpp.
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "renderer/core/error.h"
+#include "renderer/io/exr_io.h"
 #include "renderer/io/image_io.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
@@ -27,6 +28,15 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         if (std::strncmp(e.what(), "fuzz.img: ", 10) != 0) {
             std::fprintf(stderr, "error without the file name: %s\n", e.what());
             __builtin_trap();
+        }
+    }
+    // The header-only path of `kdtrace info`.
+    if (kdt::is_exr(bytes)) {
+        try {
+            const kdt::ImageInfo info = kdt::read_exr_info(bytes, "fuzz.img");
+            if (info.width < 1 || info.height < 1) __builtin_trap();
+        } catch (const kdt::Error& e) {
+            if (std::strncmp(e.what(), "fuzz.img: ", 10) != 0) __builtin_trap();
         }
     }
     return 0;

@@ -1,6 +1,6 @@
-// Tests of renderer/io/image_io.*: round trips (PFM and float EXR exact, PNG within
-// quantisation, HDR within RGBE precision), metadata read back, and broken files that must
-// throw kdt::Error naming the file instead of crashing, hanging or allocating absurdly.
+// Tests of renderer/io/image_io.*: round trips (PFM exact, PNG within quantisation, HDR
+// within RGBE precision), metadata read back, and broken files that must throw kdt::Error
+// naming the file instead of crashing, hanging or allocating absurdly. OpenEXR: exr_io_test.
 #include "renderer/io/image_io.h"
 
 #include <array>
@@ -9,45 +9,26 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <limits>
 
 #include <gtest/gtest.h>
 
 #include "renderer/core/color.h"
 #include "renderer/core/error.h"
+#include "tests/renderer/io/image_test_util.h"
 #include "tests/test_util.h"
-
-#if __has_include(<tinyexr.h>)
-#include <tinyexr.h>
-#endif
 
 namespace kdt {
 namespace {
 
+using test::expect_load_error;
 using test::HashRng;
+using test::random_image;
 using test::read_bytes;
 using test::write_bytes;
 
-ImageRGB random_image(int w, int h, uint64_t seed, float scale) {
-    ImageRGB img(w, h);
-    HashRng rng(seed);
-    for (float& v : img.rgb) v = scale * rng.next();
-    return img;
-}
-
 void write_text(const std::filesystem::path& p, const std::string& s) {
     write_bytes(p, std::vector<uint8_t>(s.begin(), s.end()));
-}
-
-/// load_image must throw kdt::Error whose message names the file; returns the message.
-std::string expect_load_error(const std::filesystem::path& p) {
-    try {
-        load_image(p.string());
-    } catch (const Error& e) {
-        EXPECT_NE(std::string(e.what()).find(p.string()), std::string::npos) << e.what();
-        return e.what();
-    }
-    ADD_FAILURE() << "no error for " << p;
-    return "";
 }
 
 class ImageIoTest : public ::testing::Test {
@@ -92,236 +73,6 @@ TEST_F(ImageIoTest, PfmBigEndianGreyAndScale) {
     EXPECT_EQ(img.at(1, 0), Vec3f(-8.0f));
 }
 
-TEST_F(ImageIoTest, ExrRoundTripIsExactWithMetadata) {
-    ImageRGB img = random_image(33, 17, 2, 1000.0f);
-    img.set(5, 5, Vec3f(-2.0f, 0.0f, 1e-20f));
-    ImageMetadata md = {{"kdtrace.camera", "{\"eye\":[0,1,5],\"vfov\":40}"},
-                        {"kdtrace.seed", "12345"},
-                        {"kdtrace.command", "kdtrace render scene.json --spp 64 -o out.exr"}};
-    write_exr(path("a.exr"), img, md);
-    ImageMetadata read;
-    ImageRGB back = load_image(path("a.exr"), &read);
-    ASSERT_EQ(back.width, 33);
-    ASSERT_EQ(back.height, 17);
-    EXPECT_EQ(back.rgb, img.rgb);
-    EXPECT_EQ(read, md);
-    EXPECT_EQ(read_exr_metadata(path("a.exr")), md);
-    EXPECT_THROW(write_exr(path("b.exr"), img, {{"channels", "x"}}), Error);
-}
-
-#if __has_include(<tinyexr.h>)
-TEST_F(ImageIoTest, ExrHalfRgbaAndSingleChannelFilesFromTinyexr) {
-    // Files written by tinyexr's own SaveEXR: half-float RGBA (alpha dropped) and one channel.
-    ImageRGB img = random_image(9, 5, 6, 4.0f);
-    std::vector<float> rgba(img.pixel_count() * 4, 0.25f);
-    for (size_t i = 0; i < img.pixel_count(); ++i) {
-        for (int c = 0; c < 3; ++c) rgba[i * 4 + size_t(c)] = img.rgb[i * 3 + size_t(c)];
-    }
-    const char* err = nullptr;
-    ASSERT_EQ(SaveEXR(rgba.data(), 9, 5, 4, 1, path("half.exr").c_str(), &err), TINYEXR_SUCCESS);
-    ImageRGB back = load_image(path("half.exr"));
-    ASSERT_EQ(back.width, 9);
-    for (size_t i = 0; i < img.rgb.size(); ++i) {
-        ASSERT_NEAR(back.rgb[i], img.rgb[i], img.rgb[i] / 1024.0f + 1e-6f) << "half precision";
-    }
-    std::vector<float> grey(img.pixel_count());
-    for (size_t i = 0; i < grey.size(); ++i) grey[i] = float(i);
-    ASSERT_EQ(SaveEXR(grey.data(), 9, 5, 1, 0, path("grey.exr").c_str(), &err), TINYEXR_SUCCESS);
-    back = load_image(path("grey.exr"));
-    EXPECT_EQ(back.at(4, 2), Vec3f(22.0f));
-}
-
-// Found by tests/fuzz/image_fuzzer: a PIZ block whose bitmap range runs past the end of the
-// file made tinyexr's decoder read out of bounds. PIZ files are now refused up front.
-TEST_F(ImageIoTest, ExrPizCompressionIsRefusedNamingTheFile) {
-    std::vector<float> planes[3];
-    unsigned char* ptrs[3];
-    EXRChannelInfo channels[3];
-    std::memset(channels, 0, sizeof(channels));
-    int types[3] = {TINYEXR_PIXELTYPE_FLOAT, TINYEXR_PIXELTYPE_FLOAT, TINYEXR_PIXELTYPE_FLOAT};
-    for (int c = 0; c < 3; ++c) {
-        planes[c].assign(8 * 4, 0.5f);
-        ptrs[c] = reinterpret_cast<unsigned char*>(planes[c].data());
-        channels[c].name[0] = "BGR"[c];
-    }
-    EXRHeader header;
-    InitEXRHeader(&header);
-    header.num_channels = 3;
-    header.channels = channels;
-    header.pixel_types = types;
-    header.requested_pixel_types = types;
-    header.compression_type = TINYEXR_COMPRESSIONTYPE_PIZ;
-    EXRImage image;
-    InitEXRImage(&image);
-    image.num_channels = 3;
-    image.width = 8;
-    image.height = 4;
-    image.images = ptrs;
-    const char* err = nullptr;
-    ASSERT_EQ(SaveEXRImageToFile(&image, &header, path("piz.exr").c_str(), &err), TINYEXR_SUCCESS);
-    const std::string message = expect_load_error(path("piz.exr"));
-    EXPECT_NE(message.find("PIZ-compressed OpenEXR is not supported"), std::string::npos)
-        << message;
-}
-
-// Found by tests/fuzz/image_fuzzer: a chunkCount attribute of 1.7e9 made tinyexr allocate a
-// 13 GB offset table before reading it. The table must fit in the file.
-TEST_F(ImageIoTest, ExrChunkCountBeyondTheFileIsAnError) {
-    write_exr(path("ok.exr"), random_image(4, 3, 9, 1.0f));
-    std::vector<uint8_t> bytes = read_bytes(path("ok.exr"));
-    // A chunkCount attribute (name, type, size 4, value) inserted as the header's first.
-    const char attr[] = "chunkCount\0int";
-    std::vector<uint8_t> insert(attr, attr + sizeof(attr));
-    for (uint32_t v : {4u, 0x7fffffffu}) {
-        for (int b = 0; b < 4; ++b) insert.push_back(uint8_t(v >> (8 * b)));
-    }
-    bytes.insert(bytes.begin() + 8, insert.begin(), insert.end());
-    write_bytes(path("chunks.exr"), bytes);
-    const std::string message = expect_load_error(path("chunks.exr"));
-    EXPECT_NE(message.find("offset table of 2147483647 blocks does not fit"), std::string::npos)
-        << message;
-}
-
-// Found by tests/fuzz/image_fuzzer: tinyexr reads 9 bytes of a "tiles" attribute whatever
-// its size (it only asserts).
-TEST_F(ImageIoTest, ExrMalformedAttributesAreErrors) {
-    const ImageRGB image = random_image(4, 3, 9, 1.0f);
-    write_exr(path("ok.exr"), image);
-    const std::vector<uint8_t> good = read_bytes(path("ok.exr"));
-    // `attribute` is name, type and value; the size is filled in. Inserted as the first.
-    auto with_attribute = [&](const std::string& attribute, const std::string& file) {
-        const size_t name_and_type =
-            std::strlen(attribute.c_str()) + 1 +
-            std::strlen(attribute.c_str() + std::strlen(attribute.c_str()) + 1) + 1;
-        const uint32_t size = uint32_t(attribute.size() - name_and_type);
-        std::vector<uint8_t> insert(attribute.begin(), attribute.begin() + long(name_and_type));
-        for (int b = 0; b < 4; ++b) insert.push_back(uint8_t(size >> (8 * b)));
-        insert.insert(insert.end(), attribute.begin() + long(name_and_type), attribute.end());
-        std::vector<uint8_t> bytes = good;
-        bytes.insert(bytes.begin() + 8, insert.begin(), insert.end());
-        write_bytes(file, bytes);
-    };
-    struct Case {
-        std::string attribute;
-        const char* expect;
-    } cases[] = {
-        {std::string("tiles\0tiledesc\0", 15) + "abc", "malformed attribute 'tiles' (3 bytes)"},
-        {std::string("compression\0compression\0", 24), "malformed attribute 'compression'"},
-    };
-    int i = 0;
-    for (const Case& c : cases) {
-        const std::string file = path("attr" + std::to_string(i++) + ".exr");
-        with_attribute(c.attribute, file);
-        const std::string message = expect_load_error(file);
-        EXPECT_NE(message.find(c.expect), std::string::npos) << message;
-    }
-    // OpenEXR writes string attributes without a terminating NUL; tinyexr terminates "name"
-    // and "type" itself, so such a file is valid and loads. The offset table (after the
-    // header's final NUL; the first offset points past the table) moves with the insert.
-    const std::string type_attr = std::string("type\0string\0", 12) + "scanlineimage";
-    with_attribute(type_attr, path("type.exr"));
-    std::vector<uint8_t> typed_bytes = read_bytes(path("type.exr"));
-    size_t pos = 8;
-    while (typed_bytes.at(pos) != 0) {
-        pos += std::strlen(reinterpret_cast<const char*>(&typed_bytes[pos])) + 1;
-        pos += std::strlen(reinterpret_cast<const char*>(&typed_bytes[pos])) + 1;
-        uint32_t size = 0;
-        std::memcpy(&size, &typed_bytes.at(pos), 4);
-        pos += 4 + size;
-    }
-    const size_t table = pos + 1, shift = type_attr.size() + 4;
-    uint64_t first = 0;
-    std::memcpy(&first, &typed_bytes.at(table), 8);
-    const size_t chunks = (size_t(first) + shift - table) / 8;
-    for (size_t c = 0; c < chunks; ++c) {
-        uint64_t offset = 0;
-        std::memcpy(&offset, &typed_bytes.at(table + 8 * c), 8);
-        offset += shift;
-        std::memcpy(&typed_bytes.at(table + 8 * c), &offset, 8);
-    }
-    write_bytes(path("type.exr"), typed_bytes);
-    const ImageRGB typed = load_image(path("type.exr"));
-    ASSERT_EQ(typed.width, image.width);
-    ASSERT_EQ(typed.height, image.height);
-    EXPECT_EQ(typed.rgb, image.rgb);
-    // A value running past the end of the file.
-    const char tail[] = "channels\0chlist\0\xff\xff\0\0";
-    std::string past(good.begin(), good.begin() + 8);
-    past.append(tail, sizeof(tail) - 1);
-    write_bytes(path("past.exr"), std::vector<uint8_t>(past.begin(), past.end()));
-    const std::string message = expect_load_error(path("past.exr"));
-    EXPECT_NE(message.find("attribute 'channels' runs past the end of the file"), std::string::npos)
-        << message;
-}
-
-TEST_F(ImageIoTest, ExrTiledFileFromTinyexr) {
-    // A 10x7 float RGB image in 4x4 tiles (edge tiles partial), written with tinyexr.
-    const int w = 10, h = 7, ts = 4, tx = 3, ty = 2;
-    ImageRGB img = random_image(w, h, 8, 3.0f);
-    std::vector<EXRTile> tiles(tx * ty);
-    std::vector<std::vector<float>> planes(tiles.size() * 3);
-    std::vector<std::array<unsigned char*, 3>> ptrs(tiles.size());
-    for (int t = 0; t < tx * ty; ++t) {
-        EXRTile& tile = tiles[size_t(t)];
-        std::memset(&tile, 0, sizeof(tile));
-        tile.offset_x = t % tx;
-        tile.offset_y = t / tx;
-        tile.width = std::min(ts, w - tile.offset_x * ts);
-        tile.height = std::min(ts, h - tile.offset_y * ts);
-        for (int c = 0; c < 3; ++c) {
-            auto& plane = planes[size_t(t * 3 + c)];
-            plane.assign(ts * ts, 0.0f);
-            for (int j = 0; j < tile.height; ++j) {
-                for (int i = 0; i < tile.width; ++i) {
-                    // Channels are stored B, G, R.
-                    plane[size_t(j * ts + i)] =
-                        img.at(tile.offset_x * ts + i, tile.offset_y * ts + j)[2 - c];
-                }
-            }
-            ptrs[size_t(t)][size_t(c)] = reinterpret_cast<unsigned char*>(plane.data());
-        }
-        tile.images = ptrs[size_t(t)].data();
-    }
-    EXRChannelInfo channels[3];
-    std::memset(channels, 0, sizeof(channels));
-    channels[0].name[0] = 'B';
-    channels[1].name[0] = 'G';
-    channels[2].name[0] = 'R';
-    int types[3] = {TINYEXR_PIXELTYPE_FLOAT, TINYEXR_PIXELTYPE_FLOAT, TINYEXR_PIXELTYPE_FLOAT};
-    EXRHeader header;
-    InitEXRHeader(&header);
-    header.num_channels = 3;
-    header.channels = channels;
-    header.pixel_types = types;
-    header.requested_pixel_types = types;
-    header.tiled = 1;
-    header.data_window = {0, 0, w - 1, h - 1};
-    header.display_window = header.data_window;
-    header.tile_size_x = ts;
-    header.tile_size_y = ts;
-    header.tile_level_mode = TINYEXR_TILE_ONE_LEVEL;
-    header.compression_type = TINYEXR_COMPRESSIONTYPE_ZIP;
-    EXRImage image;
-    InitEXRImage(&image);
-    image.num_channels = 3;
-    image.width = w;
-    image.height = h;
-    image.tiles = tiles.data();
-    image.num_tiles = tx * ty;
-    const char* err = nullptr;
-    int ret = SaveEXRImageToFile(&image, &header, path("tiled.exr").c_str(), &err);
-    if (ret != TINYEXR_SUCCESS) {
-        std::string message = err ? err : "";
-        FreeEXRErrorMessage(err);
-        GTEST_SKIP() << "this tinyexr cannot write tiled files: " << message;
-    }
-    ImageRGB back = load_image(path("tiled.exr"));
-    ASSERT_EQ(back.width, w);
-    ASSERT_EQ(back.height, h);
-    EXPECT_EQ(back.rgb, img.rgb);
-}
-#endif
-
 TEST_F(ImageIoTest, PngRoundTripWithinQuantisationAndMetadata) {
     ImageRGB img = random_image(31, 9, 3, 1.0f);
     img.set(0, 0, Vec3f(0.0f, 1.0f, 5.0f));  // 5 clamps to 1
@@ -364,6 +115,94 @@ TEST_F(ImageIoTest, ToneCurves) {
         float x = float(i) / 255.0f;
         EXPECT_NEAR(srgb_to_linear(linear_to_srgb(x)), x, 1e-6f);
     }
+}
+
+// Every curve maps 0, negatives and NaN to 0, never decreases, stays in [0,1] and reaches 1
+// (at infinity at the latest); the compressive ones keep highlights below white where the
+// clamp clips them.
+TEST_F(ImageIoTest, EveryToneCurveIsMonotoneFromZeroToOne) {
+    static_assert(kToneCurveNames.size() == size_t(ToneCurve::filmic) + 1);
+    for (size_t c = 0; c < kToneCurveNames.size(); ++c) {
+        const ToneCurve curve = ToneCurve(c);
+        SCOPED_TRACE(kToneCurveNames[c]);
+        EXPECT_EQ(apply_tone_curve(0.0f, curve), 0.0f);
+        EXPECT_EQ(apply_tone_curve(-1.0f, curve), 0.0f);
+        EXPECT_EQ(apply_tone_curve(std::nanf(""), curve), 0.0f);
+        EXPECT_EQ(apply_tone_curve(kInfinity, curve), 1.0f);
+        EXPECT_EQ(apply_tone_curve(std::numeric_limits<float>::max(), curve), 1.0f);
+        float prev = 0.0f;
+        uint8_t prev8 = 0;
+        for (float x = 1e-12f; x < 1e30f; x *= 1.0005f) {
+            const float y = apply_tone_curve(x, curve);
+            ASSERT_GE(y, prev) << "at " << x;
+            ASSERT_LE(y, 1.0f) << "at " << x;
+            const uint8_t y8 = tonemap_to_srgb8(x, {0.0f, curve});
+            ASSERT_GE(y8, prev8) << "at " << x;
+            prev = y;
+            prev8 = y8;
+        }
+        EXPECT_GT(apply_tone_curve(1e-6f, curve), 0.0f);
+        EXPECT_EQ(prev8, 255);
+        if (curve != ToneCurve::clamp) {
+            EXPECT_LT(tonemap_to_srgb8(1.0f, {0.0f, curve}), 255);
+        }
+    }
+    // Names are distinct (the CLI and metadata spell curves by them).
+    for (size_t i = 0; i < kToneCurveNames.size(); ++i) {
+        for (size_t j = 0; j < i; ++j) EXPECT_STRNE(kToneCurveNames[i], kToneCurveNames[j]);
+    }
+}
+
+// The default curve, clamp, gives bit for bit the PNG values the writer gave before tone
+// curves existed: radiance * 2^exposure clamped to [0,1], sRGB-encoded, rounded.
+TEST_F(ImageIoTest, ClampCurveMatchesThePlainClampBitwise) {
+    auto plain = [](float linear, float exposure) {
+        const float scaled = linear * std::exp2(exposure);
+        const float clamped = !(scaled > 0.0f) ? 0.0f : (scaled < 1.0f ? scaled : 1.0f);
+        return uint8_t(linear_to_srgb(clamped) * 255.0f + 0.5f);
+    };
+    HashRng rng(31);
+    for (float exposure : {-3.0f, 0.0f, 1.5f}) {
+        for (int i = 0; i < 200000; ++i) {
+            const float x = std::ldexp(rng.next(), int(rng.next_u64() % 40) - 30);
+            ASSERT_EQ(tonemap_to_srgb8(x, {exposure, ToneCurve::clamp}), plain(x, exposure))
+                << x << " at exposure " << exposure;
+        }
+    }
+    const ImageRGB img = random_image(17, 5, 4, 4.0f);
+    write_png(path("default.png"), img);
+    write_png(path("clamp.png"), img, {0.0f, ToneCurve::clamp});
+    EXPECT_EQ(read_bytes(path("default.png")), read_bytes(path("clamp.png")));
+    write_image(path("aces.png"), img, {0.0f, ToneCurve::aces});
+    EXPECT_NE(read_bytes(path("default.png")), read_bytes(path("aces.png")));
+    // Linear formats ignore the tone parameters.
+    write_image(path("a.pfm"), img, {2.0f, ToneCurve::filmic});
+    EXPECT_EQ(load_image(path("a.pfm")).rgb, img.rgb);
+}
+
+// What `kdtrace info` prints: size, format, encoding and the metadata, for every format.
+TEST_F(ImageIoTest, ImageInfoOfEveryFormat) {
+    const ImageRGB img = random_image(7, 3, 12, 2.0f);
+    const ImageMetadata md = {{"kdtrace:spp", "4"}, {"kdtrace:command", "kdtrace render"}};
+    write_png(path("a.png"), img, {}, md);
+    ImageInfo info = read_image_info(path("a.png"));
+    EXPECT_EQ(info.format, "PNG");
+    EXPECT_EQ(info.width, 7);
+    EXPECT_EQ(info.height, 3);
+    EXPECT_EQ(info.encoding, "8-bit sRGB");
+    EXPECT_EQ(info.metadata, md);
+    write_hdr(path("a.hdr"), img);
+    info = read_image_info(path("a.hdr"));
+    EXPECT_EQ(info.format, "Radiance HDR");
+    EXPECT_EQ(info.width, 7);
+    EXPECT_TRUE(info.metadata.empty());
+    write_pfm(path("a.pfm"), img);
+    info = read_image_info(path("a.pfm"));
+    EXPECT_EQ(info.format, "PFM");
+    EXPECT_EQ(info.height, 3);
+    EXPECT_EQ(info.encoding, "colour 32-bit float");
+    write_text(dir_ / "bad.png", "\x89PNG\r\n\x1a\nshort");
+    EXPECT_THROW(read_image_info(path("bad.png")), Error);
 }
 
 TEST_F(ImageIoTest, HdrRoundTripWithinRgbePrecision) {
@@ -570,21 +409,6 @@ TEST_F(ImageIoTest, TruncatedAndCorruptedFilesThrow) {
     truncate_and_corrupt(dir_, "g.png", read_bytes(path("g.png")), true);
     write_exr(path("g.exr"), img, {{"k", "v"}});
     truncate_and_corrupt(dir_, "g.exr", read_bytes(path("g.exr")), true);
-}
-
-// Found by tests/fuzz/image_fuzzer: an uncompressed block ending at the end of the file made
-// tinyexr read up to 3 bytes past the buffer (the ASan build sees it). Decoded from a padded
-// copy now: the file loads or fails with an error naming it, and nothing is read past it.
-TEST_F(ImageIoTest, ExrBlockEndingAtTheEndOfTheFileIsReadInBounds) {
-    const std::string file =
-        std::string(KDT_SOURCE_DIR) + "/tests/fuzz/corpus/image/regress_block_at_end.exr";
-    try {
-        const ImageRGB image = load_image(file);
-        EXPECT_GT(image.width, 0);
-        EXPECT_GT(image.height, 0);
-    } catch (const Error& e) {
-        EXPECT_EQ(std::string(e.what()).rfind(file, 0), 0u) << e.what();
-    }
 }
 
 // Found by tests/fuzz/image_fuzzer: a header line starting with a NUL byte ends the header

@@ -1,0 +1,81 @@
+// OpenEXR files that write_exr() does not make (half or uint channels, grey, tiled, any
+// compression), written with the OpenEXR library itself, for the EXR tests and the image
+// fuzzer's seed corpus. Header only; depends on OpenEXR.
+#pragma once
+
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include <ImfChannelList.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfOutputFile.h>
+#include <ImfStringAttribute.h>
+#include <ImfTiledOutputFile.h>
+#include <half.h>
+
+#include "renderer/io/exr_io.h"
+
+namespace kdt::test {
+
+struct ExrVariant {
+    int width = 8, height = 4;
+    Imf::PixelType type = Imf::HALF;
+    Imf::Compression compression = Imf::ZIP_COMPRESSION;
+    bool grey = false;    ///< one "Y" channel instead of R, G, B
+    int tile_size = 0;    ///< > 0: tiled, one level
+    std::string comment;  ///< non-empty: a "comments" string attribute
+};
+
+/// The value variant v stores in channel c (0..2) of pixel (x, y); exact in half and uint.
+inline float exr_variant_value(int x, int y, int c) {
+    return float((x * 7 + y * 3 + c * 5) % 23) * 0.25f + float(c);
+}
+
+/// Writes variant v into memory and returns the file's bytes.
+inline std::vector<uint8_t> exr_variant(const ExrVariant& v) {
+    ExrMemoryOStream sink("exr_variant");
+    Imf::Header header(v.width, v.height);
+    header.compression() = v.compression;
+    const std::vector<std::string> names =
+        v.grey ? std::vector<std::string>{"Y"} : std::vector<std::string>{"R", "G", "B"};
+    for (const std::string& n : names) header.channels().insert(n, Imf::Channel(v.type));
+    if (!v.comment.empty()) header.insert("comments", Imf::StringAttribute(v.comment));
+    const size_t size = v.type == Imf::HALF ? 2 : 4, count = size_t(v.width * v.height);
+    std::vector<std::vector<char>> planes(names.size(), std::vector<char>(count * size));
+    Imf::FrameBuffer fb;
+    for (size_t c = 0; c < names.size(); ++c) {
+        for (int y = 0; y < v.height; ++y) {
+            for (int x = 0; x < v.width; ++x) {
+                const float f = exr_variant_value(x, y, int(c));
+                char* p = &planes[c][(size_t(y * v.width + x)) * size];
+                if (v.type == Imf::HALF) {
+                    const half h(f);
+                    std::memcpy(p, &h, 2);
+                } else if (v.type == Imf::FLOAT) {
+                    std::memcpy(p, &f, 4);
+                } else {
+                    const uint32_t u = uint32_t(f);
+                    std::memcpy(p, &u, 4);
+                }
+            }
+        }
+        fb.insert(names[c], Imf::Slice(v.type, planes[c].data(), size, size * size_t(v.width)));
+    }
+    if (v.tile_size > 0) {
+        header.setTileDescription(
+            Imf::TileDescription(unsigned(v.tile_size), unsigned(v.tile_size), Imf::ONE_LEVEL));
+        Imf::TiledOutputFile file(sink, header, 0);
+        file.setFrameBuffer(fb);
+        file.writeTiles(0, file.numXTiles() - 1, 0, file.numYTiles() - 1);
+    } else {
+        Imf::OutputFile file(sink, header, 0);
+        file.setFrameBuffer(fb);
+        file.writePixels(v.height);
+    }
+    return sink.take();
+}
+
+}  // namespace kdt::test
