@@ -125,6 +125,16 @@ void run(const RenderCommand& cmd) {
     if (tty) std::fprintf(stderr, "\n");
 
     const Film& film = session.film();
+    const PathCounters& totals = session.totals();
+    // A few dropped samples are noise; many mean radiance the scene cannot hold in float, and
+    // an image missing them would be silently wrong (black where the light is).
+    if (totals.nonfinite_dropped > 0 && totals.nonfinite_dropped * 1000 > totals.samples) {
+        throw Error("render: " + std::to_string(totals.nonfinite_dropped) + " of " +
+                    std::to_string(totals.samples) +
+                    " samples were not finite (or negative) and were dropped, more than 0.1 %: "
+                    "the scene's radiance overflows float (emission, environment colour or "
+                    "intensity); no image written");
+    }
     ImageRGB image(film.width(), film.height());
     image.rgb = film.linear_rgb();
     const PathCounters& c = session.totals();
@@ -145,6 +155,7 @@ void run(const RenderCommand& cmd) {
                                                      std::to_string(spp) + " spp");
     ToneParams tone;
     tone.exposure = o.film.exposure;
+    tone.curve = o.film.tonemap;
     write_image(cmd.output, image, tone, meta);
 
     const double mrays = p.seconds > 0.0 ? double(c.rays()) / p.seconds * 1e-6 : 0.0;

@@ -3,6 +3,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <string>
 
 #include "renderer/core/error.h"
 
@@ -32,6 +33,10 @@ void set_field_number(const FieldRef& ref, double value) {
             }
         },
         ref);
+}
+
+double float_for_text(float v) {
+    return std::isfinite(v) ? std::stod(detail::number_text(double(v))) : double(v);
 }
 
 namespace detail {

@@ -60,6 +60,11 @@ struct Field {
     ::kdt::Field<S>{#member, [](S& s) { return ::kdt::field_ref(s.member); }, __VA_ARGS__}
 // clang-format on
 
+/// The double whose shortest text is the float's shortest text (2.6f -> 2.6, where the plain
+/// conversion prints 2.5999999046325684), which reads back as the same float: for writing
+/// floats into JSON. Non-finite values pass through.
+double float_for_text(float v);
+
 /// The value of a numeric, bool or choice field as a double (a seed only when < 2^53).
 double field_number(const FieldRef& ref);
 /// Sets a numeric, bool or choice field from a double (rounded toward zero for integers;

@@ -6,17 +6,19 @@
 #include <cstdint>
 #include <vector>
 
+#include "renderer/core/color.h"
 #include "renderer/core/math.h"
 
 namespace kdt {
 
 /// Film and adaptive-sampling settings (documented defaults; CLI and UI share them).
 struct FilmParams {
-    bool adaptive = false;             ///< stop converged pixels and spend samples elsewhere
-    float adaptive_threshold = 0.02f;  ///< relative error (stderr / mean luminance) to stop at
-    int adaptive_min_spp = 16;         ///< no pixel stops before this many samples
-    int adaptive_max_spp = 0;          ///< per-pixel cap while adaptive; 0 = no cap
-    float exposure = 0.0f;             ///< PNG tone mapping: scale by 2^exposure before sRGB
+    bool adaptive = false;                 ///< stop converged pixels and spend samples elsewhere
+    float adaptive_threshold = 0.02f;      ///< relative error (stderr / mean luminance) to stop at
+    int adaptive_min_spp = 16;             ///< no pixel stops before this many samples
+    int adaptive_max_spp = 0;              ///< per-pixel cap while adaptive; 0 = no cap
+    float exposure = 0.0f;                 ///< PNG tone mapping: scale by 2^exposure before sRGB
+    ToneCurve tonemap = ToneCurve::clamp;  ///< PNG tone curve after the exposure
 };
 
 /// Linear -> sRGB-encoded 8-bit value (clamped to [0, 1] first).

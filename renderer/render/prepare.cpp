@@ -44,12 +44,12 @@ Prepared prepare_render(const RenderOptions& o, const PrepareLog& log) {
     // The camera and the environment before the tree: a bad image size or probe fails first.
     const Camera camera = make_camera(out.scene.camera, o.scene.width, o.scene.height);
     TraceScene ts = merge_instances(out.scene);
-    ts.env = make_environment_light(out.scene.environment);
+    const PrepareLog say =
+        log ? log : [](const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); };
+    ts.env = make_environment_light(out.scene.environment, say);
 
     Timer tree_timer;
     if (o.scene.use_cache) {
-        const PrepareLog say =
-            log ? log : [](const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); };
         KdCacheReport report;
         // The merged world-space mesh of a scene file differs from the file's mesh; the cache
         // checks the content hash, so naming the file after the scene is safe.

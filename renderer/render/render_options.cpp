@@ -20,12 +20,6 @@ using SC = StopConditions;
 
 constexpr double kMaxSeed = 18446744073709551615.0;  // 2^64 - 1 as a double (rounds to 2^64)
 
-// A float as the double that prints as the float's shortest text (2.6f as 2.6, not
-// 2.5999999046325684), which reads back as the same float.
-double json_float(float v) {
-    return std::isfinite(v) ? std::stod(detail::number_text(double(v))) : double(v);
-}
-
 const Field<SO> kSceneFields[] = {
     KDT_FIELD(SO, width, "--width", "Image width in pixels", 1, 16384),
     KDT_FIELD(SO, height, "--height", "Image height in pixels", 1, 16384),
@@ -66,6 +60,9 @@ const Field<FP> kFilmFields[] = {
               "Samples before an adaptive pixel may stop", 0, 1 << 24),
     KDT_FIELD(FP, adaptive_max_spp, "--adaptive-max-spp",
               "Samples at which an adaptive pixel stops (0 = no cap)", 0, 1 << 30),
+    KDT_FIELD(FP, tonemap, "--tonemap",
+              "Tone curve of PNG output: clamp, reinhard, aces or filmic (EXR and PFM stay linear)",
+              0, 3, false, kToneCurveNames),
     KDT_FIELD(FP, exposure, "--exposure", "Exposure of tone-mapped output, in stops", -64.0, 64.0),
 };
 
@@ -93,7 +90,7 @@ json group_json(const S& s, std::span<const Field<S>> fields) {
         } else if (auto* i = std::get_if<int*>(&r)) {
             j[f.name] = **i;
         } else if (auto* x = std::get_if<float*>(&r)) {
-            j[f.name] = json_float(**x);
+            j[f.name] = float_for_text(**x);
         } else {
             j[f.name] = field_number(r);
         }
@@ -134,7 +131,7 @@ void group_from_json(const json& j, S& s, std::span<const Field<S>> fields,
 }
 
 json vec_json(const Vec3f& v) {
-    return json::array({json_float(v.x), json_float(v.y), json_float(v.z)});
+    return json::array({float_for_text(v.x), float_for_text(v.y), float_for_text(v.z)});
 }
 
 Vec3f vec_from_json(const json& j, const std::string& where, const std::string& pointer) {
@@ -263,7 +260,7 @@ std::string camera_to_json(const Camera& c) {
     j["eye"] = vec_json(c.eye);
     j["target"] = vec_json(c.eye + c.forward);
     j["up"] = vec_json(c.up);
-    j["vfov_degrees"] = json_float(c.vfov_degrees);
+    j["vfov_degrees"] = float_for_text(c.vfov_degrees);
     j["width"] = c.width;
     j["height"] = c.height;
     return j.dump();
@@ -275,18 +272,18 @@ std::string options_to_json(const RenderOptions& o) {
     if (!o.scene.scene_path.empty()) scene["scene_path"] = o.scene.scene_path;
     if (!o.scene.env_file.empty()) scene["env_file"] = o.scene.env_file;
     if (!o.scene.env_mapping.empty()) scene["env_mapping"] = o.scene.env_mapping;
-    if (o.scene.env_intensity) scene["env_intensity"] = json_float(*o.scene.env_intensity);
+    if (o.scene.env_intensity) scene["env_intensity"] = float_for_text(*o.scene.env_intensity);
     if (!o.scene.cache_dir.empty()) scene["cache_dir"] = o.scene.cache_dir;
     if (o.scene.camera) {
         scene["camera"] = {{"eye", vec_json(o.scene.camera->eye)},
                            {"target", vec_json(o.scene.camera->target)},
                            {"up", vec_json(o.scene.camera->up)},
-                           {"vfov_degrees", json_float(o.scene.camera->vfov_degrees)}};
+                           {"vfov_degrees", float_for_text(o.scene.camera->vfov_degrees)}};
     }
     if (o.scene.eye) scene["eye"] = vec_json(*o.scene.eye);
     if (o.scene.target) scene["target"] = vec_json(*o.scene.target);
     if (o.scene.up) scene["up"] = vec_json(*o.scene.up);
-    if (o.scene.vfov_degrees) scene["vfov_degrees"] = json_float(*o.scene.vfov_degrees);
+    if (o.scene.vfov_degrees) scene["vfov_degrees"] = float_for_text(*o.scene.vfov_degrees);
     j["scene"] = scene;
     j["tree"] = group_json(o.tree, kd_tree_fields());
     j["trace"] = group_json(o.trace, trace_fields());

@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "renderer/core/error.h"
+#include "renderer/core/fields.h"
 #include "renderer/core/open_file.h"
 #include "renderer/io/mesh_io.h"
 
@@ -220,14 +221,17 @@ MaterialDesc read_material(const Reader& r) {
 }
 
 CameraDesc read_camera(const Reader& r) {
-    r.allow({"eye", "target", "up", "vfov"});
+    // vfov_degrees as in views files and the docs; "vfov" is read for files written before.
+    r.allow({"eye", "target", "up", "vfov_degrees", "vfov"});
     CameraDesc c;
     c.eye = r.vec3("eye", c.eye);
     c.target = r.vec3("target", c.target);
     c.up = r.vec3("up", c.up);
-    c.vfov_degrees = r.number("vfov", c.vfov_degrees);
+    if (r.has("vfov") && r.has("vfov_degrees")) r.fail("give vfov_degrees or vfov, not both");
+    const char* vfov = r.has("vfov") ? "vfov" : "vfov_degrees";
+    c.vfov_degrees = r.number(vfov, c.vfov_degrees);
     if (!(c.vfov_degrees > 0.0f && c.vfov_degrees < 180.0f))
-        r.fail_key("vfov", "vertical field of view must lie in (0, 180) degrees");
+        r.fail_key(vfov, "vertical field of view must lie in (0, 180) degrees");
     // In double, on unit vectors: in float the difference of two coordinates near 3e38
     // overflows, and products of large components overflow to inf or NaN, which read as
     // "parallel" before.
@@ -246,7 +250,8 @@ CameraDesc read_camera(const Reader& r) {
 
 EnvironmentDesc read_environment(const Reader& r, const fs::path& base,
                                  const SceneLoadOptions& options) {
-    r.allow({"color", "file", "mapping", "rotation", "intensity"});
+    // rotation_degrees as in the docs; "rotation" is read for files written before.
+    r.allow({"color", "file", "mapping", "rotation_degrees", "rotation", "intensity"});
     EnvironmentDesc e;
     e.color = r.vec3("color", e.color, true);
     if (glm::any(glm::lessThan(e.color, Vec3f(0.0f))))
@@ -257,7 +262,10 @@ EnvironmentDesc read_environment(const Reader& r, const fs::path& base,
         if (options.check_files) check_referenced_file(r, "file", e.file, "an environment map");
     }
     e.mapping = EnvMapping(r.choice("mapping", kEnvMappingNames, int(e.mapping)));
-    e.rotation_degrees = r.number("rotation", e.rotation_degrees);
+    if (r.has("rotation") && r.has("rotation_degrees"))
+        r.fail("give rotation_degrees or rotation, not both");
+    e.rotation_degrees =
+        r.number(r.has("rotation") ? "rotation" : "rotation_degrees", e.rotation_degrees);
     e.intensity = r.number("intensity", e.intensity);
     if (!(e.intensity >= 0.0f && std::isfinite(e.intensity)))
         r.fail_key("intensity", "intensity must be finite and non-negative");
@@ -471,20 +479,23 @@ std::vector<std::string> scene_input_files(const Scene& scene) {
 std::string scene_to_json(const Scene& scene) {
     json root;
     root["name"] = scene.name;
-    auto v3 = [](const Vec3f& v) { return json::array({v.x, v.y, v.z}); };
+    // Floats as their shortest text (2.6, not 2.5999999046325684); they read back the same.
+    auto v3 = [](const Vec3f& v) {
+        return json::array({float_for_text(v.x), float_for_text(v.y), float_for_text(v.z)});
+    };
     root["camera"] = {{"eye", v3(scene.camera.eye)},
                       {"target", v3(scene.camera.target)},
                       {"up", v3(scene.camera.up)},
-                      {"vfov", scene.camera.vfov_degrees}};
+                      {"vfov_degrees", float_for_text(scene.camera.vfov_degrees)}};
     json env;
     if (scene.environment.file.empty()) {
         env["color"] = v3(scene.environment.color);
     } else {
         env["file"] = scene.environment.file;
         env["mapping"] = kEnvMappingNames[size_t(scene.environment.mapping)];
-        env["rotation"] = scene.environment.rotation_degrees;
+        env["rotation_degrees"] = float_for_text(scene.environment.rotation_degrees);
     }
-    env["intensity"] = scene.environment.intensity;
+    env["intensity"] = float_for_text(scene.environment.intensity);
     root["environment"] = env;
     json meshes = json::array();
     for (const MeshInstance& m : scene.meshes) {
@@ -492,13 +503,14 @@ std::string scene_to_json(const Scene& scene) {
         jm["file"] = m.file;
         json mat = json::array();
         for (int row = 0; row < 4; ++row)
-            for (int col = 0; col < 4; ++col) mat.push_back(m.world_from_object[col][row]);
+            for (int col = 0; col < 4; ++col)
+                mat.push_back(float_for_text(m.world_from_object[col][row]));
         jm["transform"] = {{"matrix", mat}};
         jm["material"] = {{"type", kMaterialTypeNames[size_t(m.material.type)]},
                           {"albedo", v3(m.material.albedo)},
-                          {"ior", m.material.ior},
+                          {"ior", float_for_text(m.material.ior)},
                           {"emission", v3(m.material.emission)},
-                          {"roughness", m.material.roughness}};
+                          {"roughness", float_for_text(m.material.roughness)}};
         jm["smooth"] = m.smooth;
         meshes.push_back(jm);
     }

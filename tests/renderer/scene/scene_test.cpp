@@ -450,3 +450,42 @@ TEST(Scene, CameraOverflowIsReportedAsOverflow) {
 
 }  // namespace
 }  // namespace kdt
+
+namespace kdt {
+namespace {
+
+// One spelling of every key, and numbers written as the shortest text that reads back the
+// same float: a scene written and read again is the same scene.
+TEST(SceneJson, WritesShortestFloatsAndTheDocumentedKeys) {
+    Scene scene = make_default_scene();
+    scene.camera.vfov_degrees = 33.3f;
+    scene.environment.file = "probe.hdr";
+    scene.environment.rotation_degrees = 12.7f;
+    const std::string text = scene_to_json(scene);
+    EXPECT_NE(text.find("\"vfov_degrees\": 33.3"), std::string::npos) << text;
+    EXPECT_NE(text.find("\"rotation_degrees\": 12.7"), std::string::npos);
+    EXPECT_NE(text.find("2.6"), std::string::npos);
+    EXPECT_EQ(text.find("2.5999"), std::string::npos);
+    EXPECT_EQ(text.find("\"vfov\""), std::string::npos);
+}
+
+TEST(SceneJson, ReadsTheDocumentedKeysAndTheFormerOnes) {
+    const auto dir = test::temp_dir("scene_keys");
+    auto load = [&](const std::string& camera_and_env) {
+        const std::string path =
+            write_file(dir, "s.json",
+                       "{\"meshes\": [{\"file\": \"builtin:icosphere\"}], " + camera_and_env + "}");
+        SceneLoadOptions o;
+        o.check_files = false;
+        return load_scene(path, o);
+    };
+    Scene s = load("\"camera\": {\"vfov_degrees\": 30}, \"environment\": {\"color\": [1, 1, 1]}");
+    EXPECT_EQ(s.camera.vfov_degrees, 30.0f);
+    s = load("\"camera\": {\"vfov\": 31}");
+    EXPECT_EQ(s.camera.vfov_degrees, 31.0f);
+    EXPECT_THROW(load("\"camera\": {\"vfov\": 31, \"vfov_degrees\": 30}"), Error);
+    EXPECT_THROW(load("\"camera\": {\"fov\": 31}"), Error);
+}
+
+}  // namespace
+}  // namespace kdt
