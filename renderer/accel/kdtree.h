@@ -205,15 +205,6 @@ public:
     /// Batch any-hit queries: occluded[i] = 1 exactly when occluded(rays[i]) is true.
     void occluded(const Ray* rays, size_t count, uint8_t* occluded,
                   TraversalCounters* counters = nullptr) const;
-    /// Batch queries of rays the caller has grouped (packet_order(), ray_sort.h), such as a
-    /// wavefront's bounce rays: each group of 8 consecutive rays with the same direction
-    /// signs and dominant axis is one packet however far apart their directions and
-    /// origins are (the coherence test of intersect(rays, ...) is skipped); other groups
-    /// go ray by ray. Results are exactly the single-ray queries'.
-    void intersect_grouped(const Ray* rays, size_t count, Hit* hits,
-                           TraversalCounters* counters = nullptr) const;
-    void occluded_grouped(const Ray* rays, size_t count, uint8_t* occluded,
-                          TraversalCounters* counters = nullptr) const;
 
 private:
     std::shared_ptr<const TriangleMesh> mesh_;

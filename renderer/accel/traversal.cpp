@@ -472,71 +472,29 @@ bool KdTree::occluded_from(const uint32_t* start, uint32_t length, const Ray& ra
     return trace<true, false, true>(tv, ray, nullptr, counters, start, length, nullptr);
 }
 
-namespace {
-
-void intersect_batch(const KdTree& tree, const Ray* rays, size_t count, Hit* hits,
-                     TraversalCounters* counters, bool check_coherence) {
+void KdTree::intersect(const Ray* rays, size_t count, Hit* hits,
+                       TraversalCounters* counters) const {
     for (size_t i = 0; i < count; ++i) hits[i] = Hit{};
-    const TreeView tv = view_of(tree);
+    if (!mesh_) return;
+    const TreeView tv = view_of(*this);
     for (size_t i = 0; i < count; i += detail::kPacketSize) {
         const int m = int(std::min<size_t>(detail::kPacketSize, count - i));
-        if (detail::trace_packet(tv, rays + i, m, false, hits + i, nullptr, counters,
-                                 check_coherence))
-            continue;
+        if (detail::trace_packet(tv, rays + i, m, false, hits + i, nullptr, counters)) continue;
         for (int j = 0; j < m; ++j) trace<false>(tv, rays[i + j], &hits[i + j], counters);
     }
 }
 
-void occluded_batch(const KdTree& tree, const Ray* rays, size_t count, uint8_t* occluded,
-                    TraversalCounters* counters, bool check_coherence) {
+void KdTree::occluded(const Ray* rays, size_t count, uint8_t* occluded,
+                      TraversalCounters* counters) const {
     for (size_t i = 0; i < count; ++i) occluded[i] = 0;
-    const TreeView tv = view_of(tree);
+    if (!mesh_) return;
+    const TreeView tv = view_of(*this);
     for (size_t i = 0; i < count; i += detail::kPacketSize) {
         const int m = int(std::min<size_t>(detail::kPacketSize, count - i));
-        if (detail::trace_packet(tv, rays + i, m, true, nullptr, occluded + i, counters,
-                                 check_coherence))
-            continue;
+        if (detail::trace_packet(tv, rays + i, m, true, nullptr, occluded + i, counters)) continue;
         for (int j = 0; j < m; ++j)
             occluded[i + j] = trace<true>(tv, rays[i + j], nullptr, counters) ? 1 : 0;
     }
-}
-
-}  // namespace
-
-void KdTree::intersect(const Ray* rays, size_t count, Hit* hits,
-                       TraversalCounters* counters) const {
-    if (!mesh_) {
-        for (size_t i = 0; i < count; ++i) hits[i] = Hit{};
-        return;
-    }
-    intersect_batch(*this, rays, count, hits, counters, true);
-}
-
-void KdTree::occluded(const Ray* rays, size_t count, uint8_t* occluded,
-                      TraversalCounters* counters) const {
-    if (!mesh_) {
-        for (size_t i = 0; i < count; ++i) occluded[i] = 0;
-        return;
-    }
-    occluded_batch(*this, rays, count, occluded, counters, true);
-}
-
-void KdTree::intersect_grouped(const Ray* rays, size_t count, Hit* hits,
-                               TraversalCounters* counters) const {
-    if (!mesh_) {
-        for (size_t i = 0; i < count; ++i) hits[i] = Hit{};
-        return;
-    }
-    intersect_batch(*this, rays, count, hits, counters, false);
-}
-
-void KdTree::occluded_grouped(const Ray* rays, size_t count, uint8_t* occluded,
-                              TraversalCounters* counters) const {
-    if (!mesh_) {
-        for (size_t i = 0; i < count; ++i) occluded[i] = 0;
-        return;
-    }
-    occluded_batch(*this, rays, count, occluded, counters, false);
 }
 
 }  // namespace kdt

@@ -196,13 +196,10 @@ inline constexpr int kPacketSize = 8;
 /// Traces rays[0, m), 1 <= m <= kPacketSize, as one SIMD packet when they are coherent
 /// (same direction signs and dominant axis, nearly parallel, nearby origins) and returns
 /// true; returns false, having traced nothing, otherwise (and always on builds without
-/// KDT_SIMD_TRAVERSAL). check_coherence false drops the "nearly parallel, nearby origins"
-/// part, a speed heuristic only (rays the caller grouped, e.g. by packet_order()); signs and
-/// dominant axis are what the packet's shared child order and shear need. Closest hits go to hits
-/// (any_hit false), any-hit results to occluded (any_hit true). Every result is exactly the
-/// single-ray query's: each ray visits the same nodes in the same order and runs the same triangle
-/// test.
+/// KDT_SIMD_TRAVERSAL). Closest hits go to hits (any_hit false), any-hit results to occluded
+/// (any_hit true). Every result is exactly the single-ray query's: each ray visits the same nodes
+/// in the same order and runs the same triangle test.
 bool trace_packet(const TreeView& tv, const Ray* rays, int m, bool any_hit, Hit* hits,
-                  uint8_t* occluded, TraversalCounters* counters, bool check_coherence = true);
+                  uint8_t* occluded, TraversalCounters* counters);
 
 }  // namespace kdt::detail

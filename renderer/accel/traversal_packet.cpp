@@ -19,8 +19,7 @@ namespace kdt::detail {
 
 #if !KDT_SIMD_TRAVERSAL
 
-bool trace_packet(const TreeView&, const Ray*, int, bool, Hit*, uint8_t*, TraversalCounters*,
-                  bool) {
+bool trace_packet(const TreeView&, const Ray*, int, bool, Hit*, uint8_t*, TraversalCounters*) {
     return false;
 }
 
@@ -244,8 +243,8 @@ inline void load_transposed(const Ray* rays, __m256 out[8]) {
 // extreme directions, the lanes differ in direction signs or dominant axis, or they are
 // not coherent); otherwise fills p, the lanes' intervals and tmax, and `active` (the lanes
 // whose setup succeeded).
-bool setup_packet8(const Ray* rays, const Bounds3f& bounds, bool check_coherence, Packet& p,
-                   __m256& t0, __m256& t1, __m256& tmax, int& active) {
+bool setup_packet8(const Ray* rays, const Bounds3f& bounds, Packet& p, __m256& t0, __m256& t1,
+                   __m256& tmax, int& active) {
     __m256 v[8];
     load_transposed(rays, v);
     __m256 org[3] = {v[0], v[1], v[2]}, d[3] = {v[4], v[5], v[6]};
@@ -287,7 +286,7 @@ bool setup_packet8(const Ray* rays, const Bounds3f& bounds, bool check_coherence
     const float max_dist2 = kCoherentOrigin * kCoherentOrigin * glm::dot(ext, ext);
     coherent =
         _mm256_and_ps(coherent, _mm256_cmp_ps(dot3(od, od), _mm256_set1_ps(max_dist2), _CMP_LE_OQ));
-    if (check_coherence && (_mm256_movemask_ps(coherent) & valid) != valid) return false;
+    if ((_mm256_movemask_ps(coherent) & valid) != valid) return false;
     // Zero components become -0 (so 1/d = -inf and the sign agree); common signs.
     for (int k = 0; k < 3; ++k) {
         d[k] = _mm256_blendv_ps(d[k], _mm256_set1_ps(-0.0f), _mm256_cmp_ps(d[k], zero, _CMP_EQ_OQ));
@@ -353,9 +352,9 @@ bool setup_packet8(const Ray* rays, const Bounds3f& bounds, bool check_coherence
 
 // Setup of a partial packet (m < 8 rays, the end of a batch) lane by lane with
 // setup_ray(); false when the rays are not coherent or differ in signs or dominant axis.
-bool setup_packet_lanes(const TreeView& tv, const Ray* rays, int m, bool check_coherence, Packet& p,
-                        __m256& t0v, __m256& t1v, __m256& tmaxv, int& active, float* t_scale) {
-    if (check_coherence && !roughly_coherent(rays, m, tv.bounds)) return false;
+bool setup_packet_lanes(const TreeView& tv, const Ray* rays, int m, Packet& p, __m256& t0v,
+                        __m256& t1v, __m256& tmaxv, int& active, float* t_scale) {
+    if (!roughly_coherent(rays, m, tv.bounds)) return false;
     alignas(32) float org[3][8], inv[3][8], wo[3][8], sh[3][8], tmin[8], t0[8], t1[8], tmax[8];
     active = 0;
     int ref = -1;
@@ -414,16 +413,15 @@ bool setup_packet_lanes(const TreeView& tv, const Ray* rays, int m, bool check_c
 }  // namespace
 
 bool trace_packet(const TreeView& tv, const Ray* rays, int m, bool any_hit, Hit* hits,
-                  uint8_t* occluded, TraversalCounters* counters, bool check_coherence) {
+                  uint8_t* occluded, TraversalCounters* counters) {
     if (m < 2 || tv.bounds.empty()) return false;
     Packet p;
     __m256 t0, t1, tmax;
     int active = 0;
     float t_scale[8] = {1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f};
     if (m == kPacketSize) {
-        if (!setup_packet8(rays, tv.bounds, check_coherence, p, t0, t1, tmax, active)) return false;
-    } else if (!setup_packet_lanes(tv, rays, m, check_coherence, p, t0, t1, tmax, active,
-                                   t_scale)) {
+        if (!setup_packet8(rays, tv.bounds, p, t0, t1, tmax, active)) return false;
+    } else if (!setup_packet_lanes(tv, rays, m, p, t0, t1, tmax, active, t_scale)) {
         return false;
     }
     if (!active) return true;  // every ray misses the root box (outputs are misses)
