@@ -53,11 +53,15 @@ def read_pfm(path):
 
 def kdtrace_scene(args):
     eye, target, vfov = args.camera
+    env = {"color": [args.sky] * 3, "intensity": 1.0}
+    if args.env:
+        env = {"file": str(args.env), "mapping": "latlong", "rotation": 0.0,
+               "intensity": args.sky}
     mesh = {"file": str(args.model), "material": {"type": "diffuse", "albedo": [args.albedo] * 3},
             "smooth": args.smooth}
     return {"name": "compare_cycles",
             "camera": {"eye": eye, "target": target, "up": [0.0, 1.0, 0.0], "vfov": vfov},
-            "environment": {"color": [args.sky] * 3, "intensity": 1.0}, "meshes": [mesh]}
+            "environment": env, "meshes": [mesh]}
 
 
 SUMMARY = re.compile(r": (\d+)x(\d+), ([0-9.]+) s, ([0-9.]+) spp, ([0-9.]+) Mrays/s \((\d+) rays")
@@ -143,6 +147,25 @@ def setup_cycles(args):
     bg = world.node_tree.nodes["Background"]
     bg.inputs["Color"].default_value = (args.sky, args.sky, args.sky, 1.0)
     bg.inputs["Strength"].default_value = 1.0
+    if args.env:
+        # kdtrace's lat-long map (docs/conventions.md): u = 0 looks along -z, u = 1/4 along
+        # +x; Cycles' equirectangular map in Blender's frame: u = 1/2 along +X, u = 1/4 along
+        # +Y (= kdtrace's -z), so the same texel is seen 90 degrees further around +Z: the
+        # lookup direction is turned by +90 degrees about +Z. Rows: top = up in both.
+        nodes, links = world.node_tree.nodes, world.node_tree.links
+        coord = nodes.new("ShaderNodeTexCoord")
+        mapping = nodes.new("ShaderNodeMapping")
+        mapping.vector_type = "VECTOR"
+        mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.pi / 2)
+        tex = nodes.new("ShaderNodeTexEnvironment")
+        tex.image = bpy.data.images.load(str(args.env))
+        tex.image.colorspace_settings.name = "Linear Rec.709"
+        tex.interpolation = args.env_interpolation
+        tex.projection = "EQUIRECTANGULAR"
+        links.new(coord.outputs["Generated"], mapping.inputs["Vector"])
+        links.new(mapping.outputs["Vector"], tex.inputs["Vector"])
+        links.new(tex.outputs["Color"], bg.inputs["Color"])
+        bg.inputs["Strength"].default_value = args.sky
     scene.world = world
 
     bpy.ops.wm.ply_import(filepath=str(args.model), forward_axis="Y", up_axis="Z")
@@ -230,10 +253,15 @@ def parse_args():
     ap.add_argument("--depth", type=int, default=4, help="scattering events (kdtrace --path-depth)")
     ap.add_argument("--albedo", type=float, default=0.6)
     ap.add_argument("--sky", type=float, default=1.0, help="constant sky radiance")
+    ap.add_argument("--env", type=Path, help="lat-long light probe (.hdr) instead of the sky;"
+                    " --sky is then its intensity")
+    ap.add_argument("--env-interpolation", default="Closest",
+                    help="Cycles' lookup: Closest = kdtrace's nearest texel, Linear = bilinear")
     ap.add_argument("--smooth", action="store_true", help="smooth normals (default flat)")
     ap.add_argument("--spp", type=int, default=64, help="the equal-spp level")
     ap.add_argument("--ref-spp", type=int, default=1024, help="kdtrace reference, 2 seeds x N/2")
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--repeat", type=int, default=1, help="timed runs at --spp (medians)")
     ap.add_argument("--cycles-pattern", default="",
                     help="Cycles sampling_pattern (default: Blender's, AUTOMATIC)")
     ap.add_argument("--kdtrace-args", default="", help="extra kdtrace render flags")
@@ -276,19 +304,28 @@ def main():
     scene = setup_cycles(args)
     rows = {}
     # Equal spp, two seeds each: the second seed gives each renderer's own per-pixel variance.
-    k1, k_s, _, k_rays, k_wall = render_kdtrace(args, scene_json, args.out / "kdt_1.pfm", 1,
-                                                spp=args.spp, extra=extra)
+    # Times are medians over --repeat alternated runs (seed 1 each time: the same work).
+    # Cycles' sampling time is its wall time at spp minus its wall time at 1 spp (scene sync,
+    # BVH build, the background's importance map); kdtrace prints its own render time.
+    k_times, c_times, c_setups = [], [], []
+    for _ in range(args.repeat):
+        k1, k_s, _, k_rays, k_wall = render_kdtrace(args, scene_json, args.out / "kdt_1.pfm", 1,
+                                                    spp=args.spp, extra=extra)
+        k_times.append((k_wall, k_s))
+        c1, c_wall = render_cycles(scene, args.out / "cycles_1.exr", spp=args.spp, seed=1)
+        c_times.append(c_wall)
+        c_setups.append(render_cycles(scene, args.out / "cycles_setup.exr", spp=1, seed=1)[1])
+    k_wall, k_s = (float(np.median([t[i] for t in k_times])) for i in (0, 1))
+    c_wall = float(np.median(c_times))
+    c_setup = float(np.median(c_setups))
+    c_s = max(c_wall - c_setup, 1e-3)
     k2 = render_kdtrace(args, scene_json, args.out / "kdt_2.pfm", 2, spp=args.spp, extra=extra)[0]
-    c1, c_wall = render_cycles(scene, args.out / "cycles_1.exr", spp=args.spp, seed=1)
     c2, _ = render_cycles(scene, args.out / "cycles_2.exr", spp=args.spp, seed=2)
     k_var, c_var = (k1 - k2) ** 2 / 2.0, (c1 - c2) ** 2 / 2.0
     rows["spp"] = (k_s, k_wall, k_rays, c_wall)
-    # Equal time: kdtrace gets Cycles' wall time at spp (its own process wall includes loading
-    # the model and the tree cache, so the render phase gets that time minus the overhead).
-    overhead = max(k_wall - k_s, 0.0)
-    budget = max(c_wall - overhead, 0.05)
+    # Equal time: kdtrace renders for Cycles' sampling time at spp.
     ke, ke_s, ke_spp, _, ke_wall = render_kdtrace(args, scene_json, args.out / "kdt_t.pfm", 3,
-                                                  seconds=budget, extra=extra)
+                                                  seconds=c_s, extra=extra)
 
     def r(img):
         raw, clean = rmse(img, ref, ref_var)
@@ -298,8 +335,9 @@ def main():
     ke_rmse = rmse(ke, ref, ref_var)[1]
     vps_k, vps_c = float(np.mean(k_var)) * args.spp, float(np.mean(c_var)) * args.spp
     pixels = args.width * args.height
+    sky = f"probe {args.env.name} x {args.sky}" if args.env else f"sky {args.sky}"
     print(f"\nscene: {args.model.name}, view {args.view if not args.eye else args.camera}, "
-          f"{args.width}x{args.height}, albedo {args.albedo}, sky {args.sky}, depth {args.depth},"
+          f"{args.width}x{args.height}, albedo {args.albedo}, {sky}, depth {args.depth},"
           f" {'smooth' if args.smooth else 'flat'}, no roulette, box filter, {args.threads} threads")
     print(f"reference: kdtrace {args.ref_spp} spp (2 seeds); RMSE shown raw (and with the"
           f" reference's own noise, {math.sqrt(float(np.mean(ref_var))):.5f}, taken out)")
@@ -307,17 +345,21 @@ def main():
     print()
     print(f"| | kdtrace | Cycles {__import__('bpy').app.version_string} |")
     print("|---|---|---|")
-    print(f"| {args.spp} spp: wall time (render only) | {k_wall:.2f} s ({k_s:.2f} s, "
+    print(f"| {args.spp} spp: render time (process wall) | {k_s:.2f} s ({k_wall:.2f} s; "
           f"{k_rays / 1e6:.1f}M rays, {k_rays / max(k_s, 1e-9) / 1e6:.2f} Mrays/s) | "
-          f"{c_wall:.2f} s |")
+          f"{c_s:.2f} s ({c_wall:.2f} s) |")
     print(f"| {args.spp} spp: RMSE | {r(k1)} | {r(c1)} |")
     print(f"| {args.spp} spp: variance per sample (2 seeds) | {vps_k:.3e} | {vps_c:.3e} |")
-    print(f"| equal time ({c_wall:.2f} s wall): spp reached, RMSE | {ke_spp:.1f} spp "
-          f"({ke_wall:.2f} s wall), {r(ke)} | {args.spp} spp, {r(c1)} |")
+    print(f"| equal time ({c_s:.2f} s): spp reached, RMSE | {ke_spp:.1f} spp, {r(ke)} | "
+          f"{args.spp} spp, {r(c1)} |")
     print()
+    print(f"times: medians of {args.repeat} alternated runs; kdtrace render "
+          + ", ".join(f"{t:.2f}" for _, t in k_times) + " s; Cycles wall "
+          + ", ".join(f"{w:.2f}" for w in c_times) + " s, at 1 spp "
+          + ", ".join(f"{w:.2f}" for w in c_setups) + " s")
     print(f"ratios kdtrace / Cycles: equal-spp RMSE {k_rmse / c_rmse:.3f}, variance per sample "
-          f"{vps_k / vps_c:.3f}, time per sample {k_wall / c_wall:.3f} (render phase "
-          f"{k_s / c_wall:.3f}), equal-time RMSE {ke_rmse / c_rmse:.3f}")
+          f"{vps_k / vps_c:.3f}, time per sample {k_s / c_s:.3f}, equal-time RMSE "
+          f"{ke_rmse / c_rmse:.3f} (RMSEs with the reference's noise taken out)")
     zk = mean_z(0.5 * (k1 + k2), ref, ref_var, k_var / 2)
     zc = mean_z(0.5 * (c1 + c2), ref, ref_var, c_var / 2)
     print(f"image means: reference {ref.mean():.5f}, kdtrace {0.5 * (k1 + k2).mean():.5f} "
