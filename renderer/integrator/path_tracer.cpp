@@ -148,6 +148,12 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
     const bool use_nee = params.light_sampling != LightSampling::bsdf;
     const bool use_mis = params.light_sampling == LightSampling::mis;
     const bool sample_emitters = use_nee && params.sample_emitters && !scene.emitters.empty();
+    // Under mis a constant environment is left to BSDF sampling alone: its integrand at a
+    // vertex is f cos times a constant times visibility, which BSDF sampling follows and a
+    // uniform sphere sample does not, so an environment sample would add a shadow ray and
+    // variance and nothing else (Cycles likewise drops its background light when the world
+    // shader is constant). Escaping rays then count fully. Emitter sampling is unaffected.
+    const bool env_nee = use_nee && !(use_mis && env.is_constant());
 
     Vec3f radiance(0.0f), beta(1.0f);
     Ray ray = camera_ray;
@@ -162,7 +168,7 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
         if (depth == 0 && first_hit) {
             hitp = first_hit;
         } else if (!tree.intersect(ray, found, tcp)) {
-            if (specular_bounce || !use_nee) {
+            if (specular_bounce || !env_nee) {
                 radiance += beta * env.eval(ray.dir);
             } else if (use_mis) {
                 const float light_pdf = params.env_importance ? env.pdf(ray.dir) : kInv4Pi;
@@ -210,7 +216,7 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
         const Vec3f wo = sp.frame.to_local(wo_world);
 
         // Next-event estimation of the environment.
-        if (use_nee && !is_delta(mat)) {
+        if (env_nee && !is_delta(mat)) {
             EnvSample ls;
             if (params.env_importance) {
                 ls = env.sample(u_light);

@@ -18,7 +18,8 @@ namespace kdt {
 /// How direct light from the environment (and from emissive triangles) is estimated.
 /// bsdf: BSDF sampling only (paths count the environment when they escape);
 /// nee: next-event estimation only at non-delta vertices (escaping rays after them add nothing);
-/// mis: both, combined with the power heuristic (Veach 1997).
+/// mis: both, combined with the power heuristic (Veach 1997), except that a constant
+/// environment is left to BSDF sampling (no environment shadow rays; see trace_path).
 enum class LightSampling : uint8_t { bsdf, nee, mis };
 inline constexpr std::array<const char*, 3> kLightSamplingNames = {"bsdf", "nee", "mis"};
 

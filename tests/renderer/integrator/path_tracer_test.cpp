@@ -154,6 +154,9 @@ TEST(PathTracer, EmissiveEnclosureGivesTheGeometricSeries) {
         tp.max_depth = depth;
         tp.russian_roulette = false;
         tp.sample_emitters = false;  // BSDF rays alone: every sample is the series exactly
+        // nee: the constant sky is sampled (mis leaves it to BSDF rays), so that shadow rays
+        // toward the bright outside are cast and must all be blocked.
+        tp.light_sampling = LightSampling::nee;
         const Image img = render(scene, cam, tp, 16);
         const double expected = (1.0 - std::pow(rho, depth + 1)) / (1.0 - rho);
         auto [m, se] = mean_stderr(img, 2, all_pixels);
@@ -268,6 +271,39 @@ TEST(PathTracer, DiffusePlaneUnderConstantSky) {
             EXPECT_NEAR(m, rho * sky[c], 4.0 * se + 1e-5) << "side " << side << " channel " << c;
         }
     }
+}
+
+// Under the default mis a constant sky is sampled by the BSDF alone: a plane under it, which
+// every scattered ray leaves, returns rho * L in every sample (zero variance, no shadow ray);
+// with an environment sample under MIS each sample's value varied with the weights.
+TEST(PathTracer, ConstantSkyIsSampledByTheBsdfAlone) {
+    const Vec3f sky(0.2f, 0.4f, 0.8f);
+    const float rho = 0.6f;
+    const TraceScene scene =
+        make_scene({{make_quad({-50, 0, -50}, {0, 0, 100}, {100, 0, 0}), flat(diffuse(rho))}},
+                   std::make_shared<ConstantEnv>(sky));
+    const Camera cam = make_camera({0, 2, 0}, {0.3f, 0, 0.2f}, {0, 0, 1}, 60.0f, 8, 8);
+    TraceParams tp;
+    tp.max_depth = 4;
+    tp.russian_roulette = false;
+    PathCounters counters;
+    for (int y = 0; y < 8; ++y) {
+        for (int x = 0; x < 8; ++x) {
+            for (uint32_t s = 0; s < 8; ++s) {
+                const Vec3f v = render_sample(scene, cam, tp, x, y, s, counters);
+                for (int c = 0; c < 3; ++c) ASSERT_NEAR(v[c], rho * sky[c], 1e-6f);
+            }
+        }
+    }
+    EXPECT_EQ(counters.shadow_rays, 0u);
+    EXPECT_EQ(counters.bounce_rays, 8u * 8u * 8u);
+    // A sky that is not constant is still sampled under MIS.
+    const TraceScene grad =
+        make_scene({{make_quad({-50, 0, -50}, {0, 0, 100}, {100, 0, 0}), flat(diffuse(rho))}},
+                   std::make_shared<test::GradientEnv>());
+    PathCounters gc;
+    for (uint32_t s = 0; s < 8; ++s) render_sample(grad, cam, tp, 4, 4, s, gc);
+    EXPECT_GT(gc.shadow_rays, 0u);
 }
 
 // A flat-shaded mirror sphere reflects the environment exactly: the radiance of a camera
