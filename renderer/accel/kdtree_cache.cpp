@@ -637,20 +637,23 @@ std::shared_ptr<const KdTree> get_or_build_kdtree(const std::string& model_path,
     Timer timer;
     KdCacheReport rep;
 
-    // Candidate files, in the order they are tried for reading and writing.
-    std::string name = model_path.empty() ? "mesh-" + hex64(mesh->content_hash()) + "." +
-                                                kdtree_cache_file_name("", params).substr(1)
-                                          : kdtree_cache_file_name(model_path, params);
+    // One directory: the one asked for, else the user's cache directory, where files of
+    // models that share a file name are told apart by the mesh's content hash.
+    const std::string hash = hex64(mesh->content_hash());
+    const std::string params_part = kdtree_cache_file_name("", params).substr(1);
+    std::string name;
+    if (model_path.empty()) {
+        name = "mesh-" + hash + "." + params_part;
+    } else if (!cache_dir.empty()) {
+        name = kdtree_cache_file_name(model_path, params);
+    } else {
+        name = fs::path(model_path).filename().string() + "-" + hash + "." + params_part;
+    }
     std::vector<fs::path> dirs;
     if (!cache_dir.empty()) {
         dirs.push_back(cache_dir);
-    } else {
-        if (!model_path.empty()) {
-            fs::path model_dir = fs::path(model_path).parent_path();
-            if (model_dir.empty()) model_dir = ".";
-            dirs.push_back(model_dir);
-        }
-        if (std::string d = default_kdtree_cache_dir(); !d.empty()) dirs.push_back(d);
+    } else if (std::string d = default_kdtree_cache_dir(); !d.empty()) {
+        dirs.push_back(d);
     }
 
     std::string reasons;

@@ -86,10 +86,11 @@ std::string default_kdtree_cache_dir();
 
 /// Returns the tree for `mesh` (loaded from `model_path`) built with `params`, from a cache
 /// file when a valid one exists, else built and written for the next run.
-/// Locations: with `cache_dir` empty, "<model>.<builder>-<hash>.kdt" next to the model when
-/// that directory is writable, then the same name in default_kdtree_cache_dir(); with
-/// `cache_dir` set, that directory only. `model_path` may be empty for generated meshes:
-/// the name is then derived from the mesh hash and only the cache directory is used.
+/// Location: with `cache_dir` set, "<model>.<builder>-<params hash>.kdt" there (`--cache-dir .`
+/// puts trees next to the user's files only when asked); with it empty,
+/// "<model>-<mesh hash>.<builder>-<params hash>.kdt" in default_kdtree_cache_dir(), so models
+/// of one file name in different folders do not evict each other. `model_path` may be empty
+/// for generated meshes: the name is then "mesh-<mesh hash>...".
 /// A corrupt, truncated, stale or foreign file is reported through `log` (one line with the
 /// reason; stderr when `log` is empty), rebuilt and rewritten atomically. A cache that cannot
 /// be written is reported and the built tree still returned. Throws only what the build

@@ -488,7 +488,7 @@ TEST(CacheBounds, TreesOverMeshesWithStrayDegenerateTrianglesLoad) {
     }
 }
 
-TEST(CacheLocations, NextToModelThenCacheDirectory) {
+TEST(CacheLocations, UserCacheDirectoryUnlessAsked) {
     const fs::path dir = test::temp_dir("kdt_cache_loc");
     const fs::path cache = dir / "cache";
     // Other tests (and test_util's dragon_dir()) read KDT_CACHE_DIR: restore it afterwards.
@@ -501,18 +501,23 @@ TEST(CacheLocations, NextToModelThenCacheDirectory) {
     std::string log;
     auto say = [&](const std::string& l) { log += l + "\n"; };
 
-    // Writable model directory: the cache goes next to the model.
+    // By default trees go to the user's cache directory, never next to the user's files, named
+    // by the model's file name and the mesh's content hash.
     KdCacheReport rep;
     get_or_build_kdtree((dir / "m.ply").string(), mesh, params, "", say, &rep);
     EXPECT_TRUE(rep.written);
-    EXPECT_EQ(rep.path, (dir / kdtree_cache_file_name("m.ply", params)).string());
-
-    // Model directory missing (read-only media behave alike): the cache directory is used.
-    get_or_build_kdtree((dir / "ro" / "m.ply").string(), mesh, params, "", say, &rep);
-    EXPECT_TRUE(rep.written) << log;
-    EXPECT_EQ(rep.path, (cache / "trees" / kdtree_cache_file_name("m.ply", params)).string());
+    EXPECT_EQ(fs::path(rep.path).parent_path(), cache / "trees");
+    EXPECT_EQ(fs::path(rep.path).filename().string().rfind("m.ply-", 0), 0u) << rep.path;
+    EXPECT_FALSE(fs::exists(dir / kdtree_cache_file_name("m.ply", params)));
+    // The same mesh under the same file name elsewhere finds it; another mesh does not.
     get_or_build_kdtree((dir / "ro" / "m.ply").string(), mesh, params, "", say, &rep);
     EXPECT_TRUE(rep.loaded) << log;
+    get_or_build_kdtree((dir / "ro" / "m.ply").string(), sphere_mesh(1), params, "", say, &rep);
+    EXPECT_FALSE(rep.loaded) << log;
+    EXPECT_TRUE(rep.written) << log;
+    // Next to the model only when asked.
+    get_or_build_kdtree((dir / "m.ply").string(), mesh, params, dir.string(), say, &rep);
+    EXPECT_EQ(rep.path, (dir / kdtree_cache_file_name("m.ply", params)).string());
 
     // Generated meshes have no model path: named by the mesh hash, in the cache directory.
     get_or_build_kdtree("", mesh, params, "", say, &rep);
