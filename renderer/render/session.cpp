@@ -92,6 +92,7 @@ void RenderSession::reset_published() {
     p.error.assign(n, std::numeric_limits<float>::infinity());
     p.nodes.assign(n, 0.0f);
     p.triangles.assign(n, 0.0f);
+    p.heat = !heat_nodes_.empty();
     ++p.image.version;
     ++p.image.generation;
     p.image.complete_passes = 0;
@@ -134,10 +135,22 @@ void RenderSession::publish_tile(int x0, int y0, int x1, int y1) {
     ++p.image.version;
 }
 
-bool RenderSession::copy_image(FilmImage& out) const {
+bool RenderSession::copy_image(FilmImage& out, bool heat) const {
     std::lock_guard<std::mutex> lock(published_mutex_);
-    if (out.version == published_.image.version) return false;
-    out = published_.image;
+    const Published& p = published_;
+    if (out.version == p.image.version) return false;
+    out.width = p.image.width;
+    out.height = p.image.height;
+    out.rgb = p.image.rgb;
+    out.version = p.image.version;
+    out.generation = p.image.generation;
+    out.complete_passes = p.image.complete_passes;
+    out.heat_nodes.clear();
+    out.heat_triangles.clear();
+    if (heat && p.heat) {
+        out.heat_nodes = p.nodes;
+        out.heat_triangles = p.triangles;
+    }
     return true;
 }
 
@@ -156,15 +169,22 @@ std::optional<PixelInfo> RenderSession::inspect(int x, int y) const {
 }
 
 PassStats RenderSession::render_pass(int max_spp) {
+    // Cleared before the changes are taken: a cancel() that follows a change never goes
+    // missing, it can at worst stop the first pass that already has the change.
+    cancel_requested_.store(false);
     apply_pending();
     std::vector<int> tiles(static_cast<size_t>(tile_count()));
     for (size_t i = 0; i < tiles.size(); ++i) tiles[i] = int(i);
-    return render_pass(tiles, max_spp);
+    return run_tiles(tiles, max_spp);
 }
 
 PassStats RenderSession::render_pass(const std::vector<int>& tiles, int max_spp) {
-    apply_pending();
     cancel_requested_.store(false);
+    apply_pending();
+    return run_tiles(tiles, max_spp);
+}
+
+PassStats RenderSession::run_tiles(const std::vector<int>& tiles, int max_spp) {
     Timer timer;
     PassStats stats;
     // The first pass samples everything; later passes ask the film which pixels remain.

@@ -33,7 +33,10 @@ struct PassStats {
 /// tile in it is whole, from the end of some pass since the last reset.
 struct FilmImage {
     int width = 0, height = 0;
-    std::vector<float> rgb;   ///< linear mean radiance, 3 floats per pixel, top row first
+    std::vector<float> rgb;  ///< linear mean radiance, 3 floats per pixel, top row first
+    /// Per-sample kd-tree nodes visited and triangles tested (heat maps); filled only when
+    /// asked for and the heat map is on, else empty.
+    std::vector<float> heat_nodes, heat_triangles;
     uint64_t version = 0;     ///< grows with every published tile and every reset
     uint64_t generation = 0;  ///< grows with every reset (camera, parameters, snapshot)
     int complete_passes = 0;  ///< passes of this generation that finished uncancelled
@@ -81,9 +84,9 @@ public:
     /// The same restricted to the given tile indices (row-major, tile_count() of them).
     PassStats render_pass(const std::vector<int>& tiles, int max_spp = 0);
 
-    /// Copies the published image into `out` when its version differs from out.version;
-    /// returns whether it copied. Holds a lock for one copy of the image only.
-    bool copy_image(FilmImage& out) const;
+    /// Copies the published image (and with `heat`, the heat maps) into `out` when its version
+    /// differs from out.version; returns whether it copied. Holds a lock for one copy only.
+    bool copy_image(FilmImage& out, bool heat = false) const;
     /// The published pixel (x, y); nullopt outside the image.
     std::optional<PixelInfo> inspect(int x, int y) const;
 
@@ -114,9 +117,11 @@ private:
         FilmImage image;
         std::vector<uint32_t> samples;
         std::vector<float> error, nodes, triangles;
+        bool heat = false;  ///< nodes and triangles are counted
     };
 
     void apply_pending();
+    PassStats run_tiles(const std::vector<int>& tiles, int max_spp);
     void reset_published();
     void publish_tile(int x0, int y0, int x1, int y1);
 

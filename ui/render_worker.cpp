@@ -1,0 +1,175 @@
+#include "ui/render_worker.h"
+
+#include <sys/resource.h>
+
+#include <algorithm>
+
+#include "renderer/core/timer.h"
+#include "renderer/render/settings.h"
+
+namespace kdt::ui {
+
+RenderWorker::RenderWorker(std::shared_ptr<const RenderSnapshot> snapshot, const TraceParams& trace,
+                           const FilmParams& film, const StopConditions& stop, int preview_divisor)
+    : width_(snapshot->camera.width),
+      height_(snapshot->camera.height),
+      preview_divisor_(std::max(preview_divisor, 1)),
+      snapshot_(snapshot),
+      camera_(snapshot->camera_desc),
+      trace_(trace),
+      film_(film),
+      stop_(stop) {
+    validate(stop);
+    session_ = std::make_unique<RenderSession>(snapshot, trace, film);
+    thread_ = std::thread([this] { run(); });
+}
+
+RenderWorker::~RenderWorker() {
+    {
+        std::lock_guard<std::mutex> lock(mutex_);
+        quit_ = true;
+    }
+    session_->cancel();
+    wake_.notify_all();
+    thread_.join();
+}
+
+void RenderWorker::restart_locked() {
+    restart_ = true;
+    ++stats_.restarts;
+    stats_.done = false;
+    session_->cancel();
+    wake_.notify_all();
+}
+
+void RenderWorker::set_camera(const CameraDesc& camera) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    camera_ = camera;
+    restart_locked();
+}
+
+void RenderWorker::set_snapshot(std::shared_ptr<const RenderSnapshot> snapshot) {
+    if (!snapshot) return;
+    std::lock_guard<std::mutex> lock(mutex_);
+    snapshot_ = std::move(snapshot);
+    session_->set_snapshot(snapshot_);
+    restart_locked();
+}
+
+void RenderWorker::set_params(const TraceParams& trace, const FilmParams& film,
+                              const StopConditions& stop) {
+    validate(stop);
+    session_->set_params(trace, film);  // validates before it queues anything
+    std::lock_guard<std::mutex> lock(mutex_);
+    trace_ = trace;
+    film_ = film;
+    stop_ = stop;
+    restart_locked();
+}
+
+void RenderWorker::set_heat_map(bool on) {
+    session_->set_heat_map(on);
+    std::lock_guard<std::mutex> lock(mutex_);
+    restart_locked();
+}
+
+void RenderWorker::set_paused(bool paused) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    paused_ = paused;
+    stats_.paused = paused;
+    if (paused) session_->cancel();
+    wake_.notify_all();
+}
+
+WorkerStats RenderWorker::stats() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return stats_;
+}
+
+bool RenderWorker::copy_preview(FilmImage& out) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (preview_.version == 0 || preview_.version == out.version) return false;
+    out = preview_;
+    return true;
+}
+
+std::shared_ptr<const RenderSnapshot> RenderWorker::snapshot() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return snapshot_;
+}
+
+CameraDesc RenderWorker::camera() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return camera_;
+}
+
+Camera RenderWorker::full_camera_locked() const { return make_camera(camera_, width_, height_); }
+
+void RenderWorker::run() {
+    // The render threads (this one and the OpenMP pool it starts, which inherits it) yield to
+    // the UI thread: a frame must not wait for a core behind a tile.
+    setpriority(PRIO_PROCESS, 0, 5);  // Linux: 0 is the calling thread
+    bool preview = false;             // the pass in the session is the low-resolution preview
+    PathCounters totals;
+    for (;;) {
+        StopConditions stop;
+        bool adaptive = false;
+        {
+            std::unique_lock<std::mutex> lock(mutex_);
+            wake_.wait(lock, [&] { return quit_ || (!paused_ && (restart_ || !stats_.done)); });
+            if (quit_) return;
+            if (restart_) {
+                restart_ = false;
+                const int pw = width_ / preview_divisor_, ph = height_ / preview_divisor_;
+                preview = preview_divisor_ > 1 && pw >= 8 && ph >= 8;
+                session_->set_camera(preview ? make_camera(camera_, pw, ph) : full_camera_locked());
+                stats_.full_passes = 0;
+                stats_.spp = stats_.seconds = stats_.mean_error = 0.0;
+                stats_.error_curve.clear();
+                totals = PathCounters{};
+            }
+            stop = stop_;
+            adaptive = film_.adaptive;
+        }
+        // Without adaptivity a sample count is exact per pixel; the preview takes one.
+        int cap = stop.max_spp;
+        if (stop.spp > 0 && !adaptive) cap = std::min(cap, stop.spp);
+        if (preview) cap = std::min(cap, 1);
+        const PassStats ps = session_->render_pass(cap);
+        if (ps.cancelled) continue;  // a change (or pause) is waiting
+        if (preview) {
+            preview = false;
+            std::lock_guard<std::mutex> lock(mutex_);
+            if (restart_) continue;
+            const uint64_t serial = preview_.version + 1;
+            preview_.version = 0;
+            session_->copy_image(preview_, true);
+            preview_.version = serial;
+            session_->set_camera(full_camera_locked());
+            continue;
+        }
+        totals += ps.counters;
+        const Film& film = session_->film();
+        const double pixels = double(film.pixel_count());
+        const double error = film.mean_relative_error();
+        std::lock_guard<std::mutex> lock(mutex_);
+        if (restart_) continue;
+        WorkerStats& s = stats_;
+        ++s.full_passes;
+        s.seconds += ps.seconds;
+        s.spp = double(session_->totals().samples) / pixels;
+        s.mean_error = error;
+        const double rays = double(std::max<uint64_t>(totals.rays(), 1));
+        s.mrays_per_second = s.seconds > 0.0 ? double(totals.rays()) / s.seconds * 1e-6 : 0.0;
+        s.nodes_per_ray = double(totals.nodes_visited) / rays;
+        s.triangles_per_ray = double(totals.triangles_tested) / rays;
+        s.error_curve.emplace_back(s.seconds, error);
+        bool done = ps.active_pixels == 0;
+        if (stop.spp > 0 && adaptive && s.spp >= double(stop.spp)) done = true;
+        if (stop.seconds > 0.0 && s.seconds >= stop.seconds) done = true;
+        if (stop.error > 0.0f && !adaptive && error > 0.0 && error <= stop.error) done = true;
+        s.done = done;
+    }
+}
+
+}  // namespace kdt::ui
