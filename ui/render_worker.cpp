@@ -163,7 +163,7 @@ void RenderWorker::run() {
         s.mrays_per_second = s.seconds > 0.0 ? double(totals.rays()) / s.seconds * 1e-6 : 0.0;
         s.nodes_per_ray = double(totals.nodes_visited) / rays;
         s.triangles_per_ray = double(totals.triangles_tested) / rays;
-        s.error_curve.emplace_back(s.seconds, error);
+        if (error > 0.0) s.error_curve.emplace_back(s.seconds, error);  // 0: < 2 samples
         bool done = ps.active_pixels == 0;
         if (stop.spp > 0 && adaptive && s.spp >= double(stop.spp)) done = true;
         if (stop.seconds > 0.0 && s.seconds >= stop.seconds) done = true;
