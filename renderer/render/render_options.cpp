@@ -125,6 +125,11 @@ void group_from_json(const json& j, S& s, std::span<const Field<S>> fields,
         } else {
             throw Error(ErrorLocation{where, pointer}, "expected a number, bool or name");
         }
+        // A stop condition of 0 is off (stop_fields()), as options_to_json writes it.
+        if (group == "stop" && v.is_number() && v.get<double>() == 0.0) {
+            set_field_number(field->at(s), 0.0);
+            continue;
+        }
         if (std::string why = parse_field(*field, s, text); !why.empty())
             throw Error(ErrorLocation{where, pointer}, why);
     }

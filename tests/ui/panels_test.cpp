@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include "renderer/core/error.h"
+#include "renderer/io/image_io.h"
 #include "tests/test_util.h"
 #include "tests/ui/osmesa_context.h"
 #include "ui/viewer_app.h"
@@ -111,6 +112,59 @@ TEST(ViewerScript, BadCommandsAndOptionsNameTheProblem) {
     EXPECT_NE(error_of("heat hot").find("expected nodes, triangles or off"), std::string::npos);
     EXPECT_NE(error_of("view Z").find("Z"), std::string::npos);
     EXPECT_EQ(error_of("orbit 10 5; zoom 0.9; set trace.max_depth 4; set film.exposure 1"), "");
+}
+
+TEST(ViewerFiles, SessionRoundTripAndSavedImageMetadata) {
+    const auto dir = test::temp_dir("ui_session");
+    const std::string session = (dir / "s.json").string(), base = (dir / "shot").string();
+    ViewerOptions vo = small_options();
+    vo.script = "orbit 20 5; set trace.max_depth 5; set film.exposure 1.5; save_session " +
+                session + "; wait_passes 1; save " + base;
+    CameraDesc saved;
+    {
+        Viewer v(vo);
+        const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+        // wait_passes needs an image on screen: stand in for the frame loop's upload.
+        while (v.script_step() && std::chrono::steady_clock::now() < deadline) {
+            if (v.worker_->stats().full_passes >= 1) v.have_image_ = true;
+            std::this_thread::sleep_for(std::chrono::milliseconds(2));
+        }
+        saved = v.camera_;
+        EXPECT_NE(saved.eye, v.home_camera_.eye);
+    }
+    // The PNG and the EXR of the image with the options (the camera in scene.camera).
+    const ImageMetadata meta = read_exr_metadata(base + ".exr");
+    bool has_params = false;
+    for (const auto& [key, value] : meta) {
+        if (key != "kdtrace:params") continue;
+        has_params = true;
+        RenderOptions o;
+        options_from_json(value, o);
+        ASSERT_TRUE(o.scene.camera);
+        EXPECT_EQ(o.scene.camera->eye, saved.eye);
+        EXPECT_EQ(o.trace.max_depth, 5);
+    }
+    EXPECT_TRUE(has_params);
+    EXPECT_EQ(load_image(base + ".png").width, 64);
+
+    // A new viewer from the session file starts where the first one was.
+    ViewerOptions again = small_options();
+    again.session = session;
+    Viewer v(again);
+    EXPECT_EQ(v.camera_.eye, saved.eye);
+    EXPECT_EQ(v.opts_.trace.max_depth, 5);
+    EXPECT_EQ(v.tone_.exposure, 1.5f);
+
+    // A session of another image size is refused with the file's name.
+    ViewerOptions other = small_options();
+    other.options.scene.width = 32;
+    other.session = session;
+    try {
+        Viewer bad(other);
+        ADD_FAILURE() << "a session of another size was accepted";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("s.json"), std::string::npos) << e.what();
+    }
 }
 
 }  // namespace
