@@ -11,6 +11,7 @@
 #include <cstring>
 #include <fstream>
 #include <sstream>
+#include <thread>
 
 #include "renderer/core/error.h"
 #include "renderer/io/image_io.h"
@@ -298,6 +299,19 @@ std::string Viewer::summary() const {
     return buf;
 }
 
+std::string Viewer::frame_stats(const std::string& label) {
+    const std::vector<double> f(lat_.frame_ms.begin() + ptrdiff_t(stats_from_),
+                                lat_.frame_ms.end());
+    stats_from_ = lat_.frame_ms.size();
+    const WorkerStats s = worker_->stats();
+    char buf[256];
+    std::snprintf(buf, sizeof buf,
+                  "view stats %s: %zu frames, median %.2f ms, p99 %.2f ms; %.1f spp, %.3f Mrays/s",
+                  label.c_str(), f.size(), percentile(f, 0.5), percentile(f, 0.99), s.spp,
+                  s.mrays_per_second);
+    return buf;
+}
+
 namespace {
 
 void glfw_error(int code, const char* text) {
@@ -399,6 +413,9 @@ void run_viewer(const ViewerOptions& options) {
         glfwSwapBuffers(window);
         v.lat_.frame_ms.push_back(ms_since(start));
         if (last_frame) break;
+        // At most 60 frames a second where the swap does not wait for the display (Xvfb,
+        // vsync off): the render threads get the time a spinning UI would take.
+        std::this_thread::sleep_until(start + std::chrono::microseconds(16667));
     }
     glfwDestroyWindow(window);
     std::printf("%s\n", v.summary().c_str());

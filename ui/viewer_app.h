@@ -67,6 +67,8 @@ public:
     void load_session(const std::string& path);
 
     std::string summary() const;
+    /// "view stats LABEL: N frames, median M ms, p99 P ms" over the frames since the last call.
+    std::string frame_stats(const std::string& label);
 
     ViewerOptions vo_;
     RenderOptions opts_;   ///< resolved; the panels edit trace, film and tree_edit_
@@ -105,6 +107,7 @@ public:
     std::string waiting_;  ///< the wait command in force ("" = none)
     int wait_count_ = 0;
     std::vector<std::string> screenshot_requests_;
+    size_t stats_from_ = 0;  ///< first frame of the next frame_stats()
 };
 
 }  // namespace kdt::ui

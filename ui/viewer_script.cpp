@@ -4,6 +4,8 @@
 //   set GROUP.NAME VALUE | rebuild | heat nodes|triangles|off | exposure STOPS
 //   pause | resume | panels on|off | screenshot FILE | save BASE | save_session FILE
 //   load_session FILE | wait FRAMES | wait_passes N | wait_done | wait_rebuild
+//   stats LABEL (prints the frame times since the previous stats command)
+#include <cstdio>
 #include <sstream>
 
 #include "renderer/core/error.h"
@@ -120,12 +122,16 @@ bool Viewer::script_step() {
                 panels_ = word("on or off") == "on";
             } else if (op == "screenshot") {
                 screenshot_requests_.push_back(word("file"));
+                return true;  // taken at the end of this frame, before any later command
             } else if (op == "save") {
                 save_image(word("file"));
             } else if (op == "save_session") {
                 save_session(word("file"));
             } else if (op == "load_session") {
                 load_session(word("file"));
+            } else if (op == "stats") {
+                std::printf("%s\n", frame_stats(word("label")).c_str());
+                std::fflush(stdout);
             } else if (op == "wait" || op == "wait_passes") {
                 waiting_ = op;
                 wait_count_ = int(number("count"));
