@@ -38,6 +38,11 @@ void RenderWorker::restart_locked() {
     restart_ = true;
     ++stats_.restarts;
     stats_.done = false;
+    // Reset here, not when the thread takes the restart: a reader never sees the new restart
+    // count with the old change's passes.
+    stats_.full_passes = 0;
+    stats_.spp = stats_.seconds = stats_.mean_error = 0.0;
+    stats_.error_curve.clear();
     session_->cancel();
     wake_.notify_all();
 }
@@ -123,9 +128,6 @@ void RenderWorker::run() {
                 const int pw = width_ / preview_divisor_, ph = height_ / preview_divisor_;
                 preview = preview_divisor_ > 1 && pw >= 8 && ph >= 8;
                 session_->set_camera(preview ? make_camera(camera_, pw, ph) : full_camera_locked());
-                stats_.full_passes = 0;
-                stats_.spp = stats_.seconds = stats_.mean_error = 0.0;
-                stats_.error_curve.clear();
                 totals = PathCounters{};
             }
             stop = stop_;

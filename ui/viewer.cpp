@@ -386,6 +386,7 @@ void run_viewer(const ViewerOptions& options) {
         ImGui_ImplGlfw_NewFrame();
         ImGui::NewFrame();
         v.handle_input(window, dt);
+        v.poll_rebuild();  // before the script, whose wait_rebuild then sees the swap
         bool script_running = false;
         try {
             script_running = v.script_step();
@@ -394,7 +395,6 @@ void run_viewer(const ViewerOptions& options) {
             glfwSetWindowShouldClose(window, GLFW_TRUE);
             throw;
         }
-        v.poll_rebuild();
         v.update_image();
         if (v.panels_) v.draw_panels();
         ImGui::Render();
