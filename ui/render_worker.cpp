@@ -115,6 +115,7 @@ void RenderWorker::run() {
     // the UI thread: a frame must not wait for a core behind a tile.
     setpriority(PRIO_PROCESS, 0, 5);  // Linux: 0 is the calling thread
     bool preview = false;             // the pass in the session is the low-resolution preview
+    uint64_t restart = 0;             // the restart (WorkerStats::restarts) the passes belong to
     PathCounters totals;
     for (;;) {
         StopConditions stop;
@@ -125,6 +126,7 @@ void RenderWorker::run() {
             if (quit_) return;
             if (restart_) {
                 restart_ = false;
+                restart = stats_.restarts;
                 const int pw = width_ / preview_divisor_, ph = height_ / preview_divisor_;
                 preview = preview_divisor_ > 1 && pw >= 8 && ph >= 8;
                 session_->set_camera(preview ? make_camera(camera_, pw, ph) : full_camera_locked());
@@ -147,6 +149,7 @@ void RenderWorker::run() {
             preview_.version = 0;
             session_->copy_image(preview_, true);
             preview_.version = serial;
+            preview_.generation = restart;
             session_->set_camera(full_camera_locked());
             continue;
         }

@@ -52,7 +52,8 @@ public:
     const RenderSession& session() const { return *session_; }
     WorkerStats stats() const;
     /// Copies the image of the last finished preview pass into `out` when it is another one
-    /// than out holds (compared by out.version); returns whether it copied. The session's own
+    /// than out holds (compared by out.version; out.generation is the WorkerStats::restarts
+    /// count of the change it shows); returns whether it copied. The session's own
     /// image of the next, full-resolution pass replaces it only once that pass is complete.
     bool copy_preview(FilmImage& out) const;
     /// The latest snapshot given (the base of a tree rebuild) and the current camera.

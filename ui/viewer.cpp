@@ -62,6 +62,7 @@ void Viewer::set_camera(const CameraDesc& camera) {
     camera_ = camera;
     worker_->set_camera(camera);
     camera_changed_at_ = Clock::now();
+    camera_restart_ = worker_->stats().restarts;
     awaiting_preview_ = true;
 }
 
@@ -127,7 +128,7 @@ void Viewer::update_image() {
     // (the session's image of the pass in flight still shows the previous state).
     if (worker_->copy_preview(preview_)) {
         upload(preview_);
-        if (awaiting_preview_) {
+        if (awaiting_preview_ && preview_.generation >= camera_restart_) {
             lat_.preview_ms.push_back(ms_since(camera_changed_at_));
             awaiting_preview_ = false;
         }
@@ -135,7 +136,6 @@ void Viewer::update_image() {
     if (!worker_->session().copy_image(image_, heat)) return;
     if (image_.complete_passes == 0) return;
     upload(image_);
-    awaiting_preview_ = false;
     if (awaiting_rebuild_image_) {
         const WorkerStats s = worker_->stats();
         if (s.restarts == rebuild_restarts_ && s.full_passes >= 1) {

@@ -96,6 +96,7 @@ public:
     Latencies lat_;
     Clock::time_point camera_changed_at_{};
     bool awaiting_preview_ = false;
+    uint64_t camera_restart_ = 0;  ///< the worker's restart count after the camera change
     Clock::time_point rebuild_requested_at_{};
     uint64_t rebuild_restarts_ = 0;  ///< worker restarts when the new tree was swapped in
     bool awaiting_rebuild_image_ = false;
