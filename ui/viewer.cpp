@@ -55,6 +55,7 @@ Viewer::Viewer(const ViewerOptions& options) : vo_(options) {
         const size_t a = cmd.find_first_not_of(" \t\n"), b = cmd.find_last_not_of(" \t\n");
         if (a != std::string::npos) script_.push_back(cmd.substr(a, b - a + 1));
     }
+    check_script();  // a typo fails before any window opens
     if (!options.session.empty()) load_session(options.session);
 }
 

@@ -53,6 +53,8 @@ public:
     void upload(const FilmImage& image);
     void draw_image(int fb_width, int fb_height) const;
     void draw_panels();
+    /// Throws kdt::Error naming the first command of the script that does not exist.
+    void check_script() const;
     /// Runs script commands until one waits; false once the script is done.
     bool script_step();
     void handle_input(GLFWwindow* window, double dt);

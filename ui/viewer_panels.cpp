@@ -138,8 +138,10 @@ void inspector(Viewer& v) {
         ImGui::TextUnformatted("(mouse over the image)");
         return;
     }
-    const int x = int(sx / v.image_w_ * v.worker_->width());
-    const int y = int(sy / v.image_h_ * v.worker_->height());
+    // In the pixels of the image the session publishes now (the preview's while it shows).
+    const int w = v.image_.width > 0 ? v.image_.width : v.worker_->width();
+    const int h = v.image_.height > 0 ? v.image_.height : v.worker_->height();
+    const int x = int(sx / v.image_w_ * w), y = int(sy / v.image_h_ * h);
     const std::optional<PixelInfo> p = v.worker_->session().inspect(x, y);
     if (!p) {
         ImGui::Text("pixel %d %d: preview", x, y);

@@ -5,7 +5,9 @@
 //   pause | resume | panels on|off | screenshot FILE | save BASE | save_session FILE
 //   load_session FILE | wait FRAMES | wait_passes N | wait_done | wait_rebuild
 //   stats LABEL (prints the frame times since the previous stats command)
+#include <algorithm>
 #include <cstdio>
+#include <iterator>
 #include <sstream>
 
 #include "renderer/core/error.h"
@@ -54,6 +56,21 @@ void Viewer::set_option(const std::string& key, const std::string& value) {
         return;
     }
     throw Error("no option " + key + " (the groups are tree, trace, film and stop)");
+}
+
+void Viewer::check_script() const {
+    static const char* const kCommands[] = {
+        "orbit",  "pan",         "zoom",       "fly",          "frame",        "reset",
+        "view",   "set",         "rebuild",    "heat",         "exposure",     "pause",
+        "resume", "panels",      "screenshot", "save",         "save_session", "load_session",
+        "wait",   "wait_passes", "wait_done",  "wait_rebuild", "stats"};
+    for (const std::string& cmd : script_) {
+        std::istringstream in(cmd);
+        std::string op;
+        in >> op;
+        if (std::find(std::begin(kCommands), std::end(kCommands), op) == std::end(kCommands))
+            throw script_error(cmd, "unknown command");
+    }
 }
 
 bool Viewer::script_step() {

@@ -95,8 +95,8 @@ TEST(ViewerScript, BadCommandsAndOptionsNameTheProblem) {
     auto error_of = [](const std::string& script) -> std::string {
         ViewerOptions vo = small_options();
         vo.script = script;
-        Viewer v(vo);
         try {
+            Viewer v(vo);
             while (v.script_step()) {
             }
         } catch (const Error& e) {
@@ -107,6 +107,10 @@ TEST(ViewerScript, BadCommandsAndOptionsNameTheProblem) {
     EXPECT_NE(error_of("orbit x").find("'orbit x': expected yaw degrees"), std::string::npos);
     EXPECT_NE(error_of("fly 1 2").find("expected forward"), std::string::npos);
     EXPECT_NE(error_of("jump").find("'jump': unknown command"), std::string::npos);
+    // An unknown command fails when the viewer starts, before the commands before it run.
+    ViewerOptions typo = small_options();
+    typo.script = "orbit 10 0; wiat 5";
+    EXPECT_THROW(Viewer bad(typo), Error);
     EXPECT_NE(error_of("set tree.q 2").find("tree.q must be in (0, 1]"), std::string::npos);
     EXPECT_NE(error_of("set trace.nothing 1").find("no option trace.nothing"), std::string::npos);
     EXPECT_NE(error_of("heat hot").find("expected nodes, triangles or off"), std::string::npos);
