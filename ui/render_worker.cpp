@@ -4,6 +4,7 @@
 
 #include <algorithm>
 
+#include "renderer/core/error.h"
 #include "renderer/core/timer.h"
 #include "renderer/render/settings.h"
 
@@ -57,7 +58,7 @@ void RenderWorker::set_snapshot(std::shared_ptr<const RenderSnapshot> snapshot) 
     if (!snapshot) return;
     std::lock_guard<std::mutex> lock(mutex_);
     snapshot_ = std::move(snapshot);
-    session_->set_snapshot(snapshot_);
+    snapshot_changed_ = true;
     restart_locked();
 }
 
@@ -70,6 +71,46 @@ void RenderWorker::set_params(const TraceParams& trace, const FilmParams& film,
     film_ = film;
     stop_ = stop;
     restart_locked();
+}
+
+void RenderWorker::set_environment(const EnvironmentDesc& desc) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    env_request_ = desc;
+    restart_locked();
+}
+
+void RenderWorker::apply_scene_changes() {
+    std::shared_ptr<const RenderSnapshot> snap;
+    std::optional<EnvironmentDesc> request;
+    std::shared_ptr<const EnvironmentLight> env;
+    EnvironmentDesc desc;
+    {
+        std::lock_guard<std::mutex> lock(mutex_);
+        if (!snapshot_changed_ && !env_request_) return;
+        snap = snapshot_;
+        request = env_request_;
+        env_request_.reset();
+        env = env_;
+        desc = env_desc_;
+    }
+    std::string error;
+    if (request) {
+        try {
+            env = make_environment_light(*request);  // may read a file: not under the lock
+            desc = *request;
+        } catch (const Error& e) {
+            error = e.what();
+        }
+    }
+    // A snapshot from a tree rebuild started before the environment changed gets it too.
+    if (env && snap->scene->env != env) snap = with_environment(*snap, env, desc);
+    std::lock_guard<std::mutex> lock(mutex_);
+    snapshot_ = snap;
+    snapshot_changed_ = false;
+    env_ = env;
+    env_desc_ = desc;
+    if (request) stats_.error = error;
+    session_->set_snapshot(snap);
 }
 
 void RenderWorker::set_heat_map(bool on) {
@@ -119,7 +160,7 @@ void RenderWorker::run() {
     PathCounters totals;
     for (;;) {
         StopConditions stop;
-        bool adaptive = false;
+        bool adaptive = false, restarted = false;
         {
             std::unique_lock<std::mutex> lock(mutex_);
             wake_.wait(lock, [&] { return quit_ || (!paused_ && (restart_ || !stats_.done)); });
@@ -129,11 +170,20 @@ void RenderWorker::run() {
                 restart = stats_.restarts;
                 const int pw = width_ / preview_divisor_, ph = height_ / preview_divisor_;
                 preview = preview_divisor_ > 1 && pw >= 8 && ph >= 8;
-                session_->set_camera(preview ? make_camera(camera_, pw, ph) : full_camera_locked());
+                restarted = true;
                 totals = PathCounters{};
             }
             stop = stop_;
             adaptive = film_.adaptive;
+        }
+        if (restarted) {
+            // Scene changes go in before the camera (set_snapshot brings its own camera,
+            // which set_camera replaces).
+            apply_scene_changes();
+            std::lock_guard<std::mutex> lock(mutex_);
+            session_->set_camera(preview ? make_camera(camera_, width_ / preview_divisor_,
+                                                       height_ / preview_divisor_)
+                                         : full_camera_locked());
         }
         // Without adaptivity a sample count is exact per pixel; the preview takes one.
         int cap = stop.max_spp;

@@ -8,6 +8,8 @@
 #include <condition_variable>
 #include <memory>
 #include <mutex>
+#include <optional>
+#include <string>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -28,6 +30,7 @@ struct WorkerStats {
     double nodes_per_ray = 0.0, triangles_per_ray = 0.0;
     bool done = false;  ///< a stop condition holds; the thread idles
     bool paused = false;
+    std::string error;  ///< why the last environment change failed ("" = none)
     std::vector<std::pair<double, double>> error_curve;  ///< (seconds, mean error) per pass
 };
 
@@ -46,6 +49,9 @@ public:
     /// Throws kdt::Error (and changes nothing) for invalid parameters.
     void set_params(const TraceParams& trace, const FilmParams& film, const StopConditions& stop);
     void set_heat_map(bool on);
+    /// Replaces the environment light; it is built on the render thread (a failure goes to
+    /// WorkerStats::error and the old light stays) and kept across later snapshots.
+    void set_environment(const EnvironmentDesc& desc);
     void set_paused(bool paused);
 
     /// The session, for copy_image() and inspect() (thread-safe calls only).
@@ -65,6 +71,9 @@ public:
 private:
     void run();
     void restart_locked();
+    /// On the render thread at a restart: builds a requested environment and puts the
+    /// snapshot, with the environment in force, into the session.
+    void apply_scene_changes();
     Camera full_camera_locked() const;
 
     const int width_, height_, preview_divisor_;
@@ -79,6 +88,10 @@ private:
     FilmParams film_;
     StopConditions stop_;
     bool restart_ = true, paused_ = false, quit_ = false;
+    bool snapshot_changed_ = false;  ///< snapshot_ is not yet in the session
+    std::optional<EnvironmentDesc> env_request_;
+    std::shared_ptr<const EnvironmentLight> env_;  ///< set by set_environment, else null
+    EnvironmentDesc env_desc_;
     WorkerStats stats_;
     FilmImage preview_;  ///< version: a count of previews
 };

@@ -45,6 +45,8 @@ Viewer::Viewer(const ViewerOptions& options) : vo_(options) {
     });
     home_camera_ = camera_ = prep_.snapshot->camera_desc;
     tree_edit_ = opts_.tree;
+    env_rotation0_ = opts_.scene.env_rotation_degrees;
+    env_intensity_ = prep_.scene.environment.intensity;
     tree_ = prep_.snapshot->scene->tree;
     worker_ = std::make_unique<RenderWorker>(prep_.snapshot, opts_.trace, opts_.film, stop_,
                                              options.preview_divisor);
@@ -80,6 +82,13 @@ void Viewer::apply_params() {
     } catch (const Error& e) {
         message_ = e.what();
     }
+}
+
+void Viewer::apply_environment() {
+    EnvironmentDesc d = prep_.scene.environment;  // with the command line's overrides
+    d.rotation_degrees += opts_.scene.env_rotation_degrees - env_rotation0_;
+    d.intensity = env_intensity_;
+    worker_->set_environment(d);
 }
 
 void Viewer::set_view_mode(ViewMode mode) {
@@ -252,6 +261,7 @@ void Viewer::save_session(const std::string& path) const {
     RenderOptions o = opts_;
     o.tree = tree_edit_;
     o.scene.camera = camera_;
+    o.scene.env_intensity = env_intensity_;
     o.stop = stop_;
     std::ofstream f(path);
     f << options_to_json(o) << "\n";
@@ -274,6 +284,12 @@ void Viewer::load_session(const std::string& path) {
     }
     opts_.trace = o.trace;
     opts_.film = o.film;
+    if (o.scene.env_rotation_degrees != opts_.scene.env_rotation_degrees ||
+        (o.scene.env_intensity && *o.scene.env_intensity != env_intensity_)) {
+        opts_.scene.env_rotation_degrees = o.scene.env_rotation_degrees;
+        if (o.scene.env_intensity) env_intensity_ = *o.scene.env_intensity;
+        apply_environment();
+    }
     stop_ = o.stop;
     tone_.exposure = o.film.exposure;
     apply_params();

@@ -42,6 +42,8 @@ public:
     /// Applies opts_.trace / film / stop_ to the render thread; an error goes to message_.
     void apply_params();
     void set_view_mode(ViewMode mode);
+    /// Applies opts_.scene.env_rotation_degrees and env_intensity_ to the environment.
+    void apply_environment();
     /// Sets "group.name" to `value` through the range tables (tree fields rebuild when
     /// auto-rebuild is on). Throws kdt::Error naming the field.
     void set_option(const std::string& name, const std::string& value);
@@ -80,6 +82,8 @@ public:
     std::unique_ptr<RenderWorker> worker_;
     std::unique_ptr<TreeRebuilder> rebuilder_;
     KdTreeParams tree_edit_;
+    float env_rotation0_ = 0.0f;          ///< opts_.scene.env_rotation_degrees as loaded
+    float env_intensity_ = 1.0f;          ///< the environment's intensity now
     std::shared_ptr<const KdTree> tree_;  ///< the tree rendering now (for its stats)
 
     FilmDisplay display_;

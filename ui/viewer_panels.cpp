@@ -3,6 +3,7 @@
 #include <imgui.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 #include "renderer/core/error.h"
@@ -62,6 +63,24 @@ void render_panel(Viewer& v) {
         v.paused_ = !v.paused_;
         v.worker_->set_paused(v.paused_);
     }
+}
+
+void environment_panel(Viewer& v) {
+    std::string error;
+    bool changed = false;
+    if (const Field<SceneOptions>* rot = find_field(scene_fields(), "env_rotation_degrees"))
+        changed |= field_widget("scene", v.opts_.scene, *rot, &error);
+    float intensity = v.env_intensity_;
+    // The intensity override has no table entry; its range is the scene file's, [0, 3e38].
+    if (ImGui::DragFloat("env_intensity##scene", &intensity, 0.01f, 0.0f, 3e38f, "%.4g") &&
+        std::isfinite(intensity) && intensity >= 0.0f) {
+        v.env_intensity_ = intensity;
+        changed = true;
+    }
+    if (!error.empty()) v.message_ = error;
+    if (changed) v.apply_environment();
+    const std::string failed = v.worker_->stats().error;
+    if (!failed.empty()) ImGui::TextColored(ImVec4(1, 0.4f, 0.3f, 1), "%s", failed.c_str());
 }
 
 void view_panel(Viewer& v) {
@@ -188,6 +207,7 @@ void Viewer::draw_panels() {
     ImGui::End();
     begin_panel("Render", x, y, 330.0f);
     render_panel(*this);
+    environment_panel(*this);
     files_panel(*this);
     if (!message_.empty()) ImGui::TextColored(ImVec4(1, 0.4f, 0.3f, 1), "%s", message_.c_str());
     ImGui::End();

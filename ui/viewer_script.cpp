@@ -43,6 +43,20 @@ void Viewer::set_option(const std::string& key, const std::string& value) {
         if (auto_rebuild_) request_rebuild();
         return;
     }
+    if (group == "scene" && name == "env_rotation_degrees") {
+        set_in(scene_fields(), opts_.scene, group, name, value);
+        apply_environment();
+        return;
+    }
+    if (group == "scene" && name == "env_intensity") {
+        // An optional override without a table entry: its range is the scene file's.
+        double v = 0.0;
+        if (!detail::parse_number(value, v) || !(v >= 0.0 && v <= 3e38))
+            throw Error("scene.env_intensity must be in [0, 3e38] (got '" + value + "')");
+        env_intensity_ = float(v);
+        apply_environment();
+        return;
+    }
     if (group == "film" && name == "exposure") {
         set_in(film_fields(), opts_.film, group, name, value);
         tone_.exposure = opts_.film.exposure;
@@ -55,7 +69,9 @@ void Viewer::set_option(const std::string& key, const std::string& value) {
         if (!message_.empty()) throw Error(message_);
         return;
     }
-    throw Error("no option " + key + " (the groups are tree, trace, film and stop)");
+    throw Error("no option " + key +
+                " (the groups are tree, trace, film and stop; scene has env_rotation_degrees and "
+                "env_intensity)");
 }
 
 void Viewer::check_script() const {

@@ -128,4 +128,16 @@ std::shared_ptr<const RenderSnapshot> with_tree(const RenderSnapshot& snapshot,
     return snap;
 }
 
+std::shared_ptr<const RenderSnapshot> with_environment(const RenderSnapshot& snapshot,
+                                                       std::shared_ptr<const EnvironmentLight> env,
+                                                       const EnvironmentDesc& desc) {
+    if (!env) throw Error("snapshot: no environment light");
+    auto scene = std::make_shared<TraceScene>(*snapshot.scene);
+    scene->env = std::move(env);
+    auto snap = std::make_shared<RenderSnapshot>(snapshot);
+    snap->scene = std::move(scene);
+    snap->environment = desc;
+    return snap;
+}
+
 }  // namespace kdt

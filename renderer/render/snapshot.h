@@ -65,4 +65,10 @@ std::shared_ptr<const RenderSnapshot> with_camera(const RenderSnapshot& snapshot
 std::shared_ptr<const RenderSnapshot> with_tree(const RenderSnapshot& snapshot,
                                                 std::shared_ptr<const KdTree> tree);
 
+/// The same snapshot under another environment light (`desc` describes it, for metadata):
+/// copies the per-triangle shading arrays (not the mesh or the tree).
+std::shared_ptr<const RenderSnapshot> with_environment(const RenderSnapshot& snapshot,
+                                                       std::shared_ptr<const EnvironmentLight> env,
+                                                       const EnvironmentDesc& desc);
+
 }  // namespace kdt

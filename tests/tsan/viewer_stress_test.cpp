@@ -54,6 +54,12 @@ TEST(ViewerThreads, HundredChangesWhileRenderingAndRebuilding) {
         f.adaptive = i % 4 == 0;
         worker.set_params(t, f, stop);
         if (i % 9 == 0) worker.set_heat_map(i % 18 == 0);
+        if (i % 11 == 0) {
+            EnvironmentDesc env;
+            env.color = Vec3f(0.5f, 0.6f, 0.7f);
+            env.intensity = 1.0f + 0.01f * float(i);
+            worker.set_environment(env);
+        }
         if (i % 13 == 0) worker.set_paused(true);
         if (i % 13 == 1) worker.set_paused(false);
         if (i % 10 == 0) {
@@ -92,6 +98,9 @@ TEST(ViewerThreads, HundredChangesWhileRenderingAndRebuilding) {
         120.0));
     EXPECT_EQ(image.width, 48);
     EXPECT_EQ(image.height, 32);
+    // The last environment (i = 99) is in force, also over the trees rebuilt before it.
+    EXPECT_EQ(worker.snapshot()->environment.intensity, 1.0f + 0.01f * 99.0f);
+    EXPECT_EQ(worker.stats().error, "");
     const CameraDesc now = worker.camera();
     EXPECT_EQ(now.eye, camera.eye);
     EXPECT_GT(worker.stats().mrays_per_second, 0.0);

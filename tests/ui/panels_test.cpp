@@ -115,7 +115,11 @@ TEST(ViewerScript, BadCommandsAndOptionsNameTheProblem) {
     EXPECT_NE(error_of("set trace.nothing 1").find("no option trace.nothing"), std::string::npos);
     EXPECT_NE(error_of("heat hot").find("expected nodes, triangles or off"), std::string::npos);
     EXPECT_NE(error_of("view Z").find("Z"), std::string::npos);
-    EXPECT_EQ(error_of("orbit 10 5; zoom 0.9; set trace.max_depth 4; set film.exposure 1"), "");
+    EXPECT_NE(error_of("set scene.env_intensity -1").find("scene.env_intensity"),
+              std::string::npos);
+    EXPECT_EQ(error_of("orbit 10 5; zoom 0.9; set trace.max_depth 4; set film.exposure 1; "
+                       "set scene.env_rotation_degrees 90; set scene.env_intensity 2"),
+              "");
 }
 
 TEST(ViewerFiles, SessionRoundTripAndSavedImageMetadata) {
