@@ -10,6 +10,7 @@ void add_info_command(CLI::App& parent);    // cmd_info.cpp
 void add_build_command(CLI::App& parent);   // cmd_build.cpp
 void add_render_command(CLI::App& parent);  // cmd_render.cpp
 void add_scene_command(CLI::App& parent);   // cmd_scene.cpp (export the built-in scene)
+void add_view_command(CLI::App& parent);    // cmd_view.cpp (the interactive viewer)
 
 // `kdtrace bench` and its subcommands, one file each.
 void add_bench_load_command(CLI::App& bench);      // bench_load.cpp: PLY load vs Assimp

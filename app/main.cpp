@@ -59,6 +59,7 @@ int main(int argc, char** argv) {
     kdt::app::add_build_command(app);
     kdt::app::add_render_command(app);
     kdt::app::add_scene_command(app);
+    kdt::app::add_view_command(app);
     CLI::App* bench = app.add_subcommand("bench", "Benchmarks: tables in Markdown and CSV");
     bench->require_subcommand(1);
     kdt::app::add_bench_load_command(*bench);

@@ -163,7 +163,7 @@ void run_throughput(const ConvergeArgs& a, const RenderSnapshot& snap,
                 for (int x = x0; x < std::min(x0 + kTile, width); ++x) {
                     for (int s = 0; s < tp.samples_per_pass; ++s) {
                         const size_t first = rec.closest.size();
-                        record_rays(snap.scene, snap.camera, tp, x, y, uint32_t(s), rec);
+                        record_rays(*snap.scene, snap.camera, tp, x, y, uint32_t(s), rec);
                         camera_rays.push_back(rec.closest[first]);
                         rec.closest.erase(rec.closest.begin() + ptrdiff_t(first));
                     }
@@ -172,7 +172,7 @@ void run_throughput(const ConvergeArgs& a, const RenderSnapshot& snap,
         }
     }
     constexpr int64_t kGroup = 16;
-    const KdTree& tree = *snap.scene.tree;
+    const KdTree& tree = *snap.scene->tree;
     std::vector<double> pt_rates, pt_nc_rates, raw_rates;
     for (int r = 0; r < a.repeats; ++r) {
         // The path tracer as shipped (traversal counters on), then without the counters.

@@ -2,12 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <omp.h>
 
 #include "renderer/core/error.h"
 #include "renderer/core/timer.h"
 #include "renderer/render/settings.h"
+#include "renderer/render/tile_renderer.h"
 
 namespace kdt {
 
@@ -17,19 +19,34 @@ RenderSession::RenderSession(std::shared_ptr<const RenderSnapshot> snapshot,
     if (!snapshot_) throw Error("render session: no snapshot");
     validate_render_params(trace, film);
     film_.resize(snapshot_->camera.width, snapshot_->camera.height);
+    reset_published();
 }
 
 void RenderSession::set_snapshot(std::shared_ptr<const RenderSnapshot> snapshot) {
     if (!snapshot) return;
     std::lock_guard<std::mutex> lock(pending_mutex_);
-    pending_ = std::move(snapshot);
+    pending_.snapshot = std::move(snapshot);
+    pending_.camera.reset();  // the new snapshot brings its own camera
+    reset_requested_.store(true);
+}
+
+void RenderSession::set_camera(const Camera& camera) {
+    std::lock_guard<std::mutex> lock(pending_mutex_);
+    pending_.camera = camera;
     reset_requested_.store(true);
 }
 
 void RenderSession::set_params(const TraceParams& trace, const FilmParams& film) {
     validate_render_params(trace, film);  // before anything changes
-    trace_ = trace;
-    film_params_ = film;
+    std::lock_guard<std::mutex> lock(pending_mutex_);
+    pending_.trace = trace;
+    pending_.film = film;
+    reset_requested_.store(true);
+}
+
+void RenderSession::set_heat_map(bool on) {
+    std::lock_guard<std::mutex> lock(pending_mutex_);
+    pending_.heat_map = on;
     reset_requested_.store(true);
 }
 
@@ -42,8 +59,12 @@ int RenderSession::tile_count() const {
 void RenderSession::apply_pending() {
     {
         std::lock_guard<std::mutex> lock(pending_mutex_);
-        if (pending_) snapshot_ = std::move(pending_);
-        pending_.reset();
+        if (pending_.snapshot) snapshot_ = std::move(pending_.snapshot);
+        if (pending_.camera) snapshot_ = with_camera(*snapshot_, *pending_.camera);
+        if (pending_.trace) trace_ = *pending_.trace;
+        if (pending_.film) film_params_ = *pending_.film;
+        if (pending_.heat_map) heat_map_ = *pending_.heat_map;
+        pending_ = Pending{};
     }
     if (reset_requested_.exchange(false)) {
         if (film_.width() != snapshot_->camera.width ||
@@ -56,32 +77,133 @@ void RenderSession::apply_pending() {
         heat_tris_.assign(heat_map_ ? film_.pixel_count() : 0, 0);
         totals_ = PathCounters{};
         passes_ = 0;
+        reset_published();
     }
 }
 
+void RenderSession::reset_published() {
+    const size_t n = film_.pixel_count();
+    std::lock_guard<std::mutex> lock(published_mutex_);
+    Published& p = published_;
+    p.image.width = film_.width();
+    p.image.height = film_.height();
+    p.image.rgb.assign(n * 3, 0.0f);
+    p.samples.assign(n, 0);
+    p.error.assign(n, std::numeric_limits<float>::infinity());
+    p.nodes.assign(n, 0.0f);
+    p.triangles.assign(n, 0.0f);
+    p.heat = !heat_nodes_.empty();
+    ++p.image.version;
+    ++p.image.generation;
+    p.image.complete_passes = 0;
+}
+
+void RenderSession::publish_tile(int x0, int y0, int x1, int y1) {
+    // The values are computed outside the lock from pixels only this thread writes in this
+    // pass; the lock covers the copy of one tile.
+    constexpr int kN = kTileSize * kTileSize;
+    float rgb[kN * 3], error[kN], nodes[kN], tris[kN];
+    uint32_t samples[kN];
+    const int w = x1 - x0;
+    const bool heat = !heat_nodes_.empty();
+    for (int y = y0; y < y1; ++y) {
+        for (int x = x0; x < x1; ++x) {
+            const int i = (y - y0) * w + (x - x0);
+            const Vec3f m = film_.mean(x, y);
+            rgb[3 * i] = m.x;
+            rgb[3 * i + 1] = m.y;
+            rgb[3 * i + 2] = m.z;
+            samples[i] = film_.count(x, y);
+            error[i] = film_.relative_error(x, y);
+            const size_t pi = size_t(y) * size_t(film_.width()) + size_t(x);
+            const float inv = samples[i] > 0 ? 1.0f / float(samples[i]) : 0.0f;
+            nodes[i] = heat ? float(heat_nodes_[pi]) * inv : 0.0f;
+            tris[i] = heat ? float(heat_tris_[pi]) * inv : 0.0f;
+        }
+    }
+    std::lock_guard<std::mutex> lock(published_mutex_);
+    Published& p = published_;
+    for (int y = y0; y < y1; ++y) {
+        const size_t row = size_t(y) * size_t(film_.width()) + size_t(x0);
+        const int i = (y - y0) * w;
+        std::copy_n(rgb + 3 * i, 3 * w, p.image.rgb.begin() + ptrdiff_t(3 * row));
+        std::copy_n(samples + i, w, p.samples.begin() + ptrdiff_t(row));
+        std::copy_n(error + i, w, p.error.begin() + ptrdiff_t(row));
+        std::copy_n(nodes + i, w, p.nodes.begin() + ptrdiff_t(row));
+        std::copy_n(tris + i, w, p.triangles.begin() + ptrdiff_t(row));
+    }
+    ++p.image.version;
+}
+
+bool RenderSession::copy_image(FilmImage& out, bool heat) const {
+    std::lock_guard<std::mutex> lock(published_mutex_);
+    const Published& p = published_;
+    if (out.version == p.image.version) return false;
+    out.width = p.image.width;
+    out.height = p.image.height;
+    out.rgb = p.image.rgb;
+    out.version = p.image.version;
+    out.generation = p.image.generation;
+    out.complete_passes = p.image.complete_passes;
+    out.heat_nodes.clear();
+    out.heat_triangles.clear();
+    if (heat && p.heat) {
+        out.heat_nodes = p.nodes;
+        out.heat_triangles = p.triangles;
+    }
+    return true;
+}
+
+std::optional<PixelInfo> RenderSession::inspect(int x, int y) const {
+    std::lock_guard<std::mutex> lock(published_mutex_);
+    const Published& p = published_;
+    if (x < 0 || y < 0 || x >= p.image.width || y >= p.image.height) return std::nullopt;
+    const size_t i = size_t(y) * size_t(p.image.width) + size_t(x);
+    PixelInfo info;
+    info.rgb = Vec3f(p.image.rgb[3 * i], p.image.rgb[3 * i + 1], p.image.rgb[3 * i + 2]);
+    info.samples = p.samples[i];
+    info.relative_error = p.error[i];
+    info.nodes_per_sample = p.nodes[i];
+    info.triangles_per_sample = p.triangles[i];
+    return info;
+}
+
 PassStats RenderSession::render_pass(int max_spp) {
+    // Cleared before the changes are taken: a cancel() that follows a change never goes
+    // missing, it can at worst stop the first pass that already has the change.
+    cancel_requested_.store(false);
     apply_pending();
     std::vector<int> tiles(static_cast<size_t>(tile_count()));
     for (size_t i = 0; i < tiles.size(); ++i) tiles[i] = int(i);
-    return render_pass(tiles, max_spp);
+    return run_tiles(tiles, max_spp);
 }
 
 PassStats RenderSession::render_pass(const std::vector<int>& tiles, int max_spp) {
-    apply_pending();
     cancel_requested_.store(false);
+    apply_pending();
+    return run_tiles(tiles, max_spp);
+}
+
+PassStats RenderSession::run_tiles(const std::vector<int>& tiles, int max_spp) {
     Timer timer;
     PassStats stats;
     // The first pass samples everything; later passes ask the film which pixels remain.
     stats.active_pixels = passes_ == 0 ? film_.pixel_count() : film_.update_active(film_params_);
     if (passes_ == 0) film_.update_active(FilmParams{});
 
-    const RenderSnapshot& snap = *snapshot_;
     const int width = film_.width(), height = film_.height();
     const int tiles_x = (width + kTileSize - 1) / kTileSize;
-    const int spp = std::max(trace_.samples_per_pass, 1);
-    const uint32_t cap = max_spp > 0 ? uint32_t(max_spp) : 0xffffffffu;
     const int threads = trace_.threads > 0 ? trace_.threads : omp_get_max_threads();
-    const bool heat = heat_map_ && !heat_nodes_.empty();
+    TileTarget target;
+    target.scene = snapshot_->scene.get();
+    target.camera = &snapshot_->camera;
+    target.trace = &trace_;
+    target.film = &film_;
+    if (heat_map_ && !heat_nodes_.empty()) {
+        target.heat_nodes = heat_nodes_.data();
+        target.heat_triangles = heat_tris_.data();
+    }
+    if (max_spp > 0) target.max_spp = uint32_t(max_spp);
 
     // One cache line per thread for its counters.
     struct alignas(64) ThreadCounters {
@@ -94,101 +216,25 @@ PassStats RenderSession::render_pass(const std::vector<int>& tiles, int max_spp)
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads) reduction(+ : pixels_done)
     for (int64_t k = 0; k < ntiles; ++k) {
         if (cancel_requested_.load(std::memory_order_relaxed)) continue;
-        PathCounters& counters = per_thread[size_t(omp_get_thread_num())].c;
         const int tile = tiles[size_t(k)];
-        const int x0 = (tile % tiles_x) * kTileSize, y0 = (tile / tiles_x) * kTileSize;
-        const int x1 = std::min(x0 + kTileSize, width), y1 = std::min(y0 + kTileSize, height);
-        // Camera rays are made for up to kBatch samples of a tile row (in pixel and sample
-        // order) before they are traced, in separate loops for the sampler's first draw and
-        // for the rays: the draws (and the rays) of different samples are short independent
-        // chains the CPU overlaps, instead of one long latency-bound chain in front of every
-        // traversal. Each sample stays a pure function of its key, and the film sees the
-        // samples in the same order as one at a time.
-        constexpr int kBatch = 16;
-        struct CameraSample {
-            PixelSampler sampler;
-            Vec2f u_film{0.0f};
-            int x = 0;
-        };
-        CameraSample batch[kBatch];
-        Ray rays[kBatch];
-        Hit hits[kBatch];
-        for (int y = y0; y < y1; ++y) {
-            int x = x0, s = 0;  // the next sample to make: sample s of this pass at pixel x
-            uint32_t first_index = 0;
-            uint64_t key = 0;
-            while (x < x1) {
-                int n = 0;
-                while (n < kBatch && x < x1) {
-                    if (s == 0) {
-                        if (!film_.active(x, y)) {
-                            ++x;
-                            continue;
-                        }
-                        first_index = film_.next_sample_index(x, y);
-                        key = PixelSampler::pixel_key(trace_.seed, uint32_t(x), uint32_t(y));
-                    }
-                    // Every sample made is traced and advances the pixel's index by one.
-                    const uint32_t index = first_index + uint32_t(s);
-                    if (s == spp || index >= cap) {
-                        pixels_done += s > 0;
-                        ++x;
-                        s = 0;
-                        continue;
-                    }
-                    CameraSample& c = batch[n++];
-                    c.x = x;
-                    c.sampler = PixelSampler(key, index);
-                    ++s;
-                }
-                for (int i = 0; i < n; ++i) batch[i].u_film = batch[i].sampler.next_2d();
-                for (int i = 0; i < n; ++i) {
-                    // Field by field: a whole-Ray copy from a temporary makes GCC reload
-                    // just-stored floats as 16-byte vectors (a store-forwarding stall).
-                    const Ray r = camera_ray(snap.camera, trace_, batch[i].x, y, batch[i].u_film);
-                    rays[i].origin = r.origin;
-                    rays[i].tmin = r.tmin;
-                    rays[i].dir = r.dir;
-                    rays[i].tmax = r.tmax;
-                }
-                // Without a heat map (which needs each ray's own counts), the camera rays go
-                // to the kd-tree's batch query: neighbouring samples' rays are coherent and
-                // traced as 8-ray packets, with exactly the hits of one query per ray.
-                if (!heat) {
-                    TraversalCounters tc;
-                    snap.scene.tree->intersect(rays, size_t(n), hits,
-                                               trace_.count_traversal ? &tc : nullptr);
-                    counters.nodes_visited += tc.nodes_visited;
-                    counters.triangles_tested += tc.triangles_tested;
-                }
-                for (int i = 0; i < n; ++i) {
-                    CameraSample& c = batch[i];
-                    const uint64_t nodes0 = counters.nodes_visited,
-                                   tris0 = counters.triangles_tested;
-                    const Vec3f L =
-                        heat ? trace_camera_ray(snap.scene, trace_, rays[i], c.sampler, counters)
-                             : trace_camera_hit(snap.scene, trace_, rays[i], hits[i], c.sampler,
-                                                counters);
-                    if (heat) {
-                        const size_t pi = size_t(y) * size_t(width) + size_t(c.x);
-                        heat_nodes_[pi] += counters.nodes_visited - nodes0;
-                        heat_tris_[pi] += counters.triangles_tested - tris0;
-                    }
-                    if (is_finite(L) && L.x >= 0.0f && L.y >= 0.0f && L.z >= 0.0f) {
-                        film_.add_sample(c.x, y, L);
-                    } else {
-                        film_.skip_sample(c.x, y);
-                        ++counters.nonfinite_dropped;
-                    }
-                }
-            }
-        }
+        TileRect r;
+        r.x0 = (tile % tiles_x) * kTileSize;
+        r.y0 = (tile / tiles_x) * kTileSize;
+        r.x1 = std::min(r.x0 + kTileSize, width);
+        r.y1 = std::min(r.y0 + kTileSize, height);
+        pixels_done += render_tile(target, r, per_thread[size_t(omp_get_thread_num())].c);
+        publish_tile(r.x0, r.y0, r.x1, r.y1);
     }
     for (const ThreadCounters& t : per_thread) stats.counters += t.c;
     stats.active_pixels = pixels_done;
     stats.cancelled = cancel_requested_.exchange(false);
     totals_ += stats.counters;
     ++passes_;
+    if (!stats.cancelled) {
+        std::lock_guard<std::mutex> lock(published_mutex_);
+        ++published_.image.complete_passes;
+        ++published_.image.version;
+    }
     stats.seconds = timer.seconds();
     return stats;
 }

@@ -1,6 +1,7 @@
 // A render session: the film, the current snapshot and the parameters, with progressive
 // passes, reset and cancel -- the one API the CLI, the viewer and the MPI farm call.
-// Passes run OpenMP over 16x16 tiles with dynamic scheduling; any subset of tiles can be
+// Passes run OpenMP over 16x16 tiles (render_tile) with dynamic scheduling; finished tiles are
+// published for other threads to read (copy_image, inspect); any subset of tiles can be
 // rendered (MPI split), and the image does not depend on thread count or split because
 // every sample is keyed on (seed, pixel, sample index).
 #pragma once
@@ -10,6 +11,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <vector>
 
 #include "renderer/film/film.h"
@@ -27,6 +29,31 @@ struct PassStats {
     bool cancelled = false;  ///< cancel() stopped the pass early (finished tiles are kept)
 };
 
+/// The image as published tile by tile while passes run (RenderSession::copy_image): every
+/// tile in it is whole, from the end of some pass since the last reset.
+struct FilmImage {
+    int width = 0, height = 0;
+    std::vector<float> rgb;  ///< linear mean radiance, 3 floats per pixel, top row first
+    /// Per-sample kd-tree nodes visited and triangles tested (heat maps); filled only when
+    /// asked for and the heat map is on, else empty.
+    std::vector<float> heat_nodes, heat_triangles;
+    uint64_t version = 0;     ///< grows with every published tile and every reset
+    uint64_t generation = 0;  ///< grows with every reset (camera, parameters, snapshot)
+    int complete_passes = 0;  ///< passes of this generation that finished uncancelled
+};
+
+/// One pixel as published (RenderSession::inspect).
+struct PixelInfo {
+    Vec3f rgb{0.0f};           ///< linear mean radiance
+    uint32_t samples = 0;      ///< finite samples accumulated
+    float relative_error = 0;  ///< Film::relative_error (infinite below 2 samples)
+    float nodes_per_sample = 0, triangles_per_sample = 0;  ///< heat counters (0 when off)
+};
+
+/// Thread safety: the setters, reset(), cancel(), copy_image() and inspect() may be called
+/// from any thread while another runs passes; a change is applied, with a reset, at the start
+/// of the next pass. Everything else (render_pass, film(), totals(), ...) belongs to the one
+/// thread that runs the passes.
 class RenderSession {
 public:
     static constexpr int kTileSize = 16;
@@ -34,13 +61,21 @@ public:
     RenderSession(std::shared_ptr<const RenderSnapshot> snapshot, const TraceParams& trace,
                   const FilmParams& film);
 
-    /// Swaps in a new snapshot; thread-safe. Takes effect, with a reset, at the next pass.
+    /// Swaps in a new snapshot (with its camera) at the next pass, with a reset.
     void set_snapshot(std::shared_ptr<const RenderSnapshot> snapshot);
-    /// Changes parameters; the film restarts at the next pass.
+    /// Views the current (or pending) snapshot's scene through `camera` from the next pass,
+    /// with a reset; the film takes the camera's size. Copies no scene data.
+    void set_camera(const Camera& camera);
+    /// Changes parameters at the next pass, with a reset. Throws kdt::Error (and changes
+    /// nothing) for invalid parameters.
     void set_params(const TraceParams& trace, const FilmParams& film);
-    /// Clears the film at the start of the next pass; thread-safe.
+    /// Turns per-pixel heat-map accumulation on or off at the next pass, with a reset (off by
+    /// default; needs TraceParams::count_traversal).
+    void set_heat_map(bool on);
+    /// Clears the film at the start of the next pass.
     void reset() { reset_requested_.store(true); }
-    /// Stops the running pass after its tiles in flight; thread-safe. Cleared at the next pass.
+    /// Stops the running pass after its tiles in flight (at most one per thread). Cleared at
+    /// the start of the next pass.
     void cancel() { cancel_requested_.store(true); }
 
     /// One pass: samples_per_pass samples for every active pixel (all pixels without
@@ -48,6 +83,12 @@ public:
     PassStats render_pass(int max_spp = 0);
     /// The same restricted to the given tile indices (row-major, tile_count() of them).
     PassStats render_pass(const std::vector<int>& tiles, int max_spp = 0);
+
+    /// Copies the published image (and with `heat`, the heat maps) into `out` when its version
+    /// differs from out.version; returns whether it copied. Holds a lock for one copy only.
+    bool copy_image(FilmImage& out, bool heat = false) const;
+    /// The published pixel (x, y); nullopt outside the image.
+    std::optional<PixelInfo> inspect(int x, int y) const;
 
     int tile_count() const;
     const Film& film() const { return film_; }
@@ -58,25 +99,33 @@ public:
     /// Totals since the last reset.
     const PathCounters& totals() const { return totals_; }
     int passes() const { return passes_; }
-    /// Turns per-pixel heat-map accumulation on or off (off by default; needs
-    /// TraceParams::count_traversal). Takes effect with the next reset.
-    void set_heat_map(bool on) {
-        heat_map_ = on;
-        reset();
-    }
     bool heat_map() const { return heat_map_; }
     /// Per-pixel sums of kd-tree nodes visited and triangles tested (heat maps; empty when
-    /// off); divide by
-    /// Film::count for per-sample values.
+    /// off); divide by Film::count for per-sample values.
     const std::vector<uint64_t>& heat_nodes() const { return heat_nodes_; }
     const std::vector<uint64_t>& heat_triangles() const { return heat_tris_; }
 
 private:
+    struct Pending {
+        std::shared_ptr<const RenderSnapshot> snapshot;
+        std::optional<Camera> camera;
+        std::optional<TraceParams> trace;
+        std::optional<FilmParams> film;
+        std::optional<bool> heat_map;
+    };
+    struct Published {
+        FilmImage image;
+        std::vector<uint32_t> samples;
+        std::vector<float> error, nodes, triangles;
+        bool heat = false;  ///< nodes and triangles are counted
+    };
+
     void apply_pending();
+    PassStats run_tiles(const std::vector<int>& tiles, int max_spp);
+    void reset_published();
+    void publish_tile(int x0, int y0, int x1, int y1);
 
     std::shared_ptr<const RenderSnapshot> snapshot_;
-    std::shared_ptr<const RenderSnapshot> pending_;
-    std::mutex pending_mutex_;
     TraceParams trace_;
     FilmParams film_params_;
     Film film_;
@@ -86,6 +135,12 @@ private:
     std::vector<uint64_t> heat_nodes_, heat_tris_;
     std::atomic<bool> reset_requested_{false};
     std::atomic<bool> cancel_requested_{false};
+
+    std::mutex pending_mutex_;
+    Pending pending_;  // guarded by pending_mutex_
+
+    mutable std::mutex published_mutex_;
+    Published published_;  // guarded by published_mutex_
 };
 
 struct RenderProgress {

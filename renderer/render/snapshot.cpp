@@ -93,14 +93,50 @@ std::shared_ptr<const RenderSnapshot> compile_snapshot(TraceScene scene, const C
     scene.emitters = build_emitter_table(scene);
     scene.runs = build_instance_runs(scene);
     auto snap = std::make_shared<RenderSnapshot>();
-    snap->scene = std::move(scene);
+    snap->scene = std::make_shared<const TraceScene>(std::move(scene));
     snap->camera = camera;
     snap->camera_desc.eye = camera.eye;
     snap->camera_desc.target = camera.eye + camera.forward;
     snap->camera_desc.up = camera.up;
     snap->camera_desc.vfov_degrees = camera.vfov_degrees;
-    snap->tree_params = snap->scene.tree->params();
+    snap->tree_params = snap->scene->tree->params();
     snap->build_seconds = timer.seconds();
+    return snap;
+}
+
+std::shared_ptr<const RenderSnapshot> with_camera(const RenderSnapshot& snapshot,
+                                                  const Camera& camera) {
+    auto snap = std::make_shared<RenderSnapshot>(snapshot);
+    snap->camera = camera;
+    snap->camera_desc.eye = camera.eye;
+    snap->camera_desc.target = camera.eye + camera.forward;
+    snap->camera_desc.up = camera.up;
+    snap->camera_desc.vfov_degrees = camera.vfov_degrees;
+    return snap;
+}
+
+std::shared_ptr<const RenderSnapshot> with_tree(const RenderSnapshot& snapshot,
+                                                std::shared_ptr<const KdTree> tree) {
+    if (!tree) throw Error("snapshot: no kd-tree");
+    if (&tree->mesh() != snapshot.scene->mesh.get())
+        throw Error("snapshot: the kd-tree was built over another mesh");
+    auto scene = std::make_shared<TraceScene>(*snapshot.scene);
+    scene->tree = std::move(tree);
+    auto snap = std::make_shared<RenderSnapshot>(snapshot);
+    snap->tree_params = scene->tree->params();
+    snap->scene = std::move(scene);
+    return snap;
+}
+
+std::shared_ptr<const RenderSnapshot> with_environment(const RenderSnapshot& snapshot,
+                                                       std::shared_ptr<const EnvironmentLight> env,
+                                                       const EnvironmentDesc& desc) {
+    if (!env) throw Error("snapshot: no environment light");
+    auto scene = std::make_shared<TraceScene>(*snapshot.scene);
+    scene->env = std::move(env);
+    auto snap = std::make_shared<RenderSnapshot>(snapshot);
+    snap->scene = std::move(scene);
+    snap->environment = desc;
     return snap;
 }
 

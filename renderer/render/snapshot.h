@@ -1,6 +1,7 @@
 // The immutable render snapshot: a Scene compiled into what rendering reads (world-space
 // merged triangles, per-triangle instance ids, shading normals, materials, kd-tree,
-// environment light, camera). An edit builds a new snapshot and swaps it in.
+// environment light, camera). An edit builds a new snapshot and swaps it in; the scene data is
+// shared, so a snapshot with another camera or another tree costs no copy of the geometry.
 // Depends on scene, accel, light, integrator, camera.
 #pragma once
 
@@ -22,7 +23,8 @@ struct SnapshotOptions {
 };
 
 struct RenderSnapshot {
-    TraceScene scene;
+    /// Never null in a compiled snapshot; shared by snapshots that differ in camera only.
+    std::shared_ptr<const TraceScene> scene;
     Camera camera;
     CameraDesc camera_desc;  ///< as given by the scene, for metadata
     EnvironmentDesc environment;
@@ -53,5 +55,20 @@ std::shared_ptr<const RenderSnapshot> compile_snapshot(const Scene& scene,
 /// if scene.tree is null.
 std::shared_ptr<const RenderSnapshot> compile_snapshot(TraceScene scene, const Camera& camera,
                                                        const SnapshotOptions& options = {});
+
+/// The same snapshot seen through `camera`: shares the scene (no geometry is copied).
+std::shared_ptr<const RenderSnapshot> with_camera(const RenderSnapshot& snapshot,
+                                                  const Camera& camera);
+
+/// The same snapshot with another kd-tree over the same mesh: copies the per-triangle shading
+/// arrays (not the mesh); throws kdt::Error when the tree was built over another mesh.
+std::shared_ptr<const RenderSnapshot> with_tree(const RenderSnapshot& snapshot,
+                                                std::shared_ptr<const KdTree> tree);
+
+/// The same snapshot under another environment light (`desc` describes it, for metadata):
+/// copies the per-triangle shading arrays (not the mesh or the tree).
+std::shared_ptr<const RenderSnapshot> with_environment(const RenderSnapshot& snapshot,
+                                                       std::shared_ptr<const EnvironmentLight> env,
+                                                       const EnvironmentDesc& desc);
 
 }  // namespace kdt

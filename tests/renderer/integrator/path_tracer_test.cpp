@@ -582,8 +582,8 @@ TEST(PathTracer, InstanceRunsAgreeWithTheTriangleInstances) {
                    std::make_shared<ConstantEnv>(Vec3f(1.0f)));
     const auto snap =
         compile_snapshot(scene, make_camera({2, 2, 3}, {0, 0, 0}, {0, 1, 0}, 40, 4, 4));
-    EXPECT_EQ(snap->scene.runs.first, (std::vector<uint32_t>{0, 80}));
-    EXPECT_EQ(snap->scene.runs.instance, (std::vector<uint32_t>{0, 1}));
+    EXPECT_EQ(snap->scene->runs.first, (std::vector<uint32_t>{0, 80}));
+    EXPECT_EQ(snap->scene->runs.instance, (std::vector<uint32_t>{0, 1}));
 }
 
 // record_rays() sees exactly the rays render_sample() traces (for the throughput bench).

@@ -2,6 +2,7 @@
 // snapshot swaps, adaptive sampling and stop conditions; compiling a Scene.
 #include "renderer/render/session.h"
 
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -93,7 +94,7 @@ TEST(RenderSession, BatchedPassesMatchSampleBySampleRendering) {
             Film f(1, 1);
             PathCounters c;
             for (uint32_t i = 0; i < 4; ++i) {
-                f.add_sample(0, 0, render_sample(snap->scene, snap->camera, tp, x, y, i, c));
+                f.add_sample(0, 0, render_sample(*snap->scene, snap->camera, tp, x, y, i, c));
             }
             ASSERT_EQ(s.film().count(x, y), 4u);
             ASSERT_EQ(s.film().mean(x, y), f.mean(0, 0)) << x << " " << y;
@@ -313,6 +314,124 @@ TEST(RenderSession, StopConditions) {
     EXPECT_GT(pe.mean_relative_error, 0.0);
 }
 
+TEST(RenderSession, CameraChangeEqualsAFreshSessionAndCopiesNoScene) {
+    auto snap = small_snapshot(40, 24);
+    TraceParams tp;
+    tp.samples_per_pass = 2;
+    RenderSession s(snap, tp, FilmParams{});
+    s.render_pass();
+    s.render_pass();
+    const Camera other = make_camera({-2, 1.5f, 3}, {0, 0.2f, 0}, {0, 1, 0}, 35.0f, 32, 20);
+    s.set_camera(other);
+    s.render_pass();
+    s.render_pass();
+    EXPECT_EQ(s.snapshot().scene.get(), snap->scene.get());  // the scene is shared, not copied
+    EXPECT_EQ(s.film().width(), 32);
+    RenderSession fresh(compile_snapshot(*snap->scene, other), tp, FilmParams{});
+    fresh.render_pass();
+    fresh.render_pass();
+    EXPECT_TRUE(same_bits(s.film().linear_rgb(), fresh.film().linear_rgb()));
+
+    // The published image is the film, whole tiles, after the passes.
+    FilmImage img;
+    ASSERT_TRUE(s.copy_image(img));
+    EXPECT_EQ(img.width, 32);
+    EXPECT_EQ(img.complete_passes, 2);
+    EXPECT_TRUE(same_bits(img.rgb, s.film().linear_rgb()));
+    EXPECT_FALSE(s.copy_image(img));  // nothing new
+    const std::optional<PixelInfo> px = s.inspect(5, 7);
+    ASSERT_TRUE(px);
+    EXPECT_EQ(px->samples, 4u);
+    EXPECT_EQ(px->rgb.x, s.film().mean(5, 7).x);
+    EXPECT_EQ(px->relative_error, s.film().relative_error(5, 7));
+    EXPECT_FALSE(s.inspect(32, 0));
+}
+
+TEST(RenderSession, CancelFromAnotherThreadStopsWithinOneTilePerThread) {
+    auto snap = small_snapshot(256, 128);  // 128 tiles
+    TraceParams tp;
+    tp.threads = 2;
+    tp.samples_per_pass = 64;
+    RenderSession s(snap, tp, FilmParams{});
+    const uint64_t start = [&] {
+        FilmImage img;
+        s.copy_image(img);
+        return img.version;
+    }();
+    // Every finished tile bumps the published version by one.
+    std::atomic<uint64_t> tiles_at_cancel{0};
+    std::thread canceller([&] {
+        FilmImage img;
+        img.version = start;
+        while (img.version < start + 4) {
+            s.copy_image(img);
+            std::this_thread::yield();
+        }
+        s.cancel();
+        img.version = 0;
+        s.copy_image(img);
+        tiles_at_cancel = img.version - start;
+    });
+    const PassStats ps = s.render_pass();
+    canceller.join();
+    EXPECT_TRUE(ps.cancelled);
+    size_t tiles_done = 0;
+    for (int ty = 0; ty < 128; ty += RenderSession::kTileSize) {
+        for (int tx = 0; tx < 256; tx += RenderSession::kTileSize) {
+            tiles_done += s.film().count(tx, ty) > 0;
+        }
+    }
+    EXPECT_GE(tiles_done, 4u);
+    EXPECT_LE(tiles_done, tiles_at_cancel.load() + 2);  // in flight when cancelled: one per thread
+    EXPECT_LT(tiles_done, size_t(s.tile_count()));
+    // The next pass runs whole again.
+    EXPECT_FALSE(s.render_pass().cancelled);
+}
+
+TEST(RenderSession, SettersFromAnotherThreadWhilePassesRun) {
+    auto snap = small_snapshot(48, 32);
+    auto other = small_snapshot(24, 16, 0.2f);
+    TraceParams tp;
+    tp.threads = 2;
+    tp.count_traversal = true;
+    RenderSession s(snap, tp, FilmParams{});
+    std::atomic<bool> done{false};
+    std::thread hammer([&] {
+        FilmImage img;
+        for (int i = 0; i < 100; ++i) {
+            const float a = float(i) * 0.1f;
+            s.set_camera(make_camera({3 * std::cos(a), 2, 3 * std::sin(a)}, {0, 0, 0}, {0, 1, 0},
+                                     40.0f, 16 + i % 3 * 16, 16));
+            TraceParams t = tp;
+            t.samples_per_pass = 1 + i % 3;
+            FilmParams f;
+            f.adaptive = i % 2 == 0;
+            s.set_params(t, f);
+            s.set_heat_map(i % 4 == 0);
+            if (i % 10 == 0) s.set_snapshot(i % 20 == 0 ? other : snap);
+            if (i % 3 == 0) s.cancel();
+            if (i % 7 == 0) s.reset();
+            s.copy_image(img);
+            (void)s.inspect(i % 16, i % 16);
+        }
+        s.set_camera(make_camera({2, 2, 3}, {0, 0, 0}, {0, 1, 0}, 40.0f, 48, 16));
+        done = true;
+    });
+    int passes = 0;
+    while (!done || passes < 3) {
+        s.render_pass();
+        ++passes;
+    }
+    hammer.join();
+    // Settled: the last camera (48x16) is in force and the film agrees with what is published.
+    s.render_pass();
+    EXPECT_EQ(s.film().width(), 48);
+    FilmImage img;
+    ASSERT_TRUE(s.copy_image(img));
+    EXPECT_EQ(img.width, 48);
+    EXPECT_TRUE(same_bits(img.rgb, s.film().linear_rgb()));
+}
+
 TEST(RenderSnapshot, CompilesAScene) {
     Scene scene;
     scene.name = "test";
@@ -330,7 +449,7 @@ TEST(RenderSnapshot, CompilesAScene) {
     opt.height = 10;
     opt.env = std::make_shared<ConstantEnv>(Vec3f(0.5f));
     auto snap = compile_snapshot(scene, opt);
-    const TraceScene& ts = snap->scene;
+    const TraceScene& ts = *snap->scene;
     EXPECT_EQ(ts.mesh->triangle_count(), 12u + 80u);
     EXPECT_EQ(ts.normals.size(), ts.mesh->vertex_count());
     // Triangles are in spatial order (spatial_order), each still with its instance: the

@@ -1,0 +1,42 @@
+// `kdtrace view`: the interactive viewer (ui/viewer.h) with every render option, plus hooks
+// for tests and measurements (--frames, --screenshot, --script).
+#include "app/commands.h"
+#include "app/options_cli.h"
+#include "renderer/core/error.h"
+
+#ifdef KDT_HAVE_VIEWER
+#include "ui/viewer.h"
+#endif
+
+namespace kdt::app {
+
+void add_view_command(CLI::App& parent) {
+#ifdef KDT_HAVE_VIEWER
+    static ui::ViewerOptions vo;
+    auto* sub = parent.add_subcommand(
+        "view", "Open a scene, a model or the built-in default scene in the interactive viewer");
+    add_render_options(*sub, vo.options);
+    sub->add_option("--frames", vo.frames,
+                    "Exit after N frames once the script has run (tests; 0 = until closed)")
+        ->check(CLI::NonNegativeNumber);
+    sub->add_option("--screenshot", vo.screenshot, "PNG of the window at exit (with --frames)");
+    sub->add_option("--script", vo.script,
+                    "Commands separated by ';', e.g. \"orbit 30 0; set tree.q 0.9; rebuild\"");
+    sub->add_option("--session", vo.session, "Session file to start from (saved by the viewer)");
+    sub->add_option("--preview-divisor", vo.preview_divisor,
+                    "Resolution divisor of the preview pass after a change (1 = none)")
+        ->check(CLI::Range(1, 64));
+    sub->callback([] {
+        try {
+            ui::run_viewer(vo);
+        } catch (const Error& e) {
+            throw Error(with_flags(e.what()));
+        }
+    });
+#else
+    parent.add_subcommand("view", "The interactive viewer (not built: KDT_WITH_VIEWER=OFF)")
+        ->callback([] { throw Error("view: kdtrace was built without the viewer"); });
+#endif
+}
+
+}  // namespace kdt::app

@@ -1,0 +1,101 @@
+#include "renderer/render/tile_renderer.h"
+
+#include <algorithm>
+
+namespace kdt {
+
+size_t render_tile(const TileTarget& t, const TileRect& tile, PathCounters& counters) {
+    const TraceScene& scene = *t.scene;
+    const Camera& camera = *t.camera;
+    const TraceParams& trace = *t.trace;
+    Film& film = *t.film;
+    const int width = film.width();
+    const int spp = std::max(trace.samples_per_pass, 1);
+    const bool heat = t.heat_nodes != nullptr;
+    size_t pixels_done = 0;
+    // Camera rays are made for up to kBatch samples of a tile row (in pixel and sample
+    // order) before they are traced, in separate loops for the sampler's first draw and
+    // for the rays: the draws (and the rays) of different samples are short independent
+    // chains the CPU overlaps, instead of one long latency-bound chain in front of every
+    // traversal. Each sample stays a pure function of its key, and the film sees the
+    // samples in the same order as one at a time.
+    constexpr int kBatch = 16;
+    struct CameraSample {
+        PixelSampler sampler;
+        Vec2f u_film{0.0f};
+        int x = 0;
+    };
+    CameraSample batch[kBatch];
+    Ray rays[kBatch];
+    Hit hits[kBatch];
+    for (int y = tile.y0; y < tile.y1; ++y) {
+        int x = tile.x0, s = 0;  // the next sample to make: sample s of this pass at pixel x
+        uint32_t first_index = 0;
+        uint64_t key = 0;
+        while (x < tile.x1) {
+            int n = 0;
+            while (n < kBatch && x < tile.x1) {
+                if (s == 0) {
+                    if (!film.active(x, y)) {
+                        ++x;
+                        continue;
+                    }
+                    first_index = film.next_sample_index(x, y);
+                    key = PixelSampler::pixel_key(trace.seed, uint32_t(x), uint32_t(y));
+                }
+                // Every sample made is traced and advances the pixel's index by one.
+                const uint32_t index = first_index + uint32_t(s);
+                if (s == spp || index >= t.max_spp) {
+                    pixels_done += s > 0;
+                    ++x;
+                    s = 0;
+                    continue;
+                }
+                CameraSample& c = batch[n++];
+                c.x = x;
+                c.sampler = PixelSampler(key, index);
+                ++s;
+            }
+            for (int i = 0; i < n; ++i) batch[i].u_film = batch[i].sampler.next_2d();
+            for (int i = 0; i < n; ++i) {
+                // Field by field: a whole-Ray copy from a temporary makes GCC reload
+                // just-stored floats as 16-byte vectors (a store-forwarding stall).
+                const Ray r = camera_ray(camera, trace, batch[i].x, y, batch[i].u_film);
+                rays[i].origin = r.origin;
+                rays[i].tmin = r.tmin;
+                rays[i].dir = r.dir;
+                rays[i].tmax = r.tmax;
+            }
+            // Without a heat map (which needs each ray's own counts), the camera rays go
+            // to the kd-tree's batch query: neighbouring samples' rays are coherent and
+            // traced as 8-ray packets, with exactly the hits of one query per ray.
+            if (!heat) {
+                TraversalCounters tc;
+                scene.tree->intersect(rays, size_t(n), hits, trace.count_traversal ? &tc : nullptr);
+                counters.nodes_visited += tc.nodes_visited;
+                counters.triangles_tested += tc.triangles_tested;
+            }
+            for (int i = 0; i < n; ++i) {
+                CameraSample& c = batch[i];
+                const uint64_t nodes0 = counters.nodes_visited, tris0 = counters.triangles_tested;
+                const Vec3f L =
+                    heat ? trace_camera_ray(scene, trace, rays[i], c.sampler, counters)
+                         : trace_camera_hit(scene, trace, rays[i], hits[i], c.sampler, counters);
+                if (heat) {
+                    const size_t pi = size_t(y) * size_t(width) + size_t(c.x);
+                    t.heat_nodes[pi] += counters.nodes_visited - nodes0;
+                    t.heat_triangles[pi] += counters.triangles_tested - tris0;
+                }
+                if (is_finite(L) && L.x >= 0.0f && L.y >= 0.0f && L.z >= 0.0f) {
+                    film.add_sample(c.x, y, L);
+                } else {
+                    film.skip_sample(c.x, y);
+                    ++counters.nonfinite_dropped;
+                }
+            }
+        }
+    }
+    return pixels_done;
+}
+
+}  // namespace kdt

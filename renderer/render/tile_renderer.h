@@ -1,0 +1,39 @@
+// The per-tile kernel of a render pass: every active pixel of one tile takes its next samples
+// of this pass, in pixel and sample order, each a pure function of (seed, pixel, sample
+// index). Used by RenderSession; the MPI farm renders tile lists through the session.
+// Depends on integrator, film, camera.
+#pragma once
+
+#include <cstdint>
+
+#include "renderer/camera/camera.h"
+#include "renderer/film/film.h"
+#include "renderer/integrator/path_tracer.h"
+#include "renderer/integrator/trace_scene.h"
+
+namespace kdt {
+
+/// A pixel rectangle [x0, x1) x [y0, y1) of the film.
+struct TileRect {
+    int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+};
+
+/// What a tile reads and where it writes. Only the tile's pixels of `film` and of the heat
+/// arrays are written, so tiles render concurrently without locks.
+struct TileTarget {
+    const TraceScene* scene = nullptr;
+    const Camera* camera = nullptr;
+    const TraceParams* trace = nullptr;
+    Film* film = nullptr;
+    /// Per-pixel sums of nodes visited / triangles tested (row-major, film size), or null for
+    /// no heat map (then the camera rays go to the kd-tree's batch query).
+    uint64_t* heat_nodes = nullptr;
+    uint64_t* heat_triangles = nullptr;
+    uint32_t max_spp = 0xffffffffu;  ///< no pixel draws a sample index >= this
+};
+
+/// Renders trace->samples_per_pass samples (at least 1) for every active pixel of `tile`
+/// and adds the ray counts to `counters`. Returns the number of pixels that took a sample.
+size_t render_tile(const TileTarget& target, const TileRect& tile, PathCounters& counters);
+
+}  // namespace kdt

@@ -1,0 +1,75 @@
+// Camera moves of the viewer: orbit keeps the distance and turns by the asked angles, pitch
+// stops short of the poles, pan and fly move eye and target together, frame fits the box.
+#include "ui/camera_control.h"
+
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+namespace kdt::ui {
+namespace {
+
+CameraDesc start() {
+    CameraDesc c;
+    c.eye = {0.0f, 1.0f, 5.0f};
+    c.target = {0.0f, 1.0f, 0.0f};
+    c.up = {0.0f, 1.0f, 0.0f};
+    c.vfov_degrees = 40.0f;
+    return c;
+}
+
+float elevation_degrees(const CameraDesc& c) {
+    const Vec3f d = glm::normalize(c.eye - c.target);
+    return std::asin(glm::dot(d, glm::normalize(c.up))) * 180.0f / 3.14159265f;
+}
+
+TEST(CameraControl, OrbitTurnsAboutTheTargetAndKeepsTheDistance) {
+    const CameraDesc c = start();
+    const CameraDesc yawed = orbit(c, 90.0f, 0.0f);
+    EXPECT_NEAR(glm::length(yawed.eye - yawed.target), 5.0f, 1e-4f);
+    EXPECT_NEAR(std::abs(yawed.eye.x), 5.0f, 1e-4f);  // a quarter turn about +y
+    EXPECT_NEAR(yawed.eye.z, 0.0f, 1e-4f);
+    EXPECT_EQ(yawed.target, c.target);
+    const CameraDesc round = orbit(orbit(c, 360.0f, 0.0f), 0.0f, 0.0f);
+    EXPECT_NEAR(glm::length(round.eye - c.eye), 0.0f, 1e-4f);
+
+    const CameraDesc up = orbit(c, 0.0f, 30.0f);
+    EXPECT_NEAR(elevation_degrees(up), 30.0f, 1e-2f);
+    EXPECT_NEAR(glm::length(up.eye - up.target), 5.0f, 1e-4f);
+    // Pitch stops one degree short of the pole, never flips over it.
+    EXPECT_NEAR(elevation_degrees(orbit(c, 0.0f, 120.0f)), 89.0f, 1e-2f);
+    EXPECT_NEAR(elevation_degrees(orbit(c, 0.0f, -120.0f)), -89.0f, 1e-2f);
+}
+
+TEST(CameraControl, PanFlyAndZoom) {
+    const CameraDesc c = start();
+    const CameraDesc p = pan(c, 0.5f, 0.0f);
+    const Vec3f moved = p.eye - c.eye;
+    EXPECT_EQ(p.target - c.target, moved);
+    // Half the view's height at the target's distance, to the right (+x looking down -z).
+    EXPECT_NEAR(moved.x, 0.5f * 2.0f * 5.0f * std::tan(20.0f * 3.14159265f / 180.0f), 1e-4f);
+    const CameraDesc f = fly(c, 0.0f, 0.0f, 0.1f);
+    EXPECT_NEAR(f.eye.z, 4.5f, 1e-5f);
+    EXPECT_NEAR(f.target.z, -0.5f, 1e-5f);
+    const CameraDesc z = zoom(c, 0.5f);
+    EXPECT_NEAR(glm::length(z.eye - z.target), 2.5f, 1e-5f);
+    EXPECT_EQ(zoom(c, -1.0f).eye, c.eye);  // a bad factor changes nothing
+}
+
+TEST(CameraControl, FrameFitsTheBoxFromTheSameDirection) {
+    const CameraDesc c = start();
+    Bounds3f box;
+    box.extend(Vec3f(10.0f, 10.0f, 10.0f));
+    box.extend(Vec3f(12.0f, 14.0f, 11.0f));
+    const CameraDesc f = frame(c, box);
+    EXPECT_EQ(f.target, box.center());
+    const Vec3f dir = glm::normalize(f.target - f.eye);
+    EXPECT_NEAR(glm::dot(dir, glm::normalize(c.target - c.eye)), 1.0f, 1e-5f);
+    const float radius = 0.5f * glm::length(box.extent());
+    const float half_fov = std::asin(radius / glm::length(f.eye - f.target));
+    EXPECT_NEAR(half_fov * 180.0f / 3.14159265f, 20.0f, 1e-3f);
+    EXPECT_EQ(frame(c, Bounds3f{}).eye, c.eye);  // an empty box changes nothing
+}
+
+}  // namespace
+}  // namespace kdt::ui

@@ -1,0 +1,117 @@
+// The real kdtrace executable under Xvfb (xvfb-run, installed by scripts/setup.sh; Mesa's
+// software GL): the window shows the model and the panels and changes after scripted input,
+// and the viewer's image after N samples per pixel is bit for bit what `kdtrace render` writes.
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "renderer/io/image_io.h"
+#include "tests/test_util.h"
+
+namespace kdt {
+namespace {
+
+// Runs a shell command; returns its exit status and puts its output in *log.
+int run(const std::string& command, const std::filesystem::path& log_path, std::string* log) {
+    const int rc = std::system((command + " > '" + log_path.string() + "' 2>&1").c_str());
+    std::ifstream f(log_path);
+    std::stringstream ss;
+    ss << f.rdbuf();
+    *log = ss.str();
+    return rc;
+}
+
+std::string xvfb() {
+    EXPECT_EQ(std::system("command -v xvfb-run > /dev/null"), 0)
+        << "xvfb-run is missing: run scripts/setup.sh (Debian package xvfb)";
+    return "xvfb-run -a -s '-screen 0 1280x800x24' ";
+}
+
+// Mean absolute difference of two images' channels over columns [x0, x1).
+double mean_difference(const ImageRGB& a, const ImageRGB& b, int x0, int x1) {
+    double sum = 0.0;
+    size_t n = 0;
+    for (int y = 0; y < a.height; ++y) {
+        for (int x = x0; x < x1; ++x) {
+            for (int c = 0; c < 3; ++c) {
+                const size_t i = (size_t(y) * size_t(a.width) + size_t(x)) * 3 + size_t(c);
+                sum += std::abs(double(a.rgb[i]) - double(b.rgb[i]));
+                ++n;
+            }
+        }
+    }
+    return n ? sum / double(n) : 0.0;
+}
+
+// Fraction of pixels in columns [x0, x1) whose colour differs from the window's clear colour
+// (0.08, 0.08, 0.09 in sRGB codes), and how many distinct grey levels they have.
+double covered(const ImageRGB& img, int x0, int x1, int* levels) {
+    const float clear = srgb_to_linear(0.08f);
+    size_t n = 0, lit = 0;
+    bool seen[256] = {};
+    for (int y = 0; y < img.height; ++y) {
+        for (int x = x0; x < x1; ++x) {
+            const size_t i = (size_t(y) * size_t(img.width) + size_t(x)) * 3;
+            ++n;
+            lit += std::abs(img.rgb[i] - clear) > 0.01f || std::abs(img.rgb[i + 1] - clear) > 0.01f;
+            seen[tonemap_to_srgb8(img.rgb[i + 1], ToneParams{})] = true;
+        }
+    }
+    *levels = 0;
+    for (bool s : seen) *levels += s;
+    return n ? double(lit) / double(n) : 0.0;
+}
+
+TEST(ViewerE2E, WindowShowsModelAndPanelsAndChangesAfterInput) {
+    const auto dir = test::temp_dir("view_e2e");
+    const std::string before = (dir / "before.png").string(), after = (dir / "after.png").string();
+    const std::string script = "wait_passes 2; screenshot " + before +
+                               "; orbit 40 10; set tree.builder thesis; set tree.q 0.9;"
+                               " wait_rebuild; wait_passes 1";
+    std::string log;
+    const int rc = run(xvfb() + KDT_EXE + " view --width 320 --height 240 --no-cache --script '" +
+                           script + "' --frames 2 --screenshot " + after,
+                       dir / "log.txt", &log);
+    ASSERT_EQ(rc, 0) << log;
+    EXPECT_NE(log.find("view: "), std::string::npos) << log;  // the summary line
+    const ImageRGB a = load_image(before), b = load_image(after);
+    ASSERT_EQ(a.width, b.width);
+    ASSERT_EQ(a.width, 320 + 380);  // the image and the panel column
+    // The image area: the model and the ground in many tones, not an empty window.
+    int levels = 0;
+    EXPECT_GT(covered(a, 0, 320, &levels), 0.25);
+    EXPECT_GT(levels, 40);
+    // The panel column: ImGui's widgets and text (its window background is close to the clear
+    // colour) over a good part of it, in several tones.
+    EXPECT_GT(covered(a, 330, a.width, &levels), 0.2);
+    EXPECT_GT(levels, 5);
+    // The orbit and the new tree changed the image; the panels show the new parameters.
+    EXPECT_GT(mean_difference(a, b, 0, 320), 0.02);
+    EXPECT_GT(mean_difference(a, b, 330, a.width), 0.0);
+}
+
+TEST(ViewerE2E, ImageAfterNSamplesEqualsRenderBitwise) {
+    const auto dir = test::temp_dir("view_equals_render");
+    const std::string common = " --width 96 --height 64 --spp 4 --no-cache --seed 7";
+    const std::string view = (dir / "view.pfm").string(), render = (dir / "render.pfm").string();
+    std::string log;
+    ASSERT_EQ(run(xvfb() + KDT_EXE + " view" + common + " --script 'wait_done; save " + view +
+                      "' --frames 1",
+                  dir / "view.txt", &log),
+              0)
+        << log;
+    ASSERT_EQ(run(std::string(KDT_EXE) + " render" + common + " --quiet -o " + render,
+                  dir / "render.txt", &log),
+              0)
+        << log;
+    const std::vector<unsigned char> v = test::read_bytes(view), r = test::read_bytes(render);
+    ASSERT_GT(r.size(), size_t(96 * 64 * 12));
+    EXPECT_TRUE(v == r) << "the viewer's image differs from kdtrace render's";
+}
+
+}  // namespace
+}  // namespace kdt

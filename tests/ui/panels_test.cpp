@@ -1,0 +1,179 @@
+// One ImGui frame with every panel open (kd-tree, stats, view with the heat-map legend and the
+// inspector, render, files), drawn by the real OpenGL3 backend in an offscreen OSMesa context
+// with no GL error; and the script and option errors of the viewer.
+#include <imgui.h>
+#include <imgui_impl_opengl3.h>
+#include <imgui_internal.h>
+
+#include <chrono>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "renderer/core/error.h"
+#include "renderer/io/image_io.h"
+#include "tests/test_util.h"
+#include "tests/ui/osmesa_context.h"
+#include "ui/viewer_app.h"
+
+namespace kdt::ui {
+namespace {
+
+ViewerOptions small_options() {
+    ViewerOptions vo;
+    vo.options.scene.width = 64;
+    vo.options.scene.height = 48;
+    // One tree build for all the viewers of these tests, cached in a directory of their own.
+    static const std::string cache = test::temp_dir("ui_tree_cache").string();
+    vo.options.scene.cache_dir = cache;
+    vo.options.tree.threads = 1;
+    vo.options.trace.threads = 1;
+    return vo;
+}
+
+TEST(ViewerPanels, EveryPanelDrawsWithNoGlError) {
+    constexpr int kW = 1100, kH = 760;
+    test::OffscreenGL gl(kW, kH);
+    ASSERT_TRUE(gl.ok()) << "OSMesa could not create a GL 3.3 core context";
+    Viewer v(small_options());
+    ImGui::CreateContext();
+    ImGuiIO& io = ImGui::GetIO();
+    io.IniFilename = nullptr;
+    io.DisplaySize = ImVec2(float(kW), float(kH));
+    io.DeltaTime = 1.0f / 60.0f;
+    ASSERT_TRUE(ImGui_ImplOpenGL3_Init("#version 330 core"));
+    v.display_.init();
+    v.image_x_ = 0;
+    v.image_y_ = 0;
+    v.image_w_ = 640;
+    v.image_h_ = 480;
+    v.mouse_x_ = 20.0;  // over the image: the inspector shows a pixel
+    v.mouse_y_ = 20.0;
+    auto frame = [&] {
+        ImGui_ImplOpenGL3_NewFrame();
+        ImGui::NewFrame();
+        v.poll_rebuild();
+        v.update_image();
+        v.draw_panels();
+        ImGui::Render();
+        glViewport(0, 0, kW, kH);
+        glClear(GL_COLOR_BUFFER_BIT);
+        v.draw_image(kW, kH);
+        ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+        glFinish();
+    };
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+    for (ViewMode mode : {ViewMode::radiance, ViewMode::heat_nodes, ViewMode::heat_triangles}) {
+        v.set_view_mode(mode);
+        v.have_image_ = false;
+        do {
+            frame();
+            ASSERT_EQ(gl_errors("frame"), "");
+            std::this_thread::sleep_for(std::chrono::milliseconds(5));
+        } while (!v.have_image_ && std::chrono::steady_clock::now() < deadline);
+        ASSERT_TRUE(v.have_image_) << "no image within a minute";
+        frame();  // the panels with the image's statistics
+        EXPECT_EQ(gl_errors("frame"), "");
+        for (const char* name : {"kd-tree", "Stats", "View", "Render"}) {
+            const ImGuiWindow* w = ImGui::FindWindowByName(name);
+            ASSERT_NE(w, nullptr) << name;
+            EXPECT_TRUE(w->WasActive) << name;
+        }
+        EXPECT_GT(ImGui::GetDrawData()->TotalVtxCount, 2000);
+    }
+    EXPECT_GT(v.heat_scale_.hi, v.heat_scale_.lo);  // the heat map had a range to show
+    // The display shows the panels over the image: pixels differ from the clear colour.
+    const std::vector<uint8_t> px = gl.read_rgb();
+    size_t lit = 0;
+    for (uint8_t c : px) lit += c > 40;
+    EXPECT_GT(lit, px.size() / 10);
+    ImGui_ImplOpenGL3_Shutdown();
+    ImGui::DestroyContext();
+}
+
+TEST(ViewerScript, BadCommandsAndOptionsNameTheProblem) {
+    auto error_of = [](const std::string& script) -> std::string {
+        ViewerOptions vo = small_options();
+        vo.script = script;
+        try {
+            Viewer v(vo);
+            while (v.script_step()) {
+            }
+        } catch (const Error& e) {
+            return e.what();
+        }
+        return "";
+    };
+    EXPECT_NE(error_of("orbit x").find("'orbit x': expected yaw degrees"), std::string::npos);
+    EXPECT_NE(error_of("fly 1 2").find("expected forward"), std::string::npos);
+    EXPECT_NE(error_of("jump").find("'jump': unknown command"), std::string::npos);
+    // An unknown command fails when the viewer starts, before the commands before it run.
+    ViewerOptions typo = small_options();
+    typo.script = "orbit 10 0; wiat 5";
+    EXPECT_THROW(Viewer bad(typo), Error);
+    EXPECT_NE(error_of("set tree.q 2").find("tree.q must be in (0, 1]"), std::string::npos);
+    EXPECT_NE(error_of("set trace.nothing 1").find("no option trace.nothing"), std::string::npos);
+    EXPECT_NE(error_of("heat hot").find("expected nodes, triangles or off"), std::string::npos);
+    EXPECT_NE(error_of("view Z").find("Z"), std::string::npos);
+    EXPECT_NE(error_of("set scene.env_intensity -1").find("scene.env_intensity"),
+              std::string::npos);
+    EXPECT_EQ(error_of("orbit 10 5; zoom 0.9; set trace.max_depth 4; set film.exposure 1; "
+                       "set scene.env_rotation_degrees 90; set scene.env_intensity 2"),
+              "");
+}
+
+TEST(ViewerFiles, SessionRoundTripAndSavedImageMetadata) {
+    const auto dir = test::temp_dir("ui_session");
+    const std::string session = (dir / "s.json").string(), base = (dir / "shot").string();
+    ViewerOptions vo = small_options();
+    vo.script = "orbit 20 5; set trace.max_depth 5; set film.exposure 1.5; save_session " +
+                session + "; wait_passes 1; save " + base;
+    CameraDesc saved;
+    {
+        Viewer v(vo);
+        const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+        // wait_passes needs an image on screen: stand in for the frame loop's upload.
+        while (v.script_step() && std::chrono::steady_clock::now() < deadline) {
+            if (v.worker_->stats().full_passes >= 1) v.have_image_ = true;
+            std::this_thread::sleep_for(std::chrono::milliseconds(2));
+        }
+        saved = v.camera_;
+        EXPECT_NE(saved.eye, v.home_camera_.eye);
+    }
+    // The PNG and the EXR of the image with the options (the camera in scene.camera).
+    const ImageMetadata meta = read_exr_metadata(base + ".exr");
+    bool has_params = false;
+    for (const auto& [key, value] : meta) {
+        if (key != "kdtrace:params") continue;
+        has_params = true;
+        RenderOptions o;
+        options_from_json(value, o);
+        ASSERT_TRUE(o.scene.camera);
+        EXPECT_EQ(o.scene.camera->eye, saved.eye);
+        EXPECT_EQ(o.trace.max_depth, 5);
+    }
+    EXPECT_TRUE(has_params);
+    EXPECT_EQ(load_image(base + ".png").width, 64);
+
+    // A new viewer from the session file starts where the first one was.
+    ViewerOptions again = small_options();
+    again.session = session;
+    Viewer v(again);
+    EXPECT_EQ(v.camera_.eye, saved.eye);
+    EXPECT_EQ(v.opts_.trace.max_depth, 5);
+    EXPECT_EQ(v.tone_.exposure, 1.5f);
+
+    // A session of another image size is refused with the file's name.
+    ViewerOptions other = small_options();
+    other.options.scene.width = 32;
+    other.session = session;
+    try {
+        Viewer bad(other);
+        ADD_FAILURE() << "a session of another size was accepted";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("s.json"), std::string::npos) << e.what();
+    }
+}
+
+}  // namespace
+}  // namespace kdt::ui

@@ -1,0 +1,99 @@
+// The viewer's render thread: runs RenderSession passes progressively until a stop condition
+// holds, and restarts on any change (camera, parameters, snapshot, heat map) with a preview at
+// 1/preview_divisor of the resolution first, the pass in flight cancelled. The UI thread calls
+// the setters and reads stats() and the session's published image; no GL here.
+// Depends on renderer/render only.
+#pragma once
+
+#include <condition_variable>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include "renderer/render/render_options.h"
+#include "renderer/render/session.h"
+
+namespace kdt::ui {
+
+/// What the render thread reports, read by the UI under the worker's lock.
+struct WorkerStats {
+    uint64_t restarts = 0;  ///< grows with every change
+    int full_passes = 0;    ///< full-resolution passes since the last change
+    double spp = 0.0;       ///< mean samples per pixel at full resolution
+    double seconds = 0.0;   ///< time spent in full-resolution passes since the last change
+    double mrays_per_second = 0.0;
+    double mean_error = 0.0;  ///< Film::mean_relative_error after the last pass
+    double nodes_per_ray = 0.0, triangles_per_ray = 0.0;
+    bool done = false;  ///< a stop condition holds; the thread idles
+    bool paused = false;
+    std::string error;  ///< why the last environment change failed ("" = none)
+    std::vector<std::pair<double, double>> error_curve;  ///< (seconds, mean error) per pass
+};
+
+class RenderWorker {
+public:
+    /// Starts the thread. `stop` with no condition set renders until the per-pixel cap.
+    RenderWorker(std::shared_ptr<const RenderSnapshot> snapshot, const TraceParams& trace,
+                 const FilmParams& film, const StopConditions& stop, int preview_divisor = 4);
+    RenderWorker(const RenderWorker&) = delete;
+    RenderWorker& operator=(const RenderWorker&) = delete;
+    ~RenderWorker();
+
+    void set_camera(const CameraDesc& camera);
+    /// The scene and tree of `snapshot`, seen through the current camera.
+    void set_snapshot(std::shared_ptr<const RenderSnapshot> snapshot);
+    /// Throws kdt::Error (and changes nothing) for invalid parameters.
+    void set_params(const TraceParams& trace, const FilmParams& film, const StopConditions& stop);
+    void set_heat_map(bool on);
+    /// Replaces the environment light; it is built on the render thread (a failure goes to
+    /// WorkerStats::error and the old light stays) and kept across later snapshots.
+    void set_environment(const EnvironmentDesc& desc);
+    void set_paused(bool paused);
+
+    /// The session, for copy_image() and inspect() (thread-safe calls only).
+    const RenderSession& session() const { return *session_; }
+    WorkerStats stats() const;
+    /// Copies the image of the last finished preview pass into `out` when it is another one
+    /// than out holds (compared by out.version; out.generation is the WorkerStats::restarts
+    /// count of the change it shows); returns whether it copied. The session's own
+    /// image of the next, full-resolution pass replaces it only once that pass is complete.
+    bool copy_preview(FilmImage& out) const;
+    /// The latest snapshot given (the base of a tree rebuild) and the current camera.
+    std::shared_ptr<const RenderSnapshot> snapshot() const;
+    CameraDesc camera() const;
+    int width() const { return width_; }
+    int height() const { return height_; }
+
+private:
+    void run();
+    void restart_locked();
+    /// On the render thread at a restart: builds a requested environment and puts the
+    /// snapshot, with the environment in force, into the session.
+    void apply_scene_changes();
+    Camera full_camera_locked() const;
+
+    const int width_, height_, preview_divisor_;
+    std::unique_ptr<RenderSession> session_;
+    std::thread thread_;
+
+    mutable std::mutex mutex_;
+    std::condition_variable wake_;
+    std::shared_ptr<const RenderSnapshot> snapshot_;
+    CameraDesc camera_;
+    TraceParams trace_;
+    FilmParams film_;
+    StopConditions stop_;
+    bool restart_ = true, paused_ = false, quit_ = false;
+    bool snapshot_changed_ = false;  ///< snapshot_ is not yet in the session
+    std::optional<EnvironmentDesc> env_request_;
+    std::shared_ptr<const EnvironmentLight> env_;  ///< set by set_environment, else null
+    EnvironmentDesc env_desc_;
+    WorkerStats stats_;
+    FilmImage preview_;  ///< version: a count of previews
+};
+
+}  // namespace kdt::ui

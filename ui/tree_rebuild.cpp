@@ -1,0 +1,73 @@
+#include "ui/tree_rebuild.h"
+
+#include <sys/resource.h>
+
+#include "renderer/core/error.h"
+#include "renderer/core/timer.h"
+
+namespace kdt::ui {
+
+TreeRebuilder::TreeRebuilder() : thread_([this] { run(); }) {}
+
+TreeRebuilder::~TreeRebuilder() {
+    {
+        std::lock_guard<std::mutex> lock(mutex_);
+        quit_ = true;
+    }
+    wake_.notify_all();
+    thread_.join();  // a build in flight finishes first: the builder has no cancel point
+}
+
+uint64_t TreeRebuilder::request(std::shared_ptr<const RenderSnapshot> base,
+                                const KdTreeParams& params) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    base_ = std::move(base);
+    params_ = params;
+    result_.reset();  // an older result is superseded
+    wake_.notify_all();
+    return ++requested_;
+}
+
+std::optional<RebuildResult> TreeRebuilder::take() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::optional<RebuildResult> r = std::move(result_);
+    result_.reset();
+    return r;
+}
+
+bool TreeRebuilder::busy() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return building_ || started_ != requested_;
+}
+
+void TreeRebuilder::run() {
+    setpriority(PRIO_PROCESS, 0, 5);  // as the render threads: the UI thread goes first
+    for (;;) {
+        std::shared_ptr<const RenderSnapshot> base;
+        KdTreeParams params;
+        uint64_t id = 0;
+        {
+            std::unique_lock<std::mutex> lock(mutex_);
+            wake_.wait(lock, [&] { return quit_ || started_ != requested_; });
+            if (quit_) return;
+            base = base_;
+            params = params_;
+            id = started_ = requested_;
+            building_ = true;
+        }
+        RebuildResult r;
+        r.request = id;
+        Timer timer;
+        try {
+            r.snapshot = with_tree(*base, build_kdtree(base->scene->mesh, params));
+        } catch (const Error& e) {
+            r.error = e.what();
+        }
+        r.seconds = timer.seconds();
+        std::lock_guard<std::mutex> lock(mutex_);
+        building_ = false;
+        if (id == requested_) result_ = std::move(r);  // else a newer request supersedes it
+    }
+}
+
+}  // namespace kdt::ui

@@ -1,0 +1,441 @@
+#include "ui/viewer.h"
+
+#include <GLFW/glfw3.h>
+#include <imgui.h>
+#include <imgui_impl_glfw.h>
+#include <imgui_impl_opengl3.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+#include "renderer/core/error.h"
+#include "renderer/io/image_io.h"
+#include "renderer/scene/views.h"
+#include "ui/camera_control.h"
+#include "ui/viewer_app.h"
+
+namespace kdt::ui {
+
+namespace {
+
+double ms_since(Viewer::Clock::time_point t) {
+    return std::chrono::duration<double, std::milli>(Viewer::Clock::now() - t).count();
+}
+
+double percentile(std::vector<double> v, double p) {
+    if (v.empty()) return 0.0;
+    std::sort(v.begin(), v.end());
+    return v[std::min(v.size() - 1, size_t(p * double(v.size() - 1) + 0.5))];
+}
+
+}  // namespace
+
+Viewer::Viewer(const ViewerOptions& options) : vo_(options) {
+    stop_ = options.options.stop;
+    opts_ = resolve(options.options);
+    validate(opts_);
+    validate(stop_);
+    prep_ = prepare_render(opts_, [](const std::string& line) {
+        std::fprintf(stderr, "kdtrace: %s\n", line.c_str());
+    });
+    home_camera_ = camera_ = prep_.snapshot->camera_desc;
+    tree_edit_ = opts_.tree;
+    env_rotation0_ = opts_.scene.env_rotation_degrees;
+    env_intensity_ = prep_.scene.environment.intensity;
+    tree_ = prep_.snapshot->scene->tree;
+    worker_ = std::make_unique<RenderWorker>(prep_.snapshot, opts_.trace, opts_.film, stop_,
+                                             options.preview_divisor);
+    rebuilder_ = std::make_unique<TreeRebuilder>();
+    tone_.exposure = opts_.film.exposure;
+    std::stringstream ss(options.script);
+    for (std::string cmd; std::getline(ss, cmd, ';');) {
+        const size_t a = cmd.find_first_not_of(" \t\n"), b = cmd.find_last_not_of(" \t\n");
+        if (a != std::string::npos) script_.push_back(cmd.substr(a, b - a + 1));
+    }
+    check_script();  // a typo fails before any window opens
+    if (!options.session.empty()) load_session(options.session);
+}
+
+void Viewer::set_camera(const CameraDesc& camera) {
+    camera_ = camera;
+    worker_->set_camera(camera);
+    camera_changed_at_ = Clock::now();
+    camera_restart_ = worker_->stats().restarts;
+    awaiting_preview_ = true;
+}
+
+void Viewer::request_rebuild() {
+    rebuilder_->request(worker_->snapshot(), tree_edit_);
+    rebuild_requested_at_ = Clock::now();
+    awaiting_rebuild_image_ = false;
+}
+
+void Viewer::apply_params() {
+    try {
+        worker_->set_params(opts_.trace, opts_.film, stop_);
+        message_.clear();
+    } catch (const Error& e) {
+        message_ = e.what();
+    }
+}
+
+void Viewer::apply_environment() {
+    EnvironmentDesc d = prep_.scene.environment;  // with the command line's overrides
+    d.rotation_degrees += opts_.scene.env_rotation_degrees - env_rotation0_;
+    d.intensity = env_intensity_;
+    worker_->set_environment(d);
+}
+
+void Viewer::set_view_mode(ViewMode mode) {
+    if (mode == view_) return;
+    const bool heat = mode != ViewMode::radiance;
+    if (heat != (view_ != ViewMode::radiance)) {
+        opts_.trace.count_traversal = heat || resolve(vo_.options).trace.count_traversal;
+        apply_params();
+        worker_->set_heat_map(heat);
+    }
+    view_ = mode;
+    image_.version = 0;  // recolour at the next frame
+}
+
+void Viewer::poll_rebuild() {
+    std::optional<RebuildResult> r = rebuilder_->take();
+    if (!r) return;
+    if (!r->snapshot) {
+        message_ = r->error;
+        return;
+    }
+    message_.clear();
+    tree_ = r->snapshot->scene->tree;
+    opts_.tree = tree_edit_;
+    lat_.build_seconds.push_back(r->seconds);
+    worker_->set_snapshot(r->snapshot);
+    rebuild_restarts_ = worker_->stats().restarts;
+    awaiting_rebuild_image_ = true;
+}
+
+void Viewer::upload(const FilmImage& img) {
+    const bool heat = view_ != ViewMode::radiance;
+    if (heat && !img.heat_nodes.empty()) {
+        std::vector<float> rgb;
+        heat_scale_ =
+            heat_colors(view_ == ViewMode::heat_nodes ? img.heat_nodes : img.heat_triangles, rgb);
+        display_.upload(img.width, img.height, rgb.data());
+    } else {
+        display_.upload(img.width, img.height, img.rgb.data());
+    }
+    have_image_ = true;
+}
+
+void Viewer::update_image() {
+    const bool heat = view_ != ViewMode::radiance;
+    // The preview of a change is shown until a full-resolution pass of the change is complete
+    // (the session's image of the pass in flight still shows the previous state).
+    if (worker_->copy_preview(preview_)) {
+        upload(preview_);
+        if (awaiting_preview_ && preview_.generation >= camera_restart_) {
+            lat_.preview_ms.push_back(ms_since(camera_changed_at_));
+            awaiting_preview_ = false;
+        }
+    }
+    if (!worker_->session().copy_image(image_, heat)) return;
+    if (image_.complete_passes == 0) return;
+    upload(image_);
+    if (awaiting_rebuild_image_) {
+        const WorkerStats s = worker_->stats();
+        if (s.restarts == rebuild_restarts_ && s.full_passes >= 1) {
+            lat_.rebuild_ms.push_back(ms_since(rebuild_requested_at_));
+            awaiting_rebuild_image_ = false;
+        }
+    }
+}
+
+void Viewer::draw_image(int fb_width, int fb_height) const {
+    const DisplayMode mode =
+        view_ == ViewMode::radiance ? DisplayMode::radiance : DisplayMode::direct;
+    // image_y_ counts from the top; GL's viewport from the bottom.
+    display_.draw(image_x_, fb_height - image_y_ - image_h_, image_w_, image_h_, tone_, mode);
+    (void)fb_width;
+}
+
+void Viewer::handle_input(GLFWwindow* window, double dt) {
+    const ImGuiIO& io = ImGui::GetIO();
+    double mx = 0.0, my = 0.0;
+    glfwGetCursorPos(window, &mx, &my);
+    const double dx = mx - mouse_x_, dy = my - mouse_y_;
+    mouse_x_ = mx;
+    mouse_y_ = my;
+    CameraDesc c = camera_;
+    if (!io.WantCaptureMouse) {
+        const bool left = glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS;
+        const bool right = glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS ||
+                           glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_MIDDLE) == GLFW_PRESS;
+        const bool shift = glfwGetKey(window, GLFW_KEY_LEFT_SHIFT) == GLFW_PRESS;
+        if ((dx != 0.0 || dy != 0.0) && left && !shift) {
+            c = orbit(c, float(dx) * 0.3f, float(dy) * 0.3f);
+        } else if ((dx != 0.0 || dy != 0.0) && (right || (left && shift))) {
+            const float h = float(std::max(image_h_, 1)) / content_scale_;
+            c = pan(c, -float(dx) / h, float(dy) / h);
+        }
+        if (io.MouseWheel != 0.0f) c = zoom(c, std::pow(0.9f, io.MouseWheel));
+    }
+    if (!io.WantCaptureKeyboard) {
+        const float step = float(dt) * 0.5f;  // half the target distance per second
+        auto down = [&](int key) { return glfwGetKey(window, key) == GLFW_PRESS; };
+        const float r = (down(GLFW_KEY_D) ? step : 0.0f) - (down(GLFW_KEY_A) ? step : 0.0f);
+        const float u = (down(GLFW_KEY_E) ? step : 0.0f) - (down(GLFW_KEY_Q) ? step : 0.0f);
+        const float f = (down(GLFW_KEY_W) ? step : 0.0f) - (down(GLFW_KEY_S) ? step : 0.0f);
+        if (r != 0.0f || u != 0.0f || f != 0.0f) c = fly(c, r, u, f);
+        if (ImGui::IsKeyPressed(GLFW_KEY_F)) c = frame(c, tree_->bounds());
+        if (ImGui::IsKeyPressed(GLFW_KEY_R)) c = home_camera_;
+        for (int k = 0; k < 4; ++k) {
+            if (!ImGui::IsKeyPressed(GLFW_KEY_1 + k)) continue;
+            try {
+                c = find_view(vo_.views, std::string(1, char('A' + k)));
+            } catch (const Error& e) {
+                message_ = e.what();
+            }
+        }
+        if (ImGui::IsKeyPressed(GLFW_KEY_TAB)) panels_ = !panels_;
+        if (ImGui::IsKeyPressed(GLFW_KEY_F12)) {
+            try {
+                save_image("kdtrace-view");
+            } catch (const Error& e) {
+                message_ = e.what();
+            }
+        }
+    }
+    if (std::memcmp(&c, &camera_, sizeof c) != 0) set_camera(c);
+}
+
+void Viewer::screenshot(const std::string& path, int fb_width, int fb_height) const {
+    std::vector<uint8_t> px(size_t(fb_width) * size_t(fb_height) * 3);
+    glPixelStorei(GL_PACK_ALIGNMENT, 1);
+    glReadBuffer(GL_BACK);
+    glReadPixels(0, 0, fb_width, fb_height, GL_RGB, GL_UNSIGNED_BYTE, px.data());
+    // The PNG writer encodes linear values; sRGB codes decoded to linear encode back to the
+    // same codes (tests/ui checks all 256).
+    ImageRGB img(fb_width, fb_height);
+    for (int y = 0; y < fb_height; ++y) {
+        const uint8_t* row = px.data() + size_t(fb_height - 1 - y) * size_t(fb_width) * 3;
+        for (int i = 0; i < fb_width * 3; ++i) {
+            img.rgb[size_t(y) * size_t(fb_width) * 3 + size_t(i)] =
+                srgb_to_linear(float(row[i]) / 255.0f);
+        }
+    }
+    write_png(path, img);
+}
+
+void Viewer::save_image(const std::string& base) const {
+    FilmImage img;
+    worker_->session().copy_image(img);
+    ImageRGB out(img.width, img.height);
+    out.rgb = img.rgb;
+    RenderOptions o = opts_;
+    o.scene.camera = camera_;
+    o.stop = stop_;
+    const WorkerStats s = worker_->stats();
+    ImageMetadata meta;
+    meta.emplace_back("Software", "kdtrace 0.1.0 view");
+    meta.emplace_back("kdtrace:params", options_to_json(o));
+    meta.emplace_back("kdtrace:seed", std::to_string(o.trace.seed));
+    meta.emplace_back("kdtrace:spp", std::to_string(s.spp));
+    meta.emplace_back("kdtrace:passes", std::to_string(s.full_passes));
+    const auto ends = [&](const char* ext) {
+        return base.size() > 4 && base.compare(base.size() - 4, 4, ext) == 0;
+    };
+    if (ends(".png") || ends(".exr") || ends(".pfm")) {
+        write_image(base, out, tone_, meta);
+        return;
+    }
+    write_image(base + ".png", out, tone_, meta);
+    write_image(base + ".exr", out, tone_, meta);
+}
+
+void Viewer::save_session(const std::string& path) const {
+    RenderOptions o = opts_;
+    o.tree = tree_edit_;
+    o.scene.camera = camera_;
+    o.scene.env_intensity = env_intensity_;
+    o.stop = stop_;
+    std::ofstream f(path);
+    f << options_to_json(o) << "\n";
+    if (!f) throw Error(ErrorLocation{path, "", -1}, "cannot write the session file");
+}
+
+void Viewer::load_session(const std::string& path) {
+    std::ifstream f(path);
+    if (!f) throw Error(ErrorLocation{path, "", -1}, "cannot read the session file");
+    std::stringstream ss;
+    ss << f.rdbuf();
+    RenderOptions o = opts_;
+    o.stop = stop_;
+    options_from_json(ss.str(), o, path);
+    validate(o);
+    if (o.scene.scene_path != opts_.scene.scene_path || o.scene.width != opts_.scene.width ||
+        o.scene.height != opts_.scene.height) {
+        throw Error(ErrorLocation{path, "scene", -1},
+                    "the session is of another scene or image size; open it with kdtrace view");
+    }
+    opts_.trace = o.trace;
+    opts_.film = o.film;
+    if (o.scene.env_rotation_degrees != opts_.scene.env_rotation_degrees ||
+        (o.scene.env_intensity && *o.scene.env_intensity != env_intensity_)) {
+        opts_.scene.env_rotation_degrees = o.scene.env_rotation_degrees;
+        if (o.scene.env_intensity) env_intensity_ = *o.scene.env_intensity;
+        apply_environment();
+    }
+    stop_ = o.stop;
+    tone_.exposure = o.film.exposure;
+    apply_params();
+    if (options_to_json(o) !=
+        options_to_json(RenderOptions{o.scene, tree_edit_, o.trace, o.film, o.stop})) {
+        tree_edit_ = o.tree;
+        request_rebuild();
+    }
+    if (o.scene.camera) set_camera(*o.scene.camera);
+}
+
+std::string Viewer::summary() const {
+    const WorkerStats s = worker_->stats();
+    char buf[512];
+    std::snprintf(buf, sizeof buf,
+                  "view: %zu frames, frame ms median %.2f p99 %.2f; preview ms median %.1f (%zu); "
+                  "rebuild to full image ms median %.1f (%zu), build s median %.3f; "
+                  "%.1f spp, %d passes, %.3f Mrays/s, error %.4f",
+                  lat_.frame_ms.size(), percentile(lat_.frame_ms, 0.5),
+                  percentile(lat_.frame_ms, 0.99), percentile(lat_.preview_ms, 0.5),
+                  lat_.preview_ms.size(), percentile(lat_.rebuild_ms, 0.5), lat_.rebuild_ms.size(),
+                  percentile(lat_.build_seconds, 0.5), s.spp, s.full_passes, s.mrays_per_second,
+                  s.mean_error);
+    return buf;
+}
+
+std::string Viewer::frame_stats(const std::string& label) {
+    const std::vector<double> f(lat_.frame_ms.begin() + ptrdiff_t(stats_from_),
+                                lat_.frame_ms.end());
+    stats_from_ = lat_.frame_ms.size();
+    const WorkerStats s = worker_->stats();
+    char buf[256];
+    std::snprintf(buf, sizeof buf,
+                  "view stats %s: %zu frames, median %.2f ms, p99 %.2f ms; %.1f spp, %.3f Mrays/s",
+                  label.c_str(), f.size(), percentile(f, 0.5), percentile(f, 0.99), s.spp,
+                  s.mrays_per_second);
+    return buf;
+}
+
+namespace {
+
+void glfw_error(int code, const char* text) {
+    std::fprintf(stderr, "kdtrace: GLFW error 0x%x: %s\n", code, text);
+}
+
+// Letterboxes the image into the area left of the panels (top-left origin).
+void layout(Viewer& v, int fb_w, int fb_h) {
+    const int panel = v.panels_ ? int(380.0f * v.content_scale_) : 0;
+    const int area_w = std::max(fb_w - panel, 1);
+    const double aspect = double(v.worker_->width()) / double(v.worker_->height());
+    int w = area_w, h = int(double(area_w) / aspect + 0.5);
+    if (h > fb_h) {
+        h = fb_h;
+        w = int(double(fb_h) * aspect + 0.5);
+    }
+    v.image_w_ = w;
+    v.image_h_ = h;
+    v.image_x_ = (area_w - w) / 2;
+    v.image_y_ = (fb_h - h) / 2;
+}
+
+}  // namespace
+
+void run_viewer(const ViewerOptions& options) {
+    Viewer v(options);
+    glfwSetErrorCallback(glfw_error);
+    if (!glfwInit()) throw Error("view: cannot open a window (no display? GLFW failed to start)");
+    struct GlfwGuard {
+        ~GlfwGuard() { glfwTerminate(); }
+    } glfw_guard;
+    glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 3);
+    glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 3);
+    glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
+    glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
+    const int win_w = v.worker_->width() + 380, win_h = std::max(v.worker_->height(), 720);
+    GLFWwindow* window = glfwCreateWindow(win_w, win_h, "kdtrace view", nullptr, nullptr);
+    if (!window) throw Error("view: cannot create an OpenGL 3.3 core window");
+    glfwMakeContextCurrent(window);
+    glfwSwapInterval(1);
+
+    IMGUI_CHECKVERSION();
+    ImGui::CreateContext();
+    ImGui::GetIO().IniFilename = nullptr;  // no imgui.ini next to the user's files
+    ImGui::StyleColorsDark();
+    ImGui_ImplGlfw_InitForOpenGL(window, true);
+    ImGui_ImplOpenGL3_Init("#version 330 core");
+    struct ImGuiGuard {
+        ~ImGuiGuard() {
+            ImGui_ImplOpenGL3_Shutdown();
+            ImGui_ImplGlfw_Shutdown();
+            ImGui::DestroyContext();
+        }
+    } imgui_guard;
+    v.display_.init();
+
+    int frames_after_script = 0;
+    auto last = Viewer::Clock::now();
+    while (!glfwWindowShouldClose(window)) {
+        const auto start = Viewer::Clock::now();
+        const double dt = std::chrono::duration<double>(start - last).count();
+        last = start;
+        glfwPollEvents();
+        int fb_w = 0, fb_h = 0;
+        glfwGetFramebufferSize(window, &fb_w, &fb_h);
+        int ww = 0, wh = 0;
+        glfwGetWindowSize(window, &ww, &wh);
+        v.content_scale_ = ww > 0 ? float(fb_w) / float(ww) : 1.0f;
+        layout(v, fb_w, fb_h);
+
+        ImGui_ImplOpenGL3_NewFrame();
+        ImGui_ImplGlfw_NewFrame();
+        ImGui::NewFrame();
+        v.handle_input(window, dt);
+        v.poll_rebuild();  // before the script, whose wait_rebuild then sees the swap
+        bool script_running = false;
+        try {
+            script_running = v.script_step();
+        } catch (const Error& e) {
+            v.message_ = e.what();
+            glfwSetWindowShouldClose(window, GLFW_TRUE);
+            throw;
+        }
+        v.update_image();
+        if (v.panels_) v.draw_panels();
+        ImGui::Render();
+
+        glViewport(0, 0, fb_w, fb_h);
+        glClearColor(0.08f, 0.08f, 0.09f, 1.0f);
+        glClear(GL_COLOR_BUFFER_BIT);
+        v.draw_image(fb_w, fb_h);
+        glViewport(0, 0, fb_w, fb_h);
+        ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+        for (const std::string& path : v.screenshot_requests_) v.screenshot(path, fb_w, fb_h);
+        v.screenshot_requests_.clear();
+        const bool last_frame =
+            !script_running && options.frames > 0 && ++frames_after_script >= options.frames;
+        if (last_frame && !options.screenshot.empty()) v.screenshot(options.screenshot, fb_w, fb_h);
+        glfwSwapBuffers(window);
+        v.lat_.frame_ms.push_back(ms_since(start));
+        if (last_frame) break;
+        // At most 60 frames a second where the swap does not wait for the display (Xvfb,
+        // vsync off): the render threads get the time a spinning UI would take.
+        std::this_thread::sleep_until(start + std::chrono::microseconds(16667));
+    }
+    glfwDestroyWindow(window);
+    std::printf("%s\n", v.summary().c_str());
+}
+
+}  // namespace kdt::ui

@@ -1,0 +1,120 @@
+// The viewer's state and its parts, shared by viewer.cpp (window, frame loop, input, files),
+// viewer_panels.cpp (ImGui panels) and viewer_script.cpp (scripted input). Internal to ui/.
+#pragma once
+
+#include <chrono>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "renderer/core/color.h"
+#include "renderer/render/prepare.h"
+#include "ui/display.h"
+#include "ui/heat_map.h"
+#include "ui/render_worker.h"
+#include "ui/tree_rebuild.h"
+#include "ui/viewer.h"
+
+struct GLFWwindow;
+
+namespace kdt::ui {
+
+enum class ViewMode : int { radiance, heat_nodes, heat_triangles };
+
+/// Latencies the viewer measures for its summary, in milliseconds.
+struct Latencies {
+    std::vector<double> frame_ms;       ///< work per frame, input to buffer swap
+    std::vector<double> preview_ms;     ///< camera change to the first preview on screen
+    std::vector<double> rebuild_ms;     ///< tree request to the first full image with it
+    std::vector<double> build_seconds;  ///< the rebuilds' build times
+};
+
+class Viewer {
+public:
+    using Clock = std::chrono::steady_clock;
+
+    /// Loads the scene and starts the render thread; no window yet.
+    explicit Viewer(const ViewerOptions& options);
+
+    // ---- changes (any thread-safe order; each restarts the image with a preview)
+    void set_camera(const CameraDesc& camera);
+    void request_rebuild();
+    /// Applies opts_.trace / film / stop_ to the render thread; an error goes to message_.
+    void apply_params();
+    void set_view_mode(ViewMode mode);
+    /// Applies opts_.scene.env_rotation_degrees and env_intensity_ to the environment.
+    void apply_environment();
+    /// Sets "group.name" to `value` through the range tables (tree fields rebuild when
+    /// auto-rebuild is on). Throws kdt::Error naming the field.
+    void set_option(const std::string& name, const std::string& value);
+
+    // ---- per frame
+    void poll_rebuild();
+    /// Copies the published image when it changed and uploads it (GL context current).
+    void update_image();
+    void upload(const FilmImage& image);
+    void draw_image(int fb_width, int fb_height) const;
+    void draw_panels();
+    /// Throws kdt::Error naming the first command of the script that does not exist.
+    void check_script() const;
+    /// Runs script commands until one waits; false once the script is done.
+    bool script_step();
+    void handle_input(GLFWwindow* window, double dt);
+
+    // ---- files
+    /// The whole window as a PNG (GL context current).
+    void screenshot(const std::string& path, int fb_width, int fb_height) const;
+    /// The image on screen: base + ".png" (tone-mapped) and base + ".exr" (linear), with the
+    /// render metadata; a base ending in .png, .exr or .pfm writes that one file.
+    void save_image(const std::string& base) const;
+    void save_session(const std::string& path) const;
+    void load_session(const std::string& path);
+
+    std::string summary() const;
+    /// "view stats LABEL: N frames, median M ms, p99 P ms" over the frames since the last call.
+    std::string frame_stats(const std::string& label);
+
+    ViewerOptions vo_;
+    RenderOptions opts_;   ///< resolved; the panels edit trace, film and tree_edit_
+    StopConditions stop_;  ///< the viewer's own: no condition renders on
+    Prepared prep_;
+    CameraDesc home_camera_, camera_;
+    std::unique_ptr<RenderWorker> worker_;
+    std::unique_ptr<TreeRebuilder> rebuilder_;
+    KdTreeParams tree_edit_;
+    float env_rotation0_ = 0.0f;          ///< opts_.scene.env_rotation_degrees as loaded
+    float env_intensity_ = 1.0f;          ///< the environment's intensity now
+    std::shared_ptr<const KdTree> tree_;  ///< the tree rendering now (for its stats)
+
+    FilmDisplay display_;
+    FilmImage image_, preview_;
+    bool have_image_ = false;
+    ToneParams tone_;
+    ViewMode view_ = ViewMode::radiance;
+    HeatScale heat_scale_;
+    bool auto_rebuild_ = true, panels_ = true, paused_ = false;
+    std::string message_;  ///< last error, shown in the window
+    int image_x_ = 0, image_y_ = 0, image_w_ = 0, image_h_ = 0;  ///< framebuffer rectangle
+    double mouse_x_ = 0.0, mouse_y_ = 0.0;
+    float content_scale_ = 1.0f;
+
+    // Latency bookkeeping.
+    Latencies lat_;
+    Clock::time_point camera_changed_at_{};
+    bool awaiting_preview_ = false;
+    uint64_t camera_restart_ = 0;  ///< the worker's restart count after the camera change
+    Clock::time_point rebuild_requested_at_{};
+    uint64_t rebuild_restarts_ = 0;  ///< worker restarts when the new tree was swapped in
+    bool awaiting_rebuild_image_ = false;
+
+    // Script state.
+    std::vector<std::string> script_;
+    size_t script_next_ = 0;
+    int wait_frames_ = 0;
+    std::string waiting_;  ///< the wait command in force ("" = none)
+    int wait_count_ = 0;
+    std::vector<std::string> screenshot_requests_;
+    size_t stats_from_ = 0;  ///< first frame of the next frame_stats()
+};
+
+}  // namespace kdt::ui

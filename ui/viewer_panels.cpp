@@ -1,0 +1,216 @@
+// The viewer's ImGui panels: kd-tree, render, view, stats and the pixel inspector. Every
+// parameter widget comes from a range table (field_widgets); this file lays them out.
+#include <imgui.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "renderer/core/error.h"
+#include "ui/field_widgets.h"
+#include "ui/viewer_app.h"
+
+namespace kdt::ui {
+
+namespace {
+
+constexpr float kPanelWidth = 370.0f;
+
+void begin_panel(const char* name, float x, float& y, float height) {
+    ImGui::SetNextWindowPos(ImVec2(x, y), ImGuiCond_FirstUseEver);
+    ImGui::SetNextWindowSize(ImVec2(kPanelWidth, height), ImGuiCond_FirstUseEver);
+    ImGui::Begin(name);
+    y += height + 4.0f;
+}
+
+void tree_panel(Viewer& v) {
+    std::string error;
+    if (field_widgets("tree", v.tree_edit_, kd_tree_fields(), &error) && v.auto_rebuild_)
+        v.request_rebuild();
+    if (!error.empty()) v.message_ = error;
+    ImGui::Checkbox("auto-rebuild", &v.auto_rebuild_);
+    ImGui::SameLine();
+    if (ImGui::Button("Rebuild")) v.request_rebuild();
+    if (v.rebuilder_->busy()) {
+        ImGui::SameLine();
+        ImGui::TextUnformatted("building...");
+    }
+}
+
+template <class S>
+bool same_fields(const S& a, const S& b, std::span<const Field<S>> fields) {
+    for (const Field<S>& f : fields) {
+        if (field_text(f, a) != field_text(f, b)) return false;
+    }
+    return true;
+}
+
+void render_panel(Viewer& v) {
+    std::string error;
+    const FilmParams film_before = v.opts_.film;
+    bool changed = field_widgets("trace", v.opts_.trace, trace_fields(), &error);
+    if (field_widgets("film", v.opts_.film, film_fields(), &error)) {
+        // Exposure is applied by the display shader: it alone restarts nothing.
+        FilmParams f = film_before;
+        f.exposure = v.opts_.film.exposure;
+        v.tone_.exposure = v.opts_.film.exposure;
+        changed |= !same_fields(f, v.opts_.film, film_fields());
+    }
+    changed |= field_widgets("stop", v.stop_, stop_fields(), &error);
+    if (!error.empty()) v.message_ = error;
+    if (changed) v.apply_params();
+    if (ImGui::Button(v.paused_ ? "Resume" : "Pause")) {
+        v.paused_ = !v.paused_;
+        v.worker_->set_paused(v.paused_);
+    }
+}
+
+void environment_panel(Viewer& v) {
+    std::string error;
+    bool changed = false;
+    if (const Field<SceneOptions>* rot = find_field(scene_fields(), "env_rotation_degrees"))
+        changed |= field_widget("scene", v.opts_.scene, *rot, &error);
+    float intensity = v.env_intensity_;
+    // The intensity override has no table entry; its range is the scene file's, [0, 3e38].
+    if (ImGui::DragFloat("env_intensity##scene", &intensity, 0.01f, 0.0f, 3e38f, "%.4g") &&
+        std::isfinite(intensity) && intensity >= 0.0f) {
+        v.env_intensity_ = intensity;
+        changed = true;
+    }
+    if (!error.empty()) v.message_ = error;
+    if (changed) v.apply_environment();
+    const std::string failed = v.worker_->stats().error;
+    if (!failed.empty()) ImGui::TextColored(ImVec4(1, 0.4f, 0.3f, 1), "%s", failed.c_str());
+}
+
+void view_panel(Viewer& v) {
+    int mode = int(v.view_);
+    ImGui::RadioButton("radiance", &mode, 0);
+    ImGui::SameLine();
+    ImGui::RadioButton("nodes/sample", &mode, 1);
+    ImGui::SameLine();
+    ImGui::RadioButton("triangles/sample", &mode, 2);
+    if (mode != int(v.view_)) v.set_view_mode(ViewMode(mode));
+    int curve = int(v.tone_.curve);
+    if (ImGui::Combo("tone curve", &curve, kToneCurveNames.data(), int(kToneCurveNames.size())))
+        v.tone_.curve = ToneCurve(curve);
+    if (v.view_ != ViewMode::radiance) {
+        // The legend: the colour ramp on its log scale with the minimum, mean and maximum.
+        ImDrawList* dl = ImGui::GetWindowDrawList();
+        const ImVec2 p = ImGui::GetCursorScreenPos();
+        const float w = ImGui::GetContentRegionAvail().x, h = 14.0f;
+        constexpr int kSteps = 32;
+        for (int i = 0; i < kSteps; ++i) {
+            const Vec3f a = heat_ramp(0.05f + 0.95f * float(i) / kSteps);
+            const Vec3f b = heat_ramp(0.05f + 0.95f * float(i + 1) / kSteps);
+            dl->AddRectFilledMultiColor(ImVec2(p.x + w * float(i) / kSteps, p.y),
+                                        ImVec2(p.x + w * float(i + 1) / kSteps, p.y + h),
+                                        ImColor(a.x, a.y, a.z), ImColor(b.x, b.y, b.z),
+                                        ImColor(b.x, b.y, b.z), ImColor(a.x, a.y, a.z));
+        }
+        const float mean_at = heat_position(float(v.heat_scale_.mean), v.heat_scale_);
+        dl->AddLine(ImVec2(p.x + w * (0.05f + 0.95f * mean_at), p.y - 2.0f),
+                    ImVec2(p.x + w * (0.05f + 0.95f * mean_at), p.y + h + 2.0f),
+                    IM_COL32(0, 255, 0, 255), 2.0f);
+        ImGui::Dummy(ImVec2(w, h + 2.0f));
+        ImGui::Text("%.1f (log scale) %.1f; mean %.2f (green)", v.heat_scale_.lo, v.heat_scale_.hi,
+                    v.heat_scale_.mean);
+    }
+}
+
+void stats_panel(Viewer& v) {
+    const WorkerStats s = v.worker_->stats();
+    const KdTreeStats& t = v.tree_->stats();
+    ImGui::Text("tree: %.3f s build, %llu nodes, %llu leaves (%llu empty)", t.build_seconds,
+                (unsigned long long)t.nodes, (unsigned long long)t.leaves,
+                (unsigned long long)t.empty_leaves);
+    ImGui::Text("depth %u, %.2f refs/tri, %.1f bytes/tri, leaf mean %.2f max %u",
+                t.max_depth_reached, t.refs_per_triangle, t.bytes_per_triangle, t.mean_leaf_size,
+                t.max_leaf_size);
+    ImGui::Text("splits: median %llu, centre %llu, cut-off %llu, SAH %llu",
+                (unsigned long long)t.median_splits, (unsigned long long)t.center_splits,
+                (unsigned long long)t.cutoff_splits, (unsigned long long)t.sah_splits);
+    std::vector<float> hist(t.depth_histogram.begin(), t.depth_histogram.end());
+    if (!hist.empty()) {
+        ImGui::PlotHistogram("leaves/depth", hist.data(), int(hist.size()), 0, nullptr, 0.0f,
+                             FLT_MAX, ImVec2(0, 50));
+    }
+    ImGui::Separator();
+    ImGui::Text("%.2f Mrays/s, %.1f spp, %d passes%s%s", s.mrays_per_second, s.spp, s.full_passes,
+                s.done ? " (done)" : "", s.paused ? " (paused)" : "");
+    ImGui::Text("%.1f nodes, %.1f triangles per ray; est. rel. error %.4f", s.nodes_per_ray,
+                s.triangles_per_ray, s.mean_error);
+    if (!s.error_curve.empty()) {
+        std::vector<float> e;
+        for (const auto& [sec, err] : s.error_curve) e.push_back(float(err));
+        char label[64];
+        std::snprintf(label, sizeof label, "error, 0-%.1f s", s.error_curve.back().first);
+        ImGui::PlotLines(label, e.data(), int(e.size()), 0, nullptr, 0.0f, FLT_MAX, ImVec2(0, 60));
+    }
+    if (!v.lat_.frame_ms.empty()) ImGui::Text("UI frame %.2f ms", v.lat_.frame_ms.back());
+}
+
+void inspector(Viewer& v) {
+    const double sx = v.mouse_x_ * v.content_scale_ - v.image_x_;
+    const double sy = v.mouse_y_ * v.content_scale_ - v.image_y_;
+    if (v.image_w_ <= 0 || sx < 0 || sy < 0 || sx >= v.image_w_ || sy >= v.image_h_) {
+        ImGui::TextUnformatted("(mouse over the image)");
+        return;
+    }
+    // In the pixels of the image the session publishes now (the preview's while it shows).
+    const int w = v.image_.width > 0 ? v.image_.width : v.worker_->width();
+    const int h = v.image_.height > 0 ? v.image_.height : v.worker_->height();
+    const int x = int(sx / v.image_w_ * w), y = int(sy / v.image_h_ * h);
+    const std::optional<PixelInfo> p = v.worker_->session().inspect(x, y);
+    if (!p) {
+        ImGui::Text("pixel %d %d: preview", x, y);
+        return;
+    }
+    ImGui::Text("pixel %d %d: rgb %.4g %.4g %.4g", x, y, p->rgb.x, p->rgb.y, p->rgb.z);
+    ImGui::Text("%u samples, rel. error %.4g", p->samples, p->relative_error);
+    ImGui::Text("%.1f nodes, %.1f triangles per sample", p->nodes_per_sample,
+                p->triangles_per_sample);
+}
+
+void files_panel(Viewer& v) {
+    static char path[512] = "kdtrace-session.json";
+    ImGui::InputText("file", path, sizeof path);
+    auto guarded = [&](auto f) {
+        try {
+            f();
+            v.message_.clear();
+        } catch (const Error& e) {
+            v.message_ = e.what();
+        }
+    };
+    if (ImGui::Button("Save session")) guarded([&] { v.save_session(path); });
+    ImGui::SameLine();
+    if (ImGui::Button("Load session")) guarded([&] { v.load_session(path); });
+    ImGui::SameLine();
+    if (ImGui::Button("Save image (F12)")) guarded([&] { v.save_image("kdtrace-view"); });
+}
+
+}  // namespace
+
+void Viewer::draw_panels() {
+    const float x = ImGui::GetIO().DisplaySize.x - kPanelWidth - 6.0f;
+    float y = 6.0f;
+    begin_panel("kd-tree", x, y, 250.0f);
+    tree_panel(*this);
+    ImGui::End();
+    begin_panel("Stats", x, y, 230.0f);
+    stats_panel(*this);
+    ImGui::End();
+    begin_panel("View", x, y, 110.0f);
+    view_panel(*this);
+    inspector(*this);
+    ImGui::End();
+    begin_panel("Render", x, y, 330.0f);
+    render_panel(*this);
+    environment_panel(*this);
+    files_panel(*this);
+    if (!message_.empty()) ImGui::TextColored(ImVec4(1, 0.4f, 0.3f, 1), "%s", message_.c_str());
+    ImGui::End();
+}
+
+}  // namespace kdt::ui

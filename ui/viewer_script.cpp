@@ -1,0 +1,187 @@
+// Scripted input for tests and measurements (`kdtrace view --script "orbit 30 0; rebuild"`):
+// each command does what a user's input would, through the same Viewer calls. Commands:
+//   orbit YAW PITCH | pan DX DY | zoom F | fly R U F | frame | reset | view NAME
+//   set GROUP.NAME VALUE | rebuild | heat nodes|triangles|off | exposure STOPS
+//   pause | resume | panels on|off | screenshot FILE | save BASE | save_session FILE
+//   load_session FILE | wait FRAMES | wait_passes N | wait_done | wait_rebuild
+//   stats LABEL (prints the frame times since the previous stats command)
+#include <algorithm>
+#include <cstdio>
+#include <iterator>
+#include <sstream>
+
+#include "renderer/core/error.h"
+#include "renderer/scene/views.h"
+#include "ui/camera_control.h"
+#include "ui/field_widgets.h"
+#include "ui/viewer_app.h"
+
+namespace kdt::ui {
+
+namespace {
+
+Error script_error(const std::string& cmd, const std::string& why) {
+    return Error("view --script: '" + cmd + "': " + why);
+}
+
+template <class S>
+bool set_in(const std::span<const Field<S>> fields, S& s, const std::string& group,
+            const std::string& name, const std::string& value) {
+    const Field<S>* f = find_field(fields, name);
+    if (!f) return false;
+    if (std::string why = parse_field(*f, s, value); !why.empty())
+        throw Error(group + "." + name + " " + why);
+    return true;
+}
+
+}  // namespace
+
+void Viewer::set_option(const std::string& key, const std::string& value) {
+    const size_t dot = key.find('.');
+    const std::string group = key.substr(0, dot), name = dot == key.npos ? "" : key.substr(dot + 1);
+    if (group == "tree" && set_in(kd_tree_fields(), tree_edit_, group, name, value)) {
+        if (auto_rebuild_) request_rebuild();
+        return;
+    }
+    if (group == "scene" && name == "env_rotation_degrees") {
+        set_in(scene_fields(), opts_.scene, group, name, value);
+        apply_environment();
+        return;
+    }
+    if (group == "scene" && name == "env_intensity") {
+        // An optional override without a table entry: its range is the scene file's.
+        double v = 0.0;
+        if (!detail::parse_number(value, v) || !(v >= 0.0 && v <= 3e38))
+            throw Error("scene.env_intensity must be in [0, 3e38] (got '" + value + "')");
+        env_intensity_ = float(v);
+        apply_environment();
+        return;
+    }
+    if (group == "film" && name == "exposure") {
+        set_in(film_fields(), opts_.film, group, name, value);
+        tone_.exposure = opts_.film.exposure;
+        return;
+    }
+    if ((group == "trace" && set_in(trace_fields(), opts_.trace, group, name, value)) ||
+        (group == "film" && set_in(film_fields(), opts_.film, group, name, value)) ||
+        (group == "stop" && set_in(stop_fields(), stop_, group, name, value))) {
+        apply_params();
+        if (!message_.empty()) throw Error(message_);
+        return;
+    }
+    throw Error("no option " + key +
+                " (the groups are tree, trace, film and stop; scene has env_rotation_degrees and "
+                "env_intensity)");
+}
+
+void Viewer::check_script() const {
+    static const char* const kCommands[] = {
+        "orbit",  "pan",         "zoom",       "fly",          "frame",        "reset",
+        "view",   "set",         "rebuild",    "heat",         "exposure",     "pause",
+        "resume", "panels",      "screenshot", "save",         "save_session", "load_session",
+        "wait",   "wait_passes", "wait_done",  "wait_rebuild", "stats"};
+    for (const std::string& cmd : script_) {
+        std::istringstream in(cmd);
+        std::string op;
+        in >> op;
+        if (std::find(std::begin(kCommands), std::end(kCommands), op) == std::end(kCommands))
+            throw script_error(cmd, "unknown command");
+    }
+}
+
+bool Viewer::script_step() {
+    // A wait in force holds the script until its condition.
+    if (!waiting_.empty()) {
+        const WorkerStats s = worker_->stats();
+        bool over = false;
+        if (waiting_ == "wait") over = --wait_count_ <= 0;
+        if (waiting_ == "wait_passes") over = s.full_passes >= wait_count_ && have_image_;
+        if (waiting_ == "wait_done") over = s.done && image_.complete_passes > 0;
+        if (waiting_ == "wait_rebuild") over = !rebuilder_->busy() && !awaiting_rebuild_image_;
+        if (!over) return true;
+        waiting_.clear();
+    }
+    while (script_next_ < script_.size()) {
+        const std::string& cmd = script_[script_next_++];
+        std::istringstream in(cmd);
+        std::string op;
+        in >> op;
+        auto number = [&](const char* what) {
+            float v = 0.0f;
+            if (!(in >> v)) throw script_error(cmd, std::string("expected ") + what);
+            return v;
+        };
+        auto word = [&](const char* what) {
+            std::string w;
+            if (!(in >> w)) throw script_error(cmd, std::string("expected ") + what);
+            return w;
+        };
+        try {
+            if (op == "orbit") {
+                const float yaw = number("yaw degrees");
+                set_camera(orbit(camera_, yaw, number("pitch degrees")));
+            } else if (op == "pan") {
+                const float dx = number("dx");
+                set_camera(pan(camera_, dx, number("dy")));
+            } else if (op == "zoom") {
+                set_camera(zoom(camera_, number("factor")));
+            } else if (op == "fly") {
+                const float r = number("right"), u = number("up");
+                set_camera(fly(camera_, r, u, number("forward")));
+            } else if (op == "frame") {
+                set_camera(frame(camera_, tree_->bounds()));
+            } else if (op == "reset") {
+                set_camera(home_camera_);
+            } else if (op == "view") {
+                set_camera(find_view(vo_.views, word("view name")));
+            } else if (op == "set") {
+                const std::string key = word("group.name");
+                set_option(key, word("value"));
+            } else if (op == "rebuild") {
+                request_rebuild();
+            } else if (op == "heat") {
+                const std::string w = word("nodes, triangles or off");
+                if (w != "nodes" && w != "triangles" && w != "off")
+                    throw script_error(cmd, "expected nodes, triangles or off");
+                set_view_mode(w == "nodes"       ? ViewMode::heat_nodes
+                              : w == "triangles" ? ViewMode::heat_triangles
+                                                 : ViewMode::radiance);
+            } else if (op == "exposure") {
+                tone_.exposure = number("stops");
+            } else if (op == "pause" || op == "resume") {
+                paused_ = op == "pause";
+                worker_->set_paused(paused_);
+            } else if (op == "panels") {
+                panels_ = word("on or off") == "on";
+            } else if (op == "screenshot") {
+                screenshot_requests_.push_back(word("file"));
+                return true;  // taken at the end of this frame, before any later command
+            } else if (op == "save") {
+                save_image(word("file"));
+            } else if (op == "save_session") {
+                save_session(word("file"));
+            } else if (op == "load_session") {
+                load_session(word("file"));
+            } else if (op == "stats") {
+                std::printf("%s\n", frame_stats(word("label")).c_str());
+                std::fflush(stdout);
+            } else if (op == "wait" || op == "wait_passes") {
+                waiting_ = op;
+                wait_count_ = int(number("count"));
+                return true;
+            } else if (op == "wait_done" || op == "wait_rebuild") {
+                waiting_ = op;
+                return true;
+            } else {
+                throw script_error(cmd, "unknown command");
+            }
+        } catch (const Error& e) {
+            const std::string what = e.what();
+            if (what.rfind("view --script", 0) == 0) throw;
+            throw script_error(cmd, what);
+        }
+    }
+    return false;
+}
+
+}  // namespace kdt::ui
