@@ -22,7 +22,6 @@ void add_view_command(CLI::App& parent) {
     sub->add_option("--screenshot", vo.screenshot, "PNG of the window at exit (with --frames)");
     sub->add_option("--script", vo.script,
                     "Commands separated by ';', e.g. \"orbit 30 0; set tree.q 0.9; rebuild\"");
-    sub->add_option("--session", vo.session, "Session file to start from (saved by the viewer)");
     sub->add_option("--preview-divisor", vo.preview_divisor,
                     "Resolution divisor of the preview pass after a change (1 = none)")
         ->check(CLI::Range(1, 64));
