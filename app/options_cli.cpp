@@ -103,7 +103,13 @@ void add_scene_options(CLI::App& app, SceneOptions& scene) {
     app.add_option_function<float>(
         "--env-intensity", [&scene](const float& v) { scene.env_intensity = v; },
         "Scale of the environment radiance, replacing the scene's [0, 3e38]");
-    app.add_option("--cache-dir", scene.cache_dir, "Directory of kd-tree cache files");
+    app.add_option("--cache-dir", scene.cache_dir,
+                   "Directory of kd-tree cache files (default: the user's cache directory; "
+                   "'.' puts them next to the model)");
+    app.add_option("--tree", scene.tree_file,
+                   "kd-tree file written by `kdtrace build -o`, used instead of the cache "
+                   "(checked against the model; its parameters are the file's)")
+        ->type_name("FILE");
     add_fields(app, scene, scene_fields(), {});
     // Camera parts, each overriding the scene's (and --view's).
     for (auto [flag, target, help] :

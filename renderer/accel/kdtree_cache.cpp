@@ -429,44 +429,10 @@ std::shared_ptr<const KdTree> load_kdtree_image(const unsigned char* data, size_
                                                 std::shared_ptr<const TriangleMesh> mesh,
                                                 const KdTreeParams& params, bool verify,
                                                 double* verify_seconds);
-}  // namespace
 
-std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
-                                          std::shared_ptr<const TriangleMesh> mesh,
-                                          const KdTreeParams& params, double* verify_seconds) {
-    MappedFile file(path);
-    // The header checksum sits at a fixed offset; the full checks below validate it.
-    uint64_t header_checksum = 0;
-    if (file.size() >= sizeof(FileHeader)) {
-        std::memcpy(&header_checksum, file.data() + offsetof(FileHeader, header_checksum), 8);
-    }
-    const std::string key =
-        mesh ? stamp_key(file.stat(), header_checksum, mesh->content_hash()) : std::string();
-    const bool verified = !key.empty() && stamped(file.stat(), key);
-    double seconds = 0.0;
-    auto tree = load_kdtree_image(file.data(), file.size(), path, std::move(mesh), params,
-                                  !verified, &seconds);
-    if (!verified) write_stamp(file.stat(), key);
-    if (verify_seconds) *verify_seconds = seconds;
-    return tree;
-}
-
-std::shared_ptr<const KdTree> load_kdtree_memory(const unsigned char* data, size_t size,
-                                                 const std::string& path,
-                                                 std::shared_ptr<const TriangleMesh> mesh,
-                                                 const KdTreeParams& params,
-                                                 double* verify_seconds) {
-    return load_kdtree_image(data, size, path, std::move(mesh), params, true, verify_seconds);
-}
-
-namespace {
-
-std::shared_ptr<const KdTree> load_kdtree_image(const unsigned char* data, size_t size,
-                                                const std::string& path,
-                                                std::shared_ptr<const TriangleMesh> mesh,
-                                                const KdTreeParams& params, bool verify,
-                                                double* verify_seconds) {
-    if (!mesh) throw Error(ErrorLocation{path}, "no mesh to check the tree cache against");
+// The header of a cache file image after the checks that need nothing but the file: magic,
+// size, byte order, version, record sizes and the header checksum.
+FileHeader checked_header(const unsigned char* data, size_t size, const std::string& path) {
     if (size == 0) fail_at(path, "", -1, -1, "empty file");
     if (size < sizeof(kMagic) || std::memcmp(data, kMagic, sizeof(kMagic)) != 0) {
         fail_at(path, "header", -1, 0, "not a kdtrace tree cache (wrong magic)");
@@ -495,6 +461,73 @@ std::shared_ptr<const KdTree> load_kdtree_image(const unsigned char* data, size_
         fail_at(path, "header", -1, offsetof(FileHeader, header_checksum),
                 "header checksum mismatch (corrupt header)");
     }
+    return h;
+}
+
+}  // namespace
+
+std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
+                                          std::shared_ptr<const TriangleMesh> mesh,
+                                          const KdTreeParams& params, double* verify_seconds) {
+    MappedFile file(path);
+    // The header checksum sits at a fixed offset; the full checks below validate it.
+    uint64_t header_checksum = 0;
+    if (file.size() >= sizeof(FileHeader)) {
+        std::memcpy(&header_checksum, file.data() + offsetof(FileHeader, header_checksum), 8);
+    }
+    const std::string key =
+        mesh ? stamp_key(file.stat(), header_checksum, mesh->content_hash()) : std::string();
+    const bool verified = !key.empty() && stamped(file.stat(), key);
+    double seconds = 0.0;
+    auto tree = load_kdtree_image(file.data(), file.size(), path, std::move(mesh), params,
+                                  !verified, &seconds);
+    if (!verified) write_stamp(file.stat(), key);
+    if (verify_seconds) *verify_seconds = seconds;
+    return tree;
+}
+
+KdTreeParams kdtree_file_params(const std::string& path) {
+    MappedFile file(path);
+    const FileHeader h = checked_header(file.data(), file.size(), path);
+    KdTreeParams p;
+    if (h.builder >= kKdBuilderNames.size())
+        fail_at(path, "header", -1, offsetof(FileHeader, builder), "unknown builder");
+    p.builder = KdBuilder(h.builder);
+    p.q = h.q;
+    p.n0 = h.n0;
+    p.max_depth = h.max_depth;
+    p.use_median_split = (h.split_flags & kFlagMedian) != 0;
+    p.use_center_split = (h.split_flags & kFlagCenter) != 0;
+    p.use_cutoff_split = (h.split_flags & kFlagCutoff) != 0;
+    p.thesis_all_axes = (h.split_flags & kFlagAllAxes) != 0;
+    p.traversal_cost = h.traversal_cost;
+    p.intersect_cost = h.intersect_cost;
+    p.empty_bonus = h.empty_bonus;
+    try {
+        validate(p);
+    } catch (const Error& e) {
+        fail_at(path, "header", -1, offsetof(FileHeader, builder), e.what());
+    }
+    return p;
+}
+
+std::shared_ptr<const KdTree> load_kdtree_memory(const unsigned char* data, size_t size,
+                                                 const std::string& path,
+                                                 std::shared_ptr<const TriangleMesh> mesh,
+                                                 const KdTreeParams& params,
+                                                 double* verify_seconds) {
+    return load_kdtree_image(data, size, path, std::move(mesh), params, true, verify_seconds);
+}
+
+namespace {
+
+std::shared_ptr<const KdTree> load_kdtree_image(const unsigned char* data, size_t size,
+                                                const std::string& path,
+                                                std::shared_ptr<const TriangleMesh> mesh,
+                                                const KdTreeParams& params, bool verify,
+                                                double* verify_seconds) {
+    if (!mesh) throw Error(ErrorLocation{path}, "no mesh to check the tree cache against");
+    const FileHeader h = checked_header(data, size, path);
     const uint8_t want_flags = split_flags(params);
     if (h.builder != uint8_t(params.builder) || float_bits(h.q) != float_bits(params.q) ||
         h.n0 != params.n0 || h.max_depth != params.max_depth || h.split_flags != want_flags ||

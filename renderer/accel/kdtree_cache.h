@@ -41,6 +41,11 @@ std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
                                           const KdTreeParams& params,
                                           double* verify_seconds = nullptr);
 
+/// The parameters a cache file (or a tree written by `kdtrace build -o`) was built with, after
+/// checking its header (magic, version, checksum; values in range). Throws kdt::Error naming
+/// the file otherwise.
+KdTreeParams kdtree_file_params(const std::string& path);
+
 /// load_kdtree() on a file image already in memory (`size` bytes at `data`, which need not
 /// be aligned); `path` names it in error messages. For tests and fuzzers.
 std::shared_ptr<const KdTree> load_kdtree_memory(const unsigned char* data, size_t size,

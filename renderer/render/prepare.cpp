@@ -49,7 +49,12 @@ Prepared prepare_render(const RenderOptions& o, const PrepareLog& log) {
     ts.env = make_environment_light(out.scene.environment, say);
 
     Timer tree_timer;
-    if (o.scene.use_cache) {
+    if (!o.scene.tree_file.empty()) {
+        KdTreeParams params = kdtree_file_params(o.scene.tree_file);
+        params.threads = o.tree.threads;
+        ts.tree = load_kdtree(o.scene.tree_file, ts.mesh, params);
+        out.tree_from_cache = true;
+    } else if (o.scene.use_cache) {
         KdCacheReport report;
         // The merged world-space mesh of a scene file differs from the file's mesh; the cache
         // checks the content hash, so naming the file after the scene is safe.

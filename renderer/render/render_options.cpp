@@ -185,6 +185,8 @@ void scene_from_json(const json& v, SceneOptions& scene, const std::string& wher
             scene.env_mapping = str();
         } else if (key == "cache_dir") {
             scene.cache_dir = str();
+        } else if (key == "tree_file") {
+            scene.tree_file = str();
         } else if (key == "env_intensity") {
             scene.env_intensity = number();
         } else if (key == "eye") {
@@ -274,6 +276,7 @@ std::string options_to_json(const RenderOptions& o) {
     if (!o.scene.env_mapping.empty()) scene["env_mapping"] = o.scene.env_mapping;
     if (o.scene.env_intensity) scene["env_intensity"] = float_for_text(*o.scene.env_intensity);
     if (!o.scene.cache_dir.empty()) scene["cache_dir"] = o.scene.cache_dir;
+    if (!o.scene.tree_file.empty()) scene["tree_file"] = o.scene.tree_file;
     if (o.scene.camera) {
         scene["camera"] = {{"eye", vec_json(o.scene.camera->eye)},
                            {"target", vec_json(o.scene.camera->target)},

@@ -43,8 +43,11 @@ struct SceneOptions {
     std::optional<float> vfov_degrees;
     int width = 640, height = 480;  ///< image size in pixels
     bool use_cache = true;          ///< kd-tree cache (get_or_build_kdtree)
-    std::string cache_dir;          ///< empty = the default cache places
-    bool drop_invalid = false;      ///< drop faces with non-finite vertices
+    std::string cache_dir;          ///< empty = the user's cache directory
+    /// A tree file written by `kdtrace build -o` to render with instead of the cache: checked
+    /// against the scene's mesh like a cache file; its parameters are the file's.
+    std::string tree_file;
+    bool drop_invalid = false;  ///< drop faces with non-finite vertices
 };
 
 struct RenderOptions {

@@ -168,3 +168,22 @@ add_test(NAME smoke.info_image COMMAND sh -c "\"$0\" render --width 16 --height 
 --quiet -o \"$1\" >/dev/null && \"$0\" info \"$1\"" ${_kdt} ${_tmp}/info.exr)
 set_tests_properties(smoke.info_image PROPERTIES PASS_REGULAR_EXPRESSION
   "format: +OpenEXR\nsize: +16x12\nencoding: +zip compression[^\n]*\nkdtrace:command: kdtrace render --width 16 --height 12 [^\n]*--spp 2\n")
+
+# A tree written by `build -o` is used by `render --tree`, checked against the model like a
+# cache file (its parameters are the file's own).
+add_test(NAME smoke.tree_file_build COMMAND ${_kdt} build /usr/share/assimp/models/PLY/Wuson.ply
+         --builder thesis --q 0.9 --n0 3 -o ${_tmp}/wuson_thesis.kdt)
+add_test(NAME smoke.tree_file_render COMMAND ${_kdt} render
+         /usr/share/assimp/models/PLY/Wuson.ply --tree ${_tmp}/wuson_thesis.kdt --spp 1 --width 16
+         --height 12 -o ${_tmp}/wuson_tree.png)
+set_tests_properties(smoke.tree_file_render PROPERTIES DEPENDS smoke.tree_file_build
+  PASS_REGULAR_EXPRESSION "tree [0-9.]+ s \\(cached\\)")
+add_test(NAME smoke.tree_file_other_model COMMAND ${_kdt} render
+         /usr/share/assimp/models/PLY/cube.ply --tree ${_tmp}/wuson_thesis.kdt --spp 1
+         -o ${_tmp}/cube_tree.png)
+set_tests_properties(smoke.tree_file_other_model PROPERTIES DEPENDS smoke.tree_file_build
+  PASS_REGULAR_EXPRESSION "wuson_thesis.kdt: byte [0-9]+: header: stale: built for another mesh")
+add_test(NAME smoke.tree_file_not_a_tree COMMAND ${_kdt} render
+         /usr/share/assimp/models/PLY/cube.ply --tree /usr/share/assimp/models/PLY/cube.ply)
+set_tests_properties(smoke.tree_file_not_a_tree PROPERTIES
+  PASS_REGULAR_EXPRESSION "cube.ply: byte 0: header: not a kdtrace tree cache")
