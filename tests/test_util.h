@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "renderer/core/error.h"
 #include "renderer/core/math.h"
 
 namespace kdt::test {
@@ -23,6 +24,17 @@ std::filesystem::path temp_dir(const std::string& name);
 std::vector<unsigned char> read_bytes(const std::filesystem::path& p);
 /// Writes the file, replacing it; throws kdt::Error naming it when that fails.
 void write_bytes(const std::filesystem::path& p, const std::vector<unsigned char>& bytes);
+
+/// The message of the kdt::Error that f() throws, or "" when it throws none.
+template <class F>
+std::string error_of_call(F&& f) {
+    try {
+        f();
+    } catch (const Error& e) {
+        return e.what();
+    }
+    return "";
+}
 
 /// Seeded SplitMix64 stream for test inputs (not the renderer's sampler): fixed seeds only.
 struct HashRng {

@@ -12,16 +12,6 @@
 namespace kdt {
 namespace {
 
-template <class F>
-std::string error_of(F&& f) {
-    try {
-        f();
-    } catch (const Error& e) {
-        return e.what();
-    }
-    return "";
-}
-
 class SpecialFiles : public ::testing::Test {
 protected:
     void SetUp() override {
@@ -38,7 +28,7 @@ protected:
 TEST_F(SpecialFiles, MeshReadersRefuseFifos) {
     for (const char* name : {"mesh.ply", "mesh.obj", "mesh.ply.gz"}) {
         const std::string p = path(name);
-        const std::string msg = error_of([&] { load_mesh(p); });
+        const std::string msg = test::error_of_call([&] { load_mesh(p); });
         EXPECT_NE(msg.find(p + ": is a FIFO (pipe)"), std::string::npos) << msg;
     }
 }
@@ -46,15 +36,15 @@ TEST_F(SpecialFiles, MeshReadersRefuseFifos) {
 TEST_F(SpecialFiles, ImageReadersRefuseFifos) {
     for (const char* name : {"probe.hdr", "probe.exr"}) {
         const std::string p = path(name);
-        const std::string msg = error_of([&] { load_image(p); });
+        const std::string msg = test::error_of_call([&] { load_image(p); });
         EXPECT_NE(msg.find(p + ": is a FIFO (pipe)"), std::string::npos) << msg;
     }
 }
 
 TEST_F(SpecialFiles, ReadersRefuseCharacterDevices) {
-    std::string msg = error_of([] { load_mesh("/dev/zero"); });
+    std::string msg = test::error_of_call([] { load_mesh("/dev/zero"); });
     EXPECT_NE(msg.find("/dev/zero: is a character device"), std::string::npos) << msg;
-    msg = error_of([] { load_image("/dev/zero"); });
+    msg = test::error_of_call([] { load_image("/dev/zero"); });
     EXPECT_NE(msg.find("/dev/zero: is a character device"), std::string::npos) << msg;
 }
 

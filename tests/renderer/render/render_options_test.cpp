@@ -8,20 +8,12 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/test_util.h"
+
 #include "renderer/core/error.h"
 
 namespace kdt {
 namespace {
-
-template <class F>
-std::string error_of(F&& f) {
-    try {
-        f();
-    } catch (const Error& e) {
-        return e.what();
-    }
-    return "";
-}
 
 // Every field of a table: the default is valid, a value past either end of its range is
 // refused by parse_field with a reason, and the range's ends are accepted.
@@ -86,26 +78,30 @@ TEST(RenderOptions, EveryTableHasValidDefaultsAndEnforcedRanges) {
 TEST(RenderOptions, ErrorsNameTheField) {
     RenderOptions o;
     o.trace.max_depth = -1;
-    EXPECT_EQ(error_of([&] { validate(o); }), "trace.max_depth must be in [0, 1024] (got -1)");
+    EXPECT_EQ(test::error_of_call([&] { validate(o); }),
+              "trace.max_depth must be in [0, 1024] (got -1)");
     o = RenderOptions{};
     o.tree.q = 1.5f;
-    EXPECT_EQ(error_of([&] { validate(o); }), "tree.q must be in (0, 1] (got 1.5)");
+    EXPECT_EQ(test::error_of_call([&] { validate(o); }), "tree.q must be in (0, 1] (got 1.5)");
     o = RenderOptions{};
     o.film.adaptive_threshold = std::nanf("");
-    EXPECT_NE(error_of([&] { validate(o); }).find("film.adaptive_threshold"), std::string::npos);
+    EXPECT_NE(test::error_of_call([&] { validate(o); }).find("film.adaptive_threshold"),
+              std::string::npos);
     o = RenderOptions{};
     o.stop.seconds = -1.0;
-    EXPECT_NE(error_of([&] { validate(o); }).find("stop.seconds"), std::string::npos);
+    EXPECT_NE(test::error_of_call([&] { validate(o); }).find("stop.seconds"), std::string::npos);
     o = RenderOptions{};
     o.scene.width = 0;
-    EXPECT_NE(error_of([&] { validate(o); }).find("scene.width"), std::string::npos);
+    EXPECT_NE(test::error_of_call([&] { validate(o); }).find("scene.width"), std::string::npos);
     o = RenderOptions{};
     o.scene.env_intensity = -2.0f;
-    EXPECT_NE(error_of([&] { validate(o); }).find("scene.env_intensity"), std::string::npos);
+    EXPECT_NE(test::error_of_call([&] { validate(o); }).find("scene.env_intensity"),
+              std::string::npos);
     o = RenderOptions{};
     o.trace.filter = PixelFilter(9);
-    EXPECT_NE(error_of([&] { validate(o); }).find("trace.filter must be one of: box, tent"),
-              std::string::npos);
+    EXPECT_NE(
+        test::error_of_call([&] { validate(o); }).find("trace.filter must be one of: box, tent"),
+        std::string::npos);
 }
 
 TEST(RenderOptions, ResolveHoldsTheRules) {
@@ -160,7 +156,7 @@ TEST(RenderOptions, JsonReadsBackTheSameOptions) {
 TEST(RenderOptions, JsonRefusesWhatItCannotHonour) {
     RenderOptions o;
     auto bad = [&](const std::string& text) {
-        return error_of([&] { options_from_json(text, o, "s.json"); });
+        return test::error_of_call([&] { options_from_json(text, o, "s.json"); });
     };
     EXPECT_EQ(bad("{\"trace\": {\"max_depht\": 3}}"), "s.json: /trace/max_depht: unknown key");
     EXPECT_EQ(bad("{\"traec\": {}}"), "s.json: /traec: unknown key");

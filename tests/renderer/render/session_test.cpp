@@ -224,28 +224,17 @@ TEST(RenderSession, AdaptiveSamplingSpendsSamplesWhereTheNoiseIs) {
     EXPECT_NEAR(s.film().mean(16, 16).x, 0.8f, 0.1f);
 }
 
-// The message of the kdt::Error that f throws ("" if none).
-template <class F>
-std::string error_of(F&& f) {
-    try {
-        f();
-    } catch (const Error& e) {
-        return e.what();
-    }
-    return "";
-}
-
 TEST(RenderSession, RejectsBadParametersWithTheirNames) {
     auto snap = small_snapshot(8, 8);
     auto bad_trace = [&](auto change) {
         TraceParams tp;
         change(tp);
-        return error_of([&] { RenderSession s(snap, tp, FilmParams{}); });
+        return test::error_of_call([&] { RenderSession s(snap, tp, FilmParams{}); });
     };
     auto bad_film = [&](auto change) {
         FilmParams fp;
         change(fp);
-        return error_of([&] { RenderSession s(snap, TraceParams{}, fp); });
+        return test::error_of_call([&] { RenderSession s(snap, TraceParams{}, fp); });
     };
     auto has = [](const std::string& msg, const char* part) {
         return msg.find(part) != std::string::npos;
@@ -278,8 +267,8 @@ TEST(RenderSession, RejectsBadParametersWithTheirNames) {
         stop.spp = 1;
         change(stop);
         // validate() alone, as the CLI calls it before loading anything, says the same.
-        const std::string checked = error_of([&] { validate(stop); });
-        const std::string rendered = error_of([&] { run_render(s, stop); });
+        const std::string checked = test::error_of_call([&] { validate(stop); });
+        const std::string rendered = test::error_of_call([&] { run_render(s, stop); });
         EXPECT_EQ(checked, rendered);
         return rendered;
     };
@@ -499,10 +488,12 @@ TEST(RenderSnapshot, BadCameraFailsBeforeTheTreeIsBuilt) {
     CameraDesc wide;
     wide.vfov_degrees = 180.0f;
     o.scene.camera = wide;
-    EXPECT_NE(error_of([&] { prepare_render(o, [](const std::string&) {}); }), "");
+    EXPECT_NE(test::error_of_call([&] { prepare_render(o, [](const std::string&) {}); }), "");
     o.scene.width = 100000;
     o.scene.camera.reset();
-    EXPECT_NE(error_of([&] { prepare_render(o, [](const std::string&) {}); }).find("scene.width"),
+    EXPECT_NE(test::error_of_call([&] {
+                  prepare_render(o, [](const std::string&) {});
+              }).find("scene.width"),
               std::string::npos);
     EXPECT_EQ(trees(), 0);
     o.scene.width = 8;
