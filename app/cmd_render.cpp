@@ -105,7 +105,8 @@ void run(const RenderCommand& cmd) {
     // Fail before loading and rendering, not after.
     validate(o);
     check_image_output(cmd.output);
-    check_output(cmd.output, {o.scene.scene_path, o.scene.env_file}, "the image");
+    check_output(cmd.output, {o.scene.scene_path, o.scene.env_file, o.scene.tree_file},
+                 "the image");
 
     const Prepared prep = prepare_render(o, [&](const std::string& line) {
         if (!cmd.quiet) std::fprintf(stderr, "kdtrace: %s\n", line.c_str());
