@@ -10,6 +10,7 @@
 #include <string>
 
 #include "app/commands.h"
+#include "app/mpi_cli.h"
 #include "app/options_cli.h"
 #include "renderer/core/error.h"
 #include "renderer/io/image_io.h"
@@ -26,6 +27,7 @@ struct RenderCommand {
     RenderOptions options;
     std::string output = "out.png";
     bool quiet = false;
+    DistArgs dist;  // --mpi, --frames (app/mpi_cli.h)
 };
 
 std::string human_seconds(double s) {
@@ -100,6 +102,7 @@ void run(const RenderCommand& cmd) {
     const RenderOptions o = resolve(cmd.options);
     // Fail before loading and rendering, not after.
     validate(o);
+    if (dist_requested(cmd.dist)) return run_dist_render(o, cmd.output, cmd.quiet, cmd.dist);
     check_image_output(cmd.output);
 
     const Prepared prep = prepare_render(o, [&](const std::string& line) {
@@ -160,6 +163,7 @@ void add_render_command(CLI::App& parent) {
                     "Output image: .png (tone-mapped sRGB), .exr or .pfm (linear)")
         ->capture_default_str();
     sub->add_flag("--quiet", cmd.quiet, "No progress bar or cache messages");
+    add_dist_options(*sub, cmd.dist);
     sub->callback([] {
         try {
             run(cmd);
