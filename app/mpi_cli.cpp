@@ -1,5 +1,7 @@
 #include "app/mpi_cli.h"
 
+#include "app/options_cli.h"
+
 #include <unistd.h>
 
 #include <cmath>
@@ -301,15 +303,18 @@ void run_dist_render(const RenderOptions& options, const std::string& output, bo
         return;
     }
 #ifdef KDT_HAVE_MPI
-    std::string message;
-    bool report_it = true;
+    bool failed = false;
     {
         dist::MpiContext ctx;
         try {
             run_mpi(ctx, options, output, quiet, a);
         } catch (const dist::FarmError& e) {
-            message = e.what();
-            report_it = e.report();
+            // Printed before MPI_Finalize: mpirun ends the job once any rank has exited
+            // non-zero, which could otherwise cut rank 0 off before its message.
+            if (e.report())
+                std::fprintf(stderr, "kdtrace: error: %s\n", with_flags(e.what()).c_str());
+            std::fflush(stderr);
+            failed = true;
         } catch (const std::exception& e) {
             // A failure of this rank alone after the collective checks: the others may be
             // waiting for it, so the whole job ends here.
@@ -318,9 +323,7 @@ void run_dist_render(const RenderOptions& options, const std::string& output, bo
             MPI_Abort(MPI_COMM_WORLD, 1);
         }
     }
-    if (message.empty()) return;
-    if (report_it) throw Error(message);
-    std::exit(1);
+    if (failed) std::exit(1);
 #else
     throw Error("--mpi: this kdtrace was built without MPI (KDT_WITH_MPI off or MPI not found)");
 #endif

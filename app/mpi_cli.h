@@ -31,7 +31,8 @@ inline bool dist_requested(const DistArgs& args) { return args.mpi || args.frame
 
 /// Renders `options` (resolved and validated) as the flags ask and writes `output` (for
 /// frames a pattern with one printf integer conversion, "frame_%03d.png"). Throws
-/// kdt::Error on rank 0 for any failure; other ranks exit with status 1 without a message.
+/// kdt::Error for bad input; with --mpi a failure ends every rank with status 1, rank 0
+/// printing the one message.
 void run_dist_render(const RenderOptions& options, const std::string& output, bool quiet,
                      const DistArgs& args);
 

@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <functional>
 #include <vector>
@@ -14,6 +15,7 @@ namespace kdt::dist {
 
 MpiContext::MpiContext() {
     int provided = 0;
+    // Only the main thread calls MPI (OpenMP threads render, the watchdog sets a flag).
     MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided);
     MPI_Comm_rank(MPI_COMM_WORLD, &rank_);
     MPI_Comm_size(MPI_COMM_WORLD, &size_);
@@ -24,19 +26,23 @@ MpiContext::~MpiContext() {
     MPI_Finalize();
 }
 
-void MpiContext::start_watchdog(double seconds) {
+void MpiContext::start_watchdog(double seconds, double grace_seconds) {
     if (!(seconds > 0.0) || watchdog_.joinable()) return;
-    watchdog_ = std::thread([this, seconds] {
+    timeout_ = seconds;
+    watchdog_ = std::thread([this, seconds, grace_seconds] {
         std::unique_lock<std::mutex> lock(mutex_);
         if (cv_.wait_for(lock, std::chrono::duration<double>(seconds), [this] { return stop_; }))
             return;
+        expired_.store(true);
+        if (cv_.wait_for(lock, std::chrono::duration<double>(grace_seconds),
+                         [this] { return stop_; }))
+            return;
         std::fprintf(stderr,
-                     "kdtrace: error: rank %d: --timeout %g s reached; aborting all ranks\n", rank_,
-                     seconds);
+                     "kdtrace: error: rank %d: --timeout %g s reached and the rank is stuck; "
+                     "ending it\n",
+                     rank_, seconds);
         std::fflush(stderr);
-        // MPI_Abort from this thread: Open MPI asks its daemon to kill the job, which works
-        // whichever thread calls it, and the main thread may be stuck inside MPI.
-        MPI_Abort(MPI_COMM_WORLD, 3);
+        std::_Exit(3);
     });
 }
 

@@ -4,6 +4,7 @@
 // Compiled only with MPI (KDT_WITH_MPI). Depends on render.
 #pragma once
 
+#include <atomic>
 #include <condition_variable>
 #include <cstdint>
 #include <functional>
@@ -28,7 +29,7 @@ private:
     bool report_;
 };
 
-/// MPI_Init_thread (OpenMP threads render, only the main thread calls MPI) on construction,
+/// MPI_Init_thread on construction,
 /// MPI_Finalize on destruction. One per process.
 class MpiContext {
 public:
@@ -40,9 +41,14 @@ public:
     int rank() const { return rank_; }
     int size() const { return size_; }
 
-    /// After `seconds` (> 0) without stop_watchdog(), prints "rank R: --timeout S s reached"
-    /// to stderr and calls MPI_Abort, which ends every rank of the job with a non-zero status.
-    void start_watchdog(double seconds);
+    /// After `seconds` (> 0) without stop_watchdog(), expired() turns true: the farm's waits
+    /// poll it, so every rank leaves its farm and finalizes cleanly (Open MPI 4.1's mpirun
+    /// can hang in PMIx_server_finalize after MPI_Abort or a rank ending without
+    /// MPI_Finalize). A rank that is still running `grace_seconds` later (stuck outside the
+    /// farm's waits) prints "rank R: --timeout S s reached" and ends with status 3.
+    void start_watchdog(double seconds, double grace_seconds = 10.0);
+    bool expired() const { return expired_.load(std::memory_order_relaxed); }
+    double timeout_seconds() const { return timeout_; }
     void stop_watchdog();
 
     /// Rank 0's string on every rank.
@@ -50,6 +56,8 @@ public:
 
 private:
     int rank_ = 0, size_ = 1;
+    std::atomic<bool> expired_{false};
+    double timeout_ = 0.0;
     std::thread watchdog_;
     std::mutex mutex_;
     std::condition_variable cv_;

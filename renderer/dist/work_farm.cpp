@@ -2,6 +2,8 @@
 
 #include <mpi.h>
 
+#include <cstdio>
+
 #include <algorithm>
 #include <chrono>
 #include <cstring>
@@ -37,9 +39,34 @@ std::vector<char> pack_result(const std::vector<int>& items, int want,
     return msg;
 }
 
-void throttle(const FarmParams& p, int rank, double seconds) {
-    if (rank != p.throttle_rank || !(p.throttle_factor > 1.0)) return;
-    std::this_thread::sleep_for(std::chrono::duration<double>(seconds * (p.throttle_factor - 1.0)));
+[[noreturn]] void timed_out(const MpiContext& ctx) {
+    char buf[96];
+    std::snprintf(buf, sizeof buf, "--timeout %g s reached; every rank stopped",
+                  ctx.timeout_seconds());
+    throw FarmError(buf, ctx.rank() == 0);
+}
+
+// MPI_Probe that gives up when the context's timeout expires (every rank's waits do, so
+// all leave the farm together and finalize normally).
+void probe(const MpiContext& ctx, int source, int tag, MPI_Status* st) {
+    for (int spins = 0;; ++spins) {
+        int flag = 0;
+        MPI_Iprobe(source, tag, MPI_COMM_WORLD, &flag, st);
+        if (flag) return;
+        if (ctx.expired()) timed_out(ctx);
+        // Spin briefly for low latency, then yield the core to the renderers.
+        if (spins > 1000) std::this_thread::sleep_for(std::chrono::microseconds(50));
+    }
+}
+
+void throttle(const MpiContext& ctx, const FarmParams& p, double seconds) {
+    if (ctx.rank() != p.throttle_rank || !(p.throttle_factor > 1.0)) return;
+    const auto end = std::chrono::steady_clock::now() +
+                     std::chrono::duration<double>(seconds * (p.throttle_factor - 1.0));
+    while (std::chrono::steady_clock::now() < end) {
+        if (ctx.expired()) timed_out(ctx);
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
 }
 
 // Rank 0: the sources of items, the replies to requests, the consumption of results.
@@ -78,7 +105,7 @@ public:
     // Receives one message from `source` (MPI_ANY_SOURCE allowed) and answers it.
     void handle(int source) {
         MPI_Status st;
-        MPI_Probe(source, kTagResult, MPI_COMM_WORLD, &st);
+        probe(ctx_, source, kTagResult, &st);
         int size = 0;
         MPI_Get_count(&st, MPI_BYTE, &size);
         buffer_.resize(size_t(size));
@@ -122,7 +149,7 @@ public:
             }
             Timer t;
             const std::vector<char> bytes = render(own, poll_fn);
-            throttle(params_, 0, t.seconds());
+            throttle(ctx_, params_, t.seconds());
             stats.busy_seconds += t.seconds();
             stats.items += int32_t(own.size());
             done_items(own, bytes.data(), bytes.size());
@@ -178,7 +205,7 @@ RankStats run_worker(const MpiContext& ctx, const FarmParams& params, const Rend
             int flag = 0;
             MPI_Status st;
             if (queue.empty()) {
-                MPI_Probe(0, kTagWork, MPI_COMM_WORLD, &st);
+                probe(ctx, 0, kTagWork, &st);
                 flag = 1;
             } else {
                 MPI_Iprobe(0, kTagWork, MPI_COMM_WORLD, &flag, &st);
@@ -201,7 +228,7 @@ RankStats run_worker(const MpiContext& ctx, const FarmParams& params, const Rend
         }
         Timer t;
         const std::vector<char> bytes = render(mine, no_poll);
-        throttle(params, ctx.rank(), t.seconds());
+        throttle(ctx, params, t.seconds());
         stats.busy_seconds += t.seconds();
         stats.items += int32_t(mine.size());
         send(pack_result(mine, no_more ? 0 : int(mine.size()), bytes));
