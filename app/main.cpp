@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
     kdt::app::add_bench_load_command(*bench);
     kdt::app::add_bench_kdtree_command(*bench);
     kdt::app::add_bench_converge_command(*bench);
+    kdt::app::add_bench_mpi_command(*bench);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
