@@ -196,6 +196,7 @@ void report(const std::vector<dist::RankStats>& ranks, const DistArgs& a, const 
                                  {"items", r.items},
                                  {"busy_seconds", r.busy_seconds},
                                  {"wall_seconds", r.wall_seconds},
+                                 {"cpu_seconds", r.cpu_seconds},
                                  {"messages", r.messages},
                                  {"bytes", r.bytes}});
     }

@@ -104,7 +104,7 @@ void run(const BenchMpiArgs& a) {
     }
     std::printf(
         "| distribution | ranks | throttled | wall s (min-max) | speedup | efficiency | "
-        "per rank: items / busy s / idle s |\n|---|---|---|---|---|---|---|\n");
+        "per rank: items / busy s / idle s / cpu s |\n|---|---|---|---|---|---|---|\n");
     for (const Run& r : runs) {
         const double wall = median(r.seconds);
         double busy = 0.0;
@@ -113,9 +113,10 @@ void run(const BenchMpiArgs& a) {
             const double b = k["busy_seconds"].get<double>();
             const double w = r.last["seconds"].get<double>();
             busy += b;
-            char cell[96];
-            std::snprintf(cell, sizeof cell, "%s%d / %.2f / %.2f", per.empty() ? "" : "; ",
-                          k["items"].get<int>(), b, std::max(0.0, w - b));
+            char cell[128];
+            std::snprintf(cell, sizeof cell, "%s%d / %.2f / %.2f / %.2f", per.empty() ? "" : "; ",
+                          k["items"].get<int>(), b, std::max(0.0, w - b),
+                          k["cpu_seconds"].get<double>());
             per += cell;
         }
         const double last_wall = r.last["seconds"].get<double>();

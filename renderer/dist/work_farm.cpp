@@ -3,6 +3,7 @@
 #include <mpi.h>
 
 #include <cstdio>
+#include <ctime>
 
 #include <algorithm>
 #include <chrono>
@@ -37,6 +38,12 @@ std::vector<char> pack_result(const std::vector<int>& items, int want,
         std::memcpy(msg.data() + sizeof h + items.size() * sizeof(int32_t), payload.data(),
                     payload.size());
     return msg;
+}
+
+double process_cpu_seconds() {
+    timespec ts{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
 }
 
 [[noreturn]] void timed_out(const MpiContext& ctx) {
@@ -263,6 +270,7 @@ std::vector<RankStats> run_farm(const MpiContext& ctx, int items, const FarmPara
                                 const RenderItems& render, const ConsumeItems& consume,
                                 const FarmProgress& progress) {
     MPI_Barrier(MPI_COMM_WORLD);  // every rank starts the clock together
+    const double cpu0 = process_cpu_seconds();
     RankStats mine;
     if (ctx.rank() == 0) {
         Master master(ctx, items, params, consume, progress);
@@ -271,6 +279,7 @@ std::vector<RankStats> run_farm(const MpiContext& ctx, int items, const FarmPara
     } else {
         mine = run_worker(ctx, params, render);
     }
+    mine.cpu_seconds = process_cpu_seconds() - cpu0;
     std::vector<RankStats> all(ctx.rank() == 0 ? size_t(ctx.size()) : 1);
     MPI_Gather(&mine, int(sizeof mine), MPI_BYTE, all.data(), int(sizeof mine), MPI_BYTE, 0,
                MPI_COMM_WORLD);

@@ -40,6 +40,8 @@ struct RankStats {
     int32_t items = 0;
     double busy_seconds = 0.0;  ///< rendering (and throttle sleeps)
     double wall_seconds = 0.0;  ///< from the farm's start to this rank's last item sent
+    double cpu_seconds = 0.0;   ///< CPU time of the process over the farm (all its threads):
+                                ///< below busy_seconds x threads when the machine is shared
     uint64_t messages = 0;      ///< sent and received by this rank
     uint64_t bytes = 0;         ///< sent and received by this rank
 };
