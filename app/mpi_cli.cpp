@@ -112,15 +112,13 @@ std::shared_ptr<const RenderSnapshot> frame_snapshot(const RenderSnapshot& base,
     return s;
 }
 
-void check_frames(const std::string& output, const DistArgs& a) {
+// The sequence flags and the output (its pattern, and, when check_output, its directory).
+void check_frames(const std::string& output, const DistArgs& a, bool check_output = true) {
     if (a.frames > 0 && !a.turntable)
         throw Error("--frames needs --turntable (the one kind of sequence so far)");
     if (a.turntable && a.frames == 0) throw Error("--turntable needs --frames N");
-    if (a.frames > 0) {
-        check_image_output(frame_path(output, 0));
-    } else {
-        check_image_output(output);
-    }
+    const std::string first = a.frames > 0 ? frame_path(output, 0) : output;
+    if (check_output) check_image_output(first);
 }
 
 // --frames without --mpi: every frame in this process, with any stop condition.
@@ -237,7 +235,7 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
         o.stop = StopConditions{};  // the stop conditions that are off are not in the JSON
         options_from_json(json, o, "rank 0's options");
         dist::check_farm_options(o);
-        check_frames(output, a);
+        check_frames(output, a, root);  // only rank 0 writes
         params = farm_params(a, o);
         return 0;
     });

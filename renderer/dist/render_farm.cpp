@@ -98,7 +98,7 @@ FarmResult render_frame_farm(const MpiContext& ctx, int frames, const FrameSnaps
                              const FarmProgress& progress) {
     check_farm_options(options);
     const int spp = options.stop.spp;
-    params.columns = std::max(frames, 1);
+    params.columns = 1;  // strips: rank r renders frames [r F / N, (r + 1) F / N)
     params.batch = 1;
     PathCounters mine;
     const RenderItems render = [&](const std::vector<int>& items,

@@ -42,8 +42,8 @@ using FrameSnapshot = std::function<std::shared_ptr<const RenderSnapshot>(int fr
 using FrameDone = std::function<void(int frame, const Film& film)>;
 
 /// Collective: whole frames [0, frames), one at a time per rank, handed out by `params`'
-/// distribution (over a single row); results are films sent to rank 0 and passed to `done`.
-/// Rank 0 renders its own frames in tile batches and serves workers in between.
+/// distribution (strips: consecutive frames per rank); results are films sent to rank 0 and passed
+/// to `done`. Rank 0 renders its own frames in tile batches and serves workers in between.
 FarmResult render_frame_farm(const MpiContext& ctx, int frames, const FrameSnapshot& snapshot,
                              const RenderOptions& options, FarmParams params, const FrameDone& done,
                              const FarmProgress& progress = {});

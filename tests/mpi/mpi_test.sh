@@ -37,14 +37,19 @@ frames)
     cmp -s local_00.pfm local_01.pfm && fail "turntable frames 0 and 1 are the same image"
     "$kdtrace" "${common[@]}" -o single.pfm > /dev/null || fail "single render"
     cmp single.pfm local_00.pfm || fail "frame 0 differs from the unrotated render"
-    for n in 2 3; do
-        mpi "$n" "${args[@]}" --mpi -o "mpi${n}_%02d.pfm" > "log_$n.txt" 2>&1 ||
-            { cat "log_$n.txt"; fail "frames with $n ranks"; }
+    for run in 2:dynamic 3:dynamic 3:strips 3:interleaved; do
+        n=${run%%:*} dist=${run#*:}
+        rm -f mpi_*.pfm
+        mpi "$n" "${args[@]}" --mpi --distribution "$dist" -o "mpi_%02d.pfm" > "log_$run.txt" 2>&1 ||
+            { cat "log_$run.txt"; fail "frames with $n ranks, $dist"; }
         for f in 00 01 02 03 04; do
-            cmp "local_$f.pfm" "mpi${n}_$f.pfm" || fail "frame $f with $n ranks differs"
+            cmp "local_$f.pfm" "mpi_$f.pfm" || fail "frame $f with $n ranks, $dist differs"
         done
+        grep -q "mpi: $n ranks, $dist, 5 frames" "log_$run.txt" || { cat "log_$run.txt"; fail "summary"; }
     done
-    echo "ok: 5 turntable frames identical locally and over 2 and 3 ranks" ;;
+    # Strips give each rank consecutive frames: 1, 2 and 2 of 5 over 3 ranks.
+    grep -q "mpi: rank 0: 1 frames" "log_3:strips.txt" || fail "strips: rank 0 did not render 1 frame"
+    echo "ok: 5 turntable frames identical locally and over 2 and 3 ranks, every distribution" ;;
 throttle)
     # Rank 1 sleeps 7x its render time. Dynamic gives it fewer tiles than either other rank;
     # the static distributions give it its fixed share whatever its speed.
