@@ -6,7 +6,7 @@ set -u
 case_name=$1 kdtrace=$2 mpiexec=$3 work=$4 model=$5
 command -v "$mpiexec" > /dev/null || { echo "skip: $mpiexec not found"; exit 77; }
 mkdir -p "$work" && cd "$work" || exit 1
-mpi() { local n=$1; shift; timeout 120 "$mpiexec" --oversubscribe --allow-run-as-root -np "$n" "$kdtrace" "$@"; }
+mpi() { local n=$1; shift; timeout -k 5 100 "$mpiexec" --oversubscribe --allow-run-as-root -np "$n" "$kdtrace" "$@"; }
 fail() { echo "FAIL: $*"; exit 1; }
 # A small image with partial tiles at the right and bottom, several passes per pixel.
 common=(render "$model" --no-cache --width 72 --height 40 --spp 5 --spp-per-pass 2 --seed 11
@@ -90,10 +90,10 @@ fail_missing)
         fail "message" ;;
 timeout)
     # Rank 2 sleeps 100000x its render time: the run is stuck until --timeout ends it.
-    out=$(mpi 3 "${common[@]}" --mpi --throttle 2:100000 --timeout 3 -o x.pfm 2>&1); rc=$?
+    out=$(mpi 3 "${common[@]}" --mpi --throttle 2:100000 --timeout 6 -o x.pfm 2>&1); rc=$?
     echo "$out"
     [ $rc -ne 0 ] || fail "a timed-out run gave exit status 0"
-    grep -q "kdtrace: error: --timeout 3 s reached; every rank stopped" <<< "$out" ||
+    grep -q "kdtrace: error: --timeout 6 s reached; every rank stopped" <<< "$out" ||
         fail "no timeout message" ;;
 refuse_adaptive)
     out=$(mpi 2 "${common[@]}" --error 0.1 --mpi -o x.pfm 2>&1); rc=$?
