@@ -231,16 +231,17 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
     // every rank with one message instead of leaving some waiting.
     const std::string json = ctx.broadcast(options_json_for_workers(o));
     dist::FarmParams params;
-    dist::check_every_rank(ctx, "cannot start", [&]() -> uint64_t {
+    dist::InjectedFault fault;
+    dist::check_every_rank(ctx, "could not start", [&]() -> uint64_t {
         o.stop = StopConditions{};  // the stop conditions that are off are not in the JSON
         options_from_json(json, o, "rank 0's options");
         dist::check_farm_options(o);
         check_frames(output, a, root);  // only rank 0 writes
         params = farm_params(a, o);
+        if (!a.inject.empty())
+            std::tie(fault.rank, fault.what) = rank_and(a.inject, "--mpi-inject");
         return 0;
     });
-    dist::InjectedFault fault;
-    if (!a.inject.empty()) std::tie(fault.rank, fault.what) = rank_and(a.inject, "--mpi-inject");
     const Prepared prep = dist::prepare_everywhere(
         ctx, o,
         [&](const std::string& line) {

@@ -99,7 +99,7 @@ refuse_adaptive)
     out=$(mpi 2 "${common[@]}" --error 0.1 --mpi -o x.pfm 2>&1); rc=$?
     echo "$out"
     [ $rc -ne 0 ] || fail "--error with --mpi gave exit status 0"
-    grep -q "every rank cannot start: a distributed render (--mpi) takes a fixed stop.spp" <<< "$out" ||
+    grep -q "every rank could not start: a distributed render (--mpi) takes a fixed stop.spp" <<< "$out" ||
         fail "message" ;;
 *) fail "unknown case $case_name" ;;
 esac
