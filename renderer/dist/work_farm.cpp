@@ -33,7 +33,8 @@ std::vector<char> pack_result(const std::vector<int>& items, int want,
     const ResultHeader h{int32_t(items.size()), int32_t(want)};
     std::vector<char> msg(sizeof h + items.size() * sizeof(int32_t) + payload.size());
     std::memcpy(msg.data(), &h, sizeof h);
-    std::memcpy(msg.data() + sizeof h, items.data(), items.size() * sizeof(int32_t));
+    if (!items.empty())  // memcpy from an empty vector's null data() is undefined
+        std::memcpy(msg.data() + sizeof h, items.data(), items.size() * sizeof(int32_t));
     if (!payload.empty())
         std::memcpy(msg.data() + sizeof h + items.size() * sizeof(int32_t), payload.data(),
                     payload.size());
@@ -123,7 +124,8 @@ public:
         ResultHeader h;
         std::memcpy(&h, buffer_.data(), sizeof h);
         std::vector<int> items(size_t(h.items));
-        std::memcpy(items.data(), buffer_.data() + sizeof h, items.size() * sizeof(int32_t));
+        if (!items.empty())
+            std::memcpy(items.data(), buffer_.data() + sizeof h, items.size() * sizeof(int32_t));
         const size_t off = sizeof h + items.size() * sizeof(int32_t);
         if (!items.empty()) done_items(items, buffer_.data() + off, buffer_.size() - off);
         const int w = st.MPI_SOURCE;
