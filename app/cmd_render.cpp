@@ -10,6 +10,7 @@
 #include <string>
 
 #include "app/commands.h"
+#include "app/mpi_cli.h"
 #include "app/options_cli.h"
 #include "renderer/core/error.h"
 #include "renderer/core/interrupt.h"
@@ -28,6 +29,7 @@ struct RenderCommand {
     RenderOptions options;
     std::string output = "out.png";
     bool quiet = false;
+    DistArgs dist;  // --mpi, --frames (app/mpi_cli.h)
 };
 
 std::string human_seconds(double s) {
@@ -104,6 +106,7 @@ void run(const RenderCommand& cmd) {
     const RenderOptions o = resolve(cmd.options);
     // Fail before loading and rendering, not after.
     validate(o);
+    if (dist_requested(cmd.dist)) return run_dist_render(o, cmd.output, cmd.quiet, cmd.dist);
     check_image_output(cmd.output);
     check_output(cmd.output, {o.scene.scene_path, o.scene.env_file, o.scene.tree_file},
                  "the image");
@@ -187,6 +190,7 @@ void add_render_command(CLI::App& parent) {
                     "Output image: .png (tone-mapped sRGB), .exr or .pfm (linear)")
         ->capture_default_str();
     sub->add_flag("--quiet", cmd.quiet, "No progress bar or cache messages");
+    add_dist_options(*sub, cmd.dist);
     sub->callback([] {
         interrupt::install();
         try {

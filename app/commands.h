@@ -16,5 +16,6 @@ void add_view_command(CLI::App& parent);    // cmd_view.cpp (the interactive vie
 void add_bench_load_command(CLI::App& bench);      // bench_load.cpp: PLY load vs Assimp
 void add_bench_kdtree_command(CLI::App& bench);    // bench_kdtree.cpp: thesis table 6.1, Embree
 void add_bench_converge_command(CLI::App& bench);  // bench_converge.cpp: error against time
+void add_bench_mpi_command(CLI::App& bench);       // bench_mpi.cpp: MPI farm scaling
 
 }  // namespace kdt::app

@@ -65,6 +65,7 @@ int main(int argc, char** argv) {
     kdt::app::add_bench_load_command(*bench);
     kdt::app::add_bench_kdtree_command(*bench);
     kdt::app::add_bench_converge_command(*bench);
+    kdt::app::add_bench_mpi_command(*bench);
     // CLI11 would take an unknown word for a stray positional and say only that a subcommand
     // is required.
     const CLI::App* level = &app;

@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
+
+#include "renderer/core/error.h"
 
 namespace kdt {
 
@@ -100,6 +103,77 @@ size_t Film::update_active(const FilmParams& params) {
 
 size_t Film::active_count() const {
     return size_t(std::count(active_.begin(), active_.end(), uint8_t(1)));
+}
+
+namespace {
+
+void add_pixel(FilmPixel& to, const FilmPixel& from) {
+    to.r += from.r;
+    to.g += from.g;
+    to.b += from.b;
+    to.lum += from.lum;
+    to.lum2 += from.lum2;
+    to.count += from.count;
+    to.drawn += from.drawn;
+}
+
+}  // namespace
+
+void Film::merge(const Film& other) {
+    if (other.width_ != width_ || other.height_ != height_) {
+        throw Error("film merge: sizes differ (" + std::to_string(width_) + "x" +
+                    std::to_string(height_) + " and " + std::to_string(other.width_) + "x" +
+                    std::to_string(other.height_) + ")");
+    }
+    for (size_t i = 0; i < pixels_.size(); ++i) add_pixel(pixels_[i], other.pixels_[i]);
+}
+
+void Film::check_rect(const FilmRect& r, size_t buffer_pixels, const char* what) const {
+    if (r.x0 < 0 || r.y0 < 0 || r.x1 > width_ || r.y1 > height_ || r.x0 > r.x1 || r.y0 > r.y1) {
+        throw Error(std::string("film ") + what + ": tile [" + std::to_string(r.x0) + ", " +
+                    std::to_string(r.x1) + ") x [" + std::to_string(r.y0) + ", " +
+                    std::to_string(r.y1) + ") outside the " + std::to_string(width_) + "x" +
+                    std::to_string(height_) + " film");
+    }
+    if (buffer_pixels < r.pixel_count()) {
+        throw Error(std::string("film ") + what + ": buffer of " + std::to_string(buffer_pixels) +
+                    " pixels for a tile of " + std::to_string(r.pixel_count()));
+    }
+}
+
+std::vector<FilmPixel> Film::export_tile(const FilmRect& rect) const {
+    check_rect(rect, rect.pixel_count(), "export");
+    std::vector<FilmPixel> out(rect.pixel_count());
+    export_tile(rect, out);
+    return out;
+}
+
+void Film::export_tile(const FilmRect& rect, std::span<FilmPixel> out) const {
+    check_rect(rect, out.size(), "export");
+    if (rect.pixel_count() == 0) return;
+    const size_t w = size_t(rect.x1 - rect.x0);
+    for (int y = rect.y0; y < rect.y1; ++y) {
+        std::copy_n(&pixels_[index(rect.x0, y)], w, &out[size_t(y - rect.y0) * w]);
+    }
+}
+
+void Film::import_tile(const FilmRect& rect, std::span<const FilmPixel> data, bool add) {
+    check_rect(rect, data.size(), "import");
+    if (data.size() != rect.pixel_count()) {
+        throw Error("film import: buffer of " + std::to_string(data.size()) +
+                    " pixels for a tile of " + std::to_string(rect.pixel_count()));
+    }
+    if (rect.pixel_count() == 0) return;
+    const size_t w = size_t(rect.x1 - rect.x0);
+    for (int y = rect.y0; y < rect.y1; ++y) {
+        const FilmPixel* src = &data[size_t(y - rect.y0) * w];
+        FilmPixel* dst = &pixels_[index(rect.x0, y)];
+        if (add) {
+            for (size_t i = 0; i < w; ++i) add_pixel(dst[i], src[i]);
+        } else {
+            std::copy_n(src, w, dst);
+        }
+    }
 }
 
 std::vector<float> Film::linear_rgb() const {

@@ -4,6 +4,8 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
+#include <type_traits>
 #include <vector>
 
 #include "renderer/core/color.h"
@@ -23,6 +25,22 @@ struct FilmParams {
 
 /// Linear -> sRGB-encoded 8-bit value (clamped to [0, 1] first).
 uint8_t linear_to_srgb8(float v);
+
+/// One pixel's accumulators as plain data: tiles travel between processes (MPI) as arrays of
+/// these, byte for byte, so a pixel rendered anywhere lands with the same bits.
+struct FilmPixel {
+    double r = 0.0, g = 0.0, b = 0.0;  ///< sums of the kept samples' radiance
+    double lum = 0.0, lum2 = 0.0;      ///< sums of Rec. 709 luminance and its square
+    uint32_t count = 0;                ///< samples accumulated
+    uint32_t drawn = 0;                ///< samples drawn, including dropped ones
+};
+static_assert(std::is_trivially_copyable_v<FilmPixel> && sizeof(FilmPixel) == 48);
+
+/// A pixel rectangle [x0, x1) x [y0, y1) of a film.
+struct FilmRect {
+    int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+    size_t pixel_count() const { return size_t(x1 - x0) * size_t(y1 - y0); }
+};
 
 class Film {
 public:
@@ -77,19 +95,30 @@ public:
     void set_active(int x, int y, bool on) { active_[index(x, y)] = on ? 1 : 0; }
     size_t active_count() const;
 
+    /// Adds every pixel's sums and counts of `other` to this film's (the active mask is
+    /// kept). Films of disjoint tile sets merge into exactly the film of all tiles, since
+    /// adding to zero is exact. Throws kdt::Error when the sizes differ.
+    void merge(const Film& other);
+
+    /// The accumulators of `rect`, row-major; export_tile(rect, out) fills
+    /// out[0, rect.pixel_count()) without allocating. Throws kdt::Error for a rectangle
+    /// outside the film or an output too small.
+    std::vector<FilmPixel> export_tile(const FilmRect& rect) const;
+    void export_tile(const FilmRect& rect, std::span<FilmPixel> out) const;
+    /// Writes `data` (row-major, rect.pixel_count() pixels) into `rect`: replacing the
+    /// pixels, or adding to them like merge() when add is true. Throws kdt::Error for a
+    /// rectangle outside the film or a buffer of the wrong size.
+    void import_tile(const FilmRect& rect, std::span<const FilmPixel> data, bool add = false);
+
     /// Linear RGB means, row-major from the top row, 3 floats per pixel.
     std::vector<float> linear_rgb() const;
     /// sRGB 8-bit, scaled by 2^exposure, 3 bytes per pixel.
     std::vector<uint8_t> srgb8(float exposure) const;
 
 private:
-    struct Pixel {
-        double r = 0.0, g = 0.0, b = 0.0;
-        double lum = 0.0, lum2 = 0.0;
-        uint32_t count = 0;  // samples accumulated
-        uint32_t drawn = 0;  // samples drawn, including dropped ones
-    };
+    using Pixel = FilmPixel;
     size_t index(int x, int y) const { return size_t(y) * size_t(width_) + size_t(x); }
+    void check_rect(const FilmRect& rect, size_t buffer_pixels, const char* what) const;
 
     int width_ = 0, height_ = 0;
     std::vector<Pixel> pixels_;

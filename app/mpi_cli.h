@@ -1,0 +1,47 @@
+// `kdtrace render --mpi` and `--frames`: the flags of distributed and sequence renders and
+// their driver. With MPI (KDT_HAVE_MPI) the tiles of a frame, or whole frames, are farmed
+// out over the ranks of `mpirun` (renderer/dist); without it --frames renders every frame in
+// this process and --mpi is an error.
+#pragma once
+
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "renderer/render/render_options.h"
+
+namespace kdt::app {
+
+struct DistArgs {
+    bool mpi = false;                      ///< split over the ranks of mpirun
+    std::string distribution = "dynamic";  ///< dynamic, interleaved or strips
+    int batch = 0;                         ///< tiles per work message; 0 = threads per rank
+    double timeout_seconds = 0.0;          ///< abort every rank after this long; 0 = none
+    int frames = 0;                        ///< > 0: render a sequence of this many frames
+    bool turntable = false;                ///< the sequence orbits the camera about its up axis
+    std::string stats_file;                ///< rank 0 writes per-rank stats as JSON here
+    std::string throttle;                  ///< test-only "RANK:FACTOR"
+    std::string inject;                    ///< test-only "RANK:load" or "RANK:hash"
+};
+
+void add_dist_options(CLI::App& app, DistArgs& args);
+
+/// True when `render` runs through run_dist_render().
+inline bool dist_requested(const DistArgs& args) { return args.mpi || args.frames > 0; }
+
+/// Renders `options` (resolved and validated) as the flags ask and writes `output` (for
+/// frames a pattern with one printf integer conversion, "frame_%03d.png"). Throws
+/// kdt::Error for bad input; with --mpi a failure ends every rank with status 1, rank 0
+/// printing the one message.
+void run_dist_render(const RenderOptions& options, const std::string& output, bool quiet,
+                     const DistArgs& args);
+
+/// The camera of frame `frame` of `frames` of a turntable: `camera`'s eye rotated about the
+/// axis through its target along its up vector, by 360 degrees x frame / frames.
+CameraDesc turntable_camera(const CameraDesc& camera, int frame, int frames);
+
+/// `pattern` with its one integer conversion (%d, %3d, %03d) replaced by `frame`; throws
+/// kdt::Error naming the pattern when it has none, several or any other conversion.
+std::string frame_path(const std::string& pattern, int frame);
+
+}  // namespace kdt::app

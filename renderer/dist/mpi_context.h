@@ -1,0 +1,92 @@
+// The MPI process context of a distributed render: init and finalize, rank and size, a
+// watchdog that aborts every rank after a timeout, and the collective checks every farm runs
+// before any work (every rank loaded the same scene and tree, or all stop with one message).
+// Compiled only with MPI (KDT_WITH_MPI). Depends on render.
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <functional>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+#include <thread>
+
+#include "renderer/render/prepare.h"
+
+namespace kdt::dist {
+
+/// A failure every rank agreed on (a rank could not load, or ranks disagree). what() is the
+/// one message to print; `report` is true on rank 0 only, so that one rank prints it.
+class FarmError : public std::runtime_error {
+public:
+    FarmError(const std::string& message, bool report)
+        : std::runtime_error(message), report_(report) {}
+    bool report() const { return report_; }
+
+private:
+    bool report_;
+};
+
+/// MPI_Init_thread on construction,
+/// MPI_Finalize on destruction. One per process.
+class MpiContext {
+public:
+    MpiContext();
+    ~MpiContext();
+    MpiContext(const MpiContext&) = delete;
+    MpiContext& operator=(const MpiContext&) = delete;
+
+    int rank() const { return rank_; }
+    int size() const { return size_; }
+
+    /// After `seconds` (> 0) without stop_watchdog(), expired() turns true: the farm's waits
+    /// poll it, so every rank leaves its farm and finalizes cleanly (Open MPI 4.1's mpirun
+    /// can hang in PMIx_server_finalize after MPI_Abort or a rank ending without
+    /// MPI_Finalize). A rank that is still running `grace_seconds` later (stuck outside the
+    /// farm's waits) prints "rank R: --timeout S s reached" and ends with status 3.
+    void start_watchdog(double seconds, double grace_seconds = 10.0);
+    bool expired() const { return expired_.load(std::memory_order_relaxed); }
+    double timeout_seconds() const { return timeout_; }
+    void stop_watchdog();
+
+    /// Rank 0's string on every rank.
+    std::string broadcast(const std::string& text) const;
+
+private:
+    int rank_ = 0, size_ = 1;
+    std::atomic<bool> expired_{false};
+    double timeout_ = 0.0;
+    std::thread watchdog_;
+    std::mutex mutex_;
+    std::condition_variable cv_;
+    bool stop_ = false;
+};
+
+/// Test-only faults injected on one rank (--mpi-inject RANK:WHAT).
+struct InjectedFault {
+    int rank = -1;     ///< -1 = none
+    std::string what;  ///< "load": the scene path cannot be opened; "hash": a different tree
+};
+
+/// Collective: every rank runs `step`, then all ranks compare outcomes. When any rank's step
+/// threw, every rank throws FarmError "rank R of N <what>: <reason>" (the lowest failing
+/// rank, and how many others failed). The values `step` returns must all equal rank 0's
+/// unless `compare` is false; a rank that differs makes every rank throw FarmError naming it.
+void check_every_rank(const MpiContext& ctx, const std::string& what,
+                      const std::function<uint64_t()>& step, bool compare = false);
+
+/// Collective: every rank runs prepare_render(options) and then all ranks compare outcomes.
+/// When any rank failed, every rank throws FarmError "rank R of N could not load the scene:
+/// <reason>" (the lowest failing rank, and how many others failed); when a rank's scene and
+/// tree hash differs from rank 0's, "rank R renders a different scene or kd-tree than rank
+/// 0 ...". No rank renders before every rank has loaded.
+Prepared prepare_everywhere(const MpiContext& ctx, const RenderOptions& options,
+                            const PrepareLog& log, const InjectedFault& fault = {});
+
+/// The hash that must agree across ranks: the merged mesh's content, the tree's size and
+/// the options.
+uint64_t snapshot_hash(const RenderSnapshot& snapshot, const std::string& options_json);
+
+}  // namespace kdt::dist

@@ -1,0 +1,292 @@
+#include "renderer/dist/work_farm.h"
+
+#include <mpi.h>
+
+#include <cstdio>
+#include <ctime>
+
+#include <algorithm>
+#include <chrono>
+#include <cstring>
+#include <deque>
+#include <list>
+#include <thread>
+
+#include "renderer/core/timer.h"
+
+namespace kdt::dist {
+
+namespace {
+
+constexpr int kTagResult = 1;  // worker -> 0: header, item ids, result bytes
+constexpr int kTagWork = 2;    // 0 -> worker: item ids; none = no more work
+
+// A result message starts with this header, then `items` int32 ids, then the result bytes.
+// `want` asks for that many more items (0 once the worker was told there are none).
+struct ResultHeader {
+    int32_t items = 0;
+    int32_t want = 0;
+};
+
+std::vector<char> pack_result(const std::vector<int>& items, int want,
+                              const std::vector<char>& payload) {
+    const ResultHeader h{int32_t(items.size()), int32_t(want)};
+    std::vector<char> msg(sizeof h + items.size() * sizeof(int32_t) + payload.size());
+    std::memcpy(msg.data(), &h, sizeof h);
+    if (!items.empty())  // memcpy from an empty vector's null data() is undefined
+        std::memcpy(msg.data() + sizeof h, items.data(), items.size() * sizeof(int32_t));
+    if (!payload.empty())
+        std::memcpy(msg.data() + sizeof h + items.size() * sizeof(int32_t), payload.data(),
+                    payload.size());
+    return msg;
+}
+
+double process_cpu_seconds() {
+    timespec ts{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+}
+
+[[noreturn]] void timed_out(const MpiContext& ctx) {
+    char buf[96];
+    std::snprintf(buf, sizeof buf, "--timeout %g s reached; every rank stopped",
+                  ctx.timeout_seconds());
+    throw FarmError(buf, ctx.rank() == 0);
+}
+
+// MPI_Probe that gives up when the context's timeout expires (every rank's waits do, so
+// all leave the farm together and finalize normally).
+void probe(const MpiContext& ctx, int source, int tag, MPI_Status* st) {
+    for (int spins = 0;; ++spins) {
+        int flag = 0;
+        MPI_Iprobe(source, tag, MPI_COMM_WORLD, &flag, st);
+        if (flag) return;
+        if (ctx.expired()) timed_out(ctx);
+        // Spin briefly for low latency, then yield the core to the renderers.
+        if (spins > 1000) std::this_thread::sleep_for(std::chrono::microseconds(50));
+    }
+}
+
+void throttle(const MpiContext& ctx, const FarmParams& p, double seconds) {
+    if (ctx.rank() != p.throttle_rank || !(p.throttle_factor > 1.0)) return;
+    const auto end = std::chrono::steady_clock::now() +
+                     std::chrono::duration<double>(seconds * (p.throttle_factor - 1.0));
+    while (std::chrono::steady_clock::now() < end) {
+        if (ctx.expired()) timed_out(ctx);
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+}
+
+// Rank 0: the sources of items, the replies to requests, the consumption of results.
+class Master {
+public:
+    Master(const MpiContext& ctx, int items, const FarmParams& params, const ConsumeItems& consume,
+           const FarmProgress& progress)
+        : ctx_(ctx),
+          total_(items),
+          params_(params),
+          consume_(consume),
+          progress_(progress),
+          told_done_(size_t(ctx.size()), false) {
+        const auto lists = assign_items(params.distribution, items, params.columns, ctx.size());
+        for (const auto& l : lists) sources_.emplace_back(l.begin(), l.end());
+    }
+
+    // The next items for `rank` (its own list, or the shared queue when dynamic).
+    std::vector<int> take(int rank, int want) {
+        std::deque<int>& q =
+            params_.distribution == Distribution::dynamic ? sources_[0] : sources_[size_t(rank)];
+        std::vector<int> out;
+        while (int(out.size()) < want && !q.empty()) {
+            out.push_back(q.front());
+            q.pop_front();
+        }
+        return out;
+    }
+
+    void done_items(const std::vector<int>& items, const char* bytes, size_t size) {
+        consume_(items, bytes, size);
+        done_ += int(items.size());
+        if (progress_) progress_(done_, total_);
+    }
+
+    // Receives one message from `source` (MPI_ANY_SOURCE allowed) and answers it.
+    void handle(int source) {
+        MPI_Status st;
+        probe(ctx_, source, kTagResult, &st);
+        int size = 0;
+        MPI_Get_count(&st, MPI_BYTE, &size);
+        buffer_.resize(size_t(size));
+        MPI_Recv(buffer_.data(), size, MPI_BYTE, st.MPI_SOURCE, kTagResult, MPI_COMM_WORLD,
+                 MPI_STATUS_IGNORE);
+        stats.messages += 1;
+        stats.bytes += uint64_t(size);
+        ResultHeader h;
+        std::memcpy(&h, buffer_.data(), sizeof h);
+        std::vector<int> items(size_t(h.items));
+        if (!items.empty())
+            std::memcpy(items.data(), buffer_.data() + sizeof h, items.size() * sizeof(int32_t));
+        const size_t off = sizeof h + items.size() * sizeof(int32_t);
+        if (!items.empty()) done_items(items, buffer_.data() + off, buffer_.size() - off);
+        const int w = st.MPI_SOURCE;
+        if (told_done_[size_t(w)]) return;
+        const std::vector<int> next = take(w, std::max(h.want, 1));
+        MPI_Send(next.data(), int(next.size()), MPI_INT, w, kTagWork, MPI_COMM_WORLD);
+        stats.messages += 1;
+        stats.bytes += next.size() * sizeof(int32_t);
+        if (next.empty()) told_done_[size_t(w)] = true;
+    }
+
+    void poll() {
+        int flag = 1;
+        while (flag) {
+            MPI_Iprobe(MPI_ANY_SOURCE, kTagResult, MPI_COMM_WORLD, &flag, MPI_STATUS_IGNORE);
+            if (flag) handle(MPI_ANY_SOURCE);
+        }
+    }
+
+    void run(const RenderItems& render) {
+        Timer wall;
+        const std::function<void()> poll_fn = [this] { poll(); };
+        while (done_ < total_) {
+            poll();
+            if (done_ >= total_) break;  // the last results came in while polling
+            const std::vector<int> own = take(0, params_.batch);
+            if (own.empty()) {
+                handle(MPI_ANY_SOURCE);  // nothing of our own left: wait for results
+                continue;
+            }
+            Timer t;
+            const std::vector<char> bytes = render(own, poll_fn);
+            throttle(ctx_, params_, t.seconds());
+            stats.busy_seconds += t.seconds();
+            stats.items += int32_t(own.size());
+            done_items(own, bytes.data(), bytes.size());
+        }
+        stats.wall_seconds = wall.seconds();
+        // Workers whose last request is unanswered (e.g. all items were done before their
+        // first request arrived) learn that there is no more work.
+        for (int w = 1; w < ctx_.size(); ++w) {
+            while (!told_done_[size_t(w)]) handle(w);
+        }
+    }
+
+    RankStats stats;
+
+private:
+    const MpiContext& ctx_;
+    int total_, done_ = 0;
+    FarmParams params_;
+    const ConsumeItems& consume_;
+    const FarmProgress& progress_;
+    std::vector<std::deque<int>> sources_;
+    std::vector<bool> told_done_;
+    std::vector<char> buffer_;
+};
+
+RankStats run_worker(const MpiContext& ctx, const FarmParams& params, const RenderItems& render) {
+    RankStats stats;
+    stats.rank = ctx.rank();
+    Timer wall;
+    const int batch = std::max(params.batch, 1);
+    // Requests and results are sent without waiting for rank 0 to receive them (it may be
+    // rendering); their buffers live until the send completes.
+    std::list<std::pair<MPI_Request, std::vector<char>>> sends;
+    auto send = [&](std::vector<char> msg) {
+        stats.messages += 1;
+        stats.bytes += msg.size();
+        sends.emplace_back(MPI_REQUEST_NULL, std::move(msg));
+        auto& s = sends.back();
+        MPI_Isend(s.second.data(), int(s.second.size()), MPI_BYTE, 0, kTagResult, MPI_COMM_WORLD,
+                  &s.first);
+        for (auto it = sends.begin(); it != sends.end();) {
+            int done = 0;
+            MPI_Test(&it->first, &done, MPI_STATUS_IGNORE);
+            it = done ? sends.erase(it) : std::next(it);
+        }
+    };
+    send(pack_result({}, batch * std::max(params.batches_in_flight, 1), {}));
+    std::deque<int> queue;
+    bool no_more = false;
+    const std::function<void()> no_poll = [] {};
+    for (;;) {
+        while (!no_more) {
+            int flag = 0;
+            MPI_Status st;
+            if (queue.empty()) {
+                probe(ctx, 0, kTagWork, &st);
+                flag = 1;
+            } else {
+                MPI_Iprobe(0, kTagWork, MPI_COMM_WORLD, &flag, &st);
+            }
+            if (!flag) break;
+            int n = 0;
+            MPI_Get_count(&st, MPI_INT, &n);
+            std::vector<int> items(static_cast<size_t>(n));
+            MPI_Recv(items.data(), n, MPI_INT, 0, kTagWork, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+            stats.messages += 1;
+            stats.bytes += uint64_t(n) * sizeof(int32_t);
+            if (items.empty()) no_more = true;
+            queue.insert(queue.end(), items.begin(), items.end());
+        }
+        if (queue.empty()) break;
+        std::vector<int> mine;
+        while (int(mine.size()) < batch && !queue.empty()) {
+            mine.push_back(queue.front());
+            queue.pop_front();
+        }
+        Timer t;
+        const std::vector<char> bytes = render(mine, no_poll);
+        throttle(ctx, params, t.seconds());
+        stats.busy_seconds += t.seconds();
+        stats.items += int32_t(mine.size());
+        send(pack_result(mine, no_more ? 0 : int(mine.size()), bytes));
+    }
+    for (auto& s : sends) MPI_Wait(&s.first, MPI_STATUS_IGNORE);
+    stats.wall_seconds = wall.seconds();
+    return stats;
+}
+
+}  // namespace
+
+std::vector<std::vector<int>> assign_items(Distribution d, int items, int columns, int ranks) {
+    std::vector<std::vector<int>> out(size_t(std::max(ranks, 1)));
+    const int n = int(out.size());
+    if (d == Distribution::dynamic) {
+        for (int i = 0; i < items; ++i) out[0].push_back(i);
+    } else if (d == Distribution::interleaved) {
+        for (int i = 0; i < items; ++i) out[size_t(i % n)].push_back(i);
+    } else {
+        const int cols = std::max(columns, 1);
+        const int rows = (items + cols - 1) / cols;
+        for (int r = 0; r < n; ++r) {
+            const int row0 = int(int64_t(r) * rows / n), row1 = int(int64_t(r + 1) * rows / n);
+            for (int i = row0 * cols; i < std::min(row1 * cols, items); ++i)
+                out[size_t(r)].push_back(i);
+        }
+    }
+    return out;
+}
+
+std::vector<RankStats> run_farm(const MpiContext& ctx, int items, const FarmParams& params,
+                                const RenderItems& render, const ConsumeItems& consume,
+                                const FarmProgress& progress) {
+    MPI_Barrier(MPI_COMM_WORLD);  // every rank starts the clock together
+    const double cpu0 = process_cpu_seconds();
+    RankStats mine;
+    if (ctx.rank() == 0) {
+        Master master(ctx, items, params, consume, progress);
+        master.run(render);
+        mine = master.stats;
+    } else {
+        mine = run_worker(ctx, params, render);
+    }
+    mine.cpu_seconds = process_cpu_seconds() - cpu0;
+    std::vector<RankStats> all(ctx.rank() == 0 ? size_t(ctx.size()) : 1);
+    MPI_Gather(&mine, int(sizeof mine), MPI_BYTE, all.data(), int(sizeof mine), MPI_BYTE, 0,
+               MPI_COMM_WORLD);
+    if (ctx.rank() != 0) all[0] = mine;
+    return all;
+}
+
+}  // namespace kdt::dist

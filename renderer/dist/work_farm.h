@@ -1,0 +1,66 @@
+// A master/worker farm of numbered work items (tiles of a frame, or whole frames) over MPI
+// ranks. Rank 0 hands out items and also works on them between messages; workers keep
+// several items in flight so they never wait for rank 0's reply. Items are given out
+// dynamically (from one queue, on request) or by one of the thesis's static distributions
+// (section 5.4: strips, or every n-th item to rank n), for comparison.
+// Compiled only with MPI. Depends on dist/mpi_context.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "renderer/dist/mpi_context.h"
+
+namespace kdt::dist {
+
+enum class Distribution { dynamic, interleaved, strips };
+inline constexpr std::array<const char*, 3> kDistributionNames = {"dynamic", "interleaved",
+                                                                  "strips"};
+
+/// The items each rank renders under a static distribution, in rendering order: `strips`
+/// gives rank r the rows [r R / N, (r + 1) R / N) of a grid of `columns` x R items,
+/// `interleaved` gives it items r, r + N, r + 2N, ... `dynamic` gives every item to rank 0's
+/// list (the shared queue).
+std::vector<std::vector<int>> assign_items(Distribution d, int items, int columns, int ranks);
+
+struct FarmParams {
+    Distribution distribution = Distribution::dynamic;
+    int columns = 1;            ///< items per row, for strips
+    int batch = 1;              ///< items a rank renders between two messages
+    int batches_in_flight = 2;  ///< per worker: requested ahead, so it never waits for rank 0
+    int throttle_rank = -1;     ///< test-only: this rank sleeps (factor - 1) x its render time
+    double throttle_factor = 1.0;
+};
+
+/// What one rank did, gathered on rank 0. idle = wall - busy.
+struct RankStats {
+    int32_t rank = 0;
+    int32_t items = 0;
+    double busy_seconds = 0.0;  ///< rendering (and throttle sleeps)
+    double wall_seconds = 0.0;  ///< from the farm's start to this rank's last item sent
+    double cpu_seconds = 0.0;   ///< CPU time of the process over the farm (all its threads):
+                                ///< below busy_seconds x threads when the machine is shared
+    uint64_t messages = 0;      ///< sent and received by this rank
+    uint64_t bytes = 0;         ///< sent and received by this rank
+};
+
+/// Renders items on the calling rank. `poll` (rank 0 only; a no-op elsewhere) may be called
+/// between parts of a long item so rank 0 keeps serving workers. Returns the result bytes.
+using RenderItems = std::function<std::vector<char>(const std::vector<int>& items,
+                                                    const std::function<void()>& poll)>;
+/// Rank 0: takes the result bytes of items rendered by any rank (in any order).
+using ConsumeItems =
+    std::function<void(const std::vector<int>& items, const char* bytes, size_t size)>;
+/// Rank 0: items done so far of all, after each consume.
+using FarmProgress = std::function<void(int done, int total)>;
+
+/// Collective: every item in [0, items) is rendered exactly once by some rank and consumed on
+/// rank 0. Returns every rank's stats on rank 0 (one entry per rank), only the caller's
+/// elsewhere.
+std::vector<RankStats> run_farm(const MpiContext& ctx, int items, const FarmParams& params,
+                                const RenderItems& render, const ConsumeItems& consume,
+                                const FarmProgress& progress = {});
+
+}  // namespace kdt::dist

@@ -1,0 +1,32 @@
+# MPI runs of `kdtrace render --mpi` and `--frames` on this machine (tests/mpi/mpi_test.sh):
+# bitwise identity with the single-process render, dynamic balancing, failing ranks.
+# Registered only with KDT_WITH_MPI; a case skips (exit 77) when mpiexec is missing.
+if(KDT_WITH_MPI AND EXISTS /usr/share/assimp/models/PLY/Wuson.ply)
+  set(_mpiexec ${MPIEXEC_EXECUTABLE})
+  if(NOT _mpiexec)
+    set(_mpiexec mpirun)
+  endif()
+  foreach(_case identity_dynamic identity_interleaved identity_strips frames throttle fail_load
+                fail_hash fail_missing timeout refuse_adaptive)
+    add_test(NAME mpi.${_case}
+             COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/mpi_test.sh ${_case} $<TARGET_FILE:kdtrace>
+                     ${_mpiexec} ${CMAKE_BINARY_DIR}/mpi_tests/${_case}
+                     /usr/share/assimp/models/PLY/Wuson.ply)
+    set_tests_properties(mpi.${_case} PROPERTIES TIMEOUT 120 SKIP_RETURN_CODE 77 LABELS mpi)
+  endforeach()
+endif()
+
+# --frames without MPI: bad output patterns and a sequence without a kind are errors.
+set(_cube /usr/share/assimp/models/PLY/cube.ply)
+if(EXISTS ${_cube})
+  add_test(NAME smoke.frames_bad_pattern
+           COMMAND $<TARGET_FILE:kdtrace> render ${_cube} --no-cache --width 8 --height 8 --spp 1
+                   --frames 3 --turntable -o ${CMAKE_BINARY_DIR}/frame.png)
+  set_tests_properties(smoke.frames_bad_pattern PROPERTIES
+    PASS_REGULAR_EXPRESSION "frame.png: a --frames output needs exactly one frame number conversion")
+  add_test(NAME smoke.frames_need_turntable
+           COMMAND $<TARGET_FILE:kdtrace> render ${_cube} --no-cache --frames 3
+                   -o ${CMAKE_BINARY_DIR}/frame_%d.png)
+  set_tests_properties(smoke.frames_need_turntable PROPERTIES
+    PASS_REGULAR_EXPRESSION "--frames needs --turntable")
+endif()
