@@ -33,10 +33,8 @@ struct KdTreeParams {
     float traversal_cost = 4.0f;   ///< SAH builder: cost of one inner node relative to ...
     float intersect_cost = 1.0f;   ///< ... one ray-triangle test
     float empty_bonus = 0.2f;      ///< SAH builder: cost reduction for cutting off empty space
-    // SAH defaults tuned on the dragon (single rays, 8-ray packets, diffuse rays): 4 / 1 / 0.2
-    // traces as fast as 3 / 1.5 / 0.2 (within the noise of this machine) with 0.45x the nodes,
-    // 1.36 instead of 1.49 references per triangle and a 20% faster build; 1.5 / 1.5 doubles
-    // the nodes for no gain; 6 / 1 and above is slower.
+    // The SAH defaults are the flat optimum of traversal speed on the dragon with the fewest
+    // nodes and references (the settings compared: docs/performance.md).
     int threads = 0;  ///< 0 = OpenMP default
     /// Thesis builder: evaluate the candidates on x, y and z and keep the cheapest, instead
     /// of alternating x, y, z by depth as the thesis did (false = the thesis's rule).
