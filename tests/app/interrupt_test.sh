@@ -52,9 +52,10 @@ render_int | render_term)
     grep -q "render: .* -> $dir/out.png" "$dir/log" || fail "no render summary"
     ;;
 render_twice)
-    # Many samples per pass on one thread: the tile in flight after the first signal takes
-    # seconds, so the second signal arrives while the render is still finishing it.
-    render --spp-per-pass 100000
+    # Many samples per pass and pixel on one thread: the tile in flight after the first signal
+    # takes seconds (256M samples; most of the cube's camera rays miss and are cheap), so the
+    # second signal arrives while the render is still finishing it.
+    render --spp-per-pass 1000000 --max-spp 1000000
     kill -s INT $pid
     sleep 0.3
     kill -0 $pid 2>/dev/null || fail "the first signal did not leave the render finishing its tiles"
