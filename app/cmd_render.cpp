@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -108,6 +109,14 @@ void run(const RenderCommand& cmd) {
     validate(o);
     if (dist_requested(cmd.dist)) return run_dist_render(o, cmd.output, cmd.quiet, cmd.dist);
     check_image_output(cmd.output);
+    if (o.film.transparent) {
+        // Refused before the render, not after it: these formats have no alpha.
+        std::string ext = std::filesystem::path(cmd.output).extension().string();
+        for (char& c : ext) c = char(std::tolower(uint8_t(c)));
+        if (ext != ".png" && ext != ".exr")
+            throw Error(ErrorLocation{cmd.output},
+                        "--transparent needs an alpha channel: write .png or .exr");
+    }
     check_output(cmd.output, {o.scene.scene_path, o.scene.env_file, o.scene.tree_file},
                  "the image");
 
@@ -141,6 +150,8 @@ void run(const RenderCommand& cmd) {
     }
     ImageRGB image(film.width(), film.height());
     image.rgb = film.linear_rgb();
+    image.alpha = film.coverage();
+    image.alpha = film.coverage();
     const PathCounters& c = session.totals();
     const double spp = double(film.total_samples() + c.nonfinite_dropped) / pixels;
     const std::string& scene = o.scene.scene_path;

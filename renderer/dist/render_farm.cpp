@@ -49,6 +49,10 @@ void check_farm_options(const RenderOptions& o) {
             "neighbours across tile borders, and a time limit depends on each rank's speed, so "
             "neither image would be the same for every split");
     }
+    if (o.film.transparent)
+        throw Error(
+            "a distributed render (--mpi) cannot be transparent yet: tiles travel "
+            "without their coverage (film.transparent)");
 }
 
 FarmResult render_tile_farm(const MpiContext& ctx, std::shared_ptr<const RenderSnapshot> snapshot,

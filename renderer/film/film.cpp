@@ -21,11 +21,22 @@ void Film::resize(int width, int height) {
     pixels_.assign(pixel_count(), Pixel{});
     active_.assign(pixel_count(), 1);
     error_scratch_.assign(pixel_count(), 0.0f);
+    keep_coverage(keeps_coverage());
 }
 
 void Film::clear() {
     std::fill(pixels_.begin(), pixels_.end(), Pixel{});
     std::fill(active_.begin(), active_.end(), uint8_t(1));
+    std::fill(coverage_.begin(), coverage_.end(), 0.0);
+}
+
+std::vector<float> Film::coverage() const {
+    std::vector<float> out(coverage_.size());
+    for (size_t i = 0; i < out.size(); ++i) {
+        const uint32_t n = pixels_[i].count;
+        out[i] = n > 0 ? float(coverage_[i] / double(n)) : 0.0f;
+    }
+    return out;
 }
 
 Vec3f Film::mean(int x, int y) const {
@@ -125,7 +136,10 @@ void Film::merge(const Film& other) {
                     std::to_string(height_) + " and " + std::to_string(other.width_) + "x" +
                     std::to_string(other.height_) + ")");
     }
+    if (keeps_coverage() != other.keeps_coverage())
+        throw Error("film merge: one film keeps coverage (alpha), the other does not");
     for (size_t i = 0; i < pixels_.size(); ++i) add_pixel(pixels_[i], other.pixels_[i]);
+    for (size_t i = 0; i < coverage_.size(); ++i) coverage_[i] += other.coverage_[i];
 }
 
 void Film::check_rect(const FilmRect& r, size_t buffer_pixels, const char* what) const {

@@ -21,6 +21,9 @@ struct FilmParams {
     int adaptive_max_spp = 0;              ///< per-pixel cap while adaptive; 0 = no cap
     float exposure = 0.0f;                 ///< PNG tone mapping: scale by 2^exposure before sRGB
     ToneCurve tonemap = ToneCurve::clamp;  ///< PNG tone curve after the exposure
+    /// The environment seen directly is transparent: escaping camera rays add no radiance
+    /// and the film keeps each pixel's coverage (alpha) for PNG and EXR output.
+    bool transparent = false;
 };
 
 /// Linear -> sRGB-encoded 8-bit value (clamped to [0, 1] first).
@@ -69,6 +72,18 @@ public:
         ++p.count;
         ++p.drawn;
     }
+    /// Keeps, or stops keeping, per-pixel coverage (cleared either way). Not while a pass runs.
+    void keep_coverage(bool on) {
+        keep_coverage_ = on;
+        coverage_.assign(on ? pixel_count() : 0, 0.0);
+    }
+    bool keeps_coverage() const { return keep_coverage_; }
+    /// Adds the coverage of a kept sample (1: the camera ray hit the scene; 0: it escaped).
+    /// Only with keeps_coverage(); never allocates.
+    void add_coverage(int x, int y, float alpha) { coverage_[index(x, y)] += alpha; }
+    /// Mean coverage of each pixel's kept samples, row-major; empty without keeps_coverage().
+    std::vector<float> coverage() const;
+
     /// Records a drawn sample that was dropped (non-finite): the sample index advances so
     /// the pixel does not redraw it, but nothing is accumulated.
     void skip_sample(int x, int y) { ++pixels_[index(x, y)].drawn; }
@@ -124,6 +139,8 @@ private:
     std::vector<Pixel> pixels_;
     std::vector<uint8_t> active_;
     std::vector<float> error_scratch_;
+    bool keep_coverage_ = false;
+    std::vector<double> coverage_;  ///< sums of kept samples' alpha (keep_coverage_ only)
 };
 
 }  // namespace kdt

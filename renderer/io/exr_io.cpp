@@ -402,6 +402,9 @@ std::vector<uint8_t> encode_exr(const std::string& path, const ImageRGB& image,
     Imf::Header header(image.width, image.height);
     header.compression() = kCompression[size_t(compression)];
     for (const char* c : {"R", "G", "B"}) header.channels().insert(c, Imf::Channel(Imf::FLOAT));
+    // Coverage as OpenEXR's A channel over premultiplied RGB, as the format defines it.
+    const bool alpha = !image.alpha.empty();
+    if (alpha) header.channels().insert("A", Imf::Channel(Imf::FLOAT));
     for (const auto& [key, value] : metadata) {
         if (key.empty() || key.size() > 255 || key.find('\0') != std::string::npos ||
             is_structural(key)) {
@@ -425,6 +428,11 @@ std::vector<uint8_t> encode_exr(const std::string& path, const ImageRGB& image,
             fb.insert("R", Imf::Slice(Imf::FLOAT, base, x_stride, y_stride));
             fb.insert("G", Imf::Slice(Imf::FLOAT, base + 4, x_stride, y_stride));
             fb.insert("B", Imf::Slice(Imf::FLOAT, base + 8, x_stride, y_stride));
+            if (alpha) {
+                char* a = reinterpret_cast<char*>(const_cast<float*>(image.alpha.data()));
+                fb.insert("A", Imf::Slice(Imf::FLOAT, a, sizeof(float),
+                                          sizeof(float) * size_t(image.width)));
+            }
             file.setFrameBuffer(fb);
             file.writePixels(image.height);
         }

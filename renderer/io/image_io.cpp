@@ -405,6 +405,16 @@ void check_image(const std::string& path, const ImageRGB& image) {
         fail(path, "image buffer holds " + std::to_string(image.rgb.size()) + " floats, expected " +
                        std::to_string(image.pixel_count() * 3));
     }
+    if (!image.alpha.empty() && image.alpha.size() != image.pixel_count()) {
+        fail(path, "alpha holds " + std::to_string(image.alpha.size()) + " values, expected " +
+                       std::to_string(image.pixel_count()));
+    }
+}
+
+// PFM and HDR hold RGB only: an image with coverage would lose its transparency there.
+void check_no_alpha(const std::string& path, const ImageRGB& image) {
+    if (!image.alpha.empty())
+        fail(path, "this format has no alpha channel (write .png or .exr for a transparent image)");
 }
 
 void put_be32(std::vector<uint8_t>& out, uint32_t v) {
@@ -429,8 +439,9 @@ uint8_t paeth(int a, int b, int c) {
 }
 
 /// PNG filter bytes per row, chosen by the usual minimum-sum-of-absolute-differences rule.
-std::vector<uint8_t> filter_rows(const std::vector<uint8_t>& pixels, int width, int height) {
-    const size_t stride = size_t(width) * 3;
+std::vector<uint8_t> filter_rows(const std::vector<uint8_t>& pixels, int width, int height,
+                                 size_t channels) {
+    const size_t stride = size_t(width) * channels;
     std::vector<uint8_t> out;
     out.reserve((stride + 1) * size_t(height));
     std::vector<uint8_t> candidate[5];
@@ -444,7 +455,8 @@ std::vector<uint8_t> filter_rows(const std::vector<uint8_t>& pixels, int width, 
         for (int f = 0; f < 5; ++f) {
             uint64_t cost = 0;
             for (size_t i = 0; i < stride; ++i) {
-                int a = i >= 3 ? row[i - 3] : 0, b = up[i], c = i >= 3 ? up[i - 3] : 0;
+                const size_t n = channels;  // bytes per pixel: the left neighbour's offset
+                int a = i >= n ? row[i - n] : 0, b = up[i], c = i >= n ? up[i - n] : 0;
                 int pred = f == 0   ? 0
                            : f == 1 ? a
                            : f == 2 ? b
@@ -548,10 +560,21 @@ void write_png(const std::string& path, const ImageRGB& image, const ToneParams&
         put_chunk(chunks, ascii ? "tEXt" : "iTXt", body);
     }
 
-    std::vector<uint8_t> pixels(image.rgb.size());
     // A 4096-entry table would be faster, but tone mapping is not on the hot path.
-    for (size_t i = 0; i < pixels.size(); ++i) pixels[i] = tonemap_to_srgb8(image.rgb[i], tone);
-    std::vector<uint8_t> raw = filter_rows(pixels, image.width, image.height);
+    const bool rgba = !image.alpha.empty();
+    const size_t channels = rgba ? 4 : 3;
+    std::vector<uint8_t> pixels(image.pixel_count() * channels);
+    for (size_t p = 0; p < image.pixel_count(); ++p) {
+        // PNG alpha is straight: un-premultiply before the tone curve.
+        const float a = rgba ? std::clamp(image.alpha[p], 0.0f, 1.0f) : 1.0f;
+        const float inv = a > 0.0f ? 1.0f / a : 0.0f;
+        for (size_t c = 0; c < 3; ++c) {
+            const float v = rgba ? image.rgb[3 * p + c] * inv : image.rgb[3 * p + c];
+            pixels[channels * p + c] = tonemap_to_srgb8(v, tone);
+        }
+        if (rgba) pixels[channels * p + 3] = uint8_t(std::lround(a * 255.0f));
+    }
+    std::vector<uint8_t> raw = filter_rows(pixels, image.width, image.height, channels);
     uLongf packed_size = compressBound(uLong(raw.size()));
     std::vector<uint8_t> packed(packed_size);
     if (compress2(packed.data(), &packed_size, raw.data(), uLong(raw.size()), 6) != Z_OK) {
@@ -563,7 +586,8 @@ void write_png(const std::string& path, const ImageRGB& image, const ToneParams&
     body.clear();
     put_be32(body, uint32_t(image.width));
     put_be32(body, uint32_t(image.height));
-    body.insert(body.end(), {8, 2, 0, 0, 0});  // 8-bit, RGB, deflate, adaptive filter, no interlace
+    // 8-bit, RGB (2) or RGBA (6), deflate, adaptive filter, no interlace.
+    body.insert(body.end(), {8, uint8_t(rgba ? 6 : 2), 0, 0, 0});
     put_chunk(out, "IHDR", body);
     put_chunk(out, "sRGB", {0});  // perceptual rendering intent
     out.insert(out.end(), chunks.begin(), chunks.end());
@@ -600,8 +624,10 @@ void write_image(const std::string& path, const ImageRGB& image, const ToneParam
     } else if (ext == ".exr") {
         write_exr(path, image, metadata);
     } else if (ext == ".pfm") {
+        check_no_alpha(path, image);
         write_pfm(path, image);
     } else {
+        check_no_alpha(path, image);
         write_hdr(path, image);
     }
 }

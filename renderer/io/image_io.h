@@ -19,6 +19,10 @@ struct ImageRGB {
     int width = 0;
     int height = 0;
     std::vector<float> rgb;
+    /// Coverage per pixel in [0, 1] (row-major), empty = opaque. With it, rgb is premultiplied
+    /// (an uncovered pixel is black): EXR stores it as an A channel over rgb, PNG as 8-bit
+    /// straight alpha; PFM and HDR have no alpha and refuse such an image.
+    std::vector<float> alpha;
 
     ImageRGB() = default;
     ImageRGB(int w, int h) : width(w), height(h), rgb(size_t(w) * size_t(h) * 3, 0.0f) {}

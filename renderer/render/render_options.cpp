@@ -63,6 +63,9 @@ const Field<FP> kFilmFields[] = {
     KDT_FIELD(FP, tonemap, "--tonemap",
               "Tone curve of PNG output: clamp, reinhard, aces or filmic (EXR and PFM stay linear)",
               0, 3, false, kToneCurveNames),
+    KDT_FIELD(FP, transparent, "--transparent",
+              "Transparent background: the environment seen directly is left out, coverage goes "
+              "to the alpha of PNG and EXR output"),
     KDT_FIELD(FP, exposure, "--exposure", "Exposure of tone-mapped output, in stops", -64.0, 64.0),
 };
 

@@ -18,6 +18,7 @@ RenderSession::RenderSession(std::shared_ptr<const RenderSnapshot> snapshot,
     : snapshot_(std::move(snapshot)), trace_(trace), film_params_(film) {
     if (!snapshot_) throw Error("render session: no snapshot");
     validate_render_params(trace, film);
+    film_.keep_coverage(film.transparent);
     film_.resize(snapshot_->camera.width, snapshot_->camera.height);
     reset_published();
 }
@@ -73,6 +74,8 @@ void RenderSession::apply_pending() {
         } else {
             film_.clear();
         }
+        if (film_.keeps_coverage() != film_params_.transparent)
+            film_.keep_coverage(film_params_.transparent);
         heat_nodes_.assign(heat_map_ ? film_.pixel_count() : 0, 0);
         heat_tris_.assign(heat_map_ ? film_.pixel_count() : 0, 0);
         totals_ = PathCounters{};
@@ -204,6 +207,7 @@ PassStats RenderSession::run_tiles(const std::vector<int>& tiles, int max_spp) {
         target.heat_triangles = heat_tris_.data();
     }
     if (max_spp > 0) target.max_spp = uint32_t(max_spp);
+    target.transparent = film_params_.transparent;
 
     // One cache line per thread for its counters.
     struct alignas(64) ThreadCounters {

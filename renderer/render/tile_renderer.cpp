@@ -78,9 +78,17 @@ size_t render_tile(const TileTarget& t, const TileRect& tile, PathCounters& coun
             for (int i = 0; i < n; ++i) {
                 CameraSample& c = batch[i];
                 const uint64_t nodes0 = counters.nodes_visited, tris0 = counters.triangles_tested;
-                const Vec3f L =
+                Vec3f L =
                     heat ? trace_camera_ray(scene, trace, rays[i], c.sampler, counters)
                          : trace_camera_hit(scene, trace, rays[i], hits[i], c.sampler, counters);
+                bool covered = true;
+                if (t.transparent) {
+                    // The heat map's path traces its own camera ray: ask the tree again,
+                    // uncounted, whether it hits.
+                    Hit own;
+                    covered = heat ? scene.tree->intersect(rays[i], own) : hits[i].valid();
+                    if (!covered) L = Vec3f(0.0f);
+                }
                 if (heat) {
                     const size_t pi = size_t(y) * size_t(width) + size_t(c.x);
                     t.heat_nodes[pi] += counters.nodes_visited - nodes0;
@@ -88,6 +96,7 @@ size_t render_tile(const TileTarget& t, const TileRect& tile, PathCounters& coun
                 }
                 if (is_finite(L) && L.x >= 0.0f && L.y >= 0.0f && L.z >= 0.0f) {
                     film.add_sample(c.x, y, L);
+                    if (t.transparent) film.add_coverage(c.x, y, covered ? 1.0f : 0.0f);
                 } else {
                     film.skip_sample(c.x, y);
                     ++counters.nonfinite_dropped;

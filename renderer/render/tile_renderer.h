@@ -30,6 +30,9 @@ struct TileTarget {
     uint64_t* heat_nodes = nullptr;
     uint64_t* heat_triangles = nullptr;
     uint32_t max_spp = 0xffffffffu;  ///< no pixel draws a sample index >= this
+    /// FilmParams::transparent: a camera ray that escapes adds no radiance, and every kept
+    /// sample adds its coverage to the film (which must keep it).
+    bool transparent = false;
 };
 
 /// Renders trace->samples_per_pass samples (at least 1) for every active pixel of `tile`

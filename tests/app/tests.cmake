@@ -187,3 +187,10 @@ add_test(NAME smoke.tree_file_not_a_tree COMMAND ${_kdt} render
          /usr/share/assimp/models/PLY/cube.ply --tree /usr/share/assimp/models/PLY/cube.ply)
 set_tests_properties(smoke.tree_file_not_a_tree PROPERTIES
   PASS_REGULAR_EXPRESSION "cube.ply: byte 0: header: not a kdtrace tree cache")
+
+# --transparent needs an output with an alpha channel, refused before the render.
+add_test(NAME smoke.transparent_pfm COMMAND ${_kdt} render --transparent -o ${_tmp}/t.pfm)
+set_tests_properties(smoke.transparent_pfm PROPERTIES
+  PASS_REGULAR_EXPRESSION "t.pfm: --transparent needs an alpha channel: write .png or .exr")
+add_test(NAME smoke.transparent_png COMMAND ${_kdt} render --transparent --spp 1 --width 16
+         --height 12 --quiet -o ${_tmp}/t.png)

@@ -81,10 +81,11 @@ TEST(ViewerE2E, WindowShowsModelAndPanelsAndChangesAfterInput) {
     const ImageRGB a = load_image(before), b = load_image(after);
     ASSERT_EQ(a.width, b.width);
     ASSERT_EQ(a.width, 320 + 380);  // the image and the panel column
-    // The image area: the model and the ground in many tones, not an empty window.
+    // The image area: the model and the ground in many tones, not an empty window (a flat
+    // image has one or two; how many more an early pass shows depends on its noise, 40 or so).
     int levels = 0;
     EXPECT_GT(covered(a, 0, 320, &levels), 0.25);
-    EXPECT_GT(levels, 40);
+    EXPECT_GT(levels, 20);
     // The panel column: ImGui's widgets and text (its window background is close to the clear
     // colour) over a good part of it, in several tones.
     EXPECT_GT(covered(a, 330, a.width, &levels), 0.2);
