@@ -127,6 +127,7 @@ void run(const RenderCommand& cmd) {
     check_output(cmd.output, scene_input_files(prep.scene), "the image");
 
     RenderSession session(prep.snapshot, o.trace, o.film);
+    session.set_publishing(false);  // nothing reads the image before the render ends
     const bool tty = !cmd.quiet && isatty(fileno(stderr));
     const double pixels = double(session.film().pixel_count());
     std::function<void(const RenderProgress&)> progress;

@@ -227,7 +227,7 @@ PassStats RenderSession::run_tiles(const std::vector<int>& tiles, int max_spp) {
         r.x1 = std::min(r.x0 + kTileSize, width);
         r.y1 = std::min(r.y0 + kTileSize, height);
         pixels_done += render_tile(target, r, per_thread[size_t(omp_get_thread_num())].c);
-        publish_tile(r.x0, r.y0, r.x1, r.y1);
+        if (publishing_) publish_tile(r.x0, r.y0, r.x1, r.y1);
     }
     for (const ThreadCounters& t : per_thread) stats.counters += t.c;
     stats.active_pixels = pixels_done;

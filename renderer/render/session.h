@@ -89,6 +89,10 @@ public:
     bool copy_image(FilmImage& out, bool heat = false) const;
     /// The published pixel (x, y); nullopt outside the image.
     std::optional<PixelInfo> inspect(int x, int y) const;
+    /// Whether finished tiles are published for copy_image() and inspect() (on by default).
+    /// A caller that reads only film() after the passes, such as `kdtrace render`, turns it
+    /// off and saves the copy per tile. Call between passes.
+    void set_publishing(bool on) { publishing_ = on; }
 
     int tile_count() const;
     const Film& film() const { return film_; }
@@ -132,6 +136,7 @@ private:
     PathCounters totals_;
     int passes_ = 0;
     bool heat_map_ = false;
+    bool publishing_ = true;
     std::vector<uint64_t> heat_nodes_, heat_tris_;
     std::atomic<bool> reset_requested_{false};
     std::atomic<bool> cancel_requested_{false};
