@@ -172,15 +172,16 @@ Table embree_table(const Context& ctx, const RowResult& best, const RaySets& ray
                  "occluded x Embree",
                  "primary hit diffs",
                  "diffuse hit diffs"};
+    // The ratios' reference: Embree's single-ray engine (none without Embree).
     const Engine* ref = nullptr;
-    for (const Engine& e : engines) {
 #ifdef KDT_HAVE_EMBREE
+    for (const Engine& e : engines) {
         if (e.peer && !e.batch) {
             ref = &e;
             break;
         }
-#endif
     }
+#endif
     auto mr = [](size_t n, double s) { return double(n) / s * 1e-6; };
     for (const Engine& e : engines) {
         const double p = mr(primary.size(), median(e.primary_s));

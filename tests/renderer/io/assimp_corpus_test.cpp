@@ -67,7 +67,7 @@ using Tri = std::array<Vec3f, 3>;
 
 // Equal within one float ulp: Assimp's fast_atof is not correctly rounded (Wuson.ply's
 // "1.515251" becomes 1.51525092 there, 1.51525104 = the nearest float here).
-bool near(const Vec3f& a, const Vec3f& b) {
+[[maybe_unused]] bool near(const Vec3f& a, const Vec3f& b) {
     for (int k = 0; k < 3; ++k) {
         float tol = 1.2e-7f * std::max(std::fabs(a[k]), std::fabs(b[k]));
         if (std::fabs(a[k] - b[k]) > tol) return false;
@@ -76,7 +76,7 @@ bool near(const Vec3f& a, const Vec3f& b) {
 }
 
 // Same triangle up to where each reader starts it (winding kept).
-bool same_triangle(const Tri& a, const Tri& b) {
+[[maybe_unused]] bool same_triangle(const Tri& a, const Tri& b) {
     for (int r = 0; r < 3; ++r)
         if (near(a[0], b[size_t(r)]) && near(a[1], b[size_t((r + 1) % 3)]) &&
             near(a[2], b[size_t((r + 2) % 3)]))
