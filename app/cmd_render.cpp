@@ -3,7 +3,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -108,15 +107,7 @@ void run(const RenderCommand& cmd) {
     // Fail before loading and rendering, not after.
     validate(o);
     if (dist_requested(cmd.dist)) return run_dist_render(o, cmd.output, cmd.quiet, cmd.dist);
-    check_image_output(cmd.output);
-    if (o.film.transparent) {
-        // Refused before the render, not after it: these formats have no alpha.
-        std::string ext = std::filesystem::path(cmd.output).extension().string();
-        for (char& c : ext) c = char(std::tolower(uint8_t(c)));
-        if (ext != ".png" && ext != ".exr")
-            throw Error(ErrorLocation{cmd.output},
-                        "--transparent needs an alpha channel: write .png or .exr");
-    }
+    check_image_output(cmd.output, o.film.transparent);
     check_output(cmd.output, {o.scene.scene_path, o.scene.env_file, o.scene.tree_file},
                  "the image");
 

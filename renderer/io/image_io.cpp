@@ -632,8 +632,11 @@ void write_image(const std::string& path, const ImageRGB& image, const ToneParam
     }
 }
 
-void check_image_output(const std::string& path) {
-    check_image_extension(path, lower_extension(path));
+void check_image_output(const std::string& path, bool with_alpha) {
+    const std::string ext = lower_extension(path);
+    check_image_extension(path, ext);
+    if (with_alpha && ext != ".png" && ext != ".exr")
+        fail(path, "film.transparent needs an alpha channel: write .png or .exr");
     namespace fs = std::filesystem;
     std::error_code ec;
     if (fs::is_directory(fs::path(path), ec)) fail(path, "is a directory");

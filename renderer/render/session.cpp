@@ -268,7 +268,9 @@ RenderProgress run_render(RenderSession& session, const StopConditions& stop,
         double frac = 0.0;
         if (budget > 0) frac = std::max(frac, double(p.samples) / double(budget));
         if (stop.seconds > 0.0) frac = std::max(frac, p.seconds / stop.seconds);
-        p.error_known = film.total_samples() >= 2 * uint64_t(pixels);
+        // Kept samples from the counters, not a pass over the film.
+        const PathCounters& totals = session.totals();
+        p.error_known = totals.samples - totals.nonfinite_dropped >= 2 * uint64_t(pixels);
         if (stop.error > 0.0f && adaptive) {
             // Adaptive: done when every pixel is below the target, so the share of pixels
             // that stopped, not the mean error (below the target long before the last pixel).
@@ -288,7 +290,6 @@ RenderProgress run_render(RenderSession& session, const StopConditions& stop,
         if (done) p.fraction = 1.0;
         if (done && !(progress || stop.error > 0.0f))
             p.mean_relative_error = film.mean_relative_error();
-        if (done) p.error_known = film.total_samples() >= 2 * uint64_t(pixels);
         if (progress) progress(p);
         if (done) break;
     }

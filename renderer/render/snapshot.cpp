@@ -65,6 +65,20 @@ TraceScene merge_instances(const Scene& scene) {
     return ts;
 }
 
+namespace {
+
+// The CameraDesc a Camera was made from (its target one unit ahead).
+CameraDesc camera_desc_of(const Camera& camera) {
+    CameraDesc d;
+    d.eye = camera.eye;
+    d.target = camera.eye + camera.forward;
+    d.up = camera.up;
+    d.vfov_degrees = camera.vfov_degrees;
+    return d;
+}
+
+}  // namespace
+
 std::shared_ptr<const RenderSnapshot> compile_snapshot(const Scene& scene,
                                                        const SnapshotOptions& options) {
     Timer timer;
@@ -95,10 +109,7 @@ std::shared_ptr<const RenderSnapshot> compile_snapshot(TraceScene scene, const C
     auto snap = std::make_shared<RenderSnapshot>();
     snap->scene = std::make_shared<const TraceScene>(std::move(scene));
     snap->camera = camera;
-    snap->camera_desc.eye = camera.eye;
-    snap->camera_desc.target = camera.eye + camera.forward;
-    snap->camera_desc.up = camera.up;
-    snap->camera_desc.vfov_degrees = camera.vfov_degrees;
+    snap->camera_desc = camera_desc_of(camera);
     snap->tree_params = snap->scene->tree->params();
     snap->build_seconds = timer.seconds();
     return snap;
@@ -108,10 +119,7 @@ std::shared_ptr<const RenderSnapshot> with_camera(const RenderSnapshot& snapshot
                                                   const Camera& camera) {
     auto snap = std::make_shared<RenderSnapshot>(snapshot);
     snap->camera = camera;
-    snap->camera_desc.eye = camera.eye;
-    snap->camera_desc.target = camera.eye + camera.forward;
-    snap->camera_desc.up = camera.up;
-    snap->camera_desc.vfov_degrees = camera.vfov_degrees;
+    snap->camera_desc = camera_desc_of(camera);
     return snap;
 }
 

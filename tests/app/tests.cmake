@@ -191,6 +191,6 @@ set_tests_properties(smoke.tree_file_not_a_tree PROPERTIES
 # --transparent needs an output with an alpha channel, refused before the render.
 add_test(NAME smoke.transparent_pfm COMMAND ${_kdt} render --transparent -o ${_tmp}/t.pfm)
 set_tests_properties(smoke.transparent_pfm PROPERTIES
-  PASS_REGULAR_EXPRESSION "t.pfm: --transparent needs an alpha channel: write .png or .exr")
+  PASS_REGULAR_EXPRESSION "t.pfm: film.transparent \\(--transparent\\) needs an alpha channel: write .png or .exr")
 add_test(NAME smoke.transparent_png COMMAND ${_kdt} render --transparent --spp 1 --width 16
          --height 12 --quiet -o ${_tmp}/t.png)
