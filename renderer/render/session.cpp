@@ -51,6 +51,12 @@ void RenderSession::set_heat_map(bool on) {
     reset_requested_.store(true);
 }
 
+void RenderSession::set_aov(bool on) {
+    std::lock_guard<std::mutex> lock(pending_mutex_);
+    pending_.aov = on;
+    reset_requested_.store(true);
+}
+
 int RenderSession::tile_count() const {
     const int tx = (film_.width() + kTileSize - 1) / kTileSize;
     const int ty = (film_.height() + kTileSize - 1) / kTileSize;
@@ -65,6 +71,7 @@ void RenderSession::apply_pending() {
         if (pending_.trace) trace_ = *pending_.trace;
         if (pending_.film) film_params_ = *pending_.film;
         if (pending_.heat_map) heat_map_ = *pending_.heat_map;
+        if (pending_.aov) aov_ = *pending_.aov;
         pending_ = Pending{};
     }
     if (reset_requested_.exchange(false)) {
@@ -78,6 +85,9 @@ void RenderSession::apply_pending() {
             film_.keep_coverage(film_params_.transparent);
         heat_nodes_.assign(heat_map_ ? film_.pixel_count() : 0, 0);
         heat_tris_.assign(heat_map_ ? film_.pixel_count() : 0, 0);
+        aov_normal_.assign(aov_ ? 3 * film_.pixel_count() : 0, 0.0f);
+        aov_depth_.assign(aov_ ? film_.pixel_count() : 0, 0.0f);
+        aov_hits_.assign(aov_ ? film_.pixel_count() : 0, 0);
         totals_ = PathCounters{};
         passes_ = 0;
         reset_published();
@@ -96,6 +106,8 @@ void RenderSession::reset_published() {
     p.nodes.assign(n, 0.0f);
     p.triangles.assign(n, 0.0f);
     p.heat = !heat_nodes_.empty();
+    p.normals.assign(aov_hits_.empty() ? 0 : 3 * n, 0.0f);
+    p.depth.assign(aov_hits_.empty() ? 0 : n, 0.0f);
     ++p.image.version;
     ++p.image.generation;
     p.image.complete_passes = 0;
@@ -105,10 +117,11 @@ void RenderSession::publish_tile(int x0, int y0, int x1, int y1) {
     // The values are computed outside the lock from pixels only this thread writes in this
     // pass; the lock covers the copy of one tile.
     constexpr int kN = kTileSize * kTileSize;
-    float rgb[kN * 3], error[kN], nodes[kN], tris[kN];
+    float rgb[kN * 3], error[kN], nodes[kN], tris[kN], normals[kN * 3], depth[kN];
     uint32_t samples[kN];
     const int w = x1 - x0;
     const bool heat = !heat_nodes_.empty();
+    const bool aov = !aov_hits_.empty();
     for (int y = y0; y < y1; ++y) {
         for (int x = x0; x < x1; ++x) {
             const int i = (y - y0) * w + (x - x0);
@@ -122,6 +135,14 @@ void RenderSession::publish_tile(int x0, int y0, int x1, int y1) {
             const float inv = samples[i] > 0 ? 1.0f / float(samples[i]) : 0.0f;
             nodes[i] = heat ? float(heat_nodes_[pi]) * inv : 0.0f;
             tris[i] = heat ? float(heat_tris_[pi]) * inv : 0.0f;
+            if (aov) {
+                const uint32_t hits = aov_hits_[pi];
+                const float inv_hits = hits > 0 ? 1.0f / float(hits) : 0.0f;
+                for (int k = 0; k < 3; ++k) normals[3 * i + k] = aov_normal_[3 * pi + k] * inv_hits;
+                depth[i] = hits > 0         ? aov_depth_[pi] * inv_hits
+                           : samples[i] > 0 ? std::numeric_limits<float>::infinity()
+                                            : 0.0f;
+            }
         }
     }
     std::lock_guard<std::mutex> lock(published_mutex_);
@@ -134,11 +155,15 @@ void RenderSession::publish_tile(int x0, int y0, int x1, int y1) {
         std::copy_n(error + i, w, p.error.begin() + ptrdiff_t(row));
         std::copy_n(nodes + i, w, p.nodes.begin() + ptrdiff_t(row));
         std::copy_n(tris + i, w, p.triangles.begin() + ptrdiff_t(row));
+        if (aov && !p.depth.empty()) {
+            std::copy_n(normals + 3 * i, 3 * w, p.normals.begin() + ptrdiff_t(3 * row));
+            std::copy_n(depth + i, w, p.depth.begin() + ptrdiff_t(row));
+        }
     }
     ++p.image.version;
 }
 
-bool RenderSession::copy_image(FilmImage& out, bool heat) const {
+bool RenderSession::copy_image(FilmImage& out, bool layers) const {
     std::lock_guard<std::mutex> lock(published_mutex_);
     const Published& p = published_;
     if (out.version == p.image.version) return false;
@@ -150,9 +175,15 @@ bool RenderSession::copy_image(FilmImage& out, bool heat) const {
     out.complete_passes = p.image.complete_passes;
     out.heat_nodes.clear();
     out.heat_triangles.clear();
-    if (heat && p.heat) {
+    out.aov_normals.clear();
+    out.aov_depth.clear();
+    if (layers && p.heat) {
         out.heat_nodes = p.nodes;
         out.heat_triangles = p.triangles;
+    }
+    if (layers) {
+        out.aov_normals = p.normals;
+        out.aov_depth = p.depth;
     }
     return true;
 }
@@ -168,6 +199,10 @@ std::optional<PixelInfo> RenderSession::inspect(int x, int y) const {
     info.relative_error = p.error[i];
     info.nodes_per_sample = p.nodes[i];
     info.triangles_per_sample = p.triangles[i];
+    if (!p.depth.empty()) {
+        info.normal = Vec3f(p.normals[3 * i], p.normals[3 * i + 1], p.normals[3 * i + 2]);
+        info.depth = p.depth[i];
+    }
     return info;
 }
 
@@ -205,6 +240,11 @@ PassStats RenderSession::run_tiles(const std::vector<int>& tiles, int max_spp) {
     if (heat_map_ && !heat_nodes_.empty()) {
         target.heat_nodes = heat_nodes_.data();
         target.heat_triangles = heat_tris_.data();
+    }
+    if (aov_ && !aov_hits_.empty()) {
+        target.aov_normal = aov_normal_.data();
+        target.aov_depth = aov_depth_.data();
+        target.aov_hits = aov_hits_.data();
     }
     if (max_spp > 0) target.max_spp = uint32_t(max_spp);
     target.transparent = film_params_.transparent;

@@ -37,6 +37,12 @@ struct FilmImage {
     /// Per-sample kd-tree nodes visited and triangles tested (heat maps); filled only when
     /// asked for and the heat map is on, else empty.
     std::vector<float> heat_nodes, heat_triangles;
+    /// The normals and depth views (AOVs); filled only when asked for and on, else empty.
+    /// aov_normals: the mean aov_shading_normal() of the samples whose camera ray hits (3
+    /// floats a pixel; not renormalised), 0 where none did. aov_depth: their mean distance
+    /// along the camera ray (scene units); +infinity where every sample escaped (sky), 0
+    /// where the pixel has no samples yet.
+    std::vector<float> aov_normals, aov_depth;
     uint64_t version = 0;     ///< grows with every published tile and every reset
     uint64_t generation = 0;  ///< grows with every reset (camera, parameters, snapshot)
     int complete_passes = 0;  ///< passes of this generation that finished uncancelled
@@ -48,6 +54,8 @@ struct PixelInfo {
     uint32_t samples = 0;      ///< finite samples accumulated
     float relative_error = 0;  ///< Film::relative_error (infinite below 2 samples)
     float nodes_per_sample = 0, triangles_per_sample = 0;  ///< heat counters (0 when off)
+    Vec3f normal{0.0f};  ///< FilmImage::aov_normals of the pixel (0 when off)
+    float depth = 0.0f;  ///< FilmImage::aov_depth of the pixel (0 when off)
 };
 
 /// Thread safety: the setters, reset(), cancel(), copy_image() and inspect() may be called
@@ -72,6 +80,10 @@ public:
     /// Turns per-pixel heat-map accumulation on or off at the next pass, with a reset (off by
     /// default; needs TraceParams::count_traversal).
     void set_heat_map(bool on);
+    /// Turns accumulation of the normals and depth views (FilmImage::aov_*) on or off at the
+    /// next pass, with a reset (off by default). They read the camera rays' hits and change
+    /// no radiance.
+    void set_aov(bool on);
     /// Clears the film at the start of the next pass.
     void reset() { reset_requested_.store(true); }
     /// Stops the running pass after its tiles in flight (at most one per thread). Cleared at
@@ -84,9 +96,10 @@ public:
     /// The same restricted to the given tile indices (row-major, tile_count() of them).
     PassStats render_pass(const std::vector<int>& tiles, int max_spp = 0);
 
-    /// Copies the published image (and with `heat`, the heat maps) into `out` when its version
-    /// differs from out.version; returns whether it copied. Holds a lock for one copy only.
-    bool copy_image(FilmImage& out, bool heat = false) const;
+    /// Copies the published image (and with `layers`, the heat maps and AOVs that are on)
+    /// into `out` when its version differs from out.version; returns whether it copied. Holds
+    /// a lock for one copy only.
+    bool copy_image(FilmImage& out, bool layers = false) const;
     /// The published pixel (x, y); nullopt outside the image.
     std::optional<PixelInfo> inspect(int x, int y) const;
     /// Whether finished tiles are published for copy_image() and inspect() (on by default).
@@ -104,6 +117,7 @@ public:
     const PathCounters& totals() const { return totals_; }
     int passes() const { return passes_; }
     bool heat_map() const { return heat_map_; }
+    bool aov() const { return aov_; }
     /// Per-pixel sums of kd-tree nodes visited and triangles tested (heat maps; empty when
     /// off); divide by Film::count for per-sample values.
     const std::vector<uint64_t>& heat_nodes() const { return heat_nodes_; }
@@ -116,12 +130,14 @@ private:
         std::optional<TraceParams> trace;
         std::optional<FilmParams> film;
         std::optional<bool> heat_map;
+        std::optional<bool> aov;
     };
     struct Published {
         FilmImage image;
         std::vector<uint32_t> samples;
         std::vector<float> error, nodes, triangles;
-        bool heat = false;  ///< nodes and triangles are counted
+        bool heat = false;                  ///< nodes and triangles are counted
+        std::vector<float> normals, depth;  ///< FilmImage::aov_*; empty when off
     };
 
     void apply_pending();
@@ -138,6 +154,9 @@ private:
     bool heat_map_ = false;
     bool publishing_ = true;
     std::vector<uint64_t> heat_nodes_, heat_tris_;
+    bool aov_ = false;
+    std::vector<float> aov_normal_, aov_depth_;  ///< per-pixel sums (TileTarget::aov_*)
+    std::vector<uint32_t> aov_hits_;
     std::atomic<bool> reset_requested_{false};
     std::atomic<bool> cancel_requested_{false};
 

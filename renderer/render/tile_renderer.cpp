@@ -1,8 +1,26 @@
 #include "renderer/render/tile_renderer.h"
 
 #include <algorithm>
+#include <cmath>
 
 namespace kdt {
+
+Vec3f aov_shading_normal(const TraceScene& scene, const Ray& ray, const Hit& hit) {
+    const TriangleMesh& mesh = *scene.mesh;
+    const Vec3u tri = mesh.triangles[hit.prim];
+    const Vec3f ng =
+        triangle_normal(mesh.positions[tri.x], mesh.positions[tri.y], mesh.positions[tri.z]);
+    Vec3f n = ng;
+    if (scene.instances[scene.instance_of(hit.prim)].smooth && !scene.normals.empty()) {
+        const float w = 1.0f - hit.u - hit.v;
+        const Vec3f s =
+            w * scene.normals[tri.x] + hit.u * scene.normals[tri.y] + hit.v * scene.normals[tri.z];
+        const float len = glm::length(s);
+        if (len > 0.0f && std::isfinite(len)) n = s / len;
+    }
+    if (n == Vec3f(0.0f)) return -ray.dir;  // a degenerate triangle
+    return glm::dot(n, ray.dir) > 0.0f ? -n : n;
+}
 
 size_t render_tile(const TileTarget& t, const TileRect& tile, PathCounters& counters) {
     const TraceScene& scene = *t.scene;
@@ -12,6 +30,7 @@ size_t render_tile(const TileTarget& t, const TileRect& tile, PathCounters& coun
     const int width = film.width();
     const int spp = std::max(trace.samples_per_pass, 1);
     const bool heat = t.heat_nodes != nullptr;
+    const bool aov = t.aov_normal != nullptr;
     size_t pixels_done = 0;
     // Camera rays are made for up to kBatch samples of a tile row (in pixel and sample
     // order) before they are traced, in separate loops for the sampler's first draw and
@@ -81,16 +100,26 @@ size_t render_tile(const TileTarget& t, const TileRect& tile, PathCounters& coun
                 Vec3f L =
                     heat ? trace_camera_ray(scene, trace, rays[i], c.sampler, counters)
                          : trace_camera_hit(scene, trace, rays[i], hits[i], c.sampler, counters);
+                // The heat map's path traces its own camera ray: whoever needs its hit asks
+                // the tree again, uncounted.
+                Hit own;
+                if (heat && (t.transparent || aov)) scene.tree->intersect(rays[i], own);
+                const Hit& hit = heat ? own : hits[i];
                 bool covered = true;
                 if (t.transparent) {
-                    // The heat map's path traces its own camera ray: ask the tree again,
-                    // uncounted, whether it hits.
-                    Hit own;
-                    covered = heat ? scene.tree->intersect(rays[i], own) : hits[i].valid();
+                    covered = hit.valid();
                     if (!covered) L = Vec3f(0.0f);
                 }
+                const size_t pi = size_t(y) * size_t(width) + size_t(c.x);
+                if (aov && hit.valid()) {
+                    const Vec3f sn = aov_shading_normal(scene, rays[i], hit);
+                    t.aov_normal[3 * pi] += sn.x;
+                    t.aov_normal[3 * pi + 1] += sn.y;
+                    t.aov_normal[3 * pi + 2] += sn.z;
+                    t.aov_depth[pi] += hit.t;
+                    ++t.aov_hits[pi];
+                }
                 if (heat) {
-                    const size_t pi = size_t(y) * size_t(width) + size_t(c.x);
                     t.heat_nodes[pi] += counters.nodes_visited - nodes0;
                     t.heat_triangles[pi] += counters.triangles_tested - tris0;
                 }
