@@ -119,6 +119,12 @@ void RenderWorker::set_heat_map(bool on) {
     restart_locked();
 }
 
+void RenderWorker::set_aov(bool on) {
+    session_->set_aov(on);
+    std::lock_guard<std::mutex> lock(mutex_);
+    restart_locked();
+}
+
 void RenderWorker::set_paused(bool paused) {
     std::lock_guard<std::mutex> lock(mutex_);
     paused_ = paused;

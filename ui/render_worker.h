@@ -49,6 +49,8 @@ public:
     /// Throws kdt::Error (and changes nothing) for invalid parameters.
     void set_params(const TraceParams& trace, const FilmParams& film, const StopConditions& stop);
     void set_heat_map(bool on);
+    /// Turns the normals and depth layers (RenderSession::set_aov) on or off, with a restart.
+    void set_aov(bool on);
     /// Replaces the environment light; it is built on the render thread (a failure goes to
     /// WorkerStats::error and the old light stays) and kept across later snapshots.
     void set_environment(const EnvironmentDesc& desc);

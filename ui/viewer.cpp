@@ -65,6 +65,7 @@ Viewer::Viewer(const ViewerOptions& options) : vo_(options) {
 void Viewer::set_camera(const CameraDesc& camera) {
     camera_ = camera;
     worker_->set_camera(camera);
+    if (split_) split_->worker().set_camera(camera);
     camera_changed_at_ = Clock::now();
     camera_restart_ = worker_->stats().restarts;
     awaiting_preview_ = true;
@@ -79,6 +80,7 @@ void Viewer::request_rebuild() {
 void Viewer::apply_params() {
     try {
         worker_->set_params(opts_.trace, opts_.film, stop_);
+        if (split_) split_->worker().set_params(opts_.trace, opts_.film, stop_);
         message_.clear();
     } catch (const Error& e) {
         message_ = e.what();
@@ -90,21 +92,34 @@ void Viewer::apply_environment() {
     d.rotation_degrees += opts_.scene.env_rotation_degrees - env_rotation0_;
     d.intensity = env_intensity_;
     worker_->set_environment(d);
+    if (split_) split_->worker().set_environment(d);
 }
 
 void Viewer::set_view_mode(ViewMode mode) {
     if (mode == view_) return;
-    const bool heat = mode != ViewMode::radiance;
-    if (heat != (view_ != ViewMode::radiance)) {
+    const auto is_heat = [](ViewMode m) {
+        return m == ViewMode::heat_nodes || m == ViewMode::heat_triangles;
+    };
+    const auto is_aov = [](ViewMode m) { return m == ViewMode::normals || m == ViewMode::depth; };
+    const bool heat = is_heat(mode), aov = is_aov(mode);
+    if (heat != is_heat(view_)) {
         opts_.trace.count_traversal = heat || resolve(vo_.options).trace.count_traversal;
         apply_params();
         worker_->set_heat_map(heat);
+        if (split_) split_->worker().set_heat_map(heat);
+    }
+    if (aov != is_aov(view_)) {
+        worker_->set_aov(aov);
+        if (split_) split_->worker().set_aov(aov);
     }
     view_ = mode;
     image_.version = 0;  // recolour at the next frame
 }
 
 void Viewer::poll_rebuild() {
+    if (split_) {
+        if (std::string error = split_->poll_rebuild(); !error.empty()) message_ = error;
+    }
     std::optional<RebuildResult> r = rebuilder_->take();
     if (!r) return;
     if (!r->snapshot) {
@@ -121,11 +136,9 @@ void Viewer::poll_rebuild() {
 }
 
 void Viewer::upload(const FilmImage& img) {
-    const bool heat = view_ != ViewMode::radiance;
-    if (heat && !img.heat_nodes.empty()) {
-        std::vector<float> rgb;
-        heat_scale_ =
-            heat_colors(view_ == ViewMode::heat_nodes ? img.heat_nodes : img.heat_triangles, rgb);
+    const std::optional<DebugLayer> layer = debug_layer(view_);
+    std::vector<float> rgb;
+    if (layer && debug_colors(*layer, img, rgb, heat_scale_)) {
         display_.upload(img.width, img.height, rgb.data());
     } else {
         display_.upload(img.width, img.height, img.rgb.data());
@@ -135,6 +148,7 @@ void Viewer::upload(const FilmImage& img) {
 
 void Viewer::update_image() {
     const bool heat = view_ != ViewMode::radiance;
+    if (split_) split_->update_image(debug_layer(view_));
     // The preview of a change is shown until a full-resolution pass of the change is complete
     // (the session's image of the pass in flight still shows the previous state).
     if (worker_->copy_preview(preview_)) {
@@ -160,7 +174,12 @@ void Viewer::draw_image(int fb_width, int fb_height) const {
     const DisplayMode mode =
         view_ == ViewMode::radiance ? DisplayMode::radiance : DisplayMode::direct;
     // image_y_ counts from the top; GL's viewport from the bottom.
-    display_.draw(image_x_, fb_height - image_y_ - image_h_, image_w_, image_h_, tone_, mode);
+    if (split_ && split_->display()) {
+        draw_split(display_, *split_->display(), image_x_, fb_height - image_y_ - image_h_,
+                   image_w_, image_h_, split_->divider, tone_, mode);
+    } else {
+        display_.draw(image_x_, fb_height - image_y_ - image_h_, image_w_, image_h_, tone_, mode);
+    }
     (void)fb_width;
 }
 
@@ -172,7 +191,13 @@ void Viewer::handle_input(GLFWwindow* window, double dt) {
     mouse_x_ = mx;
     mouse_y_ = my;
     CameraDesc c = camera_;
-    if (!io.WantCaptureMouse) {
+    // A press near the split view's divider drags it instead of the camera.
+    const bool dragging =
+        split_ && !io.WantCaptureMouse && image_w_ > 0 &&
+        split_->drag(float((mx * content_scale_ - image_x_) / image_w_),
+                     6.0f * content_scale_ / float(image_w_),
+                     glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS);
+    if (!io.WantCaptureMouse && !dragging) {
         const bool left = glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS;
         const bool right = glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS ||
                            glfwGetMouseButton(window, GLFW_MOUSE_BUTTON_MIDDLE) == GLFW_PRESS;

@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -12,6 +13,7 @@
 #include "ui/display.h"
 #include "ui/heat_map.h"
 #include "ui/render_worker.h"
+#include "ui/split_view.h"
 #include "ui/tree_rebuild.h"
 #include "ui/viewer.h"
 
@@ -19,7 +21,10 @@ struct GLFWwindow;
 
 namespace kdt::ui {
 
-enum class ViewMode : int { radiance, heat_nodes, heat_triangles };
+enum class ViewMode : int { radiance, heat_nodes, heat_triangles, normals, depth };
+
+/// The debug layer a view mode shows; nullopt for radiance.
+std::optional<DebugLayer> debug_layer(ViewMode mode);
 
 /// Latencies the viewer measures for its summary, in milliseconds.
 struct Latencies {
@@ -42,6 +47,8 @@ public:
     /// Applies opts_.trace / film / stop_ to the render thread; an error goes to message_.
     void apply_params();
     void set_view_mode(ViewMode mode);
+    /// Starts (with B's tree parameters equal to A's) or stops the split view (split_view.cpp).
+    void set_split(bool on);
     /// Applies opts_.scene.env_rotation_degrees and env_intensity_ to the environment.
     void apply_environment();
     /// Sets "group.name" to `value` through the range tables (tree fields rebuild when
@@ -92,6 +99,7 @@ public:
     ToneParams tone_;
     ViewMode view_ = ViewMode::radiance;
     HeatScale heat_scale_;
+    std::unique_ptr<SplitView> split_;  ///< the split view's side B while it is on
     bool auto_rebuild_ = true, panels_ = true, paused_ = false;
     std::string message_;  ///< last error, shown in the window
     int image_x_ = 0, image_y_ = 0, image_w_ = 0, image_h_ = 0;  ///< framebuffer rectangle

@@ -62,6 +62,7 @@ void render_panel(Viewer& v) {
     if (ImGui::Button(v.paused_ ? "Resume" : "Pause")) {
         v.paused_ = !v.paused_;
         v.worker_->set_paused(v.paused_);
+        if (v.split_) v.split_->worker().set_paused(v.paused_);
     }
 }
 
@@ -83,6 +84,105 @@ void environment_panel(Viewer& v) {
     if (!failed.empty()) ImGui::TextColored(ImVec4(1, 0.4f, 0.3f, 1), "%s", failed.c_str());
 }
 
+// A colour ramp as a bar the width of the panel, from ramp(0) on the left to ramp(1).
+template <class Ramp>
+ImVec2 legend_bar(Ramp ramp) {
+    ImDrawList* dl = ImGui::GetWindowDrawList();
+    const ImVec2 p = ImGui::GetCursorScreenPos();
+    const float w = ImGui::GetContentRegionAvail().x, h = 14.0f;
+    constexpr int kSteps = 32;
+    for (int i = 0; i < kSteps; ++i) {
+        const Vec3f a = ramp(float(i) / kSteps), b = ramp(float(i + 1) / kSteps);
+        dl->AddRectFilledMultiColor(ImVec2(p.x + w * float(i) / kSteps, p.y),
+                                    ImVec2(p.x + w * float(i + 1) / kSteps, p.y + h),
+                                    ImColor(a.x, a.y, a.z), ImColor(b.x, b.y, b.z),
+                                    ImColor(b.x, b.y, b.z), ImColor(a.x, a.y, a.z));
+    }
+    ImGui::Dummy(ImVec2(w, h + 2.0f));
+    return ImVec2(p.x, w);
+}
+
+// The legend of the debug view on screen: its colour scale with the frame's range.
+void legend(const Viewer& v) {
+    const HeatScale& s = v.heat_scale_;
+    switch (v.view_) {
+        case ViewMode::radiance:
+            return;
+        case ViewMode::heat_nodes:
+        case ViewMode::heat_triangles: {
+            const ImVec2 at = legend_bar([](float t) { return heat_ramp(0.05f + 0.95f * t); });
+            // The frame's mean as a green mark on the bar.
+            const float x = at.x + at.y * heat_position(float(s.mean), s);
+            const float y = ImGui::GetCursorScreenPos().y - 18.0f;
+            ImGui::GetWindowDrawList()->AddLine(ImVec2(x, y - 2.0f), ImVec2(x, y + 16.0f),
+                                                IM_COL32(0, 255, 0, 255), 2.0f);
+            ImGui::Text("%.1f (log scale) %.1f; mean %.2f (green)", s.lo, s.hi, s.mean);
+            return;
+        }
+        case ViewMode::normals:
+            ImGui::TextUnformatted("rgb = n * 0.5 + 0.5 (world x, y, z); grey checks: sky");
+            ImGui::Text("sky %.1f %% of the pixels", 100.0 * s.sky_fraction);
+            return;
+        case ViewMode::depth:
+            legend_bar(depth_ramp);
+            ImGui::Text("%.4g (log scale) %.4g, mean %.4g; sky %.1f %% (grey checks)", s.lo, s.hi,
+                        s.mean, 100.0 * s.sky_fraction);
+            return;
+    }
+}
+
+// The split view's side B: its kd-tree widgets (from kd_tree_fields(), as the kd-tree panel)
+// and both sides' parameters and speed, so the faster configuration is read off directly.
+void split_panel(Viewer& v) {
+    SplitView& sv = *v.split_;
+    std::string error;
+    if (ImGui::TreeNode("tree B parameters")) {
+        if (field_widgets("treeB", sv.tree_edit(), kd_tree_fields(), &error)) sv.request_rebuild();
+        ImGui::TreePop();
+    }
+    if (!error.empty()) v.message_ = error;
+    ImGui::SliderFloat("divider", &sv.divider, 0.0f, 1.0f, "%.2f");
+    if (sv.settling()) ImGui::TextUnformatted("B: building its tree...");
+    const WorkerStats a = v.worker_->stats(), b = sv.worker().stats();
+    if (!ImGui::BeginTable("split", 3, ImGuiTableFlags_Borders | ImGuiTableFlags_SizingFixedFit))
+        return;
+    ImGui::TableSetupColumn("");
+    ImGui::TableSetupColumn("A (left)");
+    ImGui::TableSetupColumn("B (right)");
+    ImGui::TableHeadersRow();
+    auto row = [](const char* name, const std::string& left, const std::string& right) {
+        ImGui::TableNextRow();
+        ImGui::TableNextColumn();
+        ImGui::TextUnformatted(name);
+        ImGui::TableNextColumn();
+        ImGui::TextUnformatted(left.c_str());
+        ImGui::TableNextColumn();
+        ImGui::TextUnformatted(right.c_str());
+    };
+    // The parameters of the trees rendering now: builder, q, n0 and depth always, any other
+    // field where they differ.
+    for (const Field<KdTreeParams>& f : kd_tree_fields()) {
+        const std::string l = field_text(f, v.opts_.tree), r = field_text(f, sv.tree_params());
+        const std::string name = f.name;
+        if (l != r || name == "builder" || name == "q" || name == "n0" || name == "max_depth")
+            row(f.name, l, r);
+    }
+    auto num = [](const char* fmt, double x) {
+        char buf[32];
+        std::snprintf(buf, sizeof buf, fmt, x);
+        return std::string(buf);
+    };
+    row("tree depth", num("%.0f", double(v.tree_->stats().max_depth_reached)),
+        num("%.0f", double(sv.tree()->stats().max_depth_reached)));
+    row("nodes", num("%.0f", double(v.tree_->stats().nodes)),
+        num("%.0f", double(sv.tree()->stats().nodes)));
+    row("Mrays/s", num("%.3f", a.mrays_per_second), num("%.3f", b.mrays_per_second));
+    row("nodes/ray", num("%.2f", a.nodes_per_ray), num("%.2f", b.nodes_per_ray));
+    row("tris/ray", num("%.2f", a.triangles_per_ray), num("%.2f", b.triangles_per_ray));
+    row("spp", num("%.1f", a.spp), num("%.1f", b.spp));
+    ImGui::EndTable();
+}
+
 void view_panel(Viewer& v) {
     int mode = int(v.view_);
     ImGui::RadioButton("radiance", &mode, 0);
@@ -90,32 +190,17 @@ void view_panel(Viewer& v) {
     ImGui::RadioButton("nodes/sample", &mode, 1);
     ImGui::SameLine();
     ImGui::RadioButton("triangles/sample", &mode, 2);
+    ImGui::RadioButton("normals", &mode, 3);
+    ImGui::SameLine();
+    ImGui::RadioButton("depth", &mode, 4);
+    ImGui::SameLine();
+    bool split = v.split_ != nullptr;
+    if (ImGui::Checkbox("split view", &split)) v.set_split(split);
     if (mode != int(v.view_)) v.set_view_mode(ViewMode(mode));
     int curve = int(v.tone_.curve);
     if (ImGui::Combo("tone curve", &curve, kToneCurveNames.data(), int(kToneCurveNames.size())))
         v.tone_.curve = ToneCurve(curve);
-    if (v.view_ != ViewMode::radiance) {
-        // The legend: the colour ramp on its log scale with the minimum, mean and maximum.
-        ImDrawList* dl = ImGui::GetWindowDrawList();
-        const ImVec2 p = ImGui::GetCursorScreenPos();
-        const float w = ImGui::GetContentRegionAvail().x, h = 14.0f;
-        constexpr int kSteps = 32;
-        for (int i = 0; i < kSteps; ++i) {
-            const Vec3f a = heat_ramp(0.05f + 0.95f * float(i) / kSteps);
-            const Vec3f b = heat_ramp(0.05f + 0.95f * float(i + 1) / kSteps);
-            dl->AddRectFilledMultiColor(ImVec2(p.x + w * float(i) / kSteps, p.y),
-                                        ImVec2(p.x + w * float(i + 1) / kSteps, p.y + h),
-                                        ImColor(a.x, a.y, a.z), ImColor(b.x, b.y, b.z),
-                                        ImColor(b.x, b.y, b.z), ImColor(a.x, a.y, a.z));
-        }
-        const float mean_at = heat_position(float(v.heat_scale_.mean), v.heat_scale_);
-        dl->AddLine(ImVec2(p.x + w * (0.05f + 0.95f * mean_at), p.y - 2.0f),
-                    ImVec2(p.x + w * (0.05f + 0.95f * mean_at), p.y + h + 2.0f),
-                    IM_COL32(0, 255, 0, 255), 2.0f);
-        ImGui::Dummy(ImVec2(w, h + 2.0f));
-        ImGui::Text("%.1f (log scale) %.1f; mean %.2f (green)", v.heat_scale_.lo, v.heat_scale_.hi,
-                    v.heat_scale_.mean);
-    }
+    legend(v);
 }
 
 void stats_panel(Viewer& v) {
@@ -170,6 +255,10 @@ void inspector(Viewer& v) {
     ImGui::Text("%u samples, rel. error %.4g", p->samples, p->relative_error);
     ImGui::Text("%.1f nodes, %.1f triangles per sample", p->nodes_per_sample,
                 p->triangles_per_sample);
+    if (p->depth != 0.0f) {
+        ImGui::Text("normal %.3f %.3f %.3f, depth %.4g", p->normal.x, p->normal.y, p->normal.z,
+                    p->depth);
+    }
 }
 
 void files_panel(Viewer& v) {
@@ -201,10 +290,18 @@ void Viewer::draw_panels() {
     begin_panel("Stats", x, y, 230.0f);
     stats_panel(*this);
     ImGui::End();
-    begin_panel("View", x, y, 110.0f);
+    begin_panel("View", x, y, 150.0f);
     view_panel(*this);
     inspector(*this);
     ImGui::End();
+    if (split_) {
+        // In the bottom-left corner, as small as its contents: mostly below the image.
+        ImGui::SetNextWindowPos(ImVec2(6.0f, ImGui::GetIO().DisplaySize.y - 6.0f),
+                                ImGuiCond_FirstUseEver, ImVec2(0.0f, 1.0f));
+        ImGui::Begin("Split view: A left, B right", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
+        split_panel(*this);
+        ImGui::End();
+    }
     begin_panel("Render", x, y, 330.0f);
     render_panel(*this);
     environment_panel(*this);

@@ -5,6 +5,10 @@
 //   pause | resume | panels on|off | screenshot FILE | save BASE | save_session FILE
 //   load_session FILE | wait FRAMES | wait_passes N | wait_done | wait_rebuild
 //   stats LABEL (prints the frame times since the previous stats command)
+//   mode radiance|nodes|triangles|normals|depth (the view)
+//   split on|off | split.set tree.NAME VALUE (side B's tree) | divider U (0 = left, 1 = right)
+//   wait_split (until B's tree is built and B has a full pass with it)
+//   check_gl (fails the script when OpenGL reported an error since the last check)
 #include <algorithm>
 #include <cstdio>
 #include <iterator>
@@ -79,7 +83,8 @@ void Viewer::check_script() const {
         "orbit",  "pan",         "zoom",       "fly",          "frame",        "reset",
         "view",   "set",         "rebuild",    "heat",         "exposure",     "pause",
         "resume", "panels",      "screenshot", "save",         "save_session", "load_session",
-        "wait",   "wait_passes", "wait_done",  "wait_rebuild", "stats"};
+        "wait",   "wait_passes", "wait_done",  "wait_rebuild", "stats",        "mode",
+        "split",  "split.set",   "divider",    "wait_split",   "check_gl"};
     for (const std::string& cmd : script_) {
         std::istringstream in(cmd);
         std::string op;
@@ -98,6 +103,10 @@ bool Viewer::script_step() {
         if (waiting_ == "wait_passes") over = s.full_passes >= wait_count_ && have_image_;
         if (waiting_ == "wait_done") over = s.done && image_.complete_passes > 0;
         if (waiting_ == "wait_rebuild") over = !rebuilder_->busy() && !awaiting_rebuild_image_;
+        if (waiting_ == "wait_split") {
+            over = !split_ || (!split_->settling() && split_->worker().stats().full_passes >= 1 &&
+                               split_->image().complete_passes > 0);
+        }
         if (!over) return true;
         waiting_.clear();
     }
@@ -146,11 +155,43 @@ bool Viewer::script_step() {
                 set_view_mode(w == "nodes"       ? ViewMode::heat_nodes
                               : w == "triangles" ? ViewMode::heat_triangles
                                                  : ViewMode::radiance);
+            } else if (op == "mode") {
+                static const char* const kModes[] = {"radiance", "nodes", "triangles", "normals",
+                                                     "depth"};
+                const std::string w = word("a view mode");
+                const auto* m = std::find(std::begin(kModes), std::end(kModes), w);
+                if (m == std::end(kModes))
+                    throw script_error(cmd,
+                                       "expected radiance, nodes, triangles, normals or depth");
+                set_view_mode(ViewMode(m - std::begin(kModes)));
+            } else if (op == "split") {
+                const std::string w = word("on or off");
+                if (w != "on" && w != "off") throw script_error(cmd, "expected on or off");
+                set_split(w == "on");
+            } else if (op == "split.set") {
+                const std::string key = word("tree.name"), value = word("value");
+                if (!split_) throw script_error(cmd, "the split view is off (split on)");
+                if (key.rfind("tree.", 0) != 0)
+                    throw script_error(cmd, "side B differs in tree options only (tree.NAME)");
+                split_->set_tree_option(key.substr(5), value);
+            } else if (op == "divider") {
+                const float u = number("a position in [0, 1]");
+                if (!(u >= 0.0f && u <= 1.0f))
+                    throw script_error(cmd, "expected a value in [0, 1]");
+                if (!split_) throw script_error(cmd, "the split view is off (split on)");
+                split_->divider = u;
+            } else if (op == "check_gl") {
+                if (std::string e = gl_errors("the frames before"); !e.empty())
+                    throw script_error(cmd, e);
+            } else if (op == "wait_split") {
+                waiting_ = op;
+                return true;
             } else if (op == "exposure") {
                 tone_.exposure = number("stops");
             } else if (op == "pause" || op == "resume") {
                 paused_ = op == "pause";
                 worker_->set_paused(paused_);
+                if (split_) split_->worker().set_paused(paused_);
             } else if (op == "panels") {
                 panels_ = word("on or off") == "on";
             } else if (op == "screenshot") {

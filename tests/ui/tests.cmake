@@ -11,6 +11,7 @@ if(KDT_OSMESA_LIB)
                  ${CMAKE_CURRENT_LIST_DIR}/camera_control_test.cpp
                  ${CMAKE_CURRENT_LIST_DIR}/heat_map_test.cpp
                  ${CMAKE_CURRENT_LIST_DIR}/panels_test.cpp
+                 ${CMAKE_CURRENT_LIST_DIR}/split_view_test.cpp
                  ${CMAKE_CURRENT_LIST_DIR}/osmesa_context.cpp ${CMAKE_CURRENT_SOURCE_DIR}/test_util.cpp)
   target_link_libraries(kdt_ui_tests PRIVATE kdt_ui_core ${KDT_OSMESA_LIB} GTest::gtest
                         GTest::gtest_main kdt_warnings kdt_options)
