@@ -114,5 +114,49 @@ TEST(ViewerE2E, ImageAfterNSamplesEqualsRenderBitwise) {
     EXPECT_TRUE(v == r) << "the viewer's image differs from kdtrace render's";
 }
 
+// The split view end to end: side B with its own tree, the divider moved, the normals and
+// radiance views drawn with no GL error (check_gl fails the script, and the run, on one).
+TEST(ViewerE2E, SplitViewDrawsBothSidesWithNoGlError) {
+    const auto dir = test::temp_dir("view_split");
+    const std::string normals = (dir / "normals.png").string(),
+                      after = (dir / "after.png").string();
+    const std::string script =
+        "split on; split.set tree.n0 2; wait_split; divider 0.3; check_gl;"
+        " mode normals; wait_passes 1; wait 2; check_gl; screenshot " +
+        normals + "; mode radiance; wait_passes 1; check_gl";
+    std::string log;
+    const int rc = run(xvfb() + KDT_EXE + " view --width 160 --height 120 --no-cache --script '" +
+                           script + "' --frames 2 --screenshot " + after,
+                       dir / "log.txt", &log);
+    ASSERT_EQ(rc, 0) << log;
+    EXPECT_EQ(log.find("GL error"), std::string::npos) << log;
+    const ImageRGB n = load_image(normals), a = load_image(after);
+    ASSERT_EQ(n.width, 160 + 380);
+    // The image is 160 x 120 at (0, (height - 120) / 2); the divider at 30 % is column 48.
+    const int y0 = (n.height - 120) / 2 + 20;
+    auto px = [](const ImageRGB& img, int x, int y) {
+        const size_t i = (size_t(y) * size_t(img.width) + size_t(x)) * 3;
+        return Vec3f(img.rgb[i], img.rgb[i + 1], img.rgb[i + 2]);
+    };
+    for (const ImageRGB* img : {&n, &a}) {
+        const Vec3f line = px(*img, 47, y0);
+        EXPECT_GT(std::min({line.x, line.y, line.z}), 0.7f);  // the light divider
+    }
+    // The normals view on both sides of the divider: colours of several hues (n * 0.5 + 0.5
+    // of differently turned surfaces), not the radiance's greys and browns alone.
+    int coloured_left = 0, coloured_right = 0;
+    for (int y = y0; y < y0 + 60; ++y) {
+        for (int x = 2; x < 158; ++x) {
+            if (x >= 45 && x <= 50) continue;
+            const Vec3f c = px(n, x, y);
+            const bool coloured = std::max({c.x, c.y, c.z}) - std::min({c.x, c.y, c.z}) > 0.2f;
+            (x < 47 ? coloured_left : coloured_right) += coloured;
+        }
+    }
+    EXPECT_GT(coloured_left, 100);
+    EXPECT_GT(coloured_right, 100);
+    EXPECT_GT(mean_difference(n, a, 0, 160), 0.02);  // radiance looks otherwise
+}
+
 }  // namespace
 }  // namespace kdt
