@@ -10,7 +10,7 @@ namespace {
 template <size_t N>
 Vec3f ramp(const Vec3f (&stops)[N], float t) {
     constexpr int kN = int(N);
-    const float x = std::clamp(t, 0.0f, 1.0f) * float(kN - 1);
+    const float x = (t > 0.0f ? std::min(t, 1.0f) : 0.0f) * float(kN - 1);  // NaN: 0
     const int i = std::min(int(x), kN - 2);
     const float f = x - float(i);
     return stops[i] * (1.0f - f) + stops[i + 1] * f;
@@ -65,13 +65,21 @@ float heat_position(float v, const HeatScale& s) {
     return std::clamp(std::log(v / s.lo) / std::log(s.hi / s.lo), 0.0f, 1.0f);
 }
 
-HeatScale heat_colors(const std::vector<float>& values, std::vector<float>& rgb) {
+HeatScale widen(const HeatScale& a, const HeatScale& b) {
+    if (!(b.lo > 0.0f && b.hi >= b.lo)) return a;
+    if (!(a.lo > 0.0f && a.hi >= a.lo)) return HeatScale{b.lo, b.hi, a.mean, a.sky_fraction};
+    return HeatScale{std::min(a.lo, b.lo), std::max(a.hi, b.hi), a.mean, a.sky_fraction};
+}
+
+HeatScale heat_colors(const std::vector<float>& values, std::vector<float>& rgb,
+                      const HeatScale* also) {
     const HeatScale s = scale_of(values);
+    const HeatScale c = also ? widen(s, *also) : s;
     rgb.resize(values.size() * 3);
     for (size_t i = 0; i < values.size(); ++i) {
         // A pixel at the minimum stays distinguishable from one without samples.
         put(rgb, i,
-            values[i] > 0.0f ? heat_ramp(0.05f + 0.95f * heat_position(values[i], s))
+            values[i] > 0.0f ? heat_ramp(0.05f + 0.95f * heat_position(values[i], c))
                              : Vec3f(0.0f));
     }
     return s;
@@ -80,10 +88,8 @@ HeatScale heat_colors(const std::vector<float>& values, std::vector<float>& rgb)
 HeatScale normal_colors(const std::vector<float>& normals, const std::vector<float>& depth,
                         int width, std::vector<float>& rgb) {
     const size_t n = depth.size();
-    HeatScale s = scale_of(depth);
-    s.lo = -1.0f;  // the components' range, for the legend
-    s.hi = 1.0f;
-    s.mean = 0.0;
+    HeatScale s;  // no range: only the share of sky
+    s.sky_fraction = scale_of(depth).sky_fraction;
     rgb.resize(n * 3);
     for (size_t i = 0; i < n; ++i) {
         const int x = int(i % size_t(width)), y = int(i / size_t(width));
@@ -100,8 +106,10 @@ HeatScale normal_colors(const std::vector<float>& normals, const std::vector<flo
     return s;
 }
 
-HeatScale depth_colors(const std::vector<float>& depth, int width, std::vector<float>& rgb) {
+HeatScale depth_colors(const std::vector<float>& depth, int width, std::vector<float>& rgb,
+                       const HeatScale* also) {
     const HeatScale s = scale_of(depth);
+    const HeatScale c = also ? widen(s, *also) : s;
     rgb.resize(depth.size() * 3);
     for (size_t i = 0; i < depth.size(); ++i) {
         const int x = int(i % size_t(width)), y = int(i / size_t(width));
@@ -109,7 +117,7 @@ HeatScale depth_colors(const std::vector<float>& depth, int width, std::vector<f
         if (std::isinf(d)) {
             put(rgb, i, sky_color(x, y));
         } else if (d > 0.0f) {
-            put(rgb, i, depth_ramp(heat_position(d, s)));
+            put(rgb, i, depth_ramp(heat_position(d, c)));
         } else {
             put(rgb, i, Vec3f(0.0f));
         }
@@ -117,14 +125,14 @@ HeatScale depth_colors(const std::vector<float>& depth, int width, std::vector<f
     return s;
 }
 
-bool debug_colors(DebugLayer layer, const FilmImage& img, std::vector<float>& rgb,
-                  HeatScale& scale) {
+bool debug_colors(DebugLayer layer, const FilmImage& img, std::vector<float>& rgb, HeatScale& scale,
+                  const HeatScale* also) {
     switch (layer) {
         case DebugLayer::nodes:
         case DebugLayer::triangles:
             if (img.heat_nodes.empty()) return false;
-            scale =
-                heat_colors(layer == DebugLayer::nodes ? img.heat_nodes : img.heat_triangles, rgb);
+            scale = heat_colors(layer == DebugLayer::nodes ? img.heat_nodes : img.heat_triangles,
+                                rgb, also);
             return true;
         case DebugLayer::normals:
             if (img.aov_depth.empty()) return false;
@@ -132,7 +140,7 @@ bool debug_colors(DebugLayer layer, const FilmImage& img, std::vector<float>& rg
             return true;
         case DebugLayer::depth:
             if (img.aov_depth.empty()) return false;
-            scale = depth_colors(img.aov_depth, img.width, rgb);
+            scale = depth_colors(img.aov_depth, img.width, rgb, also);
             return true;
     }
     return false;

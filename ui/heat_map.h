@@ -30,17 +30,25 @@ Vec3f sky_color(int x, int y);
 /// Position of `v` on the log scale of `scale`, in [0, 1].
 float heat_position(float v, const HeatScale& scale);
 /// Colours `values` (one per pixel) into rgb (3 floats in [0, 1] per pixel); a pixel of
-/// value 0 (no samples) is black. Returns the scale.
-HeatScale heat_colors(const std::vector<float>& values, std::vector<float>& rgb);
+/// value 0 (no samples) is black. Returns the values' own scale; the colours use it widened
+/// to `also` when given (the other side of a split view, so both share one scale).
+HeatScale heat_colors(const std::vector<float>& values, std::vector<float>& rgb,
+                      const HeatScale* also = nullptr);
+/// The range covering both scales' ranges (a scale without 0 < lo <= hi has none); mean and
+/// sky_fraction are a's.
+HeatScale widen(const HeatScale& a, const HeatScale& b);
 /// Colours FilmImage::aov_normals (3 floats a pixel): n * 0.5 + 0.5 of the normalised mean,
 /// sky_color() where depth (FilmImage::aov_depth) is infinite, black without samples.
 HeatScale normal_colors(const std::vector<float>& normals, const std::vector<float>& depth,
                         int width, std::vector<float>& rgb);
 /// Colours FilmImage::aov_depth with depth_ramp() on the log scale from the frame's nearest
-/// to its farthest hit; sky_color() where infinite, black without samples.
-HeatScale depth_colors(const std::vector<float>& depth, int width, std::vector<float>& rgb);
-/// Colours `layer` of `image` into rgb; false (rgb untouched) when the image lacks the layer.
+/// to its farthest hit (widened to `also` as heat_colors does); sky_color() where infinite,
+/// black without samples.
+HeatScale depth_colors(const std::vector<float>& depth, int width, std::vector<float>& rgb,
+                       const HeatScale* also = nullptr);
+/// Colours `layer` of `image` into rgb and sets `scale` to the image's own; false (rgb
+/// untouched) when the image lacks the layer. `also` as for heat_colors.
 bool debug_colors(DebugLayer layer, const FilmImage& image, std::vector<float>& rgb,
-                  HeatScale& scale);
+                  HeatScale& scale, const HeatScale* also = nullptr);
 
 }  // namespace kdt::ui

@@ -67,7 +67,7 @@ bool SplitView::settling() const {
     return s.restarts == swap_restarts_ && s.full_passes < 1;
 }
 
-void SplitView::update_image(std::optional<DebugLayer> layer) {
+void SplitView::update_image(std::optional<DebugLayer> layer, const HeatScale& a_scale) {
     if (!display_) {
         display_ = std::make_unique<FilmDisplay>();
         display_->init();
@@ -83,7 +83,7 @@ void SplitView::update_image(std::optional<DebugLayer> layer) {
         show = &image_;
     if (!show) return;
     std::vector<float> rgb;
-    if (layer && debug_colors(*layer, *show, rgb, scale_)) {
+    if (layer && debug_colors(*layer, *show, rgb, scale_, &a_scale)) {
         display_->upload(show->width, show->height, rgb.data());
     } else {
         display_->upload(show->width, show->height, show->rgb.data());

@@ -40,8 +40,9 @@ public:
     /// Whether a rebuild is queued or building, or the swapped-in tree has no full pass yet.
     bool settling() const;
     /// Copies B's newest image (preview or full pass) and uploads it, coloured for `layer`
-    /// (nullopt: radiance) -- GL context current; creates the texture at the first call.
-    void update_image(std::optional<DebugLayer> layer);
+    /// (nullopt: radiance) on its scale widened to `a_scale` (side A's, so that both sides
+    /// share one) -- GL context current; creates the texture at the first call.
+    void update_image(std::optional<DebugLayer> layer, const HeatScale& a_scale);
     /// The texture of image B; null before the first update_image().
     const FilmDisplay* display() const { return display_.get(); }
 

@@ -138,7 +138,7 @@ void Viewer::poll_rebuild() {
 void Viewer::upload(const FilmImage& img) {
     const std::optional<DebugLayer> layer = debug_layer(view_);
     std::vector<float> rgb;
-    if (layer && debug_colors(*layer, img, rgb, heat_scale_)) {
+    if (layer && debug_colors(*layer, img, rgb, heat_scale_, split_ ? &split_->scale() : nullptr)) {
         display_.upload(img.width, img.height, rgb.data());
     } else {
         display_.upload(img.width, img.height, img.rgb.data());
@@ -148,7 +148,7 @@ void Viewer::upload(const FilmImage& img) {
 
 void Viewer::update_image() {
     const bool heat = view_ != ViewMode::radiance;
-    if (split_) split_->update_image(debug_layer(view_));
+    if (split_) split_->update_image(debug_layer(view_), heat_scale_);
     // The preview of a change is shown until a full-resolution pass of the change is complete
     // (the session's image of the pass in flight still shows the previous state).
     if (worker_->copy_preview(preview_)) {

@@ -102,21 +102,31 @@ ImVec2 legend_bar(Ramp ramp) {
     return ImVec2(p.x, w);
 }
 
-// The legend of the debug view on screen: its colour scale with the frame's range.
+// The legend of the debug view on screen: its colour scale with the frame's range (in a
+// split view, both sides' range, which both are coloured with).
 void legend(const Viewer& v) {
-    const HeatScale& s = v.heat_scale_;
+    const HeatScale s = v.split_ ? widen(v.heat_scale_, v.split_->scale()) : v.heat_scale_;
     switch (v.view_) {
         case ViewMode::radiance:
             return;
         case ViewMode::heat_nodes:
         case ViewMode::heat_triangles: {
             const ImVec2 at = legend_bar([](float t) { return heat_ramp(0.05f + 0.95f * t); });
-            // The frame's mean as a green mark on the bar.
-            const float x = at.x + at.y * heat_position(float(s.mean), s);
+            // The frame's mean as a green mark on the bar (side B's in cyan).
             const float y = ImGui::GetCursorScreenPos().y - 18.0f;
-            ImGui::GetWindowDrawList()->AddLine(ImVec2(x, y - 2.0f), ImVec2(x, y + 16.0f),
-                                                IM_COL32(0, 255, 0, 255), 2.0f);
-            ImGui::Text("%.1f (log scale) %.1f; mean %.2f (green)", s.lo, s.hi, s.mean);
+            auto mark = [&](double mean, ImU32 colour) {
+                const float x = at.x + at.y * heat_position(float(mean), s);
+                ImGui::GetWindowDrawList()->AddLine(ImVec2(x, y - 2.0f), ImVec2(x, y + 16.0f),
+                                                    colour, 2.0f);
+            };
+            mark(s.mean, IM_COL32(0, 255, 0, 255));
+            if (v.split_) {
+                mark(v.split_->scale().mean, IM_COL32(0, 220, 255, 255));
+                ImGui::Text("%.1f (log scale) %.1f; mean A %.2f (green), B %.2f (cyan)", s.lo, s.hi,
+                            s.mean, v.split_->scale().mean);
+            } else {
+                ImGui::Text("%.1f (log scale) %.1f; mean %.2f (green)", s.lo, s.hi, s.mean);
+            }
             return;
         }
         case ViewMode::normals:

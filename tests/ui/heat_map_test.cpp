@@ -84,6 +84,24 @@ TEST(DebugColors, DepthOnTheFramesLogScaleNearBrighterThanFar) {
     ASSERT_TRUE(debug_colors(DebugLayer::depth, img, out, scale));
     EXPECT_EQ(out, rgb);
     EXPECT_EQ(scale.hi, 100.0f);
+    // A split view's other side widens the colour scale, not the image's own scale: 10 is
+    // then at a third of the log scale from 1 to 1000.
+    const HeatScale other{2.0f, 1000.0f, 50.0, 0.0};
+    ASSERT_TRUE(debug_colors(DebugLayer::depth, img, out, scale, &other));
+    EXPECT_EQ(scale.hi, 100.0f);
+    const Vec3f third = depth_ramp(1.0f / 3.0f);
+    EXPECT_NEAR(out[3], third.x, 1e-5f);
+    EXPECT_NEAR(out[4], third.y, 1e-5f);
+    const HeatScale w = widen(scale, other), none = widen(scale, HeatScale{});
+    EXPECT_EQ(w.lo, 1.0f);
+    EXPECT_EQ(w.hi, 1000.0f);
+    EXPECT_EQ(w.mean, scale.mean);
+    EXPECT_EQ(none.hi, 100.0f);
+    // A scale without a range (normals, or no samples) widens nothing, and a NaN position on
+    // the ramp is its start.
+    EXPECT_EQ(widen(scale, HeatScale{-1.0f, 1.0f, 0.0, 0.0}).lo, 1.0f);
+    EXPECT_EQ(depth_ramp(NAN).x, depth_ramp(0.0f).x);
+    EXPECT_EQ(heat_ramp(NAN).x, heat_ramp(0.0f).x);
 }
 
 }  // namespace
