@@ -256,7 +256,11 @@ void inspector(Viewer& v) {
     const int w = v.image_.width > 0 ? v.image_.width : v.worker_->width();
     const int h = v.image_.height > 0 ? v.image_.height : v.worker_->height();
     const int x = int(sx / v.image_w_ * w), y = int(sy / v.image_h_ * h);
-    const std::optional<PixelInfo> p = v.worker_->session().inspect(x, y);
+    // Right of a split view's divider, side B's pixel.
+    const bool b = v.split_ && sx >= v.split_->divider * v.image_w_;
+    const std::optional<PixelInfo> p =
+        (b ? v.split_->worker() : *v.worker_).session().inspect(x, y);
+    if (v.split_) ImGui::TextUnformatted(b ? "side B (right)" : "side A (left)");
     if (!p) {
         ImGui::Text("pixel %d %d: preview", x, y);
         return;

@@ -151,6 +151,8 @@ TEST(SplitView, PanelsAndDebugViewsDrawWithNoGlErrorAndTheDividerWhereSet) {
     v.image_y_ = 0;
     v.image_w_ = 640;
     v.image_h_ = 480;
+    v.mouse_x_ = 600.0;  // right of the divider: the inspector reads side B
+    v.mouse_y_ = 20.0;
     v.script_ = {"split on", "split.set tree.n0 2", "divider 0.25", "wait_split", "check_gl"};
     auto frame = [&] {
         ImGui_ImplOpenGL3_NewFrame();
