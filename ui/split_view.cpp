@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <future>
 #include <vector>
 
 #include "renderer/core/error.h"
@@ -134,7 +135,12 @@ std::optional<DebugLayer> debug_layer(ViewMode mode) {
 
 void Viewer::set_split(bool on) {
     if (!on) {
-        split_.reset();  // stops B's worker (and waits for a tree build in flight)
+        if (!split_) return;
+        // B's destructor waits for a tree build in flight (builds have no cancel point): on
+        // another thread, so the UI keeps drawing; Viewer's destructor waits for it.
+        split_->release_display();
+        split_retiring_ =
+            std::async(std::launch::async, [s = std::move(split_)]() mutable { s.reset(); });
         return;
     }
     if (split_) return;

@@ -45,6 +45,9 @@ public:
     void update_image(std::optional<DebugLayer> layer, const HeatScale& a_scale);
     /// The texture of image B; null before the first update_image().
     const FilmDisplay* display() const { return display_.get(); }
+    /// Deletes the texture (GL context current), so that the rest can be destroyed on
+    /// another thread.
+    void release_display() { display_.reset(); }
 
     /// The mouse at u (its position across the image, 0 = left edge, 1 = right) with the
     /// left button `pressed`: a press within `grab` of the divider starts a drag that moves

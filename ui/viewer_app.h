@@ -3,6 +3,7 @@
 #pragma once
 
 #include <chrono>
+#include <future>
 #include <memory>
 #include <optional>
 #include <string>
@@ -100,6 +101,7 @@ public:
     ViewMode view_ = ViewMode::radiance;
     HeatScale heat_scale_;
     std::unique_ptr<SplitView> split_;  ///< the split view's side B while it is on
+    std::future<void> split_retiring_;  ///< destroys a split view turned off (split_view.cpp)
     bool auto_rebuild_ = true, panels_ = true, paused_ = false;
     std::string message_;  ///< last error, shown in the window
     int image_x_ = 0, image_y_ = 0, image_w_ = 0, image_h_ = 0;  ///< framebuffer rectangle

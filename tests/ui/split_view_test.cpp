@@ -133,6 +133,14 @@ TEST(SplitView, ExactTreesOfDifferentBuildersGiveTheSameImageAtTheirOwnCost) {
     EXPECT_EQ(std::memcmp(&b_camera, &v.camera_, sizeof(CameraDesc)), 0);
     v.set_split(false);
     EXPECT_FALSE(v.split_);
+    // Off while B's tree builds: B is destroyed on another thread, the build finished there.
+    v.set_split(true);
+    v.split_->set_tree_option("n0", "3");
+    ASSERT_TRUE(v.split_->settling());
+    v.set_split(false);
+    EXPECT_FALSE(v.split_);
+    ASSERT_TRUE(v.split_retiring_.valid());
+    v.split_retiring_.get();
 }
 
 TEST(SplitView, PanelsAndDebugViewsDrawWithNoGlErrorAndTheDividerWhereSet) {
