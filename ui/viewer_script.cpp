@@ -4,7 +4,8 @@
 //   set GROUP.NAME VALUE | rebuild | heat nodes|triangles|off | exposure STOPS
 //   pause | resume | panels on|off | screenshot FILE | save BASE | save_session FILE
 //   load_session FILE | wait FRAMES | wait_passes N | wait_done | wait_rebuild
-//   stats LABEL (prints the frame times since the previous stats command)
+//   stats LABEL (prints the frame times since the previous stats command, and with the split
+//   view on, both sides' rays/s and cost per ray)
 //   mode radiance|nodes|triangles|normals|depth (the view)
 //   split on|off | split.set tree.NAME VALUE (side B's tree) | divider U (0 = left, 1 = right)
 //   wait_split (until B's tree is built and B has a full pass with it)
@@ -204,7 +205,17 @@ bool Viewer::script_step() {
             } else if (op == "load_session") {
                 load_session(word("file"));
             } else if (op == "stats") {
-                std::printf("%s\n", frame_stats(word("label")).c_str());
+                const std::string label = word("label");
+                std::printf("%s\n", frame_stats(label).c_str());
+                if (split_) {
+                    const WorkerStats a = worker_->stats(), b = split_->worker().stats();
+                    std::printf(
+                        "view split %s: A %.1f spp %.3f Mrays/s %.2f nodes %.2f triangles per ray; "
+                        "B %.1f spp %.3f Mrays/s %.2f nodes %.2f triangles per ray\n",
+                        label.c_str(), a.spp, a.mrays_per_second, a.nodes_per_ray,
+                        a.triangles_per_ray, b.spp, b.mrays_per_second, b.nodes_per_ray,
+                        b.triangles_per_ray);
+                }
                 std::fflush(stdout);
             } else if (op == "wait" || op == "wait_passes") {
                 waiting_ = op;

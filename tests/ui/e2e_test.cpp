@@ -123,13 +123,14 @@ TEST(ViewerE2E, SplitViewDrawsBothSidesWithNoGlError) {
     const std::string script =
         "split on; split.set tree.n0 2; wait_split; divider 0.3; check_gl;"
         " mode normals; wait_passes 1; wait 2; check_gl; screenshot " +
-        normals + "; mode radiance; wait_passes 1; check_gl";
+        normals + "; mode radiance; wait_passes 1; check_gl; stats end";
     std::string log;
     const int rc = run(xvfb() + KDT_EXE + " view --width 160 --height 120 --no-cache --script '" +
                            script + "' --frames 2 --screenshot " + after,
                        dir / "log.txt", &log);
     ASSERT_EQ(rc, 0) << log;
     EXPECT_EQ(log.find("GL error"), std::string::npos) << log;
+    EXPECT_NE(log.find("view split end: A "), std::string::npos) << log;  // both sides' speed
     const ImageRGB n = load_image(normals), a = load_image(after);
     ASSERT_EQ(n.width, 160 + 380);
     // The image is 160 x 120 at (0, (height - 120) / 2); the divider at 30 % is column 48.
