@@ -36,6 +36,7 @@ TEST(ViewerPanels, EveryPanelDrawsWithNoGlError) {
     test::OffscreenGL gl(kW, kH);
     ASSERT_TRUE(gl.ok()) << "OSMesa could not create a GL 3.3 core context";
     Viewer v(small_options());
+    v.finish_loading();
     ImGui::CreateContext();
     ImGuiIO& io = ImGui::GetIO();
     io.IniFilename = nullptr;
@@ -97,6 +98,7 @@ TEST(ViewerScript, BadCommandsAndOptionsNameTheProblem) {
         vo.script = script;
         try {
             Viewer v(vo);
+            v.finish_loading();
             while (v.script_step()) {
             }
         } catch (const Error& e) {
@@ -131,6 +133,7 @@ TEST(ViewerFiles, SessionRoundTripAndSavedImageMetadata) {
     CameraDesc saved;
     {
         Viewer v(vo);
+        v.finish_loading();
         const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
         // wait_passes needs an image on screen: stand in for the frame loop's upload.
         while (v.script_step() && std::chrono::steady_clock::now() < deadline) {
@@ -159,6 +162,7 @@ TEST(ViewerFiles, SessionRoundTripAndSavedImageMetadata) {
     ViewerOptions again = small_options();
     again.session = session;
     Viewer v(again);
+    v.finish_loading();
     EXPECT_EQ(v.camera_.eye, saved.eye);
     EXPECT_EQ(v.opts_.trace.max_depth, 5);
     EXPECT_EQ(v.tone_.exposure, 1.5f);
@@ -169,6 +173,7 @@ TEST(ViewerFiles, SessionRoundTripAndSavedImageMetadata) {
     other.session = session;
     try {
         Viewer bad(other);
+        bad.finish_loading();
         ADD_FAILURE() << "a session of another size was accepted";
     } catch (const Error& e) {
         EXPECT_NE(std::string(e.what()).find("s.json"), std::string::npos) << e.what();
