@@ -293,6 +293,9 @@ void Viewer::load_session(const std::string& path) {
     }
     opts_.trace = o.trace;
     opts_.film = o.film;
+    // A probe opened in the session's viewer: loaded in the background like any other.
+    if (!o.scene.env_file.empty() && o.scene.env_file != opts_.scene.env_file)
+        open_probe(o.scene.env_file);
     if (o.scene.env_rotation_degrees != opts_.scene.env_rotation_degrees ||
         (o.scene.env_intensity && *o.scene.env_intensity != env_intensity_)) {
         opts_.scene.env_rotation_degrees = o.scene.env_rotation_degrees;

@@ -113,6 +113,16 @@ TEST(ViewerFiles, ProbeAndMaterialEdits) {
     EXPECT_TRUE(v.awaiting_rebuild_image_);
     EXPECT_EQ(v.worker_->snapshot()->scene->instances[0].material.albedo, Vec3f(0.3f));
     EXPECT_EQ(v.worker_->snapshot()->scene->instances[1].material.type, MaterialType::mirror);
+
+    // The session keeps the probe; a viewer started from it loads the probe too.
+    const std::string session = (dir / "s.json").string();
+    v.save_session(session);
+    ViewerOptions again = tiny_options();
+    again.session = session;
+    Viewer w(again);
+    w.finish_loading();
+    EXPECT_EQ(w.message_, "");
+    EXPECT_EQ(w.prep_.scene.environment.file, probe);
 }
 
 TEST(ViewerFiles, BadFirstSceneEndsAScriptedRunWithTheMessage) {
