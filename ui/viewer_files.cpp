@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <thread>
 
 #include "renderer/core/error.h"
@@ -239,7 +240,10 @@ void Viewer::draw_file_panel() {
         ImGui::Begin("Loading", nullptr,
                      ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_NoInputs |
                          ImGuiWindowFlags_NoSavedSettings | ImGuiWindowFlags_NoFocusOnAppearing);
-        ImGui::TextWrapped("loading %s", shown(p.path).c_str());
+        // The file's name only: a long path would push the bar out of the fixed-size window.
+        const std::string name =
+            p.path.empty() ? shown(p.path) : std::filesystem::path(p.path).filename().string();
+        ImGui::Text("loading %s", name.c_str());
         const char* stage = p.started ? kPrepareStageNames[size_t(p.stage)] : "queued";
         char label[96];
         std::snprintf(label, sizeof label, "%s, %.1f s", stage, p.seconds);
@@ -251,7 +255,7 @@ void Viewer::draw_file_panel() {
     }
     if (!panels_ && worker_) return;
     static char path[1024] = "";
-    const ImVec2 size(std::max(std::min(float(image_w_) / content_scale_, 370.0f), 250.0f), 120.0f);
+    const ImVec2 size(std::max(std::min(float(image_w_) / content_scale_, 370.0f), 250.0f), 160.0f);
     ImGui::SetNextWindowPos(ImVec2(6.0f, ImGui::GetIO().DisplaySize.y - size.y - 6.0f),
                             ImGuiCond_FirstUseEver);
     ImGui::SetNextWindowSize(size, ImGuiCond_FirstUseEver);
@@ -260,7 +264,7 @@ void Viewer::draw_file_panel() {
         ImGui::InputText("##path", path, sizeof path, ImGuiInputTextFlags_EnterReturnsTrue);
     ImGui::SameLine();
     if ((ImGui::Button("Open") || enter) && path[0] != '\0') open_file(path);
-    ImGui::TextDisabled("or drop a model, scene or probe on the window");
+    ImGui::TextDisabled("or drop a file on the window");
     if (!status_.empty()) ImGui::TextWrapped("%s", status_.c_str());
     if (!message_.empty()) {
         ImGui::PushStyleColor(ImGuiCol_Text, ImVec4(1, 0.4f, 0.3f, 1));

@@ -125,6 +125,11 @@ TEST(SceneLoader, NewerRequestSupersedesOlder) {
     loader.request(scene_request(""));
     EXPECT_TRUE(loader.busy());
     EXPECT_TRUE(loader.progress().busy);
+    // Once it is loading, so that the sanitizers see a load cancelled in flight (at its next
+    // stage boundary; how far it got depends on the scheduler, so that is not asserted).
+    for (int i = 0; i < 60000 && !loader.progress().started; ++i)
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    EXPECT_EQ(loader.progress().path, "");
     loader.request(scene_request(ply));
     const LoadResult r = wait_result(loader);
     EXPECT_EQ(r.request, 2u);
@@ -134,6 +139,7 @@ TEST(SceneLoader, NewerRequestSupersedesOlder) {
     EXPECT_FALSE(loader.busy());
     EXPECT_FALSE(loader.take());
     EXPECT_FALSE(loader.progress().busy);
+    EXPECT_LE(loader.cancelled_count(), 1);
 }
 
 TEST(SceneLoader, DestroyedWhileLoadingJoinsCleanly) {
