@@ -89,6 +89,9 @@ LoadResult SceneLoader::load(const LoadRequest& request, uint64_t id) {
     } catch (const std::bad_alloc&) {
         r.error = (request.path.empty() ? std::string("the default scene") : request.path) +
                   ": out of memory while loading";
+    } catch (const std::exception& e) {  // e.g. std::filesystem: never ends the viewer
+        r.error = (request.path.empty() ? std::string("the default scene") : request.path) + ": " +
+                  e.what();
     }
     r.seconds = timer.seconds();
     return r;

@@ -31,6 +31,13 @@ std::string load_error(const LoadResult& r) {
     return name + ": " + r.error;
 }
 
+bool same_tree_params(const KdTreeParams& a, const KdTreeParams& b) {
+    for (const Field<KdTreeParams>& f : kd_tree_fields()) {
+        if (field_text(f, a) != field_text(f, b)) return false;
+    }
+    return true;
+}
+
 // The progress bar's colour, distinct from ImGui's plots (tests find it in screenshots).
 const ImVec4 kProgressColor(0.1f, 0.85f, 0.95f, 1.0f);
 
@@ -160,6 +167,8 @@ void Viewer::poll_load() {
     // The render thread keeps a light set by apply_environment() across snapshots: give it
     // the new scene's (with the probe override, rotation and intensity in force).
     if (env_overridden_) apply_environment();
+    // Tree parameters edited while the scene loaded apply to it.
+    if (auto_rebuild_ && !same_tree_params(tree_edit_, opts_.tree)) request_rebuild();
 }
 
 void Viewer::finish_loading() {

@@ -64,6 +64,19 @@ TEST(ViewerFiles, OpenSwapsTheSceneAndErrorsNameTheFile) {
     EXPECT_EQ(v.tree_, v.worker_->snapshot()->scene->tree);
     EXPECT_EQ(v.camera_.eye, v.worker_->camera().eye);  // the new scene's camera
     ASSERT_EQ(v.materials_.size(), 1u);
+
+    // A tree parameter edited while a scene loads applies to the new scene (the rebuild of the
+    // old one it started is dropped).
+    v.open_file(a);
+    v.set_option("tree.max_depth", "5");
+    v.finish_loading();
+    for (int i = 0; i < 60000 && (v.rebuilder_->busy() || !v.awaiting_rebuild_image_); ++i) {
+        v.poll_rebuild();
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    EXPECT_EQ(v.opts_.scene.scene_path, a);
+    EXPECT_EQ(v.worker_->snapshot()->scene->mesh->triangle_count(), 4u);
+    EXPECT_EQ(v.worker_->snapshot()->scene->tree->params().max_depth, 5);
 }
 
 TEST(ViewerFiles, ProbeAndMaterialEdits) {
