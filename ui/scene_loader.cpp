@@ -40,9 +40,9 @@ std::optional<LoadResult> SceneLoader::take() {
 LoadProgress SceneLoader::progress() const {
     std::lock_guard<std::mutex> lock(mutex_);
     LoadProgress p;
+    p.path = next_.path;
     p.busy = loading_ || started_ != requested_;
     if (!p.busy) return p;
-    p.path = next_.path;
     p.started = loading_ && started_ == requested_ && stage_started_;
     p.stage = stage_;
     p.seconds =

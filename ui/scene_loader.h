@@ -45,7 +45,7 @@ struct LoadProgress {
     bool busy = false;     ///< a request is queued or loading
     bool started = false;  ///< its first stage has begun (else it is queued)
     PrepareStage stage = PrepareStage::reading;
-    std::string path;
+    std::string path;      ///< of the newest request, also once it is done
     double seconds = 0.0;  ///< since the request
 };
 

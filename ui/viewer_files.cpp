@@ -237,9 +237,10 @@ void Viewer::set_material(const std::string& name, const std::string& value) {
 
 void Viewer::draw_file_panel() {
     const LoadProgress sp = scene_loader_->progress(), pp = probe_loader_->progress();
-    if (loading() && (sp.busy || pp.busy)) {
-        // Over the image, which shows the old scene (if any) meanwhile.
-        const LoadProgress& p = sp.busy ? sp : pp;
+    if (loading()) {
+        // Over the image, which shows the old scene (if any) meanwhile, until poll_load()
+        // takes the result.
+        const LoadProgress& p = scene_pending_ ? sp : pp;
         const float s = content_scale_ > 0.0f ? content_scale_ : 1.0f;
         ImGui::SetNextWindowPos(ImVec2((float(image_x_) + float(image_w_) * 0.5f) / s,
                                        (float(image_y_) + float(image_h_) * 0.5f) / s),
@@ -253,12 +254,14 @@ void Viewer::draw_file_panel() {
         const std::string name =
             p.path.empty() ? shown(p.path) : std::filesystem::path(p.path).filename().string();
         ImGui::Text("loading %s", name.c_str());
-        const char* stage = p.started ? kPrepareStageNames[size_t(p.stage)] : "queued";
+        const char* stage = !p.busy     ? "done"
+                            : p.started ? kPrepareStageNames[size_t(p.stage)]
+                                        : "queued";
         char label[96];
         std::snprintf(label, sizeof label, "%s, %.1f s", stage, p.seconds);
         ImGui::PushStyleColor(ImGuiCol_PlotHistogram, kProgressColor);
-        ImGui::ProgressBar(p.started ? (float(p.stage) + 1.0f) / 4.0f : 0.05f, ImVec2(-1, 0),
-                           label);
+        const float fraction = !p.busy ? 1.0f : p.started ? (float(p.stage) + 1.0f) / 4.0f : 0.05f;
+        ImGui::ProgressBar(fraction, ImVec2(-1, 0), label);
         ImGui::PopStyleColor();
         ImGui::End();
     }

@@ -56,6 +56,7 @@ TEST(ViewerPanels, EveryPanelDrawsWithNoGlError) {
         v.poll_rebuild();
         v.update_image();
         v.draw_panels();
+        v.draw_file_panel();
         ImGui::Render();
         glViewport(0, 0, kW, kH);
         glClear(GL_COLOR_BUFFER_BIT);
@@ -75,7 +76,7 @@ TEST(ViewerPanels, EveryPanelDrawsWithNoGlError) {
         ASSERT_TRUE(v.have_image_) << "no image within a minute";
         frame();  // the panels with the image's statistics
         EXPECT_EQ(gl_errors("frame"), "");
-        for (const char* name : {"kd-tree", "Stats", "View", "Render"}) {
+        for (const char* name : {"kd-tree", "Stats", "View", "Render", "File"}) {
             const ImGuiWindow* w = ImGui::FindWindowByName(name);
             ASSERT_NE(w, nullptr) << name;
             EXPECT_TRUE(w->WasActive) << name;
@@ -83,6 +84,16 @@ TEST(ViewerPanels, EveryPanelDrawsWithNoGlError) {
         EXPECT_GT(ImGui::GetDrawData()->TotalVtxCount, 2000);
     }
     EXPECT_GT(v.heat_scale_.hi, v.heat_scale_.lo);  // the heat map had a range to show
+    // A file being opened: the progress bar over the image until the load is taken.
+    v.open_file("/nonexistent/model.ply");
+    frame();
+    frame();
+    EXPECT_EQ(gl_errors("loading"), "");
+    const ImGuiWindow* loading = ImGui::FindWindowByName("Loading");
+    ASSERT_NE(loading, nullptr);
+    EXPECT_TRUE(loading->WasActive);
+    v.finish_loading();
+    EXPECT_NE(v.message_.find("/nonexistent/model.ply"), std::string::npos) << v.message_;
     // The display shows the panels over the image: pixels differ from the clear colour.
     const std::vector<uint8_t> px = gl.read_rgb();
     size_t lit = 0;

@@ -139,6 +139,7 @@ TEST(SceneLoader, NewerRequestSupersedesOlder) {
     EXPECT_FALSE(loader.busy());
     EXPECT_FALSE(loader.take());
     EXPECT_FALSE(loader.progress().busy);
+    EXPECT_EQ(loader.progress().path, ply);
     EXPECT_LE(loader.cancelled_count(), 1);
 }
 
