@@ -65,16 +65,17 @@ void Viewer::request_scene(const std::string& path) {
     r.options = opts_;
     r.options.scene.scene_path = path;
     r.options.tree = tree_edit_;
-    if (worker_) {
-        // Another scene: its own camera; the command line's tree file was the old scene's.
-        SceneOptions& s = r.options.scene;
-        s.camera.reset();
-        s.eye.reset();
-        s.target.reset();
-        s.up.reset();
-        s.vfov_degrees.reset();
-        s.tree_file.clear();
-    }
+    // The command line's camera and tree file belong to the command line's scene; another
+    // scene has its own camera (and a tree file of another mesh would be refused).
+    const SceneOptions& cli = vo_.options.scene;
+    SceneOptions& s = r.options.scene;
+    const bool cli_scene = path == cli.scene_path;
+    s.camera = cli_scene ? cli.camera : std::nullopt;
+    s.eye = cli_scene ? cli.eye : std::nullopt;
+    s.target = cli_scene ? cli.target : std::nullopt;
+    s.up = cli_scene ? cli.up : std::nullopt;
+    s.vfov_degrees = cli_scene ? cli.vfov_degrees : std::nullopt;
+    s.tree_file = cli_scene ? cli.tree_file : std::string();
     scene_loader_->request(std::move(r));
     scene_pending_ = true;
 }

@@ -36,10 +36,13 @@ std::string write_tetra_ply(const std::filesystem::path& dir, const std::string&
 
 TEST(ViewerFiles, OpenSwapsTheSceneAndErrorsNameTheFile) {
     const auto dir = test::temp_dir("ui_open");
-    Viewer v(tiny_options());
+    ViewerOptions vo = tiny_options();
+    vo.options.scene.eye = Vec3f(0.5f, 1.0f, 9.0f);  // the command line's, for its scene only
+    Viewer v(vo);
     EXPECT_TRUE(v.loading());  // the constructor only asked for the default scene
     v.finish_loading();
     ASSERT_TRUE(v.worker_);
+    EXPECT_EQ(v.camera_.eye, Vec3f(0.5f, 1.0f, 9.0f));
     const auto default_mesh = v.worker_->snapshot()->scene->mesh;
     EXPECT_GT(default_mesh->triangle_count(), 1000u);
 
@@ -63,6 +66,8 @@ TEST(ViewerFiles, OpenSwapsTheSceneAndErrorsNameTheFile) {
     EXPECT_EQ(v.worker_->snapshot()->scene->mesh->triangle_count(), 4u);
     EXPECT_EQ(v.tree_, v.worker_->snapshot()->scene->tree);
     EXPECT_EQ(v.camera_.eye, v.worker_->camera().eye);  // the new scene's camera
+    EXPECT_NE(v.camera_.eye, Vec3f(0.5f, 1.0f, 9.0f));
+    EXPECT_FALSE(v.opts_.scene.eye);
     ASSERT_EQ(v.materials_.size(), 1u);
 
     // A tree parameter edited while a scene loads applies to the new scene (the rebuild of the
