@@ -14,7 +14,7 @@ archer=/usr/lib/llvm-14/lib/libarcher.so
 [ -f "$archer" ] || { echo "run_tsan: $archer missing (Debian libomp-14-dev)" >&2; exit 1; }
 
 targets=(kdt_core_tests kdt_accel_tests kdt_io_tests kdt_integrator_tests kdt_render_tests
-         kdt_ui_stress_tests)
+         kdt_ui_stress_tests kdt_ui_loader_tests)
 cmake --preset tsan >/dev/null
 cmake --build --preset tsan --target "${targets[@]}"
 

@@ -41,16 +41,8 @@ Viewer::Viewer(const ViewerOptions& options) : vo_(options) {
     opts_ = resolve(options.options);
     validate(opts_);
     validate(stop_);
-    prep_ = prepare_render(opts_, [](const std::string& line) {
-        std::fprintf(stderr, "kdtrace: %s\n", line.c_str());
-    });
-    home_camera_ = camera_ = prep_.snapshot->camera_desc;
     tree_edit_ = opts_.tree;
     env_rotation0_ = opts_.scene.env_rotation_degrees;
-    env_intensity_ = prep_.scene.environment.intensity;
-    tree_ = prep_.snapshot->scene->tree;
-    worker_ = std::make_unique<RenderWorker>(prep_.snapshot, opts_.trace, opts_.film, stop_,
-                                             options.preview_divisor);
     rebuilder_ = std::make_unique<TreeRebuilder>();
     tone_.exposure = opts_.film.exposure;
     std::stringstream ss(options.script);
@@ -59,7 +51,11 @@ Viewer::Viewer(const ViewerOptions& options) : vo_(options) {
         if (a != std::string::npos) script_.push_back(cmd.substr(a, b - a + 1));
     }
     check_script();  // a typo fails before any window opens
-    if (!options.session.empty()) load_session(options.session);
+    // The scene loads while the window opens; poll_load() starts the render thread with it
+    // and then loads the session (which needs the scene's worker).
+    scene_loader_ = std::make_unique<SceneLoader>();
+    probe_loader_ = std::make_unique<SceneLoader>();
+    request_scene(opts_.scene.scene_path);
 }
 
 void Viewer::set_camera(const CameraDesc& camera) {
@@ -88,6 +84,7 @@ void Viewer::apply_params() {
 }
 
 void Viewer::apply_environment() {
+    env_overridden_ = true;
     EnvironmentDesc d = prep_.scene.environment;  // with the command line's overrides
     d.rotation_degrees += opts_.scene.env_rotation_degrees - env_rotation0_;
     d.intensity = env_intensity_;
@@ -121,10 +118,21 @@ void Viewer::poll_rebuild() {
         if (std::string error = split_->poll_rebuild(); !error.empty()) message_ = error;
     }
     std::optional<RebuildResult> r = rebuilder_->take();
-    if (!r) return;
+    if (!r || !worker_) return;
     if (!r->snapshot) {
         message_ = r->error;
         return;
+    }
+    // A tree of a scene replaced meanwhile is dropped; one requested before a material edit
+    // gets the edit.
+    if (r->snapshot->scene->mesh != worker_->snapshot()->scene->mesh) return;
+    if (materials_edited_) {
+        try {
+            r->snapshot = with_materials(*r->snapshot, materials_);
+        } catch (const Error& e) {
+            message_ = e.what();
+            return;
+        }
     }
     message_.clear();
     tree_ = r->snapshot->scene->tree;
@@ -147,6 +155,7 @@ void Viewer::upload(const FilmImage& img) {
 }
 
 void Viewer::update_image() {
+    if (!worker_) return;
     const bool heat = view_ != ViewMode::radiance;
     if (split_) split_->update_image(debug_layer(view_), heat_scale_);
     // The preview of a change is shown until a full-resolution pass of the change is complete
@@ -184,6 +193,7 @@ void Viewer::draw_image(int fb_width, int fb_height) const {
 }
 
 void Viewer::handle_input(GLFWwindow* window, double dt) {
+    if (!worker_) return;  // no scene yet
     const ImGuiIO& io = ImGui::GetIO();
     double mx = 0.0, my = 0.0;
     glfwGetCursorPos(window, &mx, &my);
@@ -308,6 +318,9 @@ void Viewer::load_session(const std::string& path) {
     }
     opts_.trace = o.trace;
     opts_.film = o.film;
+    // A probe opened in the session's viewer: loaded in the background like any other.
+    if (!o.scene.env_file.empty() && o.scene.env_file != opts_.scene.env_file)
+        open_probe(o.scene.env_file);
     if (o.scene.env_rotation_degrees != opts_.scene.env_rotation_degrees ||
         (o.scene.env_intensity && *o.scene.env_intensity != env_intensity_)) {
         opts_.scene.env_rotation_degrees = o.scene.env_rotation_degrees;
@@ -326,7 +339,7 @@ void Viewer::load_session(const std::string& path) {
 }
 
 std::string Viewer::summary() const {
-    const WorkerStats s = worker_->stats();
+    const WorkerStats s = worker_ ? worker_->stats() : WorkerStats{};
     char buf[512];
     std::snprintf(buf, sizeof buf,
                   "view: %zu frames, frame ms median %.2f p99 %.2f; preview ms median %.1f (%zu); "
@@ -363,7 +376,7 @@ void glfw_error(int code, const char* text) {
 void layout(Viewer& v, int fb_w, int fb_h) {
     const int panel = v.panels_ ? int(380.0f * v.content_scale_) : 0;
     const int area_w = std::max(fb_w - panel, 1);
-    const double aspect = double(v.worker_->width()) / double(v.worker_->height());
+    const double aspect = double(v.opts_.scene.width) / double(v.opts_.scene.height);
     int w = area_w, h = int(double(area_w) / aspect + 0.5);
     if (h > fb_h) {
         h = fb_h;
@@ -388,7 +401,7 @@ void run_viewer(const ViewerOptions& options) {
     glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 3);
     glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
     glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
-    const int win_w = v.worker_->width() + 380, win_h = std::max(v.worker_->height(), 720);
+    const int win_w = v.opts_.scene.width + 380, win_h = std::max(v.opts_.scene.height, 720);
     GLFWwindow* window = glfwCreateWindow(win_w, win_h, "kdtrace view", nullptr, nullptr);
     if (!window) throw Error("view: cannot create an OpenGL 3.3 core window");
     glfwMakeContextCurrent(window);
@@ -408,6 +421,7 @@ void run_viewer(const ViewerOptions& options) {
         }
     } imgui_guard;
     v.display_.init();
+    v.install_drop_callback(window);
 
     int frames_after_script = 0;
     auto last = Viewer::Clock::now();
@@ -427,6 +441,7 @@ void run_viewer(const ViewerOptions& options) {
         ImGui_ImplGlfw_NewFrame();
         ImGui::NewFrame();
         v.handle_input(window, dt);
+        v.poll_load();     // before the script, whose wait_loaded then sees the swap
         v.poll_rebuild();  // before the script, whose wait_rebuild then sees the swap
         bool script_running = false;
         try {
@@ -438,6 +453,7 @@ void run_viewer(const ViewerOptions& options) {
         }
         v.update_image();
         if (v.panels_) v.draw_panels();
+        v.draw_file_panel();
         ImGui::Render();
 
         glViewport(0, 0, fb_w, fb_h);

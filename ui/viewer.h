@@ -17,16 +17,19 @@ struct ViewerOptions {
     std::string screenshot;  ///< PNG of the whole window written at exit (with --frames)
     /// Commands separated by ';' run one per frame (see viewer_script.cpp): orbit, pan, zoom,
     /// fly, frame, reset, view, set, rebuild, heat, exposure, pause, resume, wait, wait_passes,
-    /// wait_done, wait_rebuild, screenshot, save, save_session, load_session, panels.
+    /// wait_done, wait_rebuild, screenshot, save, save_session, load_session, panels, open,
+    /// drop, wait_loaded, message.
     std::string script;
     std::string session;      ///< a session file (save_session) to start from
     std::string views;        ///< views file of keys 1-4 (empty: the dragon's views)
     int preview_divisor = 4;  ///< resolution divisor of the preview pass after a change
 };
 
-/// Opens the window and runs until it closes (or --frames). Prints a summary (frame times,
-/// preview and rebuild latencies, throughput) to stdout at exit. Throws kdt::Error for bad
-/// options, files or scripts and when no window can be opened.
+/// Opens the window at once and loads the scene in the background, then runs until the
+/// window closes (or --frames). Prints a summary (frame times, preview and rebuild latencies,
+/// throughput) to stdout at exit. A file that fails to load is shown in the window; throws
+/// kdt::Error for bad options or scripts, when no window can be opened, and when the first
+/// scene fails in a scripted run (--script or --frames).
 void run_viewer(const ViewerOptions& options);
 
 }  // namespace kdt::ui

@@ -14,6 +14,7 @@
 #include "ui/display.h"
 #include "ui/heat_map.h"
 #include "ui/render_worker.h"
+#include "ui/scene_loader.h"
 #include "ui/split_view.h"
 #include "ui/tree_rebuild.h"
 #include "ui/viewer.h"
@@ -39,7 +40,8 @@ class Viewer {
 public:
     using Clock = std::chrono::steady_clock;
 
-    /// Loads the scene and starts the render thread; no window yet.
+    /// Checks the options and the script and starts loading the scene in the background
+    /// (poll_load() starts the render thread once it is loaded); no window yet.
     explicit Viewer(const ViewerOptions& options);
 
     // ---- changes (any thread-safe order; each restarts the image with a preview)
@@ -78,6 +80,32 @@ public:
     void save_session(const std::string& path) const;
     void load_session(const std::string& path);
 
+    // ---- opening files in the background (viewer_files.cpp); errors go to message_
+    /// A model or scene (.ply, .ply.gz, .obj, .json: replaces the scene once loaded, the old
+    /// one rendering meanwhile) or a probe (.hdr, .exr, .pfm: replaces the environment).
+    void open_file(const std::string& path);
+    /// Loads `path` ("" = the built-in default scene) with the current options and tree
+    /// parameters, the camera of the new scene; a newer request cancels this one.
+    void request_scene(const std::string& path);
+    void open_probe(const std::string& path);
+    /// Takes finished loads: swaps in the scene (starting the render thread at the first) or
+    /// the environment, or shows the error naming the file.
+    void poll_load();
+    /// Blocks until loading() is false, polling the loads (tests and headless callers; throws
+    /// as poll_load() does).
+    void finish_loading();
+    /// A scene or probe request is not yet swapped in (or failed).
+    bool loading() const { return scene_pending_ || probe_pending_; }
+    /// The File panel (path field, Open, what is loaded) and, while loading, the progress bar.
+    void draw_file_panel();
+    /// Applies materials_ to the scene rendering now (restarts the image).
+    void apply_materials();
+    /// material.NAME for the script: instance N (which one the others edit), type NAME,
+    /// albedo R,G,B, emission R,G,B, ior X, roughness X. Throws kdt::Error naming the field.
+    void set_material(const std::string& name, const std::string& value);
+    /// Registers the GLFW drop callback: dropped files go to open_file().
+    void install_drop_callback(GLFWwindow* window);
+
     std::string summary() const;
     /// "view stats LABEL: N frames, median M ms, p99 P ms" over the frames since the last call.
     std::string frame_stats(const std::string& label);
@@ -93,6 +121,15 @@ public:
     float env_rotation0_ = 0.0f;          ///< opts_.scene.env_rotation_degrees as loaded
     float env_intensity_ = 1.0f;          ///< the environment's intensity now
     std::shared_ptr<const KdTree> tree_;  ///< the tree rendering now (for its stats)
+
+    // Loading (viewer_files.cpp). worker_ and tree_ are null until the first scene loaded.
+    std::unique_ptr<SceneLoader> scene_loader_, probe_loader_;
+    bool scene_pending_ = false, probe_pending_ = false;
+    bool env_overridden_ = false;  ///< apply_environment() was called: the worker keeps its light
+    std::string status_;           ///< what is loaded, shown in the File panel
+    std::vector<MaterialDesc> materials_;  ///< per instance, as edited
+    int material_instance_ = 0;            ///< the instance the Render panel edits
+    bool materials_edited_ = false;
 
     FilmDisplay display_;
     FilmImage image_, preview_;

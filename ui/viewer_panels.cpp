@@ -80,6 +80,15 @@ void environment_panel(Viewer& v) {
     }
     if (!error.empty()) v.message_ = error;
     if (changed) v.apply_environment();
+    // The probe: loaded in the background, then it replaces the environment.
+    static char probe[1024] = "";
+    const bool enter =
+        ImGui::InputText("##probe", probe, sizeof probe, ImGuiInputTextFlags_EnterReturnsTrue);
+    ImGui::SameLine();
+    if ((ImGui::Button("Load probe") || enter) && probe[0] != '\0') v.open_probe(probe);
+    ImGui::TextDisabled("environment: %s", v.prep_.scene.environment.file.empty()
+                                               ? "constant colour"
+                                               : v.prep_.scene.environment.file.c_str());
     const std::string failed = v.worker_->stats().error;
     if (!failed.empty()) ImGui::TextColored(ImVec4(1, 0.4f, 0.3f, 1), "%s", failed.c_str());
 }
@@ -193,6 +202,37 @@ void split_panel(Viewer& v) {
     ImGui::EndTable();
 }
 
+// The material of one instance (the model's, for a model file), applied live.
+void material_panel(Viewer& v) {
+    if (v.materials_.empty()) return;
+    const int n = int(v.materials_.size());
+    if (n > 1) ImGui::SliderInt("instance", &v.material_instance_, 0, n - 1);
+    v.material_instance_ = std::clamp(v.material_instance_, 0, n - 1);
+    MaterialDesc& m = v.materials_[size_t(v.material_instance_)];
+    bool changed = false;
+    int type = int(m.type);
+    if (ImGui::Combo("material", &type, kMaterialTypeNames.data(),
+                     int(kMaterialTypeNames.size()))) {
+        m.type = MaterialType(type);
+        changed = true;
+    }
+    if (m.type != MaterialType::emissive)
+        changed |= ImGui::ColorEdit3("albedo", &m.albedo.x, ImGuiColorEditFlags_Float);
+    if (m.type == MaterialType::dielectric)
+        changed |= ImGui::DragFloat("ior", &m.ior, 0.005f, 1.0f, 10.0f, "%.3f");
+    if (m.type == MaterialType::conductor)
+        changed |= ImGui::DragFloat("roughness", &m.roughness, 0.005f, 0.0f, 1.0f, "%.3f");
+    if (m.type == MaterialType::emissive) {
+        changed |= ImGui::ColorEdit3("emission", &m.emission.x,
+                                     ImGuiColorEditFlags_Float | ImGuiColorEditFlags_HDR);
+    }
+    if (changed) {
+        m.albedo = glm::max(m.albedo, Vec3f(0.0f));  // typed values may be negative
+        m.emission = glm::max(m.emission, Vec3f(0.0f));
+        v.apply_materials();
+    }
+}
+
 void view_panel(Viewer& v) {
     int mode = int(v.view_);
     ImGui::RadioButton("radiance", &mode, 0);
@@ -296,6 +336,7 @@ void files_panel(Viewer& v) {
 }  // namespace
 
 void Viewer::draw_panels() {
+    if (!worker_) return;  // no scene yet: the File panel and the progress bar only
     const float x = ImGui::GetIO().DisplaySize.x - kPanelWidth - 6.0f;
     float y = 6.0f;
     begin_panel("kd-tree", x, y, 250.0f);
@@ -319,6 +360,7 @@ void Viewer::draw_panels() {
     begin_panel("Render", x, y, 330.0f);
     render_panel(*this);
     environment_panel(*this);
+    material_panel(*this);
     files_panel(*this);
     if (!message_.empty()) ImGui::TextColored(ImVec4(1, 0.4f, 0.3f, 1), "%s", message_.c_str());
     ImGui::End();

@@ -10,6 +10,10 @@
 //   split on|off | split.set tree.NAME VALUE (side B's tree) | divider U (0 = left, 1 = right)
 //   wait_split (until B's tree is built and B has a full pass with it)
 //   check_gl (fails the script when OpenGL reported an error since the last check)
+//   open PATH | drop PATH... (as dropped on the window) | wait_loaded (the requests so far
+//   are swapped in or failed) | message (prints the window's message line)
+// The script starts once the first scene has loaded. `set` also takes material.NAME
+// (instance, type, albedo R,G,B, emission R,G,B, ior, roughness) and scene.env_file PATH.
 #include <algorithm>
 #include <cstdio>
 #include <iterator>
@@ -44,6 +48,14 @@ bool set_in(const std::span<const Field<S>> fields, S& s, const std::string& gro
 void Viewer::set_option(const std::string& key, const std::string& value) {
     const size_t dot = key.find('.');
     const std::string group = key.substr(0, dot), name = dot == key.npos ? "" : key.substr(dot + 1);
+    if (group == "material") {
+        set_material(name, value);
+        return;
+    }
+    if (key == "scene.env_file") {
+        open_probe(value);
+        return;
+    }
     if (group == "tree" && set_in(kd_tree_fields(), tree_edit_, group, name, value)) {
         if (auto_rebuild_) request_rebuild();
         return;
@@ -75,8 +87,8 @@ void Viewer::set_option(const std::string& key, const std::string& value) {
         return;
     }
     throw Error("no option " + key +
-                " (the groups are tree, trace, film and stop; scene has env_rotation_degrees and "
-                "env_intensity)");
+                " (the groups are tree, trace, film, stop and material; scene has "
+                "env_rotation_degrees, env_intensity and env_file)");
 }
 
 void Viewer::check_script() const {
@@ -85,7 +97,8 @@ void Viewer::check_script() const {
         "view",   "set",         "rebuild",    "heat",         "exposure",     "pause",
         "resume", "panels",      "screenshot", "save",         "save_session", "load_session",
         "wait",   "wait_passes", "wait_done",  "wait_rebuild", "stats",        "mode",
-        "split",  "split.set",   "divider",    "wait_split",   "check_gl"};
+        "split",  "split.set",   "divider",    "wait_split",   "check_gl",     "open",
+        "drop",   "wait_loaded", "message"};
     for (const std::string& cmd : script_) {
         std::istringstream in(cmd);
         std::string op;
@@ -96,6 +109,12 @@ void Viewer::check_script() const {
 }
 
 bool Viewer::script_step() {
+    if (!worker_) {
+        if (loading()) return true;  // the first scene is loading
+        // The first scene failed: a script or a test run has nothing to drive.
+        if (!script_.empty() || vo_.frames > 0) throw Error(message_);
+        return false;
+    }
     // A wait in force holds the script until its condition.
     if (!waiting_.empty()) {
         const WorkerStats s = worker_->stats();
@@ -108,6 +127,7 @@ bool Viewer::script_step() {
             over = !split_ || (!split_->settling() && split_->worker().stats().full_passes >= 1 &&
                                split_->image().complete_passes > 0);
         }
+        if (waiting_ == "wait_loaded") over = !loading();
         if (!over) return true;
         waiting_.clear();
     }
@@ -124,6 +144,12 @@ bool Viewer::script_step() {
         auto word = [&](const char* what) {
             std::string w;
             if (!(in >> w)) throw script_error(cmd, std::string("expected ") + what);
+            return w;
+        };
+        auto rest = [&](const char* what) {  // the rest of the command: a path with spaces
+            std::string w;
+            std::getline(in >> std::ws, w);
+            if (w.empty()) throw script_error(cmd, std::string("expected ") + what);
             return w;
         };
         try {
@@ -221,7 +247,14 @@ bool Viewer::script_step() {
                 waiting_ = op;
                 wait_count_ = int(number("count"));
                 return true;
-            } else if (op == "wait_done" || op == "wait_rebuild") {
+            } else if (op == "open") {
+                open_file(rest("a file"));
+            } else if (op == "drop") {
+                for (std::string w = word("files"); !w.empty(); w.clear(), in >> w) open_file(w);
+            } else if (op == "message") {
+                std::printf("view message: %s\n", message_.c_str());
+                std::fflush(stdout);
+            } else if (op == "wait_done" || op == "wait_rebuild" || op == "wait_loaded") {
                 waiting_ = op;
                 return true;
             } else {

@@ -34,10 +34,16 @@ Scene load_scene_with_overrides(const SceneOptions& o) {
     return scene;
 }
 
-Prepared prepare_render(const RenderOptions& o, const PrepareLog& log) {
+Prepared prepare_render(const RenderOptions& o, const PrepareLog& log, const PrepareHooks& hooks) {
+    const auto enter = [&](PrepareStage stage) {
+        if (hooks.cancelled && hooks.cancelled())
+            throw Error(o.scene.scene_path + ": loading cancelled");
+        if (hooks.stage) hooks.stage(stage);
+    };
     validate(o);
     Prepared out;
     Timer timer;
+    enter(PrepareStage::reading);
     out.scene = load_scene_with_overrides(o.scene);
     out.load_seconds = timer.seconds();
 
@@ -46,8 +52,10 @@ Prepared prepare_render(const RenderOptions& o, const PrepareLog& log) {
     TraceScene ts = merge_instances(out.scene);
     const PrepareLog say =
         log ? log : [](const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); };
+    enter(PrepareStage::environment);
     ts.env = make_environment_light(out.scene.environment, say);
 
+    enter(PrepareStage::tree);
     Timer tree_timer;
     if (!o.scene.tree_file.empty()) {
         KdTreeParams params = kdtree_file_params(o.scene.tree_file);

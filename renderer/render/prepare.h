@@ -3,6 +3,8 @@
 // `kdtrace render`, the benches, the viewer and the MPI farm.
 #pragma once
 
+#include <array>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <string>
@@ -22,10 +24,25 @@ struct Prepared {
 /// One-line messages (cache hits and writes); empty = stderr.
 using PrepareLog = std::function<void(const std::string&)>;
 
+/// The stages of prepare_render, in the order it runs them.
+enum class PrepareStage : uint8_t { reading, environment, tree };
+inline constexpr std::array<const char*, 3> kPrepareStageNames = {"reading file", "environment",
+                                                                  "building/loading tree"};
+
+/// Optional hooks of prepare_render for a viewer loading in the background. Both are called
+/// on the calling thread; empty ones are skipped.
+struct PrepareHooks {
+    std::function<void(PrepareStage)> stage;  ///< at the start of each stage
+    /// Polled before each stage (a stage in flight runs to its end): true makes
+    /// prepare_render throw kdt::Error("... cancelled") without doing the rest.
+    std::function<bool()> cancelled;
+};
+
 /// Loads options.scene, applies its overrides and compiles the snapshot with the tree of
 /// options.tree (from the cache when options.scene.use_cache). Validates the options first
 /// (resolve() is the caller's). Throws kdt::Error for any bad input.
-Prepared prepare_render(const RenderOptions& options, const PrepareLog& log = {});
+Prepared prepare_render(const RenderOptions& options, const PrepareLog& log = {},
+                        const PrepareHooks& hooks = {});
 
 /// The loaded scene with options.scene's overrides (environment file, mapping, intensity,
 /// rotation, camera) applied; no snapshot.

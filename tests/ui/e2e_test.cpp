@@ -159,5 +159,133 @@ TEST(ViewerE2E, SplitViewDrawsBothSidesWithNoGlError) {
     EXPECT_GT(mean_difference(n, a, 0, 160), 0.02);  // radiance looks otherwise
 }
 
+// ---- Opening files while the viewer runs (ui/viewer_files.cpp, ui/scene_loader.*)
+
+// An ASCII PLY of an axis-aligned cube of half-size 1 (12 triangles).
+std::string write_cube_ply(const std::filesystem::path& dir) {
+    const std::string path = (dir / "cube.ply").string();
+    std::ofstream f(path);
+    f << "ply\nformat ascii 1.0\nelement vertex 8\nproperty float x\nproperty float y\n"
+         "property float z\nelement face 12\nproperty list uchar int vertex_indices\n"
+         "end_header\n";
+    for (int i = 0; i < 8; ++i)
+        f << (i & 1 ? 1 : -1) << ' ' << (i & 2 ? 1 : -1) << ' ' << (i & 4 ? 1 : -1) << '\n';
+    const int quads[6][4] = {{0, 1, 3, 2}, {4, 6, 7, 5}, {0, 4, 5, 1},
+                             {2, 3, 7, 6}, {0, 2, 6, 4}, {1, 5, 7, 3}};
+    for (const auto& q : quads) {
+        f << "3 " << q[0] << ' ' << q[1] << ' ' << q[2] << '\n';
+        f << "3 " << q[0] << ' ' << q[2] << ' ' << q[3] << '\n';
+    }
+    return path;
+}
+
+// Pixels of the whole window within 40 sRGB codes of the loading bar's colour
+// (0.1, 0.85, 0.95 in ui/viewer_files.cpp), which no other widget uses.
+int progress_pixels(const ImageRGB& img) {
+    int n = 0;
+    for (size_t i = 0; i + 2 < img.rgb.size(); i += 3) {
+        const int r = tonemap_to_srgb8(img.rgb[i], ToneParams{});
+        const int g = tonemap_to_srgb8(img.rgb[i + 1], ToneParams{});
+        const int b = tonemap_to_srgb8(img.rgb[i + 2], ToneParams{});
+        n += std::abs(r - 26) < 40 && std::abs(g - 217) < 40 && std::abs(b - 242) < 40;
+    }
+    return n;
+}
+
+// Mean linear colour of the rectangle [x0, x1) x [y0, y1).
+Vec3f mean_color(const ImageRGB& img, int x0, int x1, int y0, int y1) {
+    Vec3f sum(0.0f);
+    for (int y = y0; y < y1; ++y) {
+        for (int x = x0; x < x1; ++x) {
+            const size_t i = (size_t(y) * size_t(img.width) + size_t(x)) * 3;
+            sum += Vec3f(img.rgb[i], img.rgb[i + 1], img.rgb[i + 2]);
+        }
+    }
+    return sum / float(std::max((x1 - x0) * (y1 - y0), 1));
+}
+
+TEST(ViewerE2E, OpenModelShowsProgressThenTheModel) {
+    const auto dir = test::temp_dir("view_open_model");
+    const std::string cube = write_cube_ply(dir);
+    const std::string a = (dir / "a.png").string(), p = (dir / "p.png").string(),
+                      b = (dir / "b.png").string();
+    const std::string script = "wait_passes 1; screenshot " + a + "; open " + cube +
+                               "; screenshot " + p + "; wait_loaded; wait_passes 1; screenshot " +
+                               b;
+    std::string log;
+    const int rc = run(xvfb() + KDT_EXE + " view --width 320 --height 240 --no-cache --script '" +
+                           script + "' --frames 2",
+                       dir / "log.txt", &log);
+    ASSERT_EQ(rc, 0) << log;
+    EXPECT_NE(log.find("view: loaded the default scene"), std::string::npos) << log;
+    EXPECT_NE(log.find("view: loaded " + cube + ": 12 triangles"), std::string::npos) << log;
+    const ImageRGB ia = load_image(a), ip = load_image(p), ib = load_image(b);
+    // The progress bar is in the window in the frame of the request only.
+    EXPECT_EQ(progress_pixels(ia), 0);
+    EXPECT_GT(progress_pixels(ip), 100);
+    EXPECT_EQ(progress_pixels(ib), 0);
+    // The cube replaced the default scene's sphere and ground.
+    EXPECT_GT(mean_difference(ia, ib, 0, 320), 0.02);
+}
+
+TEST(ViewerE2E, FileErrorsShowInTheWindowAndTheViewerKeepsRunning) {
+    const auto dir = test::temp_dir("view_open_errors");
+    const std::string missing = (dir / "missing.ply").string(), bad = (dir / "bad.ply").string(),
+                      probe = (dir / "bad.hdr").string(), shot = (dir / "s.png").string();
+    std::ofstream(bad) << "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
+                          "property float y\nproperty float z\nend_header\n0 0 0\n";
+    std::ofstream(probe) << "not a probe\n";
+    const std::string script = "open " + missing + "; wait_loaded; message; open " + bad +
+                               "; wait_loaded; message; open " + probe +
+                               "; wait_loaded; message; wait_passes 1; screenshot " + shot;
+    std::string log;
+    const int rc = run(xvfb() + KDT_EXE + " view --width 160 --height 120 --no-cache --script '" +
+                           script + "' --frames 2",
+                       dir / "log.txt", &log);
+    ASSERT_EQ(rc, 0) << log;
+    EXPECT_NE(log.find("view message: " + missing + ": cannot open"), std::string::npos) << log;
+    EXPECT_NE(log.find("view message: " + bad + ": "), std::string::npos) << log;
+    EXPECT_NE(log.find("view message: " + probe + ": "), std::string::npos) << log;
+    EXPECT_NE(log.find("view: "), std::string::npos) << log;  // the summary: it ran to the end
+    // The last error is in the window: red text (1, 0.4, 0.3) in the File panel.
+    const ImageRGB img = load_image(shot);
+    int red = 0;
+    for (size_t i = 0; i + 2 < img.rgb.size(); i += 3) {
+        red += tonemap_to_srgb8(img.rgb[i], ToneParams{}) > 200 &&
+               tonemap_to_srgb8(img.rgb[i + 1], ToneParams{}) < 140 &&
+               tonemap_to_srgb8(img.rgb[i + 2], ToneParams{}) < 120;
+    }
+    EXPECT_GT(red, 50);
+}
+
+TEST(ViewerE2E, MaterialChangeAndProbeSwapChangeTheImage) {
+    const auto dir = test::temp_dir("view_probe_material");
+    ImageRGB red_sky(16, 8);
+    for (size_t i = 0; i < red_sky.rgb.size(); ++i) red_sky.rgb[i] = i % 3 == 0 ? 3.0f : 0.05f;
+    const std::string probe = (dir / "red.pfm").string();
+    write_image(probe, red_sky);
+    const std::string a = (dir / "a.png").string(), b = (dir / "b.png").string(),
+                      c = (dir / "c.png").string();
+    const std::string script = "wait_passes 2; screenshot " + a +
+                               "; set material.albedo 0.05,0.9,0.05; wait_passes 2; screenshot " +
+                               b + "; open " + probe + "; wait_loaded; wait_passes 2; screenshot " +
+                               c + "; message";
+    std::string log;
+    const int rc = run(xvfb() + KDT_EXE + " view --width 320 --height 240 --no-cache --script '" +
+                           script + "' --frames 2",
+                       dir / "log.txt", &log);
+    ASSERT_EQ(rc, 0) << log;
+    EXPECT_NE(log.find("view message: \n"), std::string::npos) << log;  // no error
+    // The image rectangle: 320 x 240, centred in the 720 rows of the window.
+    const Vec3f ma = mean_color(load_image(a), 0, 320, 240, 480);
+    const Vec3f mb = mean_color(load_image(b), 0, 320, 240, 480);
+    const Vec3f mc = mean_color(load_image(c), 0, 320, 240, 480);
+    // A green model under the default sky; then everything under a red sky.
+    EXPECT_GT(mb.y - mb.x, ma.y - ma.x + 0.02f)
+        << ma.x << ' ' << ma.y << ' ' << mb.x << ' ' << mb.y;
+    EXPECT_GT(mc.x - mc.y, mb.x - mb.y + 0.05f)
+        << mb.x << ' ' << mb.y << ' ' << mc.x << ' ' << mc.y;
+}
+
 }  // namespace
 }  // namespace kdt

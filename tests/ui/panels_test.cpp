@@ -36,6 +36,7 @@ TEST(ViewerPanels, EveryPanelDrawsWithNoGlError) {
     test::OffscreenGL gl(kW, kH);
     ASSERT_TRUE(gl.ok()) << "OSMesa could not create a GL 3.3 core context";
     Viewer v(small_options());
+    v.finish_loading();
     ImGui::CreateContext();
     ImGuiIO& io = ImGui::GetIO();
     io.IniFilename = nullptr;
@@ -55,6 +56,7 @@ TEST(ViewerPanels, EveryPanelDrawsWithNoGlError) {
         v.poll_rebuild();
         v.update_image();
         v.draw_panels();
+        v.draw_file_panel();
         ImGui::Render();
         glViewport(0, 0, kW, kH);
         glClear(GL_COLOR_BUFFER_BIT);
@@ -74,7 +76,7 @@ TEST(ViewerPanels, EveryPanelDrawsWithNoGlError) {
         ASSERT_TRUE(v.have_image_) << "no image within a minute";
         frame();  // the panels with the image's statistics
         EXPECT_EQ(gl_errors("frame"), "");
-        for (const char* name : {"kd-tree", "Stats", "View", "Render"}) {
+        for (const char* name : {"kd-tree", "Stats", "View", "Render", "File"}) {
             const ImGuiWindow* w = ImGui::FindWindowByName(name);
             ASSERT_NE(w, nullptr) << name;
             EXPECT_TRUE(w->WasActive) << name;
@@ -82,6 +84,16 @@ TEST(ViewerPanels, EveryPanelDrawsWithNoGlError) {
         EXPECT_GT(ImGui::GetDrawData()->TotalVtxCount, 2000);
     }
     EXPECT_GT(v.heat_scale_.hi, v.heat_scale_.lo);  // the heat map had a range to show
+    // A file being opened: the progress bar over the image until the load is taken.
+    v.open_file("/nonexistent/model.ply");
+    frame();
+    frame();
+    EXPECT_EQ(gl_errors("loading"), "");
+    const ImGuiWindow* loading = ImGui::FindWindowByName("Loading");
+    ASSERT_NE(loading, nullptr);
+    EXPECT_TRUE(loading->WasActive);
+    v.finish_loading();
+    EXPECT_NE(v.message_.find("/nonexistent/model.ply"), std::string::npos) << v.message_;
     // The display shows the panels over the image: pixels differ from the clear colour.
     const std::vector<uint8_t> px = gl.read_rgb();
     size_t lit = 0;
@@ -97,6 +109,7 @@ TEST(ViewerScript, BadCommandsAndOptionsNameTheProblem) {
         vo.script = script;
         try {
             Viewer v(vo);
+            v.finish_loading();
             while (v.script_step()) {
             }
         } catch (const Error& e) {
@@ -131,6 +144,7 @@ TEST(ViewerFiles, SessionRoundTripAndSavedImageMetadata) {
     CameraDesc saved;
     {
         Viewer v(vo);
+        v.finish_loading();
         const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
         // wait_passes needs an image on screen: stand in for the frame loop's upload.
         while (v.script_step() && std::chrono::steady_clock::now() < deadline) {
@@ -159,6 +173,7 @@ TEST(ViewerFiles, SessionRoundTripAndSavedImageMetadata) {
     ViewerOptions again = small_options();
     again.session = session;
     Viewer v(again);
+    v.finish_loading();
     EXPECT_EQ(v.camera_.eye, saved.eye);
     EXPECT_EQ(v.opts_.trace.max_depth, 5);
     EXPECT_EQ(v.tone_.exposure, 1.5f);
@@ -169,6 +184,7 @@ TEST(ViewerFiles, SessionRoundTripAndSavedImageMetadata) {
     other.session = session;
     try {
         Viewer bad(other);
+        bad.finish_loading();
         ADD_FAILURE() << "a session of another size was accepted";
     } catch (const Error& e) {
         EXPECT_NE(std::string(e.what()).find("s.json"), std::string::npos) << e.what();

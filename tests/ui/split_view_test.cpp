@@ -103,6 +103,7 @@ bool wait_both_done(Viewer& v) {
 
 TEST(SplitView, ExactTreesOfDifferentBuildersGiveTheSameImageAtTheirOwnCost) {
     Viewer v(split_options());
+    v.finish_loading();
     v.set_split(true);
     ASSERT_TRUE(v.split_);
     EXPECT_EQ(v.split_->tree(), v.tree_);  // B starts with A's tree: same parameters
@@ -148,6 +149,7 @@ TEST(SplitView, PanelsAndDebugViewsDrawWithNoGlErrorAndTheDividerWhereSet) {
     test::OffscreenGL gl(kW, kH);
     ASSERT_TRUE(gl.ok()) << "OSMesa could not create a GL 3.3 core context";
     Viewer v(split_options());
+    v.finish_loading();
     ImGui::CreateContext();
     ImGuiIO& io = ImGui::GetIO();
     io.IniFilename = nullptr;
@@ -217,6 +219,7 @@ TEST(SplitView, PanelsAndDebugViewsDrawWithNoGlErrorAndTheDividerWhereSet) {
 
 TEST(SplitView, DividerDragStartsOnlyNearIt) {
     Viewer v(split_options());
+    v.finish_loading();
     v.set_split(true);
     SplitView& s = *v.split_;
     EXPECT_FALSE(s.drag(0.8f, 0.01f, true));  // a press away from it: the camera's
@@ -236,6 +239,7 @@ TEST(SplitView, ScriptErrorsNameTheProblem) {
     auto fails = [](const std::string& cmd, const char* why) {
         ViewerOptions vo = split_options();
         Viewer v(vo);
+        v.finish_loading();
         v.script_ = {cmd};
         try {
             v.script_step();

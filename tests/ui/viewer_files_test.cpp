@@ -1,0 +1,159 @@
+// The viewer's files without a window: opening models, probes and broken files through the
+// same calls as the File panel, the drop callback and the script, the swap of the loaded scene
+// into the render thread, and the material edits (ui/viewer_files.cpp).
+#include <chrono>
+#include <fstream>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "renderer/core/error.h"
+#include "renderer/io/image_io.h"
+#include "tests/test_util.h"
+#include "ui/viewer_app.h"
+
+namespace kdt::ui {
+namespace {
+
+ViewerOptions tiny_options() {
+    ViewerOptions vo;
+    vo.options.scene.width = 48;
+    vo.options.scene.height = 32;
+    vo.options.scene.use_cache = false;
+    vo.options.tree.threads = 1;
+    vo.options.trace.threads = 1;
+    return vo;
+}
+
+std::string write_tetra_ply(const std::filesystem::path& dir, const std::string& name) {
+    const std::string path = (dir / name).string();
+    std::ofstream f(path);
+    f << "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+         "property float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n"
+         "0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n";
+    return path;
+}
+
+TEST(ViewerFiles, OpenSwapsTheSceneAndErrorsNameTheFile) {
+    const auto dir = test::temp_dir("ui_open");
+    ViewerOptions vo = tiny_options();
+    vo.options.scene.eye = Vec3f(0.5f, 1.0f, 9.0f);  // the command line's, for its scene only
+    Viewer v(vo);
+    EXPECT_TRUE(v.loading());  // the constructor only asked for the default scene
+    v.finish_loading();
+    ASSERT_TRUE(v.worker_);
+    EXPECT_EQ(v.camera_.eye, Vec3f(0.5f, 1.0f, 9.0f));
+    const auto default_mesh = v.worker_->snapshot()->scene->mesh;
+    EXPECT_GT(default_mesh->triangle_count(), 1000u);
+
+    const std::string missing = (dir / "missing.obj").string();
+    v.open_file(missing);
+    v.finish_loading();
+    EXPECT_NE(v.message_.find(missing), std::string::npos) << v.message_;
+    EXPECT_EQ(v.worker_->snapshot()->scene->mesh, default_mesh);  // the old scene stays
+
+    v.open_file((dir / "notes.txt").string());
+    EXPECT_NE(v.message_.find("notes.txt: not a file the viewer opens"), std::string::npos);
+    EXPECT_FALSE(v.loading());
+
+    // Two requests in a row: the newer one is the one swapped in.
+    const std::string a = write_tetra_ply(dir, "a.ply"), b = write_tetra_ply(dir, "b.ply");
+    v.open_file(a);
+    v.open_file(b);
+    v.finish_loading();
+    EXPECT_EQ(v.message_, "");
+    EXPECT_EQ(v.opts_.scene.scene_path, b);
+    EXPECT_EQ(v.worker_->snapshot()->scene->mesh->triangle_count(), 4u);
+    EXPECT_EQ(v.tree_, v.worker_->snapshot()->scene->tree);
+    EXPECT_EQ(v.camera_.eye, v.worker_->camera().eye);  // the new scene's camera
+    EXPECT_NE(v.camera_.eye, Vec3f(0.5f, 1.0f, 9.0f));
+    EXPECT_FALSE(v.opts_.scene.eye);
+    ASSERT_EQ(v.materials_.size(), 1u);
+
+    // A tree parameter edited while a scene loads applies to the new scene (the rebuild of the
+    // old one it started is dropped).
+    v.open_file(a);
+    v.set_option("tree.max_depth", "5");
+    v.finish_loading();
+    for (int i = 0; i < 60000 && (v.rebuilder_->busy() || !v.awaiting_rebuild_image_); ++i) {
+        v.poll_rebuild();
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    EXPECT_EQ(v.opts_.scene.scene_path, a);
+    EXPECT_EQ(v.worker_->snapshot()->scene->mesh->triangle_count(), 4u);
+    EXPECT_EQ(v.worker_->snapshot()->scene->tree->params().max_depth, 5);
+}
+
+TEST(ViewerFiles, ProbeAndMaterialEdits) {
+    const auto dir = test::temp_dir("ui_probe_material");
+    Viewer v(tiny_options());
+    v.finish_loading();
+    ImageRGB sky(8, 4);
+    for (float& c : sky.rgb) c = 0.5f;
+    const std::string probe = (dir / "sky.pfm").string(), bad = (dir / "bad.exr").string();
+    write_image(probe, sky);
+    std::ofstream(bad) << "not an exr";
+    v.open_file(bad);
+    v.finish_loading();
+    EXPECT_NE(v.message_.find(bad), std::string::npos) << v.message_;
+    EXPECT_EQ(v.prep_.scene.environment.file, "");
+    v.set_option("scene.env_file", probe);
+    v.finish_loading();
+    EXPECT_EQ(v.message_, "");
+    EXPECT_EQ(v.prep_.scene.environment.file, probe);
+    EXPECT_EQ(v.opts_.scene.env_file, probe);  // kept for the next scene and the session
+
+    v.set_option("material.albedo", "0.9,0.1,0.2");
+    const Material& m = v.worker_->snapshot()->scene->instances[0].material;
+    EXPECT_EQ(m.albedo, Vec3f(0.9f, 0.1f, 0.2f));
+    v.set_option("material.instance", "1");  // the default scene's ground
+    v.set_option("material.type", "mirror");
+    EXPECT_EQ(v.worker_->snapshot()->scene->instances[1].material.type, MaterialType::mirror);
+    auto error = [&](const std::string& key, const std::string& value) {
+        return test::error_of_call([&] { v.set_option(key, value); });
+    };
+    EXPECT_NE(error("material.albedo", "1,2").find("material.albedo must be R,G,B"),
+              std::string::npos);
+    EXPECT_NE(error("material.albedo", "1,2,3,4").find("material.albedo"), std::string::npos);
+    EXPECT_NE(error("material.albedo", "-1,0,0").find("material.albedo"), std::string::npos);
+    EXPECT_NE(error("material.type", "glass").find("material.type"), std::string::npos);
+    EXPECT_NE(error("material.instance", "7").find("material.instance"), std::string::npos);
+    EXPECT_NE(error("material.shine", "1").find("no option material.shine"), std::string::npos);
+
+    // A tree requested before an edit comes with the edit (it was built from the old one).
+    v.set_option("material.instance", "0");
+    v.request_rebuild();
+    v.set_option("material.albedo", "0.3,0.3,0.3");
+    for (int i = 0; i < 60000 && (v.rebuilder_->busy() || !v.awaiting_rebuild_image_); ++i) {
+        v.poll_rebuild();
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    EXPECT_TRUE(v.awaiting_rebuild_image_);
+    EXPECT_EQ(v.worker_->snapshot()->scene->instances[0].material.albedo, Vec3f(0.3f));
+    EXPECT_EQ(v.worker_->snapshot()->scene->instances[1].material.type, MaterialType::mirror);
+
+    // The session keeps the probe; a viewer started from it loads the probe too.
+    const std::string session = (dir / "s.json").string();
+    v.save_session(session);
+    ViewerOptions again = tiny_options();
+    again.session = session;
+    Viewer w(again);
+    w.finish_loading();
+    EXPECT_EQ(w.message_, "");
+    EXPECT_EQ(w.prep_.scene.environment.file, probe);
+}
+
+TEST(ViewerFiles, BadFirstSceneEndsAScriptedRunWithTheMessage) {
+    ViewerOptions vo = tiny_options();
+    vo.options.scene.scene_path = "/nonexistent/model.ply";
+    vo.script = "orbit 10 0";
+    Viewer v(vo);
+    v.finish_loading();
+    EXPECT_FALSE(v.worker_);
+    EXPECT_NE(v.message_.find("/nonexistent/model.ply"), std::string::npos) << v.message_;
+    const std::string e = test::error_of_call([&] { v.script_step(); });
+    EXPECT_NE(e.find("/nonexistent/model.ply"), std::string::npos) << e;
+}
+
+}  // namespace
+}  // namespace kdt::ui
