@@ -4,6 +4,8 @@
 
 #include <unistd.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -11,7 +13,6 @@
 #include <fstream>
 #include <map>
 #include <memory>
-#include <regex>
 
 #include <nlohmann/json.hpp>
 
@@ -77,11 +78,15 @@ CameraDesc turntable_camera(const CameraDesc& c, int frame, int frames) {
 }
 
 std::string frame_path(const std::string& pattern, int frame) {
-    static const std::regex conversion("%0?[0-9]{0,2}d");
-    const auto count = std::distance(
-        std::sregex_iterator(pattern.begin(), pattern.end(), conversion), std::sregex_iterator());
-    const auto percents = std::count(pattern.begin(), pattern.end(), '%');
-    if (count != 1 || percents != 1) {
+    // One '%', followed by an optional '0', at most two width digits and 'd'.
+    const size_t at = pattern.find('%');
+    size_t i = at + 1;
+    if (at != std::string::npos && i < pattern.size() && pattern[i] == '0') ++i;
+    for (int digits = 0; digits < 2 && i < pattern.size() && std::isdigit(uint8_t(pattern[i]));
+         ++digits)
+        ++i;
+    if (at == std::string::npos || pattern.find('%', at + 1) != std::string::npos ||
+        i >= pattern.size() || pattern[i] != 'd') {
         throw Error(pattern +
                     ": a --frames output needs exactly one frame number conversion such as %03d "
                     "(and no other %)");
@@ -93,8 +98,10 @@ std::string frame_path(const std::string& pattern, int frame) {
 
 std::string frame_output(const std::string& output, int frame, const std::string& name) {
     if (output.find('%') != std::string::npos || name.empty()) return frame_path(output, frame);
-    static const std::regex plain("[A-Za-z0-9._+-]+");
-    if (!std::regex_match(name, plain) || name == "." || name == "..") {
+    const bool plain = std::all_of(name.begin(), name.end(), [](char c) {
+        return std::isalnum(uint8_t(c)) || c == '.' || c == '_' || c == '+' || c == '-';
+    });
+    if (!plain || name == "." || name == "..") {
         throw Error("frame '" + printable(name) + "' cannot name a file (" + output +
                     " + _NAME); give -o a pattern such as frame_%03d.png");
     }
@@ -320,8 +327,6 @@ void write_film(const FramePlan& f, const Film& film, const Camera& camera,
     write_image(f.output, image, tone, meta);
 }
 
-const char* frames_unit(const DistArgs& a) { return a.frames.empty() ? "tiles" : "frames"; }
-
 // --frames without --mpi: every frame in this process, with any stop condition.
 void run_local_frames(const RenderOptions& base, const std::string& output, bool quiet,
                       const DistArgs& a) {
@@ -422,6 +427,8 @@ void draw_farm_progress(int done, int total, double seconds, const char* unit) {
                  seconds, eta, done, total, unit);
     std::fflush(stderr);
 }
+
+const char* frames_unit(const DistArgs& a) { return a.frames.empty() ? "tiles" : "frames"; }
 
 uint64_t plan_hash(const std::vector<FramePlan>& frames) {
     std::string all;
