@@ -35,7 +35,9 @@ struct DistArgs {
 void add_dist_options(CLI::App& app, DistArgs& args, RenderOptions& options);
 
 /// True when `render` runs through run_dist_render().
-inline bool dist_requested(const DistArgs& args) { return args.mpi || !args.frames.empty(); }
+inline bool dist_requested(const DistArgs& args) {
+    return args.mpi || !args.frames.empty() || args.turntable;
+}
 
 /// Renders `options` (resolved and validated) as the flags ask and writes `output`: for a
 /// sequence a pattern with one printf integer conversion ("frame_%03d.png", the frame's

@@ -30,4 +30,9 @@ if(EXISTS ${_cube})
                    -o ${CMAKE_BINARY_DIR}/frame_%d.png)
   set_tests_properties(smoke.frames_need_turntable PROPERTIES
     PASS_REGULAR_EXPRESSION "--frames N needs --turntable")
+  add_test(NAME smoke.turntable_needs_frames
+           COMMAND $<TARGET_FILE:kdtrace> render ${_cube} --no-cache --turntable
+                   -o ${CMAKE_BINARY_DIR}/frame_%d.png)
+  set_tests_properties(smoke.turntable_needs_frames PROPERTIES
+    PASS_REGULAR_EXPRESSION "--turntable needs --frames N")
 endif()
