@@ -193,7 +193,7 @@ void add_render_command(CLI::App& parent) {
                     "Output image: .png (tone-mapped sRGB), .exr or .pfm (linear)")
         ->capture_default_str();
     sub->add_flag("--quiet", cmd.quiet, "No progress bar or cache messages");
-    add_dist_options(*sub, cmd.dist);
+    add_dist_options(*sub, cmd.dist, cmd.options);
     sub->callback([] {
         interrupt::install();
         try {

@@ -4,21 +4,27 @@
 
 #include <unistd.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
+#include <map>
 #include <memory>
-#include <regex>
 
 #include <nlohmann/json.hpp>
 
 #include "renderer/core/error.h"
+#include "renderer/core/open_file.h"
+#include "renderer/core/output_path.h"
 #include "renderer/core/timer.h"
 #include "renderer/io/image_io.h"
 #include "renderer/render/prepare.h"
 #include "renderer/render/session.h"
 #include "renderer/render/settings.h"
+#include "renderer/scene/views.h"
 #ifdef KDT_HAVE_MPI
 #include <mpi.h>
 
@@ -27,7 +33,9 @@
 
 namespace kdt::app {
 
-void add_dist_options(CLI::App& app, DistArgs& a) {
+void add_dist_options(CLI::App& app, DistArgs& a, RenderOptions& options) {
+    a.command = &app;
+    a.command_options = &options;
     app.add_flag("--mpi", a.mpi,
                  "Split the render over the ranks of mpirun (every rank loads the scene and the "
                  "tree cache itself: a shared filesystem is assumed)");
@@ -42,11 +50,13 @@ void add_dist_options(CLI::App& app, DistArgs& a) {
                    "With --mpi: abort every rank after this many seconds (0 = never)")
         ->check(CLI::Range(0.0, 1e9));
     app.add_option("--frames", a.frames,
-                   "Render a sequence of this many frames (with --turntable); -o is then a "
-                   "pattern such as frame_%03d.png")
-        ->check(CLI::Range(1, 1 << 20));
+                   "Render a sequence: N (with --turntable), views:A,B,... or views:all (cameras "
+                   "of the --views file), sessions:a.json,b.json,... (each as --session FILE "
+                   "with the other flags). -o is a pattern such as frame_%03d.png (position "
+                   "from 0), or for views and sessions a name that gets _VIEW or _STEM")
+        ->type_name("SPEC");
     app.add_flag("--turntable", a.turntable,
-                 "The --frames orbit the camera about its up axis through its target");
+                 "The --frames N orbit the camera about its up axis through its target");
     app.add_option("--mpi-stats", a.stats_file, "With --mpi: rank 0 writes per-rank stats (JSON)");
     app.add_option("--throttle", a.throttle,
                    "Test only: RANK:FACTOR makes that rank sleep (FACTOR - 1) x its render time");
@@ -68,11 +78,15 @@ CameraDesc turntable_camera(const CameraDesc& c, int frame, int frames) {
 }
 
 std::string frame_path(const std::string& pattern, int frame) {
-    static const std::regex conversion("%0?[0-9]{0,2}d");
-    const auto count = std::distance(
-        std::sregex_iterator(pattern.begin(), pattern.end(), conversion), std::sregex_iterator());
-    const auto percents = std::count(pattern.begin(), pattern.end(), '%');
-    if (count != 1 || percents != 1) {
+    // One '%', followed by an optional '0', at most two width digits and 'd'.
+    const size_t at = pattern.find('%');
+    size_t i = at + 1;
+    if (at != std::string::npos && i < pattern.size() && pattern[i] == '0') ++i;
+    for (int digits = 0; digits < 2 && i < pattern.size() && std::isdigit(uint8_t(pattern[i]));
+         ++digits)
+        ++i;
+    if (at == std::string::npos || pattern.find('%', at + 1) != std::string::npos ||
+        i >= pattern.size() || pattern[i] != 'd') {
         throw Error(pattern +
                     ": a --frames output needs exactly one frame number conversion such as %03d "
                     "(and no other %)");
@@ -82,12 +96,221 @@ std::string frame_path(const std::string& pattern, int frame) {
     return buf;
 }
 
+std::string frame_output(const std::string& output, int frame, const std::string& name) {
+    if (output.find('%') != std::string::npos || name.empty()) return frame_path(output, frame);
+    const bool plain = std::all_of(name.begin(), name.end(), [](char c) {
+        return std::isalnum(uint8_t(c)) || c == '.' || c == '_' || c == '+' || c == '-';
+    });
+    if (!plain || name == "." || name == "..") {
+        throw Error("frame '" + printable(name) + "' cannot name a file (" + output +
+                    " + _NAME); give -o a pattern such as frame_%03d.png");
+    }
+    const std::filesystem::path p(output);
+    std::filesystem::path out = p;
+    out.replace_filename(p.stem().string() + "_" + name + p.extension().string());
+    return out.string();
+}
+
 namespace {
 
-void write_film(const std::string& path, const Film& film, const RenderOptions& o,
-                const Camera& camera, const std::string& how) {
+// One frame of a sequence before anything is loaded.
+struct FramePlan {
+    RenderOptions options;  // resolved and validated
+    std::string name;       // view name or session file stem; empty for a turntable
+    std::string output;
+    std::string session;      // the session file it came from, if any
+    int turn = 0, turns = 0;  // a turntable's frame `turn` of `turns`; turns = 0: none
+};
+
+std::vector<std::string> split_list(const std::string& list, const std::string& spec) {
+    std::vector<std::string> out;
+    size_t start = 0;
+    for (;;) {
+        const size_t comma = list.find(',', start);
+        out.push_back(list.substr(start, comma == std::string::npos ? comma : comma - start));
+        if (out.back().empty())
+            throw Error("--frames " + printable(spec) + ": an empty name in the list");
+        if (comma == std::string::npos) return out;
+        start = comma + 1;
+    }
+}
+
+bool given(const DistArgs& a, const char* flag) {
+    const CLI::Option* o = a.command ? a.command->get_option_no_throw(flag) : nullptr;
+    return o && o->count() > 0;
+}
+
+std::string views_file(const DistArgs& a) {
+    return given(a, "--views") ? a.command->get_option("--views")->as<std::string>() : "";
+}
+
+// The options of `render --session PATH` with this command's other flags: the session over
+// the defaults, then the command line's flags again in the order they were applied (CLI11
+// runs the callbacks in the order the flags were added; --session is first).
+RenderOptions session_frame_options(const DistArgs& a, const std::string& path) {
+    if (!a.command || !a.command_options)
+        throw Error("--frames sessions: needs the render command's flags");
+    RenderOptions& target = *a.command_options;
+    struct Restore {
+        RenderOptions& target;
+        RenderOptions saved;
+        ~Restore() { target = saved; }
+    } restore{target, target};
+    target = RenderOptions{};
+    const std::vector<uint8_t> text = read_regular_file(path, uint64_t(1) << 20, "a session file");
+    options_from_json(std::string(text.begin(), text.end()), target, path);
+    for (CLI::Option* opt : a.command->get_options()) {
+        if (opt->count() > 0) opt->run_callback();
+    }
+    RenderOptions o = resolve(target);
+    try {
+        validate(o);
+    } catch (const Error& e) {
+        throw Error(path + " with the command line's flags: " + e.what());
+    }
+    return o;
+}
+
+std::vector<FramePlan> list_frames(const RenderOptions& base, const DistArgs& a) {
+    const std::string& spec = a.frames;
+    std::vector<FramePlan> out;
+    if (spec.empty()) {
+        if (a.turntable) throw Error("--turntable needs --frames N");
+        out.push_back({base, "", "", "", 0, 0});
+        return out;
+    }
+    if (spec.rfind("views:", 0) == 0) {
+        if (a.turntable) throw Error("--turntable goes with --frames N, not with a list");
+        if (given(a, "--view"))
+            throw Error("--frames views: takes the cameras of the views file; drop --view");
+        const std::string file = views_file(a);
+        std::vector<std::pair<std::string, CameraDesc>> views;
+        if (spec == "views:all") {
+            const std::string path = file.empty() ? find_asset("views/dragon.json") : file;
+            for (const View& v : load_views(path).views) views.emplace_back(v.name, v.camera);
+        } else {
+            for (const std::string& name : split_list(spec.substr(6), spec))
+                views.emplace_back(name, find_view(file, name));
+        }
+        for (const auto& [name, camera] : views) {
+            FramePlan f{base, name, "", "", 0, 0};
+            f.options.scene.camera = camera;
+            out.push_back(std::move(f));
+        }
+        return out;
+    }
+    if (spec.rfind("sessions:", 0) == 0) {
+        if (a.turntable) throw Error("--turntable goes with --frames N, not with a list");
+        if (given(a, "--session"))
+            throw Error("--frames sessions: gives each frame its session file; drop --session");
+        for (const std::string& path : split_list(spec.substr(9), spec)) {
+            out.push_back({session_frame_options(a, path),
+                           std::filesystem::path(path).stem().string(), "", path, 0, 0});
+        }
+        return out;
+    }
+    double n = 0.0;
+    if (!detail::parse_number(spec, n) || n != std::floor(n) || n < 1 || n > double(1 << 20)) {
+        throw Error(
+            "--frames takes N (with --turntable), views:A,B,..., views:all or "
+            "sessions:a.json,b.json,... (got '" +
+            printable(spec) + "')");
+    }
+    if (!a.turntable)
+        throw Error("--frames N needs --turntable (or list views: or sessions: instead)");
+    for (int f = 0; f < int(n); ++f) out.push_back({base, "", "", "", f, int(n)});
+    return out;
+}
+
+// The frames of the sequence the flags ask for (one frame without --frames), with their
+// outputs; with check_outputs the outputs are checked too (only the rank that writes).
+std::vector<FramePlan> plan_frames(const RenderOptions& base, const std::string& output,
+                                   const DistArgs& a, bool check_outputs) {
+    std::vector<FramePlan> frames = list_frames(base, a);
+    std::map<std::string, size_t> seen;
+    for (size_t i = 0; i < frames.size(); ++i) {
+        FramePlan& f = frames[i];
+        f.output = a.frames.empty() ? output : frame_output(output, int(i), f.name);
+        if (auto [it, fresh] = seen.emplace(f.output, i); !fresh) {
+            throw Error("frames " + std::to_string(it->second) + " and " + std::to_string(i) +
+                        " would both be written to " + f.output +
+                        "; give -o a pattern such as frame_%03d.png");
+        }
+        if (!check_outputs) continue;
+        check_image_output(f.output, f.options.film.transparent);
+        const SceneOptions& sc = f.options.scene;
+        check_output(f.output, {sc.scene_path, sc.env_file, sc.tree_file, f.session, views_file(a)},
+                     "the image");
+    }
+    return frames;
+}
+
+// The options a frame's scene is loaded and its tree built with: its own, without the
+// camera, the image size and what only rendering reads. Frames with equal ones share one
+// load.
+RenderOptions scene_options_of(const RenderOptions& o) {
+    RenderOptions k;
+    k.scene = o.scene;
+    k.scene.camera.reset();
+    k.scene.eye.reset();
+    k.scene.target.reset();
+    k.scene.up.reset();
+    k.scene.vfov_degrees.reset();
+    k.scene.width = SceneOptions{}.width;
+    k.scene.height = SceneOptions{}.height;
+    k.tree = o.tree;
+    return k;
+}
+
+// The loaded scenes of a plan, one per distinct scene_options_of(), in order of first use.
+struct SceneGroups {
+    std::vector<std::string> keys;  // options_to_json(scene_options_of(frame))
+    std::vector<Prepared> prepared;
+    int of(const RenderOptions& o) const {
+        const auto it = std::find(keys.begin(), keys.end(), options_to_json(scene_options_of(o)));
+        return int(it - keys.begin());
+    }
+};
+
+// Calls load(options) once per distinct scene of `frames`, in order.
+SceneGroups load_scenes(const std::vector<FramePlan>& frames,
+                        const std::function<Prepared(const RenderOptions&)>& load) {
+    SceneGroups g;
+    for (const FramePlan& f : frames) {
+        const RenderOptions k = scene_options_of(f.options);
+        const std::string key = options_to_json(k);
+        if (std::find(g.keys.begin(), g.keys.end(), key) != g.keys.end()) continue;
+        g.keys.push_back(key);
+        g.prepared.push_back(load(k));
+    }
+    return g;
+}
+
+// The snapshot of a frame: its scene's, seen through the frame's camera (the scene's with
+// the frame's overrides, as prepare_render() applies them, then the turntable's turn).
+std::shared_ptr<const RenderSnapshot> frame_snapshot(const SceneGroups& g, const FramePlan& f) {
+    const RenderSnapshot& base = *g.prepared[size_t(g.of(f.options))].snapshot;
+    const SceneOptions& o = f.options.scene;
+    CameraDesc c = base.camera_desc;
+    if (o.camera) c = *o.camera;
+    if (o.eye) c.eye = *o.eye;
+    if (o.target) c.target = *o.target;
+    if (o.up) c.up = *o.up;
+    if (o.vfov_degrees) c.vfov_degrees = *o.vfov_degrees;
+    if (f.turns > 0) c = turntable_camera(c, f.turn, f.turns);
+    // A copy shares the mesh, tree and environment; only the camera changes.
+    auto s = std::make_shared<RenderSnapshot>(base);
+    s->camera_desc = c;
+    s->camera = make_camera(c, o.width, o.height);
+    return s;
+}
+
+void write_film(const FramePlan& f, const Film& film, const Camera& camera,
+                const std::string& how) {
+    const RenderOptions& o = f.options;
     ImageRGB image(film.width(), film.height());
     image.rgb = film.linear_rgb();
+    image.alpha = film.coverage();
     ImageMetadata meta;
     meta.emplace_back("Software", "kdtrace 0.1.0");
     const std::string& scene = o.scene.scene_path;
@@ -96,49 +319,38 @@ void write_film(const std::string& path, const Film& film, const RenderOptions& 
     meta.emplace_back("kdtrace:params", options_to_json(o));
     meta.emplace_back("kdtrace:seed", std::to_string(o.trace.seed));
     meta.emplace_back("kdtrace:spp", std::to_string(o.stop.spp));
+    if (!f.name.empty()) meta.emplace_back("kdtrace:frame", f.name);
     meta.emplace_back("kdtrace:distribution", how);
     ToneParams tone;
     tone.exposure = o.film.exposure;
-    write_image(path, image, tone, meta);
-}
-
-std::shared_ptr<const RenderSnapshot> frame_snapshot(const RenderSnapshot& base,
-                                                     const RenderOptions& o, int frame,
-                                                     int frames) {
-    // A copy shares the mesh, tree and environment; only the camera changes.
-    auto s = std::make_shared<RenderSnapshot>(base);
-    s->camera_desc = turntable_camera(base.camera_desc, frame, frames);
-    s->camera = make_camera(s->camera_desc, o.scene.width, o.scene.height);
-    return s;
-}
-
-// The sequence flags and the output (its pattern, and, when check_output, its directory).
-void check_frames(const std::string& output, const DistArgs& a, bool check_output = true) {
-    if (a.frames > 0 && !a.turntable)
-        throw Error("--frames needs --turntable (the one kind of sequence so far)");
-    if (a.turntable && a.frames == 0) throw Error("--turntable needs --frames N");
-    const std::string first = a.frames > 0 ? frame_path(output, 0) : output;
-    if (check_output) check_image_output(first);
+    tone.curve = o.film.tonemap;
+    write_image(f.output, image, tone, meta);
 }
 
 // --frames without --mpi: every frame in this process, with any stop condition.
-void run_local_frames(const RenderOptions& o, const std::string& output, bool quiet,
+void run_local_frames(const RenderOptions& base, const std::string& output, bool quiet,
                       const DistArgs& a) {
-    const Prepared prep = prepare_render(o, [&](const std::string& line) {
+    const std::vector<FramePlan> frames = plan_frames(base, output, a, true);
+    const PrepareLog log = [&](const std::string& line) {
         if (!quiet) std::fprintf(stderr, "kdtrace: %s\n", line.c_str());
-    });
+    };
+    const SceneGroups scenes =
+        load_scenes(frames, [&](const RenderOptions& o) { return prepare_render(o, log); });
+    std::vector<std::shared_ptr<const RenderSnapshot>> snaps;
+    for (const FramePlan& f : frames) snaps.push_back(frame_snapshot(scenes, f));
     Timer timer;
-    for (int f = 0; f < a.frames; ++f) {
-        const auto snap = frame_snapshot(*prep.snapshot, o, f, a.frames);
-        RenderSession session(snap, o.trace, o.film);
-        run_render(session, o.stop);
-        const std::string path = frame_path(output, f);
-        write_film(path, session.film(), o, snap->camera, "local");
+    for (size_t i = 0; i < frames.size(); ++i) {
+        const FramePlan& f = frames[i];
+        RenderSession session(snaps[i], f.options.trace, f.options.film);
+        session.set_publishing(false);
+        run_render(session, f.options.stop);
+        write_film(f, session.film(), snaps[i]->camera, "local");
         if (!quiet)
-            std::fprintf(stderr, "kdtrace: frame %d/%d -> %s\n", f + 1, a.frames, path.c_str());
+            std::fprintf(stderr, "kdtrace: frame %zu/%zu -> %s\n", i + 1, frames.size(),
+                         f.output.c_str());
     }
-    std::printf("render: %d frames %dx%d, %.2f s, %d spp -> %s\n", a.frames, o.scene.width,
-                o.scene.height, timer.seconds(), o.stop.spp, output.c_str());
+    std::printf("render: %zu frames, %.2f s -> %s\n", frames.size(), timer.seconds(),
+                output.c_str());
 }
 
 }  // namespace
@@ -180,6 +392,9 @@ void report(const std::vector<dist::RankStats>& ranks, const DistArgs& a, const 
                     (unsigned long long)r.messages, (unsigned long long)r.bytes);
         busy += r.busy_seconds;
     }
+    if (!ranks.empty())
+        std::printf("mpi: rank 0 served results for %.3f s (receive, import, reply)\n",
+                    ranks[0].serve_seconds);
     const double eff = seconds > 0.0 ? busy / (double(ranks.size()) * seconds) : 0.0;
     std::printf("mpi: %zu ranks, %s, %d %s, %.3f s, efficiency %.3f (busy / (ranks x wall))\n",
                 ranks.size(), a.distribution.c_str(), items, unit, seconds, eff);
@@ -195,6 +410,7 @@ void report(const std::vector<dist::RankStats>& ranks, const DistArgs& a, const 
                                  {"busy_seconds", r.busy_seconds},
                                  {"wall_seconds", r.wall_seconds},
                                  {"cpu_seconds", r.cpu_seconds},
+                                 {"serve_seconds", r.serve_seconds},
                                  {"messages", r.messages},
                                  {"bytes", r.bytes}});
     }
@@ -212,33 +428,59 @@ void draw_farm_progress(int done, int total, double seconds, const char* unit) {
     std::fflush(stderr);
 }
 
+const char* frames_unit(const DistArgs& a) { return a.frames.empty() ? "tiles" : "frames"; }
+
+uint64_t plan_hash(const std::vector<FramePlan>& frames) {
+    std::string all;
+    for (const FramePlan& f : frames) all += options_to_json(f.options) + f.name + "\n";
+    return std::hash<std::string>{}(all);
+}
+
 void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, bool quiet,
              const DistArgs& a) {
     ctx.start_watchdog(a.timeout_seconds);
     const bool root = ctx.rank() == 0;
-    // Rank 0's options are everyone's; the checks are collective, so that a bad flag stops
-    // every rank with one message instead of leaving some waiting.
+    const bool sequence = !a.frames.empty();
+    // Rank 0's options are everyone's; the checks are collective, so that a bad flag or a bad
+    // listed file stops every rank with one message instead of leaving some waiting. Every
+    // rank reads the listed files itself, and all must agree on the frames.
     const std::string json = ctx.broadcast(options_to_json(o));
     dist::FarmParams params;
     dist::InjectedFault fault;
-    dist::check_every_rank(ctx, "could not start", [&]() -> uint64_t {
-        options_from_json(json, o, "rank 0's options");
-        dist::check_farm_options(o);
-        check_frames(output, a, root);  // only rank 0 writes
-        params = farm_params(a, o);
-        if (!a.inject.empty())
-            std::tie(fault.rank, fault.what) = rank_and(a.inject, "--mpi-inject");
+    std::vector<FramePlan> frames;
+    dist::check_every_rank(
+        ctx, "could not start",
+        [&]() -> uint64_t {
+            options_from_json(json, o, "rank 0's options");
+            frames = plan_frames(o, output, a, root);  // only rank 0 writes
+            for (const FramePlan& f : frames) {
+                if (sequence) {
+                    dist::check_frame_farm_options(f.options);
+                } else {
+                    dist::check_tile_farm_options(f.options);
+                }
+            }
+            params = farm_params(a, o);
+            if (!a.inject.empty())
+                std::tie(fault.rank, fault.what) = rank_and(a.inject, "--mpi-inject");
+            return plan_hash(frames);
+        },
+        true);
+    const PrepareLog log = [&](const std::string& line) {
+        if (root && !quiet) std::fprintf(stderr, "kdtrace: %s\n", line.c_str());
+    };
+    // Every scene of the sequence is loaded on every rank before any frame renders.
+    const SceneGroups scenes = load_scenes(frames, [&](const RenderOptions& k) {
+        return dist::prepare_everywhere(ctx, k, log, fault);
+    });
+    std::vector<dist::FrameJob> jobs;
+    dist::check_every_rank(ctx, "could not set up the frames", [&]() -> uint64_t {
+        for (const FramePlan& f : frames) jobs.push_back({frame_snapshot(scenes, f), f.options});
         return 0;
     });
-    const Prepared prep = dist::prepare_everywhere(
-        ctx, o,
-        [&](const std::string& line) {
-            if (root && !quiet) std::fprintf(stderr, "kdtrace: %s\n", line.c_str());
-        },
-        fault);
     const bool tty = root && !quiet && isatty(fileno(stderr));
     Timer timer;
-    const char* unit = a.frames > 0 ? "frames" : "tiles";
+    const char* unit = frames_unit(a);
     dist::FarmProgress progress;
     if (tty)
         progress = [&](int done, int total) {
@@ -247,22 +489,18 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
     const std::string how = a.distribution + " over " + std::to_string(ctx.size()) + " ranks";
     dist::FarmResult result;
     int items = 0;
-    if (a.frames > 0) {
-        items = a.frames;
+    if (sequence) {
+        items = int(jobs.size());
         result = dist::render_frame_farm(
-            ctx, a.frames, [&](int f) { return frame_snapshot(*prep.snapshot, o, f, a.frames); }, o,
-            params,
+            ctx, jobs, params,
             [&](int f, const Film& film) {
-                const auto cam =
-                    make_camera(turntable_camera(prep.snapshot->camera_desc, f, a.frames),
-                                o.scene.width, o.scene.height);
-                write_film(frame_path(output, f), film, o, cam, how);
+                write_film(frames[size_t(f)], film, jobs[size_t(f)].snapshot->camera, how);
             },
             progress);
     } else {
         Film film;
-        result = dist::render_tile_farm(ctx, prep.snapshot, o, params, &film, progress);
-        if (root) write_film(output, film, o, prep.snapshot->camera, how);
+        result = dist::render_tile_farm(ctx, jobs[0].snapshot, o, params, &film, progress);
+        if (root) write_film(frames[0], film, jobs[0].snapshot->camera, how);
         items = (film.width() + RenderSession::kTileSize - 1) / RenderSession::kTileSize *
                 ((film.height() + RenderSession::kTileSize - 1) / RenderSession::kTileSize);
     }
@@ -285,11 +523,7 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
 
 void run_dist_render(const RenderOptions& options, const std::string& output, bool quiet,
                      const DistArgs& a) {
-    if (!a.mpi) {
-        check_frames(output, a);
-        run_local_frames(options, output, quiet, a);
-        return;
-    }
+    if (!a.mpi) return run_local_frames(options, output, quiet, a);
 #ifdef KDT_HAVE_MPI
     bool failed = false;
     {

@@ -17,22 +17,34 @@ struct DistArgs {
     std::string distribution = "dynamic";  ///< dynamic, interleaved or strips
     int batch = 0;                         ///< tiles per work message; 0 = threads per rank
     double timeout_seconds = 0.0;          ///< abort every rank after this long; 0 = none
-    int frames = 0;                        ///< > 0: render a sequence of this many frames
-    bool turntable = false;                ///< the sequence orbits the camera about its up axis
-    std::string stats_file;                ///< rank 0 writes per-rank stats as JSON here
-    std::string throttle;                  ///< test-only "RANK:FACTOR"
-    std::string inject;                    ///< test-only "RANK:load" or "RANK:hash"
+    /// --frames: "N" (with --turntable), "views:A,B,..." or "views:all" (cameras of the
+    /// --views file), "sessions:a.json,b.json,..." (session files); empty = one frame.
+    std::string frames;
+    bool turntable = false;  ///< the N frames orbit the camera about its up axis
+    std::string stats_file;  ///< rank 0 writes per-rank stats as JSON here
+    std::string throttle;    ///< test-only "RANK:FACTOR"
+    std::string inject;      ///< test-only "RANK:load" or "RANK:hash"
+    /// Set by add_dist_options: the command whose flags a session frame re-applies, and the
+    /// options its flags write into.
+    CLI::App* command = nullptr;
+    RenderOptions* command_options = nullptr;
 };
 
-void add_dist_options(CLI::App& app, DistArgs& args);
+/// Adds the flags to `app`, the render command, whose other flags (add_render_options) write
+/// into `options`: --frames sessions: renders each session file with the command's flags.
+void add_dist_options(CLI::App& app, DistArgs& args, RenderOptions& options);
 
 /// True when `render` runs through run_dist_render().
-inline bool dist_requested(const DistArgs& args) { return args.mpi || args.frames > 0; }
+inline bool dist_requested(const DistArgs& args) {
+    return args.mpi || !args.frames.empty() || args.turntable;
+}
 
-/// Renders `options` (resolved and validated) as the flags ask and writes `output` (for
-/// frames a pattern with one printf integer conversion, "frame_%03d.png"). Throws
-/// kdt::Error for bad input; with --mpi a failure ends every rank with status 1, rank 0
-/// printing the one message.
+/// Renders `options` (resolved and validated) as the flags ask and writes `output`: for a
+/// sequence a pattern with one printf integer conversion ("frame_%03d.png", the frame's
+/// position from 0), or for views and sessions a name that gets "_<view name>" or
+/// "_<session file stem>" before its extension. Every listed file is read, and every scene
+/// loaded, before the first frame renders. Throws kdt::Error for bad input; with --mpi a
+/// failure ends every rank with status 1, rank 0 printing the one message.
 void run_dist_render(const RenderOptions& options, const std::string& output, bool quiet,
                      const DistArgs& args);
 
@@ -43,5 +55,10 @@ CameraDesc turntable_camera(const CameraDesc& camera, int frame, int frames);
 /// `pattern` with its one integer conversion (%d, %3d, %03d) replaced by `frame`; throws
 /// kdt::Error naming the pattern when it has none, several or any other conversion.
 std::string frame_path(const std::string& pattern, int frame);
+
+/// The output of frame `frame` named `name` (empty for a turntable): frame_path() when
+/// `output` has a '%', else `output` with "_<name>" before its extension. Throws kdt::Error
+/// when a name is needed and empty or not a plain file name part ([A-Za-z0-9._+-]).
+std::string frame_output(const std::string& output, int frame, const std::string& name);
 
 }  // namespace kdt::app

@@ -1,8 +1,10 @@
 // `kdtrace bench mpi`: runs `mpirun -np N kdtrace render --mpi` (one thread per rank) for
-// each rank count and distribution, with and without one throttled rank, and tabulates rank
-// 0's per-rank stats: tiles (or frames), busy and idle time, efficiency (busy / (ranks x
-// wall)) and speedup against one rank of the same distribution. Runs take turns within each
-// repeat; the medians of the repeats are shown. A benchmark: it never fails on a time.
+// each rank count and distribution, with and without one throttled rank, and with --frames a
+// turntable farm for each rank count; tabulates rank 0's per-rank stats: tiles or frames,
+// busy and idle time, speedup against one rank of the same kind, parallel efficiency
+// (speedup / ranks), rank 0's serving time and bytes and messages per frame, and the
+// machine's load average. Runs take turns within each repeat; the medians of the repeats are
+// shown. A benchmark: it never fails on a time.
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -25,9 +27,13 @@ struct BenchMpiArgs {
     std::string model;  // empty = the built-in default scene
     std::vector<int> ranks{1, 2, 4};
     std::vector<std::string> distributions{"dynamic", "strips", "interleaved"};
-    int width = 320, height = 240, spp = 8, repeat = 3, frames = 0;
+    int width = 320, height = 240, spp = 8, repeat = 3;
+    int frames = 0;  // > 0: turntable rows of this many frames
+    int frame_width = 0, frame_height = 0, frame_spp = 0;  // 0 = as the tile rows
+    bool tiles = true;                                     // the tile rows
     double throttle = 2.0;  // rank 1's slowdown in the throttled runs (1 = none)
     std::string mpiexec = "mpirun";
+    std::string launcher_flags;  // extra flags for mpiexec, e.g. "--mca mpi_yield_when_idle 1"
     std::string work_dir = "bench_mpi";
 };
 
@@ -35,9 +41,17 @@ struct Run {
     int ranks = 1;
     std::string distribution;
     bool throttled = false;
+    bool frames = false;          // a turntable farm, else the tiles of one frame
     std::vector<double> seconds;  // one per repeat
+    std::vector<double> load;     // 1-minute load average before each repeat
     nlohmann::json last;          // the stats of the last repeat
 };
+
+double load_average() {
+    double one = 0.0;
+    std::ifstream("/proc/loadavg") >> one;
+    return one;
+}
 
 double median(std::vector<double> v) {
     if (v.empty()) return 0.0;
@@ -51,13 +65,16 @@ std::string self_path() { return std::filesystem::read_symlink("/proc/self/exe")
 nlohmann::json run_once(const BenchMpiArgs& a, const Run& r, int index) {
     const std::string stats = a.work_dir + "/stats_" + std::to_string(index) + ".json";
     std::ostringstream cmd;
-    cmd << a.mpiexec << " --oversubscribe --allow-run-as-root -np " << r.ranks << " '"
-        << self_path() << "' render";
+    cmd << a.mpiexec << " --oversubscribe --allow-run-as-root " << a.launcher_flags << " -np "
+        << r.ranks << " '" << self_path() << "' render";
     if (!a.model.empty()) cmd << " '" << a.model << "'";
-    cmd << " --width " << a.width << " --height " << a.height << " --spp " << a.spp
+    const int w = r.frames && a.frame_width > 0 ? a.frame_width : a.width;
+    const int h = r.frames && a.frame_height > 0 ? a.frame_height : a.height;
+    const int spp = r.frames && a.frame_spp > 0 ? a.frame_spp : a.spp;
+    cmd << " --width " << w << " --height " << h << " --spp " << spp
         << " --threads 1 --quiet --mpi --distribution " << r.distribution << " --mpi-stats '"
         << stats << "'";
-    if (a.frames > 0) {
+    if (r.frames) {
         cmd << " --frames " << a.frames << " --turntable -o '" << a.work_dir << "/f_%03d.png'";
     } else {
         cmd << " -o '" << a.work_dir << "/image.png'";
@@ -73,63 +90,115 @@ nlohmann::json run_once(const BenchMpiArgs& a, const Run& r, int index) {
     return nlohmann::json::parse(in);
 }
 
+// CPU seconds of all ranks of the last repeat.
+double total_cpu(const Run& r) {
+    double cpu = 0.0;
+    for (const auto& k : r.last["per_rank"]) cpu += k["cpu_seconds"].get<double>();
+    return cpu;
+}
+
+std::string row_kind(const BenchMpiArgs& a, const Run& r) {
+    return r.frames ? std::to_string(a.frames) + " frames" : "tiles";
+}
+
+void print_table(const BenchMpiArgs& a, const std::vector<Run>& runs) {
+    std::map<std::string, double> one_rank;  // kind + distribution -> median s with 1 rank
+    std::map<std::string, double> one_cpu;   // the same: CPU seconds, last repeat
+    for (const Run& r : runs) {
+        if (r.ranks == 1 && !r.throttled) {
+            one_rank[row_kind(a, r) + r.distribution] = median(r.seconds);
+            one_cpu[row_kind(a, r) + r.distribution] = total_cpu(r);
+        }
+    }
+    std::printf(
+        "| work | distribution | ranks | throttled | load | wall s (min-max) | speedup | "
+        "speedup / ranks | cpu eff. | rank 0 serve s | per rank: items / busy s / idle s / cpu s "
+        "|\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+    for (const Run& r : runs) {
+        const double wall = median(r.seconds);
+        std::string per;
+        for (const auto& k : r.last["per_rank"]) {
+            const double b = k["busy_seconds"].get<double>();
+            char cell[128];
+            std::snprintf(cell, sizeof cell, "%s%d / %.2f / %.2f / %.2f", per.empty() ? "" : "; ",
+                          k["items"].get<int>(), b,
+                          std::max(0.0, r.last["seconds"].get<double>() - b),
+                          k["cpu_seconds"].get<double>());
+            per += cell;
+        }
+        const auto [lo, hi] = std::minmax_element(r.seconds.begin(), r.seconds.end());
+        const auto [load_lo, load_hi] = std::minmax_element(r.load.begin(), r.load.end());
+        const std::string key = row_kind(a, r) + r.distribution;
+        const double base = one_rank.count(key) ? one_rank[key] : 0.0;
+        const double speedup = base > 0.0 && wall > 0.0 ? base / wall : 0.0;
+        const double cpu = total_cpu(r);
+        const double cpu_eff = cpu > 0.0 && one_cpu.count(key) ? one_cpu[key] / cpu : 0.0;
+        std::printf(
+            "| %s | %s | %d | %s | %.1f-%.1f | %.3f (%.3f-%.3f) | %.2f | %.2f | %.2f | %.3f | %s "
+            "|\n",
+            row_kind(a, r).c_str(), r.distribution.c_str(), r.ranks, r.throttled ? "rank 1" : "no",
+            *load_lo, *load_hi, wall, *lo, *hi, speedup, speedup / double(r.ranks), cpu_eff,
+            r.last["per_rank"][0].value("serve_seconds", 0.0), per.c_str());
+    }
+    std::printf(
+        "\nload: 1-minute load average before each repeat (min-max); speedup: 1-rank median "
+        "wall / this median wall (same work and distribution); cpu eff.: the 1-rank run's CPU "
+        "seconds / this run's, all ranks (work the farm adds, spinning included, whatever "
+        "share of the cores the machine gave); per rank: last repeat\n");
+    for (const Run& r : runs) {
+        if (!r.frames || r.ranks < 2 || r.throttled) continue;
+        const double base = one_rank[row_kind(a, r) + r.distribution];
+        const auto& rank0 = r.last["per_rank"][0];
+        const int worker_frames = a.frames - rank0["items"].get<int>();
+        std::printf(
+            "turntable, %d ranks: %.3f s against the ideal %.3f s (1 rank / %d): %.2fx; rank 0 "
+            "received and sent %llu bytes in %llu messages for %d frames of the workers "
+            "(%.0f bytes, %.1f messages per frame), serving %.3f s\n",
+            r.ranks, median(r.seconds), base / double(r.ranks), r.ranks,
+            base > 0.0 ? median(r.seconds) * double(r.ranks) / base : 0.0,
+            (unsigned long long)rank0["bytes"].get<uint64_t>(),
+            (unsigned long long)rank0["messages"].get<uint64_t>(), worker_frames,
+            worker_frames > 0 ? double(rank0["bytes"].get<uint64_t>()) / worker_frames : 0.0,
+            worker_frames > 0 ? double(rank0["messages"].get<uint64_t>()) / worker_frames : 0.0,
+            rank0.value("serve_seconds", 0.0));
+    }
+}
+
 void run(const BenchMpiArgs& a) {
     std::filesystem::create_directories(a.work_dir);
     std::vector<Run> runs;
     for (const std::string& d : a.distributions) {
         for (int n : a.ranks) {
             for (bool throttled : {false, true}) {
-                if (throttled && (n < 2 || !(a.throttle > 1.0))) continue;
-                runs.push_back({n, d, throttled, {}, {}});
+                if (!a.tiles || (throttled && (n < 2 || !(a.throttle > 1.0)))) continue;
+                runs.push_back({n, d, throttled, false, {}, {}, {}});
             }
         }
     }
+    if (a.frames > 0) {
+        for (int n : a.ranks) runs.push_back({n, "dynamic", false, true, {}, {}, {}});
+    }
+    if (runs.empty()) throw Error("bench mpi: nothing to run (--no-tiles without --frames)");
     std::printf(
-        "bench mpi: %s, %dx%d, %d spp, %s, one thread per rank, %d repeats (medians); "
-        "throttled runs slow rank 1 %gx\n",
+        "bench mpi: %s, tiles %dx%d at %d spp%s, one thread per rank, %d repeats (medians); "
+        "throttled runs slow rank 1 %gx; launcher: %s %s\n",
         a.model.empty() ? "default scene" : a.model.c_str(), a.width, a.height, a.spp,
-        a.frames > 0 ? (std::to_string(a.frames) + "-frame turntable").c_str()
-                     : "tiles of one frame",
-        a.repeat, a.throttle);
+        a.frames > 0 ? (", a " + std::to_string(a.frames) + "-frame turntable at " +
+                        std::to_string(a.frame_width > 0 ? a.frame_width : a.width) + "x" +
+                        std::to_string(a.frame_height > 0 ? a.frame_height : a.height) + ", " +
+                        std::to_string(a.frame_spp > 0 ? a.frame_spp : a.spp) + " spp")
+                           .c_str()
+                     : "",
+        a.repeat, a.throttle, a.mpiexec.c_str(), a.launcher_flags.c_str());
     std::printf("(the machine is shared with other jobs: times are indicative)\n\n");
     for (int rep = 0; rep < a.repeat; ++rep) {
         for (size_t i = 0; i < runs.size(); ++i) {
+            runs[i].load.push_back(load_average());
             runs[i].last = run_once(a, runs[i], int(i));
             runs[i].seconds.push_back(runs[i].last["seconds"].get<double>());
         }
     }
-    std::map<std::string, double> one_rank;  // distribution -> median seconds with 1 rank
-    for (const Run& r : runs) {
-        if (r.ranks == 1 && !r.throttled) one_rank[r.distribution] = median(r.seconds);
-    }
-    std::printf(
-        "| distribution | ranks | throttled | wall s (min-max) | speedup | efficiency | "
-        "per rank: items / busy s / idle s / cpu s |\n|---|---|---|---|---|---|---|\n");
-    for (const Run& r : runs) {
-        const double wall = median(r.seconds);
-        double busy = 0.0;
-        std::string per;
-        for (const auto& k : r.last["per_rank"]) {
-            const double b = k["busy_seconds"].get<double>();
-            const double w = r.last["seconds"].get<double>();
-            busy += b;
-            char cell[128];
-            std::snprintf(cell, sizeof cell, "%s%d / %.2f / %.2f / %.2f", per.empty() ? "" : "; ",
-                          k["items"].get<int>(), b, std::max(0.0, w - b),
-                          k["cpu_seconds"].get<double>());
-            per += cell;
-        }
-        const double last_wall = r.last["seconds"].get<double>();
-        const auto [lo, hi] = std::minmax_element(r.seconds.begin(), r.seconds.end());
-        const double base = one_rank.count(r.distribution) ? one_rank[r.distribution] : 0.0;
-        std::printf("| %s | %d | %s | %.3f (%.3f-%.3f) | %.2f | %.2f | %s |\n",
-                    r.distribution.c_str(), r.ranks, r.throttled ? "rank 1" : "no", wall, *lo, *hi,
-                    base > 0.0 && wall > 0.0 ? base / wall : 0.0,
-                    last_wall > 0.0 ? busy / (double(r.ranks) * last_wall) : 0.0, per.c_str());
-    }
-    std::printf(
-        "\nspeedup: 1-rank median wall / this median wall (same distribution); "
-        "efficiency: sum of busy / (ranks x wall), last repeat\n");
+    print_table(a, runs);
 }
 
 }  // namespace
@@ -146,8 +215,18 @@ void add_bench_mpi_command(CLI::App& parent) {
     sub->add_option("--height", args.height)->check(CLI::Range(1, 1 << 14))->capture_default_str();
     sub->add_option("--spp", args.spp)->check(CLI::Range(1, 1 << 20))->capture_default_str();
     sub->add_option("--repeat", args.repeat)->check(CLI::Range(1, 100))->capture_default_str();
-    sub->add_option("--frames", args.frames, "Farm a turntable of this many frames instead")
+    sub->add_option("--frames", args.frames,
+                    "Also farm a turntable of this many frames (dynamic, each rank count)")
         ->check(CLI::Range(0, 1 << 16));
+    sub->add_option("--frame-width", args.frame_width, "Turntable width (0 = --width)")
+        ->check(CLI::Range(0, 1 << 14));
+    sub->add_option("--frame-height", args.frame_height, "Turntable height (0 = --height)")
+        ->check(CLI::Range(0, 1 << 14));
+    sub->add_option("--frame-spp", args.frame_spp, "Turntable spp (0 = --spp)")
+        ->check(CLI::Range(0, 1 << 20));
+    sub->add_flag("--tiles,!--no-tiles", args.tiles, "The tile rows (default on)");
+    sub->add_option("--launcher-flags", args.launcher_flags,
+                    "Extra flags for the launcher, e.g. '--mca mpi_yield_when_idle 1'");
     sub->add_option("--throttle", args.throttle, "Slowdown of rank 1 in throttled runs (1 = off)")
         ->check(CLI::Range(1.0, 1000.0))
         ->capture_default_str();

@@ -63,6 +63,23 @@ std::string MpiContext::broadcast(const std::string& text) const {
     return out;
 }
 
+void MpiContext::check_timeout() const {
+    if (!expired()) return;
+    char buf[96];
+    std::snprintf(buf, sizeof buf, "--timeout %g s reached; every rank stopped", timeout_);
+    throw FarmError(buf, rank_ == 0);
+}
+
+void MpiContext::wait(MPI_Request& request) const {
+    for (int spins = 0;; ++spins) {
+        int done = 0;
+        MPI_Test(&request, &done, MPI_STATUS_IGNORE);
+        if (done) return;
+        check_timeout();
+        if (spins > 1000) std::this_thread::sleep_for(std::chrono::microseconds(50));
+    }
+}
+
 uint64_t snapshot_hash(const RenderSnapshot& snap, const std::string& options_json) {
     // FNV-1a style mixing of 64-bit words.
     uint64_t h = 0xcbf29ce484222325ull;
@@ -98,8 +115,11 @@ void check_every_rank(const MpiContext& ctx, const std::string& what,
         std::snprintf(mine.message, sizeof mine.message, "%s", e.what());
     }
     std::vector<LoadStatus> all(size_t(ctx.size()));
-    MPI_Allgather(&mine, int(sizeof mine), MPI_BYTE, all.data(), int(sizeof mine), MPI_BYTE,
-                  MPI_COMM_WORLD);
+    // Ranks that finish first wait without spinning, leaving the cores to those still loading.
+    MPI_Request request;
+    MPI_Iallgather(&mine, int(sizeof mine), MPI_BYTE, all.data(), int(sizeof mine), MPI_BYTE,
+                   MPI_COMM_WORLD, &request);
+    ctx.wait(request);
     const std::string of = " of " + std::to_string(ctx.size());
     int failed = 0, first = -1;
     for (int r = 0; r < ctx.size(); ++r) {

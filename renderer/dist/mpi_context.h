@@ -13,6 +13,8 @@
 #include <string>
 #include <thread>
 
+#include <mpi.h>
+
 #include "renderer/render/prepare.h"
 
 namespace kdt::dist {
@@ -48,11 +50,19 @@ public:
     /// farm's waits) prints "rank R: --timeout S s reached" and ends with status 3.
     void start_watchdog(double seconds, double grace_seconds = 10.0);
     bool expired() const { return expired_.load(std::memory_order_relaxed); }
+    /// Throws FarmError "--timeout S s reached; every rank stopped" once expired().
+    void check_timeout() const;
     double timeout_seconds() const { return timeout_; }
     void stop_watchdog();
 
     /// Rank 0's string on every rank.
     std::string broadcast(const std::string& text) const;
+
+    /// Waits for a non-blocking MPI operation without taking a core: a short spin, then
+    /// MPI_Test every 50 us with sleeps in between (Open MPI's blocking calls poll at full
+    /// speed unless mpi_yield_when_idle, which takes a core from the ranks still rendering
+    /// on a machine with as many ranks as cores). Throws FarmError when the watchdog expired.
+    void wait(MPI_Request& request) const;
 
 private:
     int rank_ = 0, size_ = 1;

@@ -30,6 +30,12 @@ PathCounters reduce_counters(const PathCounters& mine) {
     return sum;
 }
 
+// Whether a render stops on decisions over the whole film after each pass (adaptive
+// sampling, an error target, a time limit) rather than on a fixed count per pixel.
+bool decides_per_pass(const FilmParams& film, const StopConditions& stop) {
+    return film.adaptive || stop.spp <= 0 || stop.error > 0.0f || stop.seconds > 0.0;
+}
+
 int tiles_x(const Camera& c) {
     return (c.width + RenderSession::kTileSize - 1) / RenderSession::kTileSize;
 }
@@ -41,13 +47,34 @@ void render_tiles_to_spp(RenderSession& session, const std::vector<int>& tiles, 
     for (int drawn = 0; drawn < spp; drawn += per_pass) session.render_pass(tiles, spp);
 }
 
-void check_farm_options(const RenderOptions& o) {
-    if (o.film.adaptive || o.stop.error > 0.0f || o.stop.seconds > 0.0 || o.stop.spp <= 0) {
+void render_frame(RenderSession& session, const StopConditions& stop,
+                  const std::function<void()>& poll, int tiles_per_part) {
+    if (decides_per_pass(session.film_params(), stop)) {
+        // Passes decide over the whole film (active pixels, budget, mean error): a pass is
+        // the smallest part that leaves the render as run_render's.
+        run_render(session, stop, [&poll](const RenderProgress&) { poll(); });
+        return;
+    }
+    std::vector<int> all(size_t(session.tile_count()));
+    for (size_t i = 0; i < all.size(); ++i) all[i] = int(i);
+    const size_t step = size_t(std::max(tiles_per_part, 1));
+    for (size_t i = 0; i < all.size(); i += step) {
+        const std::vector<int> part(all.begin() + long(i),
+                                    all.begin() + long(std::min(i + step, all.size())));
+        render_tiles_to_spp(session, part, stop.spp);
+        poll();
+    }
+}
+
+void check_tile_farm_options(const RenderOptions& o) {
+    if (decides_per_pass(o.film, o.stop)) {
         throw Error(
-            "a distributed render (--mpi) takes a fixed stop.spp without film.adaptive, "
-            "stop.error or stop.seconds: adaptive sampling decides each pixel from its "
-            "neighbours across tile borders, and a time limit depends on each rank's speed, so "
-            "neither image would be the same for every split");
+            "a tiled render (--mpi without --frames) takes a fixed stop.spp without "
+            "film.adaptive, stop.error or stop.seconds: adaptive sampling keeps a pixel going "
+            "while the largest error in its 3x3 neighbourhood, across tile borders, is above "
+            "the threshold and stops on totals over the whole image, and a time limit depends "
+            "on each rank's speed, so a tile rendered apart would not equal the same pixels of "
+            "the single-process render; adaptive frames can be farmed whole (--frames)");
     }
     if (o.film.transparent)
         throw Error(
@@ -55,10 +82,23 @@ void check_farm_options(const RenderOptions& o) {
             "without their coverage (film.transparent)");
 }
 
+void check_frame_farm_options(const RenderOptions& o) {
+    if (o.stop.seconds > 0.0) {
+        throw Error(
+            "a frame farm (--mpi --frames) cannot stop on stop.seconds: each image would "
+            "depend on the speed and load of the rank that draws it (and rank 0 serves the "
+            "others while it renders); use stop.spp or stop.error");
+    }
+    if (o.film.transparent)
+        throw Error(
+            "a distributed render (--mpi) cannot be transparent yet: frames travel "
+            "without their coverage (film.transparent)");
+}
+
 FarmResult render_tile_farm(const MpiContext& ctx, std::shared_ptr<const RenderSnapshot> snapshot,
                             const RenderOptions& options, FarmParams params, Film* film,
                             const FarmProgress& progress) {
-    check_farm_options(options);
+    check_tile_farm_options(options);
     RenderSession session(snapshot, options.trace, options.film);
     const int spp = options.stop.spp;
     params.columns = tiles_x(snapshot->camera);
@@ -97,35 +137,33 @@ FarmResult render_tile_farm(const MpiContext& ctx, std::shared_ptr<const RenderS
     return out;
 }
 
-FarmResult render_frame_farm(const MpiContext& ctx, int frames, const FrameSnapshot& snapshot,
-                             const RenderOptions& options, FarmParams params, const FrameDone& done,
+FarmResult render_frame_farm(const MpiContext& ctx, const std::vector<FrameJob>& frames,
+                             FarmParams params, const FrameDone& done,
                              const FarmProgress& progress) {
-    check_farm_options(options);
-    const int spp = options.stop.spp;
+    for (const FrameJob& f : frames) check_frame_farm_options(f.options);
     params.columns = 1;  // strips: rank r renders frames [r F / N, (r + 1) F / N)
     params.batch = 1;
+    // Rank 0 answers between parts of two tiles per thread, a small share of a frame, so a
+    // worker waits little for its next frame; one frame requested ahead would instead sit in
+    // a worker's queue at the end while the other ranks have nothing left. Adaptive frames
+    // answer only between passes, so they keep one frame ahead.
+    bool fixed = true;
+    for (const FrameJob& f : frames)
+        fixed = fixed && !decides_per_pass(f.options.film, f.options.stop);
+    params.batches_in_flight = fixed ? 1 : 2;
     PathCounters mine;
     const RenderItems render = [&](const std::vector<int>& items,
                                    const std::function<void()>& poll) {
         std::vector<char> bytes;
         for (int frame : items) {
-            RenderSession session(snapshot(frame), options.trace, options.film);
-            std::vector<int> all(size_t(session.tile_count()));
-            for (size_t i = 0; i < all.size(); ++i) all[i] = int(i);
-            if (ctx.rank() == 0) {
-                // Rank 0 serves workers between batches of tiles of its own frame.
-                const int threads =
-                    options.trace.threads > 0 ? options.trace.threads : omp_get_max_threads();
-                const size_t step = size_t(std::max(threads, 1)) * 2;
-                for (size_t i = 0; i < all.size(); i += step) {
-                    const std::vector<int> part(all.begin() + long(i),
-                                                all.begin() + long(std::min(i + step, all.size())));
-                    render_tiles_to_spp(session, part, spp);
-                    poll();
-                }
-            } else {
-                render_tiles_to_spp(session, all, spp);
-            }
+            const FrameJob& job = frames[size_t(frame)];
+            RenderSession session(job.snapshot, job.options.trace, job.options.film);
+            session.set_publishing(false);
+            // Rank 0 serves workers between parts of its own frame (poll is a no-op
+            // elsewhere); two tiles per thread keep the parts short.
+            const int threads =
+                job.options.trace.threads > 0 ? job.options.trace.threads : omp_get_max_threads();
+            render_frame(session, job.options.stop, poll, 2 * std::max(threads, 1));
             mine += session.totals();
             const Film& f = session.film();
             const std::vector<FilmPixel> px = f.export_tile(FilmRect{0, 0, f.width(), f.height()});
@@ -135,20 +173,24 @@ FarmResult render_frame_farm(const MpiContext& ctx, int frames, const FrameSnaps
         }
         return bytes;
     };
-    Film film(options.scene.width, options.scene.height);
     const ConsumeItems consume = [&](const std::vector<int>& items, const char* bytes,
                                      size_t size) {
-        const size_t each = film.pixel_count() * sizeof(FilmPixel);
-        if (size != each * items.size()) throw Error("frame farm: result of the wrong size");
-        for (size_t k = 0; k < items.size(); ++k) {
+        size_t off = 0;
+        for (int frame : items) {
+            const Camera& c = frames[size_t(frame)].snapshot->camera;
+            Film film(c.width, c.height);
+            const size_t each = film.pixel_count() * sizeof(FilmPixel);
+            if (off + each > size) throw Error("frame farm: result of the wrong size");
             std::vector<FilmPixel> px(film.pixel_count());
-            std::memcpy(px.data(), bytes + k * each, each);
+            std::memcpy(px.data(), bytes + off, each);
             film.import_tile(FilmRect{0, 0, film.width(), film.height()}, px);
-            done(items[k], film);
+            done(frame, film);
+            off += each;
         }
+        if (off != size) throw Error("frame farm: result of the wrong size");
     };
     FarmResult out;
-    out.ranks = run_farm(ctx, frames, params, render, consume, progress);
+    out.ranks = run_farm(ctx, int(frames.size()), params, render, consume, progress);
     out.counters = reduce_counters(mine);
     return out;
 }

@@ -19,11 +19,25 @@ namespace kdt::dist {
 /// (passes of the session's samples_per_pass, capped at spp). Non-adaptive films only.
 void render_tiles_to_spp(RenderSession& session, const std::vector<int>& tiles, int spp);
 
-/// Throws kdt::Error unless `options` (resolved) is a render a farm reproduces exactly: a
-/// fixed stop.spp without adaptive sampling, time limit or error target. (Adaptive sampling
-/// decides per pixel from its 3x3 neighbourhood, across tile borders, and a time limit
-/// depends on speed: neither is a function of the pixel alone.)
-void check_farm_options(const RenderOptions& options);
+/// Renders the session's whole frame as run_render(session, stop) does, bitwise, calling
+/// `poll` between parts: between batches of `tiles_per_part` tiles for a fixed stop.spp
+/// without adaptive sampling, after every pass otherwise.
+void render_frame(RenderSession& session, const StopConditions& stop,
+                  const std::function<void()>& poll, int tiles_per_part);
+
+/// Throws kdt::Error unless `options` (resolved) is a tiled render (one frame split over
+/// the ranks) that the farm reproduces exactly: a fixed stop.spp without adaptive sampling,
+/// error target or time limit. Adaptive sampling is not local to a tile: after every pass a
+/// pixel stays active while the largest error in its 3x3 neighbourhood (across tile borders)
+/// is above the threshold, and the render stops on totals over the whole image (the sample
+/// budget, the mean error); a time limit depends on each rank's speed.
+void check_tile_farm_options(const RenderOptions& options);
+
+/// Throws kdt::Error unless `options` (resolved) is a frame a frame farm reproduces exactly.
+/// A whole frame is rendered by one rank with run_render(), so adaptive sampling and error
+/// targets are allowed; a time limit (stop.seconds) is not, since the image would depend on
+/// the speed and load of the rank that draws it.
+void check_frame_farm_options(const RenderOptions& options);
 
 struct FarmResult {
     std::vector<RankStats> ranks;  ///< rank 0: one per rank
@@ -36,16 +50,20 @@ FarmResult render_tile_farm(const MpiContext& ctx, std::shared_ptr<const RenderS
                             const RenderOptions& options, FarmParams params, Film* film,
                             const FarmProgress& progress = {});
 
-/// The snapshot of frame i of a sequence (called on the rank that renders it).
-using FrameSnapshot = std::function<std::shared_ptr<const RenderSnapshot>(int frame)>;
+/// One frame of a sequence: what to render (scene and camera) and how (trace, film, stop).
+struct FrameJob {
+    std::shared_ptr<const RenderSnapshot> snapshot;
+    RenderOptions options;  ///< resolved; check_frame_farm_options() holds
+};
 /// Rank 0: a finished frame, as RenderSession::film() leaves it.
 using FrameDone = std::function<void(int frame, const Film& film)>;
 
-/// Collective: whole frames [0, frames), one at a time per rank, handed out by `params`'
-/// distribution (strips: consecutive frames per rank); results are films sent to rank 0 and passed
-/// to `done`. Rank 0 renders its own frames in tile batches and serves workers in between.
-FarmResult render_frame_farm(const MpiContext& ctx, int frames, const FrameSnapshot& snapshot,
-                             const RenderOptions& options, FarmParams params, const FrameDone& done,
+/// Collective: whole frames (every rank holds the same list), one at a time per rank, handed
+/// out by `params`' distribution (strips: consecutive frames per rank); results are films
+/// sent to rank 0 and passed to `done`. Each frame is rendered by render_frame(); rank 0
+/// serves workers between its parts.
+FarmResult render_frame_farm(const MpiContext& ctx, const std::vector<FrameJob>& frames,
+                             FarmParams params, const FrameDone& done,
                              const FarmProgress& progress = {});
 
 }  // namespace kdt::dist

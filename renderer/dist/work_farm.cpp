@@ -47,13 +47,6 @@ double process_cpu_seconds() {
     return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
 }
 
-[[noreturn]] void timed_out(const MpiContext& ctx) {
-    char buf[96];
-    std::snprintf(buf, sizeof buf, "--timeout %g s reached; every rank stopped",
-                  ctx.timeout_seconds());
-    throw FarmError(buf, ctx.rank() == 0);
-}
-
 // MPI_Probe that gives up when the context's timeout expires (every rank's waits do, so
 // all leave the farm together and finalize normally).
 void probe(const MpiContext& ctx, int source, int tag, MPI_Status* st) {
@@ -61,7 +54,7 @@ void probe(const MpiContext& ctx, int source, int tag, MPI_Status* st) {
         int flag = 0;
         MPI_Iprobe(source, tag, MPI_COMM_WORLD, &flag, st);
         if (flag) return;
-        if (ctx.expired()) timed_out(ctx);
+        ctx.check_timeout();
         // Spin briefly for low latency, then yield the core to the renderers.
         if (spins > 1000) std::this_thread::sleep_for(std::chrono::microseconds(50));
     }
@@ -72,7 +65,7 @@ void throttle(const MpiContext& ctx, const FarmParams& p, double seconds) {
     const auto end = std::chrono::steady_clock::now() +
                      std::chrono::duration<double>(seconds * (p.throttle_factor - 1.0));
     while (std::chrono::steady_clock::now() < end) {
-        if (ctx.expired()) timed_out(ctx);
+        ctx.check_timeout();
         std::this_thread::sleep_for(std::chrono::milliseconds(1));
     }
 }
@@ -114,6 +107,7 @@ public:
     void handle(int source) {
         MPI_Status st;
         probe(ctx_, source, kTagResult, &st);
+        Timer serve;
         int size = 0;
         MPI_Get_count(&st, MPI_BYTE, &size);
         buffer_.resize(size_t(size));
@@ -129,12 +123,14 @@ public:
         const size_t off = sizeof h + items.size() * sizeof(int32_t);
         if (!items.empty()) done_items(items, buffer_.data() + off, buffer_.size() - off);
         const int w = st.MPI_SOURCE;
-        if (told_done_[size_t(w)]) return;
-        const std::vector<int> next = take(w, std::max(h.want, 1));
-        MPI_Send(next.data(), int(next.size()), MPI_INT, w, kTagWork, MPI_COMM_WORLD);
-        stats.messages += 1;
-        stats.bytes += next.size() * sizeof(int32_t);
-        if (next.empty()) told_done_[size_t(w)] = true;
+        if (!told_done_[size_t(w)]) {
+            const std::vector<int> next = take(w, std::max(h.want, 1));
+            MPI_Send(next.data(), int(next.size()), MPI_INT, w, kTagWork, MPI_COMM_WORLD);
+            stats.messages += 1;
+            stats.bytes += next.size() * sizeof(int32_t);
+            if (next.empty()) told_done_[size_t(w)] = true;
+        }
+        stats.serve_seconds += serve.seconds();
     }
 
     void poll() {
@@ -242,7 +238,7 @@ RankStats run_worker(const MpiContext& ctx, const FarmParams& params, const Rend
         stats.items += int32_t(mine.size());
         send(pack_result(mine, no_more ? 0 : int(mine.size()), bytes));
     }
-    for (auto& s : sends) MPI_Wait(&s.first, MPI_STATUS_IGNORE);
+    for (auto& s : sends) ctx.wait(s.first);
     stats.wall_seconds = wall.seconds();
     return stats;
 }
@@ -271,7 +267,11 @@ std::vector<std::vector<int>> assign_items(Distribution d, int items, int column
 std::vector<RankStats> run_farm(const MpiContext& ctx, int items, const FarmParams& params,
                                 const RenderItems& render, const ConsumeItems& consume,
                                 const FarmProgress& progress) {
-    MPI_Barrier(MPI_COMM_WORLD);  // every rank starts the clock together
+    // Every rank starts the clock together. The collectives here wait without spinning
+    // (MpiContext::wait): a rank that is done must not take a core from one still rendering.
+    MPI_Request request;
+    MPI_Ibarrier(MPI_COMM_WORLD, &request);
+    ctx.wait(request);
     const double cpu0 = process_cpu_seconds();
     RankStats mine;
     if (ctx.rank() == 0) {
@@ -283,8 +283,9 @@ std::vector<RankStats> run_farm(const MpiContext& ctx, int items, const FarmPara
     }
     mine.cpu_seconds = process_cpu_seconds() - cpu0;
     std::vector<RankStats> all(ctx.rank() == 0 ? size_t(ctx.size()) : 1);
-    MPI_Gather(&mine, int(sizeof mine), MPI_BYTE, all.data(), int(sizeof mine), MPI_BYTE, 0,
-               MPI_COMM_WORLD);
+    MPI_Igather(&mine, int(sizeof mine), MPI_BYTE, all.data(), int(sizeof mine), MPI_BYTE, 0,
+                MPI_COMM_WORLD, &request);
+    ctx.wait(request);
     if (ctx.rank() != 0) all[0] = mine;
     return all;
 }

@@ -27,10 +27,12 @@ std::vector<std::vector<int>> assign_items(Distribution d, int items, int column
 
 struct FarmParams {
     Distribution distribution = Distribution::dynamic;
-    int columns = 1;            ///< items per row, for strips
-    int batch = 1;              ///< items a rank renders between two messages
-    int batches_in_flight = 2;  ///< per worker: requested ahead, so it never waits for rank 0
-    int throttle_rank = -1;     ///< test-only: this rank sleeps (factor - 1) x its render time
+    int columns = 1;  ///< items per row, for strips
+    int batch = 1;    ///< items a rank renders between two messages
+    /// Per worker: batches requested ahead, so that it need not wait for rank 0's reply. More
+    /// than one hides rank 0's reply time but leaves items queued at a worker at the end.
+    int batches_in_flight = 2;
+    int throttle_rank = -1;  ///< test-only: this rank sleeps (factor - 1) x its render time
     double throttle_factor = 1.0;
 };
 
@@ -38,12 +40,14 @@ struct FarmParams {
 struct RankStats {
     int32_t rank = 0;
     int32_t items = 0;
-    double busy_seconds = 0.0;  ///< rendering (and throttle sleeps)
-    double wall_seconds = 0.0;  ///< from the farm's start to this rank's last item sent
-    double cpu_seconds = 0.0;   ///< CPU time of the process over the farm (all its threads):
-                                ///< below busy_seconds x threads when the machine is shared
-    uint64_t messages = 0;      ///< sent and received by this rank
-    uint64_t bytes = 0;         ///< sent and received by this rank
+    double busy_seconds = 0.0;   ///< rendering (and throttle sleeps)
+    double wall_seconds = 0.0;   ///< from the farm's start to this rank's last item sent
+    double cpu_seconds = 0.0;    ///< CPU time of the process over the farm (all its threads):
+                                 ///< below busy_seconds x threads when the machine is shared
+    double serve_seconds = 0.0;  ///< rank 0: receiving, consuming and answering results
+                                 ///< (part of busy_seconds while it renders)
+    uint64_t messages = 0;       ///< sent and received by this rank
+    uint64_t bytes = 0;          ///< sent and received by this rank
 };
 
 /// Renders items on the calling rank. `poll` (rank 0 only; a no-op elsewhere) may be called

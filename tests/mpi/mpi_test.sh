@@ -12,6 +12,28 @@ fail() { echo "FAIL: $*"; exit 1; }
 common=(render "$model" --no-cache --width 72 --height 40 --spp 5 --spp-per-pass 2 --seed 11
         --threads 1 --quiet)
 
+# A views file with three cameras on the model (Wuson: x [-0.46, 0.46], y [0, 1.52],
+# z [-1.62, 1.62]).
+views() {
+    cat > views.json << 'EOF'
+{"views": [
+  {"name": "front", "eye": [0, 0.8, 4.5], "target": [0, 0.75, 0], "vfov_degrees": 40},
+  {"name": "side", "eye": [4.5, 1.0, 0.3], "target": [0, 0.75, 0], "vfov_degrees": 40},
+  {"name": "top", "eye": [0.5, 5, 0.5], "target": [0, 0.75, 0], "up": [0, 0, -1], "vfov_degrees": 45}]}
+EOF
+}
+# Two session files of other sizes, seeds and cameras; "far" asks for 64 spp (the command
+# line's --spp wins); sub/near.json has the same stem as near.json.
+sessions() {
+    cat > near.json << 'EOF'
+{"scene": {"width": 40, "height": 30, "camera": {"eye": [1.5, 1.2, 3.0], "target": [0, 0.7, 0], "up": [0, 1, 0], "vfov_degrees": 35}}, "trace": {"seed": 3}}
+EOF
+    cat > far.json << 'EOF'
+{"scene": {"width": 56, "height": 24, "camera": {"eye": [-3, 2, -5], "target": [0, 0.7, 0], "up": [0, 1, 0], "vfov_degrees": 30}}, "trace": {"seed": 4}, "stop": {"spp": 64}}
+EOF
+    mkdir -p sub && cp near.json sub/near.json
+}
+
 # Tiles per rank from the "mpi: rank R: N tiles" lines.
 tiles_of() { sed -n "s/^mpi: rank $2: \([0-9]*\) tiles.*/\1/p" "$1"; }
 
@@ -96,10 +118,113 @@ timeout)
     grep -q "kdtrace: error: --timeout 6 s reached; every rank stopped" <<< "$out" ||
         fail "no timeout message" ;;
 refuse_adaptive)
-    out=$(mpi 2 "${common[@]}" --error 0.1 --mpi -o x.pfm 2>&1); rc=$?
+    # A tile's adaptive decisions read its neighbours across tile borders: refused for tiles.
+    for flags in "--error 0.1" "--adaptive"; do
+        out=$(mpi 2 "${common[@]}" $flags --mpi -o x.pfm 2>&1); rc=$?
+        echo "$out"
+        [ $rc -ne 0 ] || fail "$flags with a tiled --mpi render gave exit status 0"
+        grep -q "every rank could not start: a tiled render (--mpi without --frames) takes a fixed stop.spp.*3x3 neighbourhood" <<< "$out" ||
+            fail "message for $flags"
+    done
+    # A time limit depends on each rank's speed: refused for frames too.
+    out=$(mpi 2 "${common[@]}" --frames 2 --turntable --time 1 --mpi -o "t_%d.pfm" 2>&1); rc=$?
     echo "$out"
-    [ $rc -ne 0 ] || fail "--error with --mpi gave exit status 0"
-    grep -q "every rank could not start: a distributed render (--mpi) takes a fixed stop.spp" <<< "$out" ||
-        fail "message" ;;
+    [ $rc -ne 0 ] || fail "--time with a frame farm gave exit status 0"
+    grep -q "every rank could not start: a frame farm (--mpi --frames) cannot stop on stop.seconds (--time)" <<< "$out" ||
+        fail "message for --time"
+    [ -e t_0.pfm ] && fail "a refused run wrote a frame"
+    echo "ok: adaptive tiles and timed frames refused on every rank" ;;
+views)
+    # --frames views: each frame is bitwise the render of that one --view, locally and over
+    # 3 and 2 ranks; outputs are named after the views, or numbered by a pattern.
+    views
+    names=(front side top)
+    for v in "${names[@]}"; do
+        "$kdtrace" "${common[@]}" --views views.json --view "$v" -o "single_$v.pfm" > /dev/null ||
+            fail "single render of view $v"
+    done
+    cmp -s single_front.pfm single_side.pfm && fail "views front and side rendered the same image"
+    "$kdtrace" "${common[@]}" --views views.json --frames views:all -o local.pfm > /dev/null ||
+        fail "local views:all"
+    for v in "${names[@]}"; do cmp "single_$v.pfm" "local_$v.pfm" || fail "local frame $v differs"; done
+    for run in 3:dynamic 2:strips; do
+        n=${run%%:*} dist=${run#*:}
+        rm -f mpi_*.pfm
+        mpi "$n" "${common[@]}" --views views.json --frames views:top,front,side --mpi \
+            --distribution "$dist" -o "mpi_%02d.pfm" > "log_$n.txt" 2>&1 ||
+            { cat "log_$n.txt"; fail "views over $n ranks"; }
+        cmp single_top.pfm mpi_00.pfm && cmp single_front.pfm mpi_01.pfm &&
+            cmp single_side.pfm mpi_02.pfm || fail "views over $n ranks, $dist differ"
+        grep -q "mpi: $n ranks, $dist, 3 frames" "log_$n.txt" || { cat "log_$n.txt"; fail "summary"; }
+    done
+    echo "ok: 3 views identical to single renders, locally and over 3 and 2 ranks" ;;
+sessions)
+    # --frames sessions: frame i is `render --session FILE_i` with the same other flags:
+    # the sessions' own sizes, seeds and cameras, and the command line's --spp over theirs.
+    sessions
+    flags=(render "$model" --no-cache --threads 1 --quiet --spp 3)
+    for s in near far; do
+        "$kdtrace" "${flags[@]}" --session "$s.json" -o "single_$s.pfm" > /dev/null ||
+            fail "single render of session $s"
+    done
+    cmp -s single_near.pfm single_far.pfm && fail "the two sessions rendered the same image"
+    "$kdtrace" "${flags[@]}" --frames sessions:near.json,far.json -o local.pfm > /dev/null ||
+        fail "local sessions"
+    cmp single_near.pfm local_near.pfm && cmp single_far.pfm local_far.pfm ||
+        fail "local session frames differ"
+    mpi 3 "${flags[@]}" --frames sessions:far.json,near.json --mpi -o "mpi_%d.pfm" > log.txt 2>&1 ||
+        { cat log.txt; fail "sessions over 3 ranks"; }
+    cmp single_far.pfm mpi_0.pfm && cmp single_near.pfm mpi_1.pfm ||
+        fail "session frames over 3 ranks differ"
+    echo "ok: 2 session frames (40x30 and 56x24) identical to single renders" ;;
+adaptive_frames)
+    # Adaptive sampling and an error target are allowed for whole frames: each frame is
+    # bitwise the single-process adaptive render, for every split.
+    views
+    for stop in "--error 0.25" "--adaptive"; do
+        tag=${stop// /}
+        for v in front top; do
+            "$kdtrace" "${common[@]}" $stop --views views.json --view "$v" -o "single_${tag}_$v.pfm" \
+                > /dev/null || fail "single $stop render of $v"
+        done
+        for n in 2 3; do
+            rm -f mpi_*.pfm
+            mpi "$n" "${common[@]}" $stop --views views.json --frames views:front,top --mpi \
+                -o mpi.pfm > "log_$n.txt" 2>&1 || { cat "log_$n.txt"; fail "$stop over $n ranks"; }
+            cmp "single_${tag}_front.pfm" mpi_front.pfm && cmp "single_${tag}_top.pfm" mpi_top.pfm ||
+                fail "$stop frames over $n ranks differ from the single renders"
+        done
+    done
+    # The adaptive render is not the fixed-spp one (so the comparisons above can fail).
+    "$kdtrace" "${common[@]}" --views views.json --view front -o fixed_front.pfm > /dev/null
+    cmp -s fixed_front.pfm single_--error0.25_front.pfm && fail "--error made no difference"
+    echo "ok: --error and --adaptive frames identical over 2 and 3 ranks" ;;
+bad_list)
+    # A bad listed file stops every rank before any frame renders: one message naming it,
+    # exit status non-zero, no image, no hang (mpi() gives up after 100 s).
+    sessions
+    views
+    echo '{"stop": {"spp": 2}, "trace": {"no_such_key": 1}}' > broken.json
+    check() {  # WHAT EXPECTED-REGEX ARGS...
+        local what=$1 expect=$2 out rc
+        shift 2
+        rm -f out_*.pfm
+        out=$(mpi 3 "${common[@]}" "$@" --mpi -o "out_%d.pfm" 2>&1); rc=$?
+        echo "$out"
+        [ $rc -ne 0 ] || fail "$what: exit status 0"
+        [ "$(grep -c 'kdtrace: error:' <<< "$out")" -eq 1 ] || fail "$what: not exactly one error message"
+        grep -q "kdtrace: error: every rank could not start: $expect" <<< "$out" || fail "$what: message"
+        ls out_*.pfm 2> /dev/null && fail "$what: a frame was written"
+        return 0
+    }
+    check "missing session" ".*missing.json" --frames sessions:near.json,missing.json
+    check "bad key" ".*broken.json.*no_such_key.*unknown key" --frames sessions:near.json,broken.json
+    check "unknown view" ".*views.json.*no view named \"back\" (views: front, side, top)" \
+        --views views.json --frames views:front,back
+    check "missing views file" ".*nope.json" --views nope.json --frames views:all
+    # Two frames that would overwrite one file.
+    out=$("$kdtrace" "${common[@]}" --frames sessions:near.json,sub/near.json -o o.pfm 2>&1)
+    grep -q "would both be written to o_near.pfm" <<< "$out" || { echo "$out"; fail "same output"; }
+    echo "ok: bad listed files stop every rank with one message" ;;
 *) fail "unknown case $case_name" ;;
 esac

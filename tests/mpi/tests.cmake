@@ -7,7 +7,8 @@ if(KDT_WITH_MPI AND EXISTS /usr/share/assimp/models/PLY/Wuson.ply)
     set(_mpiexec mpirun)
   endif()
   foreach(_case identity_dynamic identity_interleaved identity_strips frames throttle fail_load
-                fail_hash fail_missing timeout refuse_adaptive)
+                fail_hash fail_missing timeout refuse_adaptive views sessions adaptive_frames
+                bad_list)
     add_test(NAME mpi.${_case}
              COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/mpi_test.sh ${_case} $<TARGET_FILE:kdtrace>
                      ${_mpiexec} ${CMAKE_BINARY_DIR}/mpi_tests/${_case}
@@ -28,5 +29,10 @@ if(EXISTS ${_cube})
            COMMAND $<TARGET_FILE:kdtrace> render ${_cube} --no-cache --frames 3
                    -o ${CMAKE_BINARY_DIR}/frame_%d.png)
   set_tests_properties(smoke.frames_need_turntable PROPERTIES
-    PASS_REGULAR_EXPRESSION "--frames needs --turntable")
+    PASS_REGULAR_EXPRESSION "--frames N needs --turntable")
+  add_test(NAME smoke.turntable_needs_frames
+           COMMAND $<TARGET_FILE:kdtrace> render ${_cube} --no-cache --turntable
+                   -o ${CMAKE_BINARY_DIR}/frame_%d.png)
+  set_tests_properties(smoke.turntable_needs_frames PROPERTIES
+    PASS_REGULAR_EXPRESSION "--turntable needs --frames N")
 endif()
