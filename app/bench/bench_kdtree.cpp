@@ -183,7 +183,7 @@ void add_bench_kdtree_command(CLI::App& bench) {
                     "Write a PGM picture of each view's first-sample hits into this directory");
     cmd->add_flag("!--no-robustness", opt.robustness, "Skip the aimed and NaN/Inf ray table");
     cmd->add_option("--stream-lanes", opt.stream_lanes,
-                    "Lane counts of the stream engines (1, 4, 8, 12, 16), comma-separated; "
+                    "Lane counts of the stream engines (1, 4, 8, 16, 24, 32), comma-separated; "
                     "empty = none")
         ->capture_default_str();
     cmd->add_option("--robust-rays", opt.robust_rays, "Vertex- and edge-aimed rays each")

@@ -67,7 +67,7 @@ std::vector<int> stream_lane_counts(const std::string& list) {
                                        [&](int c) { return std::to_string(c) == item; });
         if (!known) {
             throw Error(ErrorLocation{"--stream-lanes"},
-                        "unknown lane count '" + item + "' (1, 4, 8, 12 or 16)");
+                        "unknown lane count '" + item + "' (1, 4, 8, 16, 24 or 32)");
         }
         counts.push_back(std::stoi(item));
     }

@@ -264,19 +264,267 @@ void trace_stream(const TreeView& tv, const Ray* rays, size_t count, Hit* hits, 
     }
 }
 
+#if KDT_SIMD_TRAVERSAL
+// Eight lanes whose descent steps run side by side in AVX2 registers (one lane per
+// element): each step gathers the eight current nodes and decides every lane's next node
+// with the same float operations, in the same order, as descend() does for one ray. Lanes
+// at a leaf, or whose subtree is done, leave the vector step for the scalar phases (leaf
+// records, vertices, test, pop) and rejoin it at their next node.
+struct Octet {
+    alignas(32) uint32_t idx[8];
+    alignas(32) float t0[8];
+    alignas(32) float t1[8];
+    alignas(32) float org[3][8];
+    alignas(32) float inv[3][8];
+    alignas(32) uint32_t neg_bits[8];
+    uint32_t vector_mask = 0;  // lanes in the vector step
+    uint32_t live_mask = 0;    // lanes with a ray
+    Lane lanes[8];
+
+    // Copies lane j's node and interval into the vector step.
+    void enter(int j) {
+        const Lane& l = lanes[j];
+        idx[j] = l.idx;
+        t0[j] = l.t0;
+        t1[j] = l.t1;
+        vector_mask |= 1u << j;
+    }
+    void set_ray(int j) {
+        const Lane& l = lanes[j];
+        for (int k = 0; k < 3; ++k) {
+            org[k][j] = l.rs.org[k];
+            inv[k][j] = l.rs.inv[k];
+        }
+        neg_bits[j] = l.rs.neg_bits;
+    }
+};
+
+// One descent step of the octet's vector lanes: the gathers of the eight nodes, then per
+// lane descend()'s operations (maxps / minps keep t0 / t1 on NaN as maxss / minss do; the
+// slack products are exact, so no FMA contraction can differ). Lanes that reach a leaf
+// leave the vector step in phase leaf_refs, their records prefetched; returns the mask of
+// lanes that enter neither child (they pop).
+inline uint32_t octet_step(const TreeView& tv, Octet& o) {
+    const __m256i lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+    const __m256i active = _mm256_cmpeq_epi32(
+        _mm256_and_si256(_mm256_set1_epi32(int(o.vector_mask)), lane_bits), lane_bits);
+    const __m256i vidx = _mm256_load_si256(reinterpret_cast<const __m256i*>(o.idx));
+    const __m256i vidx2 = _mm256_add_epi32(vidx, vidx);
+    const int* base = reinterpret_cast<const int*>(tv.nodes);
+    const __m256i word =
+        _mm256_mask_i32gather_epi32(_mm256_setzero_si256(), base, vidx2, active, 4);
+    const __m256i second = _mm256_mask_i32gather_epi32(
+        _mm256_setzero_si256(), base, _mm256_add_epi32(vidx2, _mm256_set1_epi32(1)), active, 4);
+    const __m256 split = _mm256_castsi256_ps(second);
+    const __m256i three = _mm256_set1_epi32(3), one = _mm256_set1_epi32(1);
+    const __m256i axis = _mm256_and_si256(word, three);
+    const __m256i is_leaf = _mm256_cmpeq_epi32(axis, three);
+    const __m256 ax1 = _mm256_castsi256_ps(_mm256_cmpeq_epi32(axis, one));
+    const __m256 ax2 = _mm256_castsi256_ps(_mm256_cmpeq_epi32(axis, _mm256_set1_epi32(2)));
+    auto pick = [&](const float(*v)[8]) {
+        return _mm256_blendv_ps(_mm256_blendv_ps(_mm256_load_ps(v[0]), _mm256_load_ps(v[1]), ax1),
+                                _mm256_load_ps(v[2]), ax2);
+    };
+    const __m256 ts = _mm256_mul_ps(_mm256_sub_ps(split, pick(o.org)), pick(o.inv));
+    const __m256 t0 = _mm256_load_ps(o.t0), t1 = _mm256_load_ps(o.t1);
+    const __m256 abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
+    const __m256 slack = _mm256_set1_ps(kIntervalSlack);
+    const __m256 lo0 = _mm256_sub_ps(t0, _mm256_mul_ps(slack, _mm256_and_ps(t0, abs_mask)));
+    const __m256 hi1 = _mm256_add_ps(t1, _mm256_mul_ps(slack, _mm256_and_ps(t1, abs_mask)));
+    const __m256i neg = _mm256_and_si256(
+        _mm256_srlv_epi32(_mm256_load_si256(reinterpret_cast<const __m256i*>(o.neg_bits)), axis),
+        one);
+    const __m256i empty = _mm256_srli_epi32(word, 2);
+    const __m256i first = _mm256_srli_epi32(word, 4);
+    const __m256i near_idx = _mm256_add_epi32(first, neg);
+    const __m256i far_idx = _mm256_sub_epi32(_mm256_add_epi32(first, one), neg);
+    const __m256i near_empty = _mm256_and_si256(_mm256_srlv_epi32(empty, neg), one);
+    const __m256i far_empty =
+        _mm256_and_si256(_mm256_srlv_epi32(empty, _mm256_sub_epi32(one, neg)), one);
+    const __m256i zero = _mm256_setzero_si256();
+    // !(ts < lo0) and !(ts > hi1), true on NaN as there; never into an empty child.
+    const __m256i go_near =
+        _mm256_and_si256(_mm256_cmpeq_epi32(near_empty, zero),
+                         _mm256_castps_si256(_mm256_cmp_ps(ts, lo0, _CMP_NLT_UQ)));
+    const __m256i go_far =
+        _mm256_and_si256(_mm256_cmpeq_epi32(far_empty, zero),
+                         _mm256_castps_si256(_mm256_cmp_ps(ts, hi1, _CMP_NGT_UQ)));
+    const __m256 far_t0 = _mm256_max_ps(ts, t0);  // ts > t0 ? ts : t0
+    const __m256 near_t1 = _mm256_min_ps(ts, t1);
+    const __m256i inner = _mm256_andnot_si256(is_leaf, active);
+    const uint32_t both = uint32_t(_mm256_movemask_ps(
+        _mm256_castsi256_ps(_mm256_and_si256(inner, _mm256_and_si256(go_near, go_far)))));
+    const __m256i moves = _mm256_and_si256(inner, _mm256_or_si256(go_near, go_far));
+    const __m256i to_near = _mm256_and_si256(inner, go_near);
+    const __m256i to_far = _mm256_andnot_si256(go_near, moves);
+    // Far children of lanes that visit both: pushed, as descend() does.
+    if (both) {
+        alignas(32) uint32_t far_a[8];
+        alignas(32) float ft0[8];
+        _mm256_store_si256(reinterpret_cast<__m256i*>(far_a), far_idx);
+        _mm256_store_ps(ft0, far_t0);
+        for (uint32_t m = both; m; m &= m - 1) {
+            const int j = __builtin_ctz(m);
+            Lane& l = o.lanes[j];
+            StackItem& top = l.stack[l.depth++];
+            top.node = far_a[j];
+            top.t0 = ft0[j];
+            top.t1 = o.t1[j];
+        }
+    }
+    const __m256i new_idx =
+        _mm256_blendv_epi8(_mm256_blendv_epi8(vidx, far_idx, to_far), near_idx, to_near);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(o.idx), new_idx);
+    _mm256_store_ps(o.t0, _mm256_blendv_ps(t0, far_t0, _mm256_castsi256_ps(to_far)));
+    _mm256_store_ps(o.t1, _mm256_blendv_ps(t1, near_t1, _mm256_castsi256_ps(to_near)));
+    const uint32_t moved = uint32_t(_mm256_movemask_ps(_mm256_castsi256_ps(moves)));
+    for (uint32_t m = moved; m; m &= m - 1) prefetch(tv.nodes + o.idx[__builtin_ctz(m)]);
+    const uint32_t leaves =
+        uint32_t(_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_and_si256(is_leaf, active))));
+    for (uint32_t m = leaves; m; m &= m - 1) {
+        const int j = __builtin_ctz(m);
+        Lane& l = o.lanes[j];
+        l.idx = o.idx[j];
+        l.leaf = tv.nodes[l.idx];
+        l.t0 = o.t0[j];
+        l.t1 = o.t1[j];
+        o.vector_mask &= ~(1u << j);
+        l.phase = Phase::leaf_refs;
+        if (tv.reference_triangles)
+            prefetch_range(tv.reference_triangles + l.leaf.first, l.leaf.count() * sizeof(Vec3u));
+        else
+            prefetch_range(tv.indices + l.leaf.first, l.leaf.count() * sizeof(uint32_t));
+    }
+    // Inner lanes that enter neither child pop.
+    return o.vector_mask & ~moved & ~leaves;
+}
+
+// Traces rays[0, count) with kGroups octets, visited in turn: while one octet steps, the
+// nodes the others prefetched arrive. A lane whose ray is done takes the next ray.
+template <bool kAnyHit, int kGroups>
+void trace_octets(const TreeView& tv, const Ray* rays, size_t count, Hit* hits, uint8_t* occluded) {
+    Octet octets[kGroups];
+    size_t next = 0;
+    auto finish = [&](Lane& l) {
+        if (kAnyHit) {
+            occluded[l.ray] = l.best_prim != Hit::kNoHit ? 1 : 0;
+        } else if (l.best_prim != Hit::kNoHit) {
+            Hit& h = hits[l.ray];
+            h.t = l.best_t * l.rs.t_scale;
+            h.u = l.best_u;
+            h.v = l.best_v;
+            h.prim = l.best_prim;
+        }
+    };
+    // Lane j of o takes the next ray that meets the tree, or leaves the octet.
+    auto refill = [&](Octet& o, int j) {
+        while (next < count) {
+            const size_t i = next++;
+            if (start(tv, rays[i], uint32_t(i), o.lanes[j])) {
+                o.set_ray(j);
+                o.enter(j);
+                o.live_mask |= 1u << j;
+                return;
+            }
+        }
+        o.live_mask &= ~(1u << j);
+        o.vector_mask &= ~(1u << j);
+    };
+    // Lane j of o pops its next node into the vector step, or its ray is done.
+    auto pop_or_finish = [&](Octet& o, int j) {
+        Lane& l = o.lanes[j];
+        l.phase = Phase::descend;
+        if (pop(l)) {
+            prefetch(tv.nodes + l.idx);
+            o.enter(j);
+            return;
+        }
+        finish(l);
+        o.vector_mask &= ~(1u << j);
+        refill(o, j);
+    };
+    uint32_t any_live = 0;
+    for (Octet& o : octets) {
+        for (int j = 0; j < 8; ++j) {
+            o.idx[j] = 0;
+            o.t0[j] = o.t1[j] = 0.0f;
+            refill(o, j);
+        }
+        any_live |= o.live_mask;
+    }
+    while (any_live) {
+        any_live = 0;
+        for (Octet& o : octets) {
+            if (o.vector_mask) {
+                for (uint32_t m = octet_step(tv, o); m; m &= m - 1)
+                    pop_or_finish(o, __builtin_ctz(m));
+            }
+            for (uint32_t m = o.live_mask & ~o.vector_mask; m; m &= m - 1) {
+                const int j = __builtin_ctz(m);
+                Lane& l = o.lanes[j];
+                if (l.phase == Phase::leaf_refs) {
+                    const KdNode leaf = l.leaf;
+                    if (leaf.count() == 0) {  // the root as an empty leaf
+                        pop_or_finish(o, j);
+                        continue;
+                    }
+                    for (uint32_t k = 0; k < leaf.count(); ++k) {
+                        const Vec3u& tri = tv.reference_triangles
+                                               ? tv.reference_triangles[leaf.first + k]
+                                               : tv.triangles[tv.indices[leaf.first + k]];
+                        prefetch(tv.positions + tri.x);
+                        prefetch(tv.positions + tri.y);
+                        prefetch(tv.positions + tri.z);
+                    }
+                    l.phase = Phase::leaf_vertices;
+                    continue;
+                }
+                const bool hit = tv.reference_triangles ? test_leaf<kAnyHit, true>(tv, l)
+                                                        : test_leaf<kAnyHit, false>(tv, l);
+                if (hit) {
+                    l.best_prim = 0;
+                    finish(l);
+                    refill(o, j);
+                    continue;
+                }
+                pop_or_finish(o, j);
+            }
+            any_live |= o.live_mask;
+        }
+    }
+}
+#endif
+
+// Lane counts as kStreamLaneChoices lists them. On AVX2 builds multiples of eight run as
+// octets (the scalar round-robin was slower at every such count), other counts round-robin.
 template <bool kAnyHit, bool kDirect>
 void dispatch_lanes(const TreeView& tv, const Ray* rays, size_t count, Hit* hits, uint8_t* occluded,
                     int lanes) {
-    if (lanes <= 2)
+#if KDT_SIMD_TRAVERSAL
+    if (lanes >= 8) {
+        if (lanes < 16)
+            trace_octets<kAnyHit, 1>(tv, rays, count, hits, occluded);
+        else if (lanes < 24)
+            trace_octets<kAnyHit, 2>(tv, rays, count, hits, occluded);
+        else if (lanes < 32)
+            trace_octets<kAnyHit, 3>(tv, rays, count, hits, occluded);
+        else
+            trace_octets<kAnyHit, 4>(tv, rays, count, hits, occluded);
+        return;
+    }
+#endif
+    if (lanes < 4)
         trace_stream<kAnyHit, kDirect, 1>(tv, rays, count, hits, occluded);
-    else if (lanes <= 6)
+    else if (lanes < 8)
         trace_stream<kAnyHit, kDirect, 4>(tv, rays, count, hits, occluded);
-    else if (lanes <= 10)
+    else if (lanes < 16)
         trace_stream<kAnyHit, kDirect, 8>(tv, rays, count, hits, occluded);
-    else if (lanes <= 14)
-        trace_stream<kAnyHit, kDirect, 12>(tv, rays, count, hits, occluded);
-    else
+    else if (lanes < 24)
         trace_stream<kAnyHit, kDirect, 16>(tv, rays, count, hits, occluded);
+    else if (lanes < 32)
+        trace_stream<kAnyHit, kDirect, 24>(tv, rays, count, hits, occluded);
+    else
+        trace_stream<kAnyHit, kDirect, 32>(tv, rays, count, hits, occluded);
 }
 
 template <bool kAnyHit>

@@ -12,9 +12,10 @@
 namespace kdt {
 
 /// Rays a stream query keeps in flight per thread unless told otherwise.
-inline constexpr int kStreamLanes = 8;
-/// The lane counts a stream query accepts (others are rounded to the nearest of these).
-inline constexpr int kStreamLaneChoices[] = {1, 4, 8, 12, 16};
+inline constexpr int kStreamLanes = 16;
+/// The lane counts a stream query accepts (others are rounded down to one of these). On
+/// AVX2 builds multiples of eight step eight rays at once in SIMD registers.
+inline constexpr int kStreamLaneChoices[] = {1, 4, 8, 16, 24, 32};
 
 /// Closest hits of rays[0, count): hits[i] is bit for bit what tree.intersect(rays[i],
 /// hits[i]) gives (same t, triangle, u, v), for any `lanes`. The rays need not be coherent;
