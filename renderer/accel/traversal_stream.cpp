@@ -66,6 +66,38 @@ inline void prefetch_range(const void* p, size_t bytes) {
     prefetch(c + bytes - 1);
 }
 
+// A leaf's triangle records: vertex indices beside the leaf's indices, or the indices.
+inline void prefetch_records(const TreeView& tv, const KdNode leaf) {
+    if (tv.reference_triangles)
+        prefetch_range(tv.reference_triangles + leaf.first, leaf.count() * sizeof(Vec3u));
+    else
+        prefetch_range(tv.indices + leaf.first, leaf.count() * sizeof(uint32_t));
+}
+
+// The vertices of a leaf's triangles, once their records are in hand.
+inline void prefetch_vertices(const TreeView& tv, const KdNode leaf) {
+    for (uint32_t k = 0; k < leaf.count(); ++k) {
+        const Vec3u& tri = tv.triangle_of(leaf.first + k);
+        prefetch(tv.positions + tri.x);
+        prefetch(tv.positions + tri.y);
+        prefetch(tv.positions + tri.z);
+    }
+}
+
+// The ray's result into the caller's arrays (hits were cleared to misses beforehand).
+template <bool kAnyHit>
+inline void write_result(const Lane& l, Hit* hits, uint8_t* occluded) {
+    if (kAnyHit) {
+        occluded[l.ray] = l.best_prim != Hit::kNoHit ? 1 : 0;
+    } else if (l.best_prim != Hit::kNoHit) {
+        Hit& h = hits[l.ray];
+        h.t = l.best_t * l.rs.t_scale;
+        h.u = l.best_u;
+        h.v = l.best_v;
+        h.prim = l.best_prim;
+    }
+}
+
 // pop() of traversal.cpp: the next stacked node front to back, skipping those that start
 // beyond the closest hit. False when none is left.
 inline bool pop(Lane& l) {
@@ -120,10 +152,7 @@ inline bool descend(const TreeView& tv, Lane& l) {
             }
             l.leaf = node;
             l.phase = Phase::leaf_refs;
-            if (tv.reference_triangles)
-                prefetch_range(tv.reference_triangles + node.first, node.count() * sizeof(Vec3u));
-            else
-                prefetch_range(tv.indices + node.first, node.count() * sizeof(uint32_t));
+            prefetch_records(tv, node);
             return true;
         }
         const int axis = node.axis();
@@ -199,13 +228,7 @@ inline bool advance(const TreeView& tv, Lane& l) {
         case Phase::descend:
             return descend(tv, l);
         case Phase::leaf_refs: {
-            const KdNode leaf = l.leaf;
-            for (uint32_t k = 0; k < leaf.count(); ++k) {
-                const Vec3u& tri = reference<kDirect>(tv, leaf, k);
-                prefetch(tv.positions + tri.x);
-                prefetch(tv.positions + tri.y);
-                prefetch(tv.positions + tri.z);
-            }
+            prefetch_vertices(tv, l.leaf);
             l.phase = Phase::leaf_vertices;
             return true;
         }
@@ -246,15 +269,7 @@ void trace_stream(const TreeView& tv, const Ray* rays, size_t count, Hit* hits, 
                 ++j;
                 continue;
             }
-            if (kAnyHit) {
-                occluded[l.ray] = l.best_prim != Hit::kNoHit ? 1 : 0;
-            } else if (l.best_prim != Hit::kNoHit) {
-                Hit& h = hits[l.ray];
-                h.t = l.best_t * l.rs.t_scale;
-                h.u = l.best_u;
-                h.v = l.best_v;
-                h.prim = l.best_prim;
-            }
+            write_result<kAnyHit>(l, hits, occluded);
             if (refill(l)) {
                 ++j;
                 continue;
@@ -390,10 +405,7 @@ inline uint32_t octet_step(const TreeView& tv, Octet& o) {
         l.t1 = o.t1[j];
         o.vector_mask &= ~(1u << j);
         l.phase = Phase::leaf_refs;
-        if (tv.reference_triangles)
-            prefetch_range(tv.reference_triangles + l.leaf.first, l.leaf.count() * sizeof(Vec3u));
-        else
-            prefetch_range(tv.indices + l.leaf.first, l.leaf.count() * sizeof(uint32_t));
+        prefetch_records(tv, l.leaf);
     }
     // Inner lanes that enter neither child pop.
     return o.vector_mask & ~moved & ~leaves;
@@ -405,17 +417,7 @@ template <bool kAnyHit, int kGroups>
 void trace_octets(const TreeView& tv, const Ray* rays, size_t count, Hit* hits, uint8_t* occluded) {
     Octet octets[kGroups];
     size_t next = 0;
-    auto finish = [&](Lane& l) {
-        if (kAnyHit) {
-            occluded[l.ray] = l.best_prim != Hit::kNoHit ? 1 : 0;
-        } else if (l.best_prim != Hit::kNoHit) {
-            Hit& h = hits[l.ray];
-            h.t = l.best_t * l.rs.t_scale;
-            h.u = l.best_u;
-            h.v = l.best_v;
-            h.prim = l.best_prim;
-        }
-    };
+    auto finish = [&](const Lane& l) { write_result<kAnyHit>(l, hits, occluded); };
     // Lane j of o takes the next ray that meets the tree, or leaves the octet.
     auto refill = [&](Octet& o, int j) {
         while (next < count) {
@@ -468,14 +470,7 @@ void trace_octets(const TreeView& tv, const Ray* rays, size_t count, Hit* hits, 
                         pop_or_finish(o, j);
                         continue;
                     }
-                    for (uint32_t k = 0; k < leaf.count(); ++k) {
-                        const Vec3u& tri = tv.reference_triangles
-                                               ? tv.reference_triangles[leaf.first + k]
-                                               : tv.triangles[tv.indices[leaf.first + k]];
-                        prefetch(tv.positions + tri.x);
-                        prefetch(tv.positions + tri.y);
-                        prefetch(tv.positions + tri.z);
-                    }
+                    prefetch_vertices(tv, leaf);
                     l.phase = Phase::leaf_vertices;
                     continue;
                 }
