@@ -222,8 +222,8 @@ TEST_P(Stream, BadAndExtremeRaysAmongOrdinaryOnes) {
 TEST(StreamEmpty, EmptyMeshAndEmptyTreeMissEverything) {
     const auto rays = random_rays(test::make_blob(2, 1.0f, 1), 50, 2);
     const KdTree no_tree;
-    for (const KdTree* tree :
-         {build_kdtree(std::make_shared<TriangleMesh>(), KdTreeParams{}).get(), &no_tree}) {
+    const auto empty_mesh_tree = build_kdtree(std::make_shared<TriangleMesh>(), KdTreeParams{});
+    for (const KdTree* tree : {empty_mesh_tree.get(), &no_tree}) {
         std::vector<Hit> hits(rays.size(), Hit{1.0f, 0.0f, 0.0f, 5});
         std::vector<uint8_t> occ(rays.size(), 1);
         intersect_stream(*tree, rays.data(), rays.size(), hits.data());
