@@ -37,7 +37,9 @@ struct Options {
     bool use_cache = false;
     bool robustness = true;
     int robust_rays = 100000;
-    std::string stream_lanes = "8";  // lane counts of the stream engines; "" = none
+    std::string stream_lanes = "16";
+    bool cpu_time = false;  // time tracing by CPU seconds (bench_rays.h BenchClock)  // lane counts
+                            // of the stream engines; "" = none
 };
 
 /// One configuration of table 6.1.

@@ -209,7 +209,8 @@ Table embree_table(const Context& ctx, const RowResult& best, const RaySets& ray
                "rtcIntersect1M/rtcOccluded1M, ratios against single-ray Embree): " +
                std::to_string(primary.size()) + " primary rays, " + std::to_string(diffuse.size()) +
                " one-bounce diffuse rays, " + std::to_string(ctx.threads) +
-               " threads, medians of " + std::to_string(ctx.repeat);
+               " threads, medians of " + std::to_string(ctx.repeat) +
+               (ctx.opt.cpu_time ? ", CPU seconds" : "");
     t2.header = {"engine",
                  "build s",
                  "bytes/tri",
