@@ -1,12 +1,15 @@
-// Stream queries (traversal_stream.h): K rays in flight per thread, software-pipelined.
+// Stream queries (traversal_stream.h): K rays in flight per thread.
 //
-// A diffuse ray's descent is a chain of dependent node loads (about 47 on the dragon) over a
-// tree that does not fit in cache, so a single ray mostly waits. Here each of K lanes holds
-// one ray's whole traversal state (interval, stack, closest hit); the lanes are visited
-// round-robin, and each visit advances its ray until it needs memory that is not yet in
-// hand: a leaf's triangle records, their vertices, the node popped from its stack. That
-// access is prefetched and the visit moves on to the next lane, so the loads of K rays are
-// in flight together.
+// A diffuse ray's descent is a chain of about 47 dependent node steps on the dragon, each
+// waiting on its load and on a hard-to-predict branch. Each of K lanes here holds one ray's
+// whole traversal state (interval, stack, closest hit). Two modes:
+// - octets (AVX2 builds, K a multiple of 8): eight lanes take their descent steps together
+//   in SIMD registers (one gather per step for eight independent node loads, no branch on
+//   the child choice); lanes at a leaf drop out for the scalar leaf test and pop, and
+//   rejoin at their next node; K / 8 octets alternate so that prefetched nodes arrive.
+// - round-robin (other K): each visit of a lane descends its ray to a leaf in registers,
+//   prefetches the leaf's records, on the next visit their vertices, then tests it, so the
+//   leaf loads of K rays overlap.
 //
 // Exactness: every decision and every float operation is the single-ray traversal's
 // (traversal.cpp: descend(), test_leaf(), pop()), in the same order per ray: the same
@@ -51,7 +54,7 @@ struct Lane {
     uint32_t depth;  // stack entries in use
     uint32_t ray;    // index of the ray in the caller's array
     Phase phase;
-    KdNode leaf;  // the leaf being tested (phases leaf_*)
+    KdNode leaf;  // the leaf being tested
     StackItem stack[kStackSize];
 };
 
@@ -283,8 +286,8 @@ void trace_stream(const TreeView& tv, const Ray* rays, size_t count, Hit* hits, 
 // Eight lanes whose descent steps run side by side in AVX2 registers (one lane per
 // element): each step gathers the eight current nodes and decides every lane's next node
 // with the same float operations, in the same order, as descend() does for one ray. Lanes
-// at a leaf, or whose subtree is done, leave the vector step for the scalar phases (leaf
-// records, vertices, test, pop) and rejoin it at their next node.
+// at a leaf, or whose subtree is done, leave the vector step for the scalar leaf test and
+// pop, and rejoin it at their next node.
 struct Octet {
     alignas(32) uint32_t idx[8];
     alignas(32) float t0[8];
@@ -317,7 +320,7 @@ struct Octet {
 // One descent step of the octet's vector lanes: the gathers of the eight nodes, then per
 // lane descend()'s operations (maxps / minps keep t0 / t1 on NaN as maxss / minss do; the
 // slack products are exact, so no FMA contraction can differ). Lanes that reach a leaf
-// leave the vector step in phase leaf_refs, their records prefetched; returns the mask of
+// leave the vector step with l.leaf set, their records prefetched; returns the mask of
 // lanes that enter neither child (they pop).
 inline uint32_t octet_step(const TreeView& tv, Octet& o) {
     const __m256i lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
@@ -404,7 +407,6 @@ inline uint32_t octet_step(const TreeView& tv, Octet& o) {
         l.t0 = o.t0[j];
         l.t1 = o.t1[j];
         o.vector_mask &= ~(1u << j);
-        l.phase = Phase::leaf_refs;
         prefetch_records(tv, l.leaf);
     }
     // Inner lanes that enter neither child pop.
@@ -435,7 +437,6 @@ void trace_octets(const TreeView& tv, const Ray* rays, size_t count, Hit* hits, 
     // Lane j of o pops its next node into the vector step, or its ray is done.
     auto pop_or_finish = [&](Octet& o, int j) {
         Lane& l = o.lanes[j];
-        l.phase = Phase::descend;
         if (pop(l)) {
             prefetch(tv.nodes + l.idx);
             o.enter(j);
@@ -461,19 +462,12 @@ void trace_octets(const TreeView& tv, const Ray* rays, size_t count, Hit* hits, 
                 for (uint32_t m = octet_step(tv, o); m; m &= m - 1)
                     pop_or_finish(o, __builtin_ctz(m));
             }
+            // Lanes outside the vector step have just reached a leaf: tested at once (their
+            // records were prefetched by the step; leaving the test for a later round, after
+            // prefetching the vertices too, was slower: docs/performance.md).
             for (uint32_t m = o.live_mask & ~o.vector_mask; m; m &= m - 1) {
                 const int j = __builtin_ctz(m);
                 Lane& l = o.lanes[j];
-                if (l.phase == Phase::leaf_refs) {
-                    const KdNode leaf = l.leaf;
-                    if (leaf.count() == 0) {  // the root as an empty leaf
-                        pop_or_finish(o, j);
-                        continue;
-                    }
-                    prefetch_vertices(tv, leaf);
-                    l.phase = Phase::leaf_vertices;
-                    continue;
-                }
                 const bool hit = tv.reference_triangles ? test_leaf<kAnyHit, true>(tv, l)
                                                         : test_leaf<kAnyHit, false>(tv, l);
                 if (hit) {
@@ -482,7 +476,7 @@ void trace_octets(const TreeView& tv, const Ray* rays, size_t count, Hit* hits, 
                     refill(o, j);
                     continue;
                 }
-                pop_or_finish(o, j);
+                pop_or_finish(o, j);  // also for the root as an empty leaf
             }
             any_live |= o.live_mask;
         }
