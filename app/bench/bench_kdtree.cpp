@@ -102,6 +102,7 @@ void write_output(const Context& ctx, const std::vector<Table>& tables) {
 
 void run(const Options& opt) {
     bench_clock() = opt.cpu_time ? BenchClock::cpu : BenchClock::wall;
+    stream_lane_counts(opt.stream_lanes);  // a bad --stream-lanes fails before any work
     const Context ctx = load_context(opt);
     RaySets rays;
     rays.views = make_view_rays(ctx);
