@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "app/bench/bench_kdtree.h"
+#include "app/bench/bench_rays.h"
 #include "app/commands.h"
 #include "renderer/core/error.h"
 #include "renderer/io/mesh_io.h"
@@ -100,6 +101,8 @@ void write_output(const Context& ctx, const std::vector<Table>& tables) {
 }
 
 void run(const Options& opt) {
+    bench_clock() = opt.cpu_time ? BenchClock::cpu : BenchClock::wall;
+    stream_lane_counts(opt.stream_lanes);  // a bad --stream-lanes fails before any work
     const Context ctx = load_context(opt);
     RaySets rays;
     rays.views = make_view_rays(ctx);
@@ -182,6 +185,13 @@ void add_bench_kdtree_command(CLI::App& bench) {
     cmd->add_option("--save-views", opt.save_views,
                     "Write a PGM picture of each view's first-sample hits into this directory");
     cmd->add_flag("!--no-robustness", opt.robustness, "Skip the aimed and NaN/Inf ray table");
+    cmd->add_flag("--cpu-time", opt.cpu_time,
+                  "Time tracing by the process's CPU seconds per thread instead of wall "
+                  "seconds (an oversubscribed machine; use with --threads 1)");
+    cmd->add_option("--stream-lanes", opt.stream_lanes,
+                    "Lane counts of the stream engines (1, 4, 8, 16, 24, 32), comma-separated; "
+                    "empty = none")
+        ->capture_default_str();
     cmd->add_option("--robust-rays", opt.robust_rays, "Vertex- and edge-aimed rays each")
         ->capture_default_str()
         ->check(CLI::Range(1, 100000000));

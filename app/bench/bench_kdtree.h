@@ -37,6 +37,9 @@ struct Options {
     bool use_cache = false;
     bool robustness = true;
     int robust_rays = 100000;
+    std::string stream_lanes = "16";
+    bool cpu_time = false;  // time tracing by CPU seconds (bench_rays.h BenchClock)  // lane counts
+                            // of the stream engines; "" = none
 };
 
 /// One configuration of table 6.1.
@@ -136,6 +139,8 @@ struct Engine {
     /// Ours, with paths: primary rays record the path to their hit's leaf, and each
     /// diffuse ray starts from the path of the primary hit it leaves from.
     bool from_leaf = false;
+    /// Ours, stream queries (traversal_stream.h) with this many lanes; 0 = not a stream.
+    int stream_lanes = 0;
     double build_seconds = 0.0, bytes_per_triangle = 0.0, peak_mb = 0.0;
     std::vector<double> primary_s, diffuse_s, shadow_s;
     std::vector<Hit> primary_hits, diffuse_hits;
@@ -143,7 +148,7 @@ struct Engine {
 };
 
 /// The engines and the Embree scenes they point to. engines[0..2] are ours: single rays,
-/// batch, from the hit's leaf.
+/// batch, from the hit's leaf; then ours as streams, one per --stream-lanes count.
 struct EngineSet {
     std::vector<Engine> engines;
 #ifdef KDT_HAVE_EMBREE
@@ -165,6 +170,9 @@ struct LeafPaths {
     }
 };
 
+/// The lane counts of "--stream-lanes 4,8,16"; throws Error naming the flag on a count
+/// that is not one of kStreamLaneChoices.
+std::vector<int> stream_lane_counts(const std::string& list);
 /// The row with the highest primary Mrays/s (the first on a tie).
 const RowResult& best_row(const std::vector<RowResult>& rows);
 /// Our three engines over `best`'s tree, then Embree's unless --no-embree (its scenes built

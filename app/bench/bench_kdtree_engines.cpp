@@ -2,13 +2,18 @@
 // one-bounce diffuse rays, same threads: single rays, batches or streams, and (ours) diffuse
 // rays that start from the leaf of the hit they leave from.
 #include <algorithm>
+#include <cstring>
+#include <iterator>
 #include <memory>
+#include <sstream>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "app/bench/bench_kdtree.h"
 #include "app/bench/bench_rays.h"
+#include "renderer/accel/traversal_stream.h"
+#include "renderer/core/error.h"
 
 namespace kdt::app::kdtree_bench {
 namespace {
@@ -43,7 +48,31 @@ void add_embree_engines(const Context& ctx, bool robust, EngineSet& set) {
 }
 #endif
 
+// Hits that differ from the reference in any bit of t, u, v or the triangle.
+uint64_t bitwise_differences(const std::vector<Hit>& a, const std::vector<Hit>& b) {
+    uint64_t n = 0;
+    for (size_t i = 0; i < a.size(); ++i) n += std::memcmp(&a[i], &b[i], sizeof(Hit)) != 0;
+    return n;
+}
+
 }  // namespace
+
+std::vector<int> stream_lane_counts(const std::string& list) {
+    std::vector<int> counts;
+    std::stringstream ss(list);
+    std::string item;
+    while (std::getline(ss, item, ',')) {
+        const auto& choices = kStreamLaneChoices;
+        const bool known = std::any_of(std::begin(choices), std::end(choices),
+                                       [&](int c) { return std::to_string(c) == item; });
+        if (!known) {
+            throw Error(ErrorLocation{"--stream-lanes"},
+                        "unknown lane count '" + item + "' (1, 4, 8, 16, 24 or 32)");
+        }
+        counts.push_back(std::stoi(item));
+    }
+    return counts;
+}
 
 const RowResult& best_row(const std::vector<RowResult>& rows) {
     const RowResult* best = &rows[0];
@@ -72,6 +101,12 @@ EngineSet make_engines(const Context& ctx, const RowResult& best) {
     set.engines.push_back(std::move(ours));
     set.engines.push_back(std::move(ours_batch));
     set.engines.push_back(std::move(ours_from_leaf));
+    for (int lanes : stream_lane_counts(ctx.opt.stream_lanes)) {
+        Engine stream = set.engines[0];
+        stream.name += ", stream of " + std::to_string(lanes) + " lanes";
+        stream.stream_lanes = lanes;
+        set.engines.push_back(std::move(stream));
+    }
 #ifdef KDT_HAVE_EMBREE
     if (ctx.opt.embree) {
         add_embree_engines(ctx, false, set);
@@ -127,6 +162,21 @@ void time_engines(const Context& ctx, const RaySets& rays, const LeafPaths& path
                     &e.diffuse_occluded));
                 continue;
             }
+            if (e.stream_lanes > 0) {
+                const KdTree& t = *e.tree;
+                const int lanes = e.stream_lanes;
+                e.primary_s.push_back(trace_closest_batch(
+                    primary, e.primary_hits, threads,
+                    [&](const Ray* r, size_t n, Hit* h) { intersect_stream(t, r, n, h, lanes); }));
+                e.diffuse_s.push_back(trace_closest_batch(
+                    diffuse, e.diffuse_hits, threads,
+                    [&](const Ray* r, size_t n, Hit* h) { intersect_stream(t, r, n, h, lanes); }));
+                e.shadow_s.push_back(trace_occluded_batch(
+                    diffuse, threads,
+                    [&](const Ray* r, size_t n, uint8_t* o) { occluded_stream(t, r, n, o, lanes); },
+                    &e.diffuse_occluded));
+                continue;
+            }
             if (e.batch) {
                 with_batch_queries(
                     e, [&](const auto& coherent, const auto& incoherent, const auto& occ) {
@@ -159,7 +209,8 @@ Table embree_table(const Context& ctx, const RowResult& best, const RaySets& ray
                "rtcIntersect1M/rtcOccluded1M, ratios against single-ray Embree): " +
                std::to_string(primary.size()) + " primary rays, " + std::to_string(diffuse.size()) +
                " one-bounce diffuse rays, " + std::to_string(ctx.threads) +
-               " threads, medians of " + std::to_string(ctx.repeat);
+               " threads, medians of " + std::to_string(ctx.repeat) +
+               (ctx.opt.cpu_time ? ", CPU seconds" : "");
     t2.header = {"engine",
                  "build s",
                  "bytes/tri",
@@ -171,7 +222,10 @@ Table embree_table(const Context& ctx, const RowResult& best, const RaySets& ray
                  "diffuse x Embree",
                  "occluded x Embree",
                  "primary hit diffs",
-                 "diffuse hit diffs"};
+                 "diffuse hit diffs",
+                 "diffuse x kd single",
+                 "occluded x kd single",
+                 "bitwise diffs vs kd single (primary / diffuse / occluded count)"};
     // The ratios' reference: Embree's single-ray engine (none without Embree).
     const Engine* ref = nullptr;
 #ifdef KDT_HAVE_EMBREE
@@ -202,6 +256,19 @@ Table embree_table(const Context& ctx, const RowResult& best, const RaySets& ray
             row.push_back(std::to_string(count_disagreements(e.diffuse_hits, ref->diffuse_hits)));
         } else {
             row.insert(row.end(), {"-", "-", "-", "-", "-"});
+        }
+        // engines[0] is our single-ray engine: the streams' peer, whose results they must
+        // reproduce bit for bit.
+        const Engine& kd = engines[0];
+        row.push_back(fmt("%.2f", d / mr(diffuse.size(), median(kd.diffuse_s))));
+        row.push_back(fmt("%.2f", o / mr(diffuse.size(), median(kd.shadow_s))));
+        if (e.stream_lanes) {
+            row.push_back(std::to_string(bitwise_differences(e.primary_hits, kd.primary_hits)) +
+                          " / " +
+                          std::to_string(bitwise_differences(e.diffuse_hits, kd.diffuse_hits)) +
+                          " / " + (e.diffuse_occluded == kd.diffuse_occluded ? "same" : "DIFFERS"));
+        } else {
+            row.push_back("-");
         }
         t2.rows.push_back(std::move(row));
     }

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include <omp.h>
+#include <time.h>
 
 #include "renderer/accel/kdtree.h"
 #include "renderer/core/math.h"
@@ -60,18 +61,36 @@ double trace_occluded_batch(const std::vector<Ray>& rays, int threads,
 
 // ---- implementation of the templates ----
 
+/// What the tracing helpers time: wall seconds (the default), or the process's CPU seconds
+/// divided by the threads, which on an oversubscribed machine leaves out the time the
+/// threads wait descheduled (`bench kdtree --cpu-time`; meant for --threads 1, where no
+/// OpenMP thread spins idle).
+enum class BenchClock { wall, cpu };
+inline BenchClock& bench_clock() {
+    static BenchClock clock = BenchClock::wall;
+    return clock;
+}
+
+inline double process_cpu_seconds() {
+    timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+}
+
 // Calls chunk(begin, count) for consecutive ranges of kRayChunk of [0, n) (the last may be
-// shorter) on `threads` OpenMP threads (0 = default); returns wall seconds.
+// shorter) on `threads` OpenMP threads (0 = default); returns seconds of bench_clock().
 template <class Chunk>
 double time_chunks(size_t n, int threads, const Chunk& chunk) {
     const int64_t chunks = int64_t((n + kRayChunk - 1) / kRayChunk);
     const int nthreads = threads > 0 ? threads : omp_get_max_threads();
+    const double cpu0 = process_cpu_seconds();
     Timer timer;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
     for (int64_t c = 0; c < chunks; ++c) {
         const size_t begin = size_t(c) * kRayChunk;
         chunk(begin, std::min(n, begin + kRayChunk) - begin);
     }
+    if (bench_clock() == BenchClock::cpu) return (process_cpu_seconds() - cpu0) / nthreads;
     return timer.seconds();
 }
 

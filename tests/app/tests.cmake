@@ -65,6 +65,17 @@ add_test(NAME smoke.bench_kdtree_bad_leaf_data COMMAND ${_kdt} bench kdtree
          --leaf-vertex-indices maybe)
 set_tests_properties(smoke.bench_kdtree_bad_leaf_data PROPERTIES
   PASS_REGULAR_EXPRESSION "--leaf-vertex-indices: maybe not in {auto,on,off}")
+# The stream engines reproduce the single-ray engine's hits bit for bit (the last cell).
+add_test(NAME smoke.bench_kdtree_streams COMMAND ${_kdt} bench kdtree
+         --model /usr/share/assimp/models/PLY/Wuson.ply
+         --views ${CMAKE_SOURCE_DIR}/assets/views/dragon.json --rows sah --repeat 1 --spp 1
+         --no-embree --no-robustness --cpu-time --stream-lanes 4,16)
+set_tests_properties(smoke.bench_kdtree_streams PROPERTIES
+  PASS_REGULAR_EXPRESSION "stream of 4 lanes \\|[^\n]*\\| 0 / 0 / same \\|\n[^\n]*stream of 16 lanes \\|[^\n]*\\| 0 / 0 / same \\|")
+add_test(NAME smoke.bench_kdtree_bad_stream_lanes COMMAND ${_kdt} bench kdtree
+         --stream-lanes 8,7)
+set_tests_properties(smoke.bench_kdtree_bad_stream_lanes PROPERTIES
+  PASS_REGULAR_EXPRESSION "--stream-lanes: unknown lane count '7'")
 add_test(NAME smoke.bench_kdtree_bad_sah_cost COMMAND ${_kdt} bench kdtree
          --sah-traversal-cost 0)
 set_tests_properties(smoke.bench_kdtree_bad_sah_cost PROPERTIES

