@@ -192,6 +192,14 @@ def setup_cycles(args):
     return scene
 
 
+def set_cycles_adaptive(scene, threshold):
+    """threshold 0: adaptive sampling off (the equal-spp runs)."""
+    scene.cycles.use_adaptive_sampling = threshold > 0
+    if threshold > 0:
+        scene.cycles.adaptive_threshold = threshold
+        scene.cycles.adaptive_min_samples = 0  # Blender's default: automatic
+
+
 def render_cycles(scene, out_path, spp=None, seconds=None, seed=0):
     """Returns (image, wall seconds of bpy.ops.render.render, spp asked)."""
     import bpy
@@ -251,8 +259,8 @@ def parse_args():
     ap.add_argument("--sky", type=float, default=1.0, help="constant sky radiance")
     ap.add_argument("--env", type=Path, help="lat-long light probe (.hdr) instead of the sky;"
                     " --sky is then its intensity")
-    ap.add_argument("--env-interpolation", default="Closest",
-                    help="Cycles' lookup: Closest = kdtrace's nearest texel, Linear = bilinear")
+    ap.add_argument("--env-interpolation", default="Linear",
+                    help="Cycles' lookup: Linear = bilinear (kdtrace's), Closest = nearest texel")
     ap.add_argument("--smooth", action="store_true", help="smooth normals (default flat)")
     ap.add_argument("--spp", type=int, default=64, help="the equal-spp level")
     ap.add_argument("--ref-spp", type=int, default=1024, help="kdtrace reference, 2 seeds x N/2")
@@ -261,6 +269,12 @@ def parse_args():
     ap.add_argument("--cycles-pattern", default="",
                     help="Cycles sampling_pattern (default: Blender's, AUTOMATIC)")
     ap.add_argument("--kdtrace-args", default="", help="extra kdtrace render flags")
+    ap.add_argument("--adaptive", action="store_true",
+                    help="also run both with adaptive sampling at equal time (second table)")
+    ap.add_argument("--cycles-adaptive-threshold", type=float, default=0.01,
+                    help="Cycles' adaptive_threshold with --adaptive (Blender's default 0.01)")
+    ap.add_argument("--kdtrace-adaptive-args", default="--adaptive --adaptive-threshold 0.005",
+                    help="kdtrace's adaptive flags with --adaptive")
     ap.add_argument("--kdtrace", type=Path, default=ROOT / "build/release/bin/kdtrace")
     ap.add_argument("--out", type=Path, default=ROOT / "out/compare_cycles")
     ap.add_argument("--reuse-ref", action="store_true", help="reuse out/ref_*.pfm if present")
@@ -276,6 +290,38 @@ def parse_args():
     if not args.model.is_file():
         ap.error(f"{args.model}: no such file (bash scripts/fetch_assets.sh fetches the dragon)")
     return args
+
+
+def adaptive_table(args, scene, scene_json, extra, ref, ref_var, c_setup):
+    """Both renderers with adaptive sampling at equal time: Cycles at --spp samples at most
+    (converged pixels stop earlier), kdtrace for Cycles' sampling time of the same run,
+    alternated --repeat times (seeds 11, 12, ...); prints each pair and the median ratio."""
+    k_args = extra + args.kdtrace_adaptive_args.split()
+    set_cycles_adaptive(scene, args.cycles_adaptive_threshold)
+    rows = []
+    for i in range(args.repeat):
+        seed = 11 + i
+        c_img, c_wall = render_cycles(scene, args.out / "cycles_adaptive.exr", spp=args.spp,
+                                      seed=seed)
+        c_s = max(c_wall - c_setup, 1e-3)
+        k_img, k_s, k_spp, k_rays, _ = render_kdtrace(
+            args, scene_json, args.out / "kdt_adaptive.pfm", seed, seconds=c_s, extra=k_args)
+        rows.append((c_s, rmse(c_img, ref, ref_var)[1], k_s, k_spp, k_rays,
+                     rmse(k_img, ref, ref_var)[1]))
+    set_cycles_adaptive(scene, 0.0)
+    print()
+    print(f"both adaptive, equal time: Cycles adaptive_threshold "
+          f"{args.cycles_adaptive_threshold}, at most {args.spp} spp; kdtrace "
+          f"{' '.join(k_args)} for Cycles' sampling time")
+    print()
+    print("| run | Cycles sampling time, RMSE | kdtrace time, mean spp, rays, RMSE | RMSE ratio |")
+    print("|---|---|---|---|")
+    for i, (c_s, c_r, k_s, k_spp, k_rays, k_r) in enumerate(rows):
+        print(f"| {i + 1} | {c_s:.2f} s, {c_r:.5f} | {k_s:.2f} s, {k_spp:.1f} spp, "
+              f"{k_rays / 1e6:.1f}M, {k_r:.5f} | {k_r / c_r:.3f} |")
+    ratios = [r[5] / r[1] for r in rows]
+    print(f"median equal-time RMSE ratio kdtrace / Cycles, both adaptive: "
+          f"{float(np.median(ratios)):.3f} (RMSEs with the reference's noise taken out)")
 
 
 def main():
@@ -362,6 +408,8 @@ def main():
           f"medians, equal-spp RMSE x sqrt(time per sample) = "
           f"{k_rmse / c_rmse * math.sqrt(k_s / c_s):.3f} (one equal-time run is at the mercy "
           "of the machine's load)")
+    if args.adaptive:
+        adaptive_table(args, scene, scene_json, extra, ref, ref_var, c_setup)
     zk = mean_z(0.5 * (k1 + k2), ref, ref_var_px, k_var_px / 2)
     zc = mean_z(0.5 * (c1 + c2), ref, ref_var_px, c_var_px / 2)
     print(f"image means: reference {ref.mean():.5f}, kdtrace {0.5 * (k1 + k2).mean():.5f} "

@@ -45,7 +45,7 @@ private:
     uint64_t inc_ = 1;
 };
 
-/// The 32-bit generator matrix columns of Sobol dimension `dim` (0 or 1) applied to index.
+/// The 32-bit generator matrix columns of Sobol dimension `dim` (0 to 3) applied to index.
 uint32_t sobol_u32(uint32_t index, int dim);
 
 /// Owen scrambling of the bits of x keyed by seed (Burley 2020, "Practical Hash-based
@@ -55,13 +55,21 @@ uint32_t owen_scramble(uint32_t x, uint32_t seed);
 /// Point `index` of a shuffled, Owen-scrambled 2D Sobol sequence keyed by `seed`.
 Vec2f sobol_2d(uint32_t index, uint64_t seed);
 
+/// Coordinates 2 and 3 of the 4D Owen-scrambled Sobol point whose coordinates 0 and 1 are
+/// sobol_2d(index, seed): the same shuffled index, Sobol dimensions 2 and 3, each scrambled
+/// by its own half of seed_upper.
+Vec2f sobol_4d_upper(uint32_t index, uint64_t seed, uint64_t seed_upper);
+
 /// The per-sample sampler: every call draws the next dimension of sample `sample_index`
-/// of pixel (x, y) for `seed`. The first kSobolPairs 2D draws come from independent padded
-/// Sobol sequences (camera, first bounces); later draws are hashed uniform numbers.
+/// of pixel (x, y) for `seed`. Draws 0 and 1 are one 4D Owen-scrambled Sobol point (the
+/// integrator's film position and first bounce direction: stratified jointly, not just each
+/// pair by itself); draws 2 to kSobolPairs - 1 come from independent padded 2D Sobol
+/// sequences; later draws are hashed uniform numbers.
 /// Pure function of (seed, pixel, sample index, draw order): no state shared across samples.
 class PixelSampler {
 public:
-    static constexpr uint32_t kSobolPairs = 7;  ///< camera + 2 bounces of 3 pairs
+    /// Camera + 4 bounces of a BSDF and an environment draw each (path_tracer.cpp).
+    static constexpr uint32_t kSobolPairs = 9;
 
     /// A placeholder (pixel key 0, sample 0), for arrays filled later.
     PixelSampler() = default;
@@ -80,10 +88,12 @@ public:
     Vec2f next_2d() {
         const uint32_t d = dim_++;
         // pixel_key_ is already well mixed: one finaliser round per draw suffices.
-        if (d < kSobolPairs)
-            return sobol_2d(index_, mix64(pixel_key_ ^ (uint64_t(d + 1) * 0x9e3779b97f4a7c15ull)));
-        const uint64_t h = mix64(pixel_key_ ^ (uint64_t(d + 1) * 0x9e3779b97f4a7c15ull) ^
-                                 (uint64_t(index_) * 0xd1b54a32d192ed03ull));
+        const uint64_t dim_key = pixel_key_ ^ (uint64_t(d + 1) * 0x9e3779b97f4a7c15ull);
+        if (d == 1)  // shares draw 0's shuffled index: coordinates 2 and 3 of its 4D point
+            return sobol_4d_upper(index_, mix64(pixel_key_ ^ 0x9e3779b97f4a7c15ull),
+                                  mix64(dim_key));
+        if (d < kSobolPairs) return sobol_2d(index_, mix64(dim_key));
+        const uint64_t h = mix64(dim_key ^ (uint64_t(index_) * 0xd1b54a32d192ed03ull));
         return {bits_to_unit_float(uint32_t(h)), bits_to_unit_float(uint32_t(h >> 32))};
     }
     /// Next 1D sample in [0,1) (consumes one 2D dimension pair).

@@ -190,9 +190,12 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
             __builtin_prefetch(&scene.normals[tri.z]);
         }
         if (scene.runs.first.empty()) __builtin_prefetch(&scene.triangle_instance[hit.prim]);
-        const Vec2f u_light = sampler.next_2d();
+        // Draws are made only where they are used, BSDF direction first, so that under BSDF
+        // sampling alone (a constant sky) bounce k's direction is draw k: all Sobol, and the
+        // first one stratified jointly with the film position (PixelSampler). The lobe /
+        // roulette draw waits until the material is known.
         const Vec2f u_bsdf = sampler.next_2d();
-        const Vec2f u_lobe_rr = sampler.next_2d();
+        const Vec2f u_light = env_nee ? sampler.next_2d() : Vec2f(0.0f);
 
         // Surface hit after `depth` scattering events; scattering here makes depth + 1.
         const SurfacePoint sp = make_surface(scene, ray, hit);
@@ -295,6 +298,10 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
             }
         }
 
+        // x picks a dielectric's lobe, y decides Russian roulette.
+        const bool roulette = params.russian_roulette && depth + 1 >= params.rr_min_depth;
+        const Vec2f u_lobe_rr =
+            roulette || mat.type == MaterialType::dielectric ? sampler.next_2d() : Vec2f(0.0f);
         // Continue the path by sampling the BSDF.
         BsdfSample bs;
         if (!bsdf_sample(mat, wo, u_bsdf, u_lobe_rr.x, bs, params.diffuse_sampling)) break;
@@ -311,7 +318,7 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
         if (!(max_component(beta) > 0.0f)) break;
 
         // Russian roulette: survive with probability min(1, max throughput) and reweight.
-        if (params.russian_roulette && depth + 1 >= params.rr_min_depth) {
+        if (roulette) {
             const float survive = std::min(1.0f, max_component(beta));
             if (u_lobe_rr.y >= survive) break;
             beta /= survive;

@@ -306,6 +306,40 @@ TEST(PathTracer, ConstantSkyIsSampledByTheBsdfAlone) {
     EXPECT_GT(gc.shadow_rays, 0u);
 }
 
+// Under a constant sky (BSDF sampling alone) and no roulette, bounce k of a path takes its
+// direction from draw k of the sample (draw 0 is the film position): every bounce of a
+// depth-4 path falls on a Sobol draw (PixelSampler::kSobolPairs), none is spent on an unused
+// light or roulette number. Inside a closed box every path scatters 4 times; bounce k's
+// cosine to its wall's normal must be that of the cosine-hemisphere sample of draw k.
+TEST(PathTracer, BounceDirectionsUseTheSobolDrawsInOrder) {
+    const TraceScene scene = make_scene({{make_box({-1, -1, -1}, {1, 1, 1}), flat(diffuse(0.5f))}},
+                                        std::make_shared<ConstantEnv>(Vec3f(1.0f)));
+    const Camera cam = make_camera({0.1f, 0.2f, 0.3f}, {1, 0.5f, -1}, {0, 1, 0}, 60.0f, 4, 4);
+    TraceParams tp;
+    tp.max_depth = 4;
+    tp.russian_roulette = false;
+    ASSERT_EQ(tp.light_sampling, LightSampling::mis);
+    static_assert(PixelSampler::kSobolPairs >= 5);
+    for (uint32_t s = 0; s < 64; ++s) {
+        RayRecord rec;
+        record_rays(scene, cam, tp, 2, 1, s, rec);
+        ASSERT_EQ(rec.closest.size(), 5u);  // camera ray + 4 bounces
+        EXPECT_TRUE(rec.any.empty());
+        PixelSampler draws(tp.seed, 2, 1, s);
+        draws.next_2d();  // the film position
+        for (size_t k = 1; k <= 4; ++k) {
+            const Ray& r = rec.closest[k];
+            // The wall the bounce leaves: the coordinate nearest +-1.
+            int axis = 0;
+            for (int a = 1; a < 3; ++a)
+                if (std::abs(r.origin[a]) > std::abs(r.origin[axis])) axis = a;
+            const float cos_theta = std::abs(r.dir[axis]) / glm::length(r.dir);
+            EXPECT_NEAR(cos_theta, sample_cosine_hemisphere(draws.next_2d()).z, 1e-4f)
+                << "sample " << s << " bounce " << k;
+        }
+    }
+}
+
 // A flat-shaded mirror sphere reflects the environment exactly: the radiance of a camera
 // ray equals albedo * env(reflect(d, n)) with n the hit triangle's normal.
 TEST(PathTracer, MirrorReflectsTheEnvironmentExactly) {
