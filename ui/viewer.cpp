@@ -156,7 +156,7 @@ void Viewer::update_image() {
     }
 }
 
-void Viewer::draw_image(int fb_width, int fb_height) const {
+void Viewer::draw_image(int fb_width, int fb_height) {
     const DisplayMode mode =
         view_ == ViewMode::radiance ? DisplayMode::radiance : DisplayMode::direct;
     // image_y_ counts from the top; GL's viewport from the bottom.

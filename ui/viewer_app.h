@@ -53,7 +53,7 @@ public:
     /// Copies the published image when it changed and uploads it (GL context current).
     void update_image();
     void upload(const FilmImage& image);
-    void draw_image(int fb_width, int fb_height) const;
+    void draw_image(int fb_width, int fb_height);
     void draw_panels();
     /// Throws kdt::Error naming the first command of the script that does not exist.
     void check_script() const;
