@@ -41,7 +41,8 @@ bool TreeRebuilder::busy() const {
 }
 
 void TreeRebuilder::run() {
-    setpriority(PRIO_PROCESS, 0, 5);  // as the render threads: the UI thread goes first
+    // The builder's OpenMP pool inherits this thread's nice value (Linux: per thread).
+    setpriority(PRIO_PROCESS, 0, kBuildNice);
     for (;;) {
         std::shared_ptr<const RenderSnapshot> base;
         KdTreeParams params;

@@ -16,6 +16,10 @@
 
 namespace kdt::ui {
 
+/// The nice value of the builder threads: below the UI thread's 0, above the render threads'
+/// (render_worker.h kRenderNice).
+constexpr int kBuildNice = 2;
+
 struct RebuildResult {
     std::shared_ptr<const RenderSnapshot> snapshot;  ///< null when the build failed
     std::string error;                               ///< why it failed

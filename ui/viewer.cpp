@@ -116,6 +116,7 @@ void Viewer::poll_rebuild() {
     opts_.tree = tree_edit_;
     lat_.build_seconds.push_back(r->seconds);
     worker_->set_snapshot(r->snapshot);
+    swapped_at_ = Clock::now();
     rebuild_restarts_ = worker_->stats().restarts;
     awaiting_rebuild_image_ = true;
 }
@@ -144,6 +145,13 @@ void Viewer::update_image() {
             awaiting_preview_ = false;
         }
     }
+    const uint64_t passes = worker_->completed_passes();
+    // Copied at once: a new pass, a recolour (version 0), a heat view still showing radiance.
+    const bool now =
+        passes != copied_passes_ || image_.version == 0 || (heat && image_.heat_nodes.empty());
+    if (!now && ms_since(copied_at_) < kPartialImageMs) return;
+    copied_passes_ = passes;
+    copied_at_ = Clock::now();
     if (!worker_->session().copy_image(image_, heat)) return;
     if (image_.complete_passes == 0) return;
     upload(image_);
@@ -151,6 +159,7 @@ void Viewer::update_image() {
         const WorkerStats s = worker_->stats();
         if (s.restarts == rebuild_restarts_ && s.full_passes >= 1) {
             lat_.rebuild_ms.push_back(ms_since(rebuild_requested_at_));
+            lat_.swap_ms.push_back(ms_since(swapped_at_));
             awaiting_rebuild_image_ = false;
         }
     }
@@ -305,13 +314,14 @@ std::string Viewer::summary() const {
     char buf[512];
     std::snprintf(buf, sizeof buf,
                   "view: %zu frames, frame ms median %.2f p99 %.2f; preview ms median %.1f (%zu); "
-                  "rebuild to full image ms median %.1f (%zu), build s median %.3f; "
+                  "rebuild to full image ms median %.1f (%zu), build s median %.3f, swap to full "
+                  "image ms median %.1f; "
                   "%.1f spp, %d passes, %.3f Mrays/s, error %.4f",
                   lat_.frame_ms.size(), percentile(lat_.frame_ms, 0.5),
                   percentile(lat_.frame_ms, 0.99), percentile(lat_.preview_ms, 0.5),
                   lat_.preview_ms.size(), percentile(lat_.rebuild_ms, 0.5), lat_.rebuild_ms.size(),
-                  percentile(lat_.build_seconds, 0.5), s.spp, s.full_passes, s.mrays_per_second,
-                  s.mean_error);
+                  percentile(lat_.build_seconds, 0.5), percentile(lat_.swap_ms, 0.5), s.spp,
+                  s.full_passes, s.mrays_per_second, s.mean_error);
     return buf;
 }
 
