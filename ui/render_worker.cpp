@@ -36,6 +36,7 @@ RenderWorker::~RenderWorker() {
 }
 
 void RenderWorker::restart_locked(bool preview) {
+    ++updates_;
     preview_wanted_ = preview || (restart_ && preview_wanted_);
     restart_ = true;
     ++stats_.restarts;
@@ -111,6 +112,7 @@ void RenderWorker::apply_scene_changes() {
     env_ = env;
     env_desc_ = desc;
     if (request) stats_.error = error;
+    ++updates_;
     session_->set_snapshot(snap);
 }
 
@@ -125,6 +127,7 @@ void RenderWorker::set_paused(bool paused) {
     std::lock_guard<std::mutex> lock(mutex_);
     paused_ = paused;
     stats_.paused = paused;
+    ++updates_;
     if (paused) session_->cancel();
     wake_.notify_all();
 }
@@ -202,6 +205,7 @@ void RenderWorker::run() {
             preview_.version = 0;
             session_->copy_image(preview_, true);
             preview_.version = serial;
+            ++updates_;
             preview_.generation = restart;
             session_->set_camera(full_camera_locked());
             continue;
@@ -215,6 +219,7 @@ void RenderWorker::run() {
         WorkerStats& s = stats_;
         ++s.full_passes;
         ++completed_passes_;  // under the lock: a reader who sees it sees these stats too
+        ++updates_;
         s.seconds += ps.seconds;
         s.spp = double(session_->totals().samples) / pixels;
         s.mean_error = error;

@@ -70,6 +70,9 @@ public:
     /// Full-resolution passes completed since the worker started (never reset; lock-free):
     /// when it grows, the session's image holds a pass more.
     uint64_t completed_passes() const { return completed_passes_.load(); }
+    /// Grows (lock-free) whenever something the UI shows from the worker may have changed:
+    /// a restart, a preview, a completed pass, pause, an environment error.
+    uint64_t updates() const { return updates_.load(); }
     /// Copies the image of the last finished preview pass into `out` when it is another one
     /// than out holds (compared by out.version; out.generation is the WorkerStats::restarts
     /// count of the change it shows); returns whether it copied. The session's own
@@ -111,7 +114,7 @@ private:
     EnvironmentDesc env_desc_;
     WorkerStats stats_;
     FilmImage preview_;  ///< version: a count of previews
-    std::atomic<uint64_t> completed_passes_{0};
+    std::atomic<uint64_t> completed_passes_{0}, updates_{0};
 };
 
 }  // namespace kdt::ui

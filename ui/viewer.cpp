@@ -18,6 +18,7 @@
 #include "renderer/io/image_io.h"
 #include "renderer/scene/views.h"
 #include "ui/camera_control.h"
+#include "ui/frame_pacer.h"
 #include "ui/viewer_app.h"
 
 namespace kdt::ui {
@@ -313,11 +314,12 @@ std::string Viewer::summary() const {
     const WorkerStats s = worker_->stats();
     char buf[512];
     std::snprintf(buf, sizeof buf,
-                  "view: %zu frames, frame ms median %.2f p99 %.2f; preview ms median %.1f (%zu); "
+                  "view: %zu frames (%zu unchanged, not drawn), frame ms median %.2f p99 %.2f; "
+                  "preview ms median %.1f (%zu); "
                   "rebuild to full image ms median %.1f (%zu), build s median %.3f, swap to full "
                   "image ms median %.1f; "
                   "%.1f spp, %d passes, %.3f Mrays/s, error %.4f",
-                  lat_.frame_ms.size(), percentile(lat_.frame_ms, 0.5),
+                  lat_.frame_ms.size(), frames_unchanged_, percentile(lat_.frame_ms, 0.5),
                   percentile(lat_.frame_ms, 0.99), percentile(lat_.preview_ms, 0.5),
                   lat_.preview_ms.size(), percentile(lat_.rebuild_ms, 0.5), lat_.rebuild_ms.size(),
                   percentile(lat_.build_seconds, 0.5), percentile(lat_.swap_ms, 0.5), s.spp,
@@ -360,6 +362,36 @@ void layout(Viewer& v, int fb_w, int fb_h) {
     v.image_y_ = (fb_h - h) / 2;
 }
 
+constexpr auto kFramePeriod = std::chrono::microseconds(16667);
+
+// Input events seen by GLFW's callbacks (all on the UI thread, in glfwPollEvents).
+uint64_t g_input_events = 0;
+
+void count_input_events(GLFWwindow* window) {
+    glfwSetCursorPosCallback(window, [](GLFWwindow*, double, double) { ++g_input_events; });
+    glfwSetMouseButtonCallback(window, [](GLFWwindow*, int, int, int) { ++g_input_events; });
+    glfwSetScrollCallback(window, [](GLFWwindow*, double, double) { ++g_input_events; });
+    glfwSetKeyCallback(window, [](GLFWwindow*, int, int, int, int) { ++g_input_events; });
+    glfwSetCharCallback(window, [](GLFWwindow*, unsigned) { ++g_input_events; });
+    glfwSetCursorEnterCallback(window, [](GLFWwindow*, int) { ++g_input_events; });
+    glfwSetWindowFocusCallback(window, [](GLFWwindow*, int) { ++g_input_events; });
+    glfwSetWindowSizeCallback(window, [](GLFWwindow*, int, int) { ++g_input_events; });
+    glfwSetWindowRefreshCallback(window, [](GLFWwindow*) { ++g_input_events; });
+}
+
+// What the frame pacer needs to know about the viewer before a tick.
+FrameSignals observe(Viewer& v) {
+    FrameSignals s;
+    s.input_events = g_input_events;
+    s.worker_updates = v.worker_->updates();
+    // A build in flight, an image still to come, a change the loop cannot see, a script
+    // command to run now or a wait that counts frames.
+    s.busy = v.rebuilder_->busy() || !v.have_image_ || v.redraw_frames_ > 0 ||
+             (v.waiting_.empty() && v.script_next_ < v.script_.size()) || v.waiting_ == "wait";
+    v.redraw_frames_ = std::max(v.redraw_frames_ - 1, 0);
+    return s;
+}
+
 }  // namespace
 
 void run_viewer(const ViewerOptions& options) {
@@ -383,6 +415,7 @@ void run_viewer(const ViewerOptions& options) {
     ImGui::CreateContext();
     ImGui::GetIO().IniFilename = nullptr;  // no imgui.ini next to the user's files
     ImGui::StyleColorsDark();
+    count_input_events(window);  // before the ImGui backend, which chains to these
     ImGui_ImplGlfw_InitForOpenGL(window, true);
     ImGui_ImplOpenGL3_Init("#version 330 core");
     struct ImGuiGuard {
@@ -395,12 +428,19 @@ void run_viewer(const ViewerOptions& options) {
     v.display_.init();
 
     int frames_after_script = 0;
+    FramePacer pacer;
     auto last = Viewer::Clock::now();
     while (!glfwWindowShouldClose(window)) {
         const auto start = Viewer::Clock::now();
-        const double dt = std::chrono::duration<double>(start - last).count();
-        last = start;
         glfwPollEvents();
+        if (!pacer.due(observe(v), start)) {
+            ++v.frames_unchanged_;
+            std::this_thread::sleep_until(start + kFramePeriod);
+            continue;
+        }
+        // Capped: after an idle spell the first frame's fly step is not the whole pause.
+        const double dt = std::min(std::chrono::duration<double>(start - last).count(), 0.05);
+        last = start;
         int fb_w = 0, fb_h = 0;
         glfwGetFramebufferSize(window, &fb_w, &fb_h);
         int ww = 0, wh = 0;
@@ -441,7 +481,7 @@ void run_viewer(const ViewerOptions& options) {
         if (last_frame) break;
         // At most 60 frames a second where the swap does not wait for the display (Xvfb,
         // vsync off): the render threads get the time a spinning UI would take.
-        std::this_thread::sleep_until(start + std::chrono::microseconds(16667));
+        std::this_thread::sleep_until(start + kFramePeriod);
     }
     glfwDestroyWindow(window);
     std::printf("%s\n", v.summary().c_str());

@@ -106,6 +106,12 @@ public:
     uint64_t copied_passes_ = 0;  ///< the worker's completed_passes() at the last copy
     Clock::time_point copied_at_{};
 
+    // Frame pacing (run_viewer draws a frame only when it may differ from the last one).
+    /// Frames to draw whatever else happens: set by a change the frame loop cannot see
+    /// (a state another thread moves on); counts down by one per 60 Hz tick.
+    int redraw_frames_ = 0;
+    size_t frames_unchanged_ = 0;  ///< ticks with no frame drawn
+
     // Latency bookkeeping.
     Latencies lat_;
     Clock::time_point camera_changed_at_{};

@@ -10,6 +10,7 @@ if(KDT_OSMESA_LIB)
   add_executable(kdt_ui_tests ${CMAKE_CURRENT_LIST_DIR}/display_test.cpp
                  ${CMAKE_CURRENT_LIST_DIR}/camera_control_test.cpp
                  ${CMAKE_CURRENT_LIST_DIR}/heat_map_test.cpp
+                 ${CMAKE_CURRENT_LIST_DIR}/frame_pacer_test.cpp
                  ${CMAKE_CURRENT_LIST_DIR}/panels_test.cpp
                  ${CMAKE_CURRENT_LIST_DIR}/osmesa_context.cpp ${CMAKE_CURRENT_SOURCE_DIR}/test_util.cpp)
   target_link_libraries(kdt_ui_tests PRIVATE kdt_ui_core ${KDT_OSMESA_LIB} GTest::gtest

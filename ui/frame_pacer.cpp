@@ -1,0 +1,21 @@
+#include "ui/frame_pacer.h"
+
+#include <algorithm>
+
+namespace kdt::ui {
+
+bool FramePacer::due(const FrameSignals& s, Clock::time_point now) {
+    const bool input = first_ || s.input_events != last_.input_events;
+    const bool changed = input || s.busy || s.worker_updates != last_.worker_updates;
+    if (input) last_input_ = now;
+    if (changed) settle_ = kSettleFrames + 1;  // this frame and kSettleFrames more
+    const bool draw =
+        settle_ > 0 || now - last_input_ < kRecentInput || now - last_drawn_ >= kMaxIdle;
+    settle_ = std::max(settle_ - 1, 0);
+    if (draw) last_drawn_ = now;
+    first_ = false;
+    last_ = s;
+    return draw;
+}
+
+}  // namespace kdt::ui

@@ -1,0 +1,40 @@
+// When the viewer draws a frame: at the 60 Hz tick only if the frame may differ from the one
+// on screen. Under software GL a frame costs milliseconds of CPU (mostly rasterising the
+// panels) that a repeated frame would take from the render threads. Pure logic: the frame
+// loop (ui/viewer.cpp) feeds it what it observed. Depends on the standard library only.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+
+namespace kdt::ui {
+
+/// What the frame loop saw before a tick.
+struct FrameSignals {
+    uint64_t input_events = 0;    ///< a count that grows with every window input event
+    uint64_t worker_updates = 0;  ///< RenderWorker::updates()
+    bool busy = false;            ///< something moves on its own (a tree build, a script step)
+};
+
+/// Draws at a tick after any input (and for kRecentInput after it: ImGui's hover states, held
+/// keys that send no events), any worker update, while busy, for kSettleFrames after any of
+/// these (a change often shows only in the frame after the one that took it), and at least
+/// every kMaxIdle (states the loop cannot see, such as a panel's clock).
+class FramePacer {
+public:
+    using Clock = std::chrono::steady_clock;
+    static constexpr int kSettleFrames = 2;
+    static constexpr std::chrono::milliseconds kRecentInput{500};
+    static constexpr std::chrono::milliseconds kMaxIdle{100};
+
+    /// Whether to draw at `now`; the first call always draws.
+    bool due(const FrameSignals& s, Clock::time_point now);
+
+private:
+    bool first_ = true;
+    FrameSignals last_;
+    Clock::time_point last_input_{}, last_drawn_{};
+    int settle_ = 0;
+};
+
+}  // namespace kdt::ui
