@@ -6,7 +6,7 @@ namespace kdt::ui {
 
 bool FramePacer::due(const FrameSignals& s, Clock::time_point now) {
     const bool input = first_ || s.input_events != last_.input_events;
-    const bool changed = input || s.busy || s.worker_updates != last_.worker_updates;
+    const bool changed = input || s.busy || s.updates != last_.updates;
     if (input) last_input_ = now;
     if (changed) settle_ = kSettleFrames + 1;  // this frame and kSettleFrames more
     const bool draw =

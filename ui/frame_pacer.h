@@ -11,15 +11,15 @@ namespace kdt::ui {
 
 /// What the frame loop saw before a tick.
 struct FrameSignals {
-    uint64_t input_events = 0;    ///< a count that grows with every window input event
-    uint64_t worker_updates = 0;  ///< RenderWorker::updates()
-    bool busy = false;            ///< something moves on its own (a tree build, a script step)
+    uint64_t input_events = 0;  ///< a count that grows with every window input event
+    uint64_t updates = 0;       ///< a count that grows with news from other threads
+    bool busy = false;          ///< something moves on its own (a script step)
 };
 
-/// Draws at a tick after any input (and for kRecentInput after it: ImGui's hover states, held
-/// keys that send no events), any worker update, while busy, for kSettleFrames after any of
-/// these (a change often shows only in the frame after the one that took it), and at least
-/// every kMaxIdle (states the loop cannot see, such as a panel's clock).
+/// Draws at a tick after any input (and for kRecentInput after it: ImGui's hover states,
+/// held keys that send no events), any news (a render pass, a finished tree build), while
+/// busy, for kSettleFrames after any of these (a change often shows only in the frame after
+/// the one that took it), and at least every kMaxIdle (states the loop cannot see).
 class FramePacer {
 public:
     using Clock = std::chrono::steady_clock;

@@ -68,6 +68,7 @@ void TreeRebuilder::run() {
         std::lock_guard<std::mutex> lock(mutex_);
         building_ = false;
         if (id == requested_) result_ = std::move(r);  // else a newer request supersedes it
+        ++finished_;
     }
 }
 

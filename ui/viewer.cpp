@@ -383,10 +383,12 @@ void count_input_events(GLFWwindow* window) {
 FrameSignals observe(Viewer& v) {
     FrameSignals s;
     s.input_events = g_input_events;
-    s.worker_updates = v.worker_->updates();
-    // A build in flight, an image still to come, a change the loop cannot see, a script
-    // command to run now or a wait that counts frames.
-    s.busy = v.rebuilder_->busy() || !v.have_image_ || v.redraw_frames_ > 0 ||
+    // Both counters only grow: their sum changes when either does. A build in flight draws
+    // nothing new until it finishes, so the builder gets the UI's time meanwhile.
+    s.updates = v.worker_->updates() + v.rebuilder_->finished();
+    // An image still to come, a change the loop cannot see, a script command to run now or a
+    // wait that counts frames.
+    s.busy = !v.have_image_ || v.redraw_frames_ > 0 ||
              (v.waiting_.empty() && v.script_next_ < v.script_.size()) || v.waiting_ == "wait";
     v.redraw_frames_ = std::max(v.redraw_frames_ - 1, 0);
     return s;

@@ -1,5 +1,5 @@
 // The viewer's frame pacing: a frame is drawn at a tick only when it may differ from the last
-// one (input, worker news, busy, settling frames), and at least every kMaxIdle.
+// one (input, news from other threads, busy, settling frames), and at least every kMaxIdle.
 #include "ui/frame_pacer.h"
 
 #include <gtest/gtest.h>
@@ -39,11 +39,11 @@ TEST(FramePacer, InputWorkerNewsAndBusyDrawAtOnceAndSettle) {
     FrameSignals s;
     Clock::time_point t{};
     run(p, s, t, 120);  // past the first frame's recent-input spell, into idle
-    // Worker news: this tick and kSettleFrames more, then idle again.
-    s.worker_updates = 1;
+    // News (a pass, a build): this tick and kSettleFrames more, then idle again.
+    s.updates = 1;
     EXPECT_EQ(run(p, s, t, FramePacer::kSettleFrames + 1), FramePacer::kSettleFrames + 1);
     EXPECT_LE(run(p, s, t, 5), 1);
-    // Busy (a tree build): every tick.
+    // Busy (a script step): every tick.
     s.busy = true;
     EXPECT_EQ(run(p, s, t, 60), 60);
     s.busy = false;
