@@ -23,7 +23,7 @@ struct FrameSignals {
 class FramePacer {
 public:
     using Clock = std::chrono::steady_clock;
-    static constexpr int kSettleFrames = 2;
+    static constexpr int kSettleFrames = 1;
     static constexpr std::chrono::milliseconds kRecentInput{500};
     static constexpr std::chrono::milliseconds kMaxIdle{100};
 
