@@ -79,7 +79,8 @@ for run in $(seq 1 "$repeat"); do
     xvfb-run -a -s "-screen 0 1280x800x24" "$kdtrace" view "${common[@]}" --frames 5 \
         --script "$script" >"$work/view$run.log" 2>&1 || { cat "$work/view$run.log" >&2; exit 1; }
     # The builder alone on the viewer's first change (peer of the viewer's build times).
-    "$kdtrace" build "$model" --threads "$threads" "${tree[@]}" --q 0.97 -o "$work/tree.kdt" \
+    "$kdtrace" build "$model" --threads "$threads" "${tree[@]:0:4}" --q 0.97 --n0 5 \
+        -o "$work/tree.kdt" \
         >"$work/build$run.log" 2>&1 || { cat "$work/build$run.log" >&2; exit 1; }
     alone=$(sed -n 's/^built in \([0-9.]*\) s.*/\1/p' "$work/build$run.log")
     cli=$(sed -n 's/.* \([0-9.]*\) Mrays\/s.*/\1/p' "$work/cli$run.log" | tail -1)
