@@ -36,7 +36,8 @@ RenderWorker::~RenderWorker() {
 }
 
 void RenderWorker::restart_locked(bool preview) {
-    ++updates_;
+    // No updates_ here: the caller's own frame shows the change, and frames drawn for it
+    // would only take the cores from the preview.
     preview_wanted_ = preview || (restart_ && preview_wanted_);
     restart_ = true;
     ++stats_.restarts;

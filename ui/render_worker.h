@@ -70,8 +70,9 @@ public:
     /// Full-resolution passes completed since the worker started (never reset; lock-free):
     /// when it grows, the session's image holds a pass more.
     uint64_t completed_passes() const { return completed_passes_.load(); }
-    /// Grows (lock-free) whenever something the UI shows from the worker may have changed:
-    /// a restart, a preview, a completed pass, pause, an environment error.
+    /// Grows (lock-free) whenever something the UI shows from the worker may have changed on
+    /// the worker's side: a preview, a completed pass, pause, an environment change. Not at a
+    /// restart: the caller of the setter knows of that one.
     uint64_t updates() const { return updates_.load(); }
     /// Copies the image of the last finished preview pass into `out` when it is another one
     /// than out holds (compared by out.version; out.generation is the WorkerStats::restarts
