@@ -62,18 +62,23 @@ void main() {
 }
 )";
 
+// Throws kdt::Error with `object`'s info log (deleting it first) when `ok` is false.
+void check_built(GLint ok, GLuint object, void (*info_log)(GLuint, GLsizei, GLsizei*, GLchar*),
+                 void (*remove)(GLuint), const char* what) {
+    if (ok) return;
+    char log[2048] = {};
+    info_log(object, sizeof log, nullptr, log);
+    remove(object);
+    throw Error(std::string(what) + log);
+}
+
 GLuint compile(GLenum type, const char* source) {
     const GLuint s = glCreateShader(type);
     glShaderSource(s, 1, &source, nullptr);
     glCompileShader(s);
     GLint ok = 0;
     glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
-    if (!ok) {
-        char log[2048] = {};
-        glGetShaderInfoLog(s, sizeof log, nullptr, log);
-        glDeleteShader(s);
-        throw Error(std::string("display shader: ") + log);
-    }
+    check_built(ok, s, glGetShaderInfoLog, glDeleteShader, "display shader: ");
     return s;
 }
 
@@ -94,12 +99,7 @@ GLuint link_program(const char* vertex, const char* fragment) {
     glDeleteShader(fs);
     GLint ok = 0;
     glGetProgramiv(program, GL_LINK_STATUS, &ok);
-    if (!ok) {
-        char log[2048] = {};
-        glGetProgramInfoLog(program, sizeof log, nullptr, log);
-        glDeleteProgram(program);
-        throw Error(std::string("display shader link: ") + log);
-    }
+    check_built(ok, program, glGetProgramInfoLog, glDeleteProgram, "display shader link: ");
     return program;
 }
 
