@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The viewer's performance goals (issue 26) on one model under one probe: runs the viewer under
 # Xvfb with a scripted session and `kdtrace render` on the same view, tree and threads, and
-# prints the four figures as medians over --repeat runs (each run: the CLI, then the viewer):
+# prints the four figures as medians over --repeat runs (each run: the CLI, the viewer, the
+# builder alone and the CLI again):
 #   UI frame median / p99 while the tree rebuilds and while the film refines (goal p99 < 33 ms)
 #   path-tracing Mrays/s in the viewer / in the CLI, same view, same threads (goal >= 0.9)
 #   q / n0 / depth change -> first full image with the new tree, thesis depth 20 (goal < 0.5 s)
@@ -33,7 +34,7 @@ while [[ $# -gt 0 ]]; do
         --env) env_map="$2"; shift 2 ;;
         --keep) keep="$2"; shift 2 ;;
         --kdtrace) kdtrace="$2"; shift 2 ;;
-        -h|--help) sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        -h|--help) sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
         *) echo "measure_viewer: unknown argument '$1' (see --help)" >&2; exit 2 ;;
     esac
 done
@@ -73,13 +74,18 @@ script+="; stats rebuild; wait_passes $passes; stats refine"
 
 median() { sort -g | awk '{v[NR] = $1} END {if (NR == 0) print "nan"; else if (NR % 2) print v[(NR + 1) / 2]; else printf "%.4g\n", (v[NR / 2] + v[NR / 2 + 1]) / 2}'; }
 
+# The CLI's Mrays/s on the viewer's view; $1 names its log.
+cli_render() {
+    nice -n 10 "$kdtrace" render "${common[@]}" --spp "$passes" -o "$work/cli.exr" \
+        >"$work/cli$run$1.log" 2>&1 || { cat "$work/cli$run$1.log" >&2; return 1; }
+    sed -n 's/.* \([0-9.]*\) Mrays\/s.*/\1/p' "$work/cli$run$1.log" | tail -1
+}
+
 echo "measure_viewer: $(basename "$model") under $(basename "$env_map"), threads $threads" \
      "(0 = all of $(nproc)), $repeat runs; load average before: $(cut -d' ' -f1-3 /proc/loadavg)"
 : >"$work/figures"
 for run in $(seq 1 "$repeat"); do
-    nice -n 10 "$kdtrace" render "${common[@]}" --spp "$passes" -o "$work/cli.exr" \
-        >"$work/cli$run.log" 2>&1 ||
-        { cat "$work/cli$run.log" >&2; exit 1; }
+    cli_before=$(cli_render a) || exit 1
     xvfb-run -a -s "-screen 0 1280x800x24" "$kdtrace" view "${common[@]}" --frames 5 \
         --script "$script" >"$work/view$run.log" 2>&1 || { cat "$work/view$run.log" >&2; exit 1; }
     # The builder alone on the viewer's first change (peer of the viewer's build times).
@@ -87,7 +93,10 @@ for run in $(seq 1 "$repeat"); do
         -o "$work/tree.kdt" \
         >"$work/build$run.log" 2>&1 || { cat "$work/build$run.log" >&2; exit 1; }
     alone=$(sed -n 's/^built in \([0-9.]*\) s.*/\1/p' "$work/build$run.log")
-    cli=$(sed -n 's/.* \([0-9.]*\) Mrays\/s.*/\1/p' "$work/cli$run.log" | tail -1)
+    # The CLI before and after the viewer: their mean is the peer, so a load that changes
+    # during the run weighs on both sides alike.
+    cli_after=$(cli_render b) || exit 1
+    cli=$(awk -v a="$cli_before" -v b="$cli_after" 'BEGIN {printf "%.3f", (a + b) / 2}')
     refine=$(grep "view stats refine:" "$work/view$run.log")
     rebuild=$(grep "view stats rebuild:" "$work/view$run.log")
     summary=$(grep "^view: " "$work/view$run.log")
