@@ -17,9 +17,10 @@ struct FrameSignals {
 };
 
 /// Draws at a tick after any input (and for kRecentInput after it: ImGui's hover states,
-/// held keys that send no events), any news (a render pass, a finished tree build), while
-/// busy, for kSettleFrames after any of these (a change often shows only in the frame after
-/// the one that took it), and at least every kMaxIdle (states the loop cannot see).
+/// held keys that send no events), after any news (a render pass, a finished tree build: it
+/// shows in the frame that takes it), while busy and for kSettleFrames after (a script's
+/// command often shows only in the frame after the one that ran it), and at least every
+/// kMaxIdle (states the loop cannot see).
 class FramePacer {
 public:
     using Clock = std::chrono::steady_clock;
