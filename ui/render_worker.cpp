@@ -35,7 +35,10 @@ RenderWorker::~RenderWorker() {
     thread_.join();
 }
 
-void RenderWorker::restart_locked() {
+void RenderWorker::restart_locked(bool preview) {
+    // No updates_ here: the caller's own frame shows the change, and frames drawn for it
+    // would only take the cores from the preview.
+    preview_wanted_ = preview || (restart_ && preview_wanted_);
     restart_ = true;
     ++stats_.restarts;
     stats_.done = false;
@@ -59,7 +62,7 @@ void RenderWorker::set_snapshot(std::shared_ptr<const RenderSnapshot> snapshot) 
     std::lock_guard<std::mutex> lock(mutex_);
     snapshot_ = std::move(snapshot);
     snapshot_changed_ = true;
-    restart_locked();
+    restart_locked(heat_map_);
 }
 
 void RenderWorker::set_params(const TraceParams& trace, const FilmParams& film,
@@ -110,12 +113,14 @@ void RenderWorker::apply_scene_changes() {
     env_ = env;
     env_desc_ = desc;
     if (request) stats_.error = error;
+    ++updates_;
     session_->set_snapshot(snap);
 }
 
 void RenderWorker::set_heat_map(bool on) {
     session_->set_heat_map(on);
     std::lock_guard<std::mutex> lock(mutex_);
+    heat_map_ = on;
     restart_locked();
 }
 
@@ -129,6 +134,7 @@ void RenderWorker::set_paused(bool paused) {
     std::lock_guard<std::mutex> lock(mutex_);
     paused_ = paused;
     stats_.paused = paused;
+    ++updates_;
     if (paused) session_->cancel();
     wake_.notify_all();
 }
@@ -159,10 +165,11 @@ Camera RenderWorker::full_camera_locked() const { return make_camera(camera_, wi
 
 void RenderWorker::run() {
     // The render threads (this one and the OpenMP pool it starts, which inherits it) yield to
-    // the UI thread: a frame must not wait for a core behind a tile.
-    setpriority(PRIO_PROCESS, 0, 5);  // Linux: 0 is the calling thread
-    bool preview = false;             // the pass in the session is the low-resolution preview
-    uint64_t restart = 0;             // the restart (WorkerStats::restarts) the passes belong to
+    // the UI thread, so a frame never waits for a core behind a tile, and to the tree builder,
+    // so a new tree is ready sooner while the old one keeps rendering on what is left.
+    setpriority(PRIO_PROCESS, 0, kRenderNice);  // Linux: 0 is the calling thread
+    bool preview = false;  // the pass in the session is the low-resolution preview
+    uint64_t restart = 0;  // the restart (WorkerStats::restarts) the passes belong to
     PathCounters totals;
     for (;;) {
         StopConditions stop;
@@ -175,7 +182,7 @@ void RenderWorker::run() {
                 restart_ = false;
                 restart = stats_.restarts;
                 const int pw = width_ / preview_divisor_, ph = height_ / preview_divisor_;
-                preview = preview_divisor_ > 1 && pw >= 8 && ph >= 8;
+                preview = preview_wanted_ && preview_divisor_ > 1 && pw >= 8 && ph >= 8;
                 restarted = true;
                 totals = PathCounters{};
             }
@@ -205,6 +212,7 @@ void RenderWorker::run() {
             preview_.version = 0;
             session_->copy_image(preview_, true);
             preview_.version = serial;
+            ++updates_;
             preview_.generation = restart;
             session_->set_camera(full_camera_locked());
             continue;
@@ -217,6 +225,8 @@ void RenderWorker::run() {
         if (restart_) continue;
         WorkerStats& s = stats_;
         ++s.full_passes;
+        ++completed_passes_;  // under the lock: a reader who sees it sees these stats too
+        ++updates_;
         s.seconds += ps.seconds;
         s.spp = double(session_->totals().samples) / pixels;
         s.mean_error = error;

@@ -1,10 +1,13 @@
 // The viewer's render thread: runs RenderSession passes progressively until a stop condition
 // holds, and restarts on any change (camera, parameters, snapshot, heat map) with a preview at
-// 1/preview_divisor of the resolution first, the pass in flight cancelled. The UI thread calls
-// the setters and reads stats() and the session's published image; no GL here.
-// Depends on renderer/render only.
+// 1/preview_divisor of the resolution first, the pass in flight cancelled. A new tree alone
+// (set_snapshot with the heat map off) shows the same picture, so it skips the preview. The
+// render threads run at a lower OS priority than the UI and the tree builder (Linux nice).
+// The UI thread calls the setters and reads stats() and the session's published image; no GL
+// here. Depends on renderer/render only.
 #pragma once
 
+#include <atomic>
 #include <condition_variable>
 #include <memory>
 #include <mutex>
@@ -18,6 +21,11 @@
 #include "renderer/render/session.h"
 
 namespace kdt::ui {
+
+/// The nice value of the render threads (Linux: per thread; 0 is the UI's). Against the tree
+/// builder's kBuildNice the render threads get about 1/8 of a contended core (the kernel's
+/// weights 110 and 820), against the UI about 1/10.
+constexpr int kRenderNice = 10;
 
 /// What the render thread reports, read by the UI under the worker's lock.
 struct WorkerStats {
@@ -44,7 +52,9 @@ public:
     ~RenderWorker();
 
     void set_camera(const CameraDesc& camera);
-    /// The scene and tree of `snapshot`, seen through the current camera.
+    /// The scene and tree of `snapshot`, seen through the current camera. With the heat map
+    /// off, the restart renders at full resolution at once: the picture on screen is already
+    /// that of the new tree's scene, and a preview would only blur it.
     void set_snapshot(std::shared_ptr<const RenderSnapshot> snapshot);
     /// Throws kdt::Error (and changes nothing) for invalid parameters.
     void set_params(const TraceParams& trace, const FilmParams& film, const StopConditions& stop);
@@ -59,6 +69,13 @@ public:
     /// The session, for copy_image() and inspect() (thread-safe calls only).
     const RenderSession& session() const { return *session_; }
     WorkerStats stats() const;
+    /// Full-resolution passes completed since the worker started (never reset; lock-free):
+    /// when it grows, the session's image holds a pass more.
+    uint64_t completed_passes() const { return completed_passes_.load(); }
+    /// Grows (lock-free) whenever something the UI shows from the worker may have changed on
+    /// the worker's side: a preview, a completed pass, pause, an environment change. Not at a
+    /// restart: the caller of the setter knows of that one.
+    uint64_t updates() const { return updates_.load(); }
     /// Copies the image of the last finished preview pass into `out` when it is another one
     /// than out holds (compared by out.version; out.generation is the WorkerStats::restarts
     /// count of the change it shows); returns whether it copied. The session's own
@@ -72,7 +89,9 @@ public:
 
 private:
     void run();
-    void restart_locked();
+    /// `preview`: the restart begins with a preview pass (any restart asking for one since
+    /// the thread last took a restart gets it).
+    void restart_locked(bool preview = true);
     /// On the render thread at a restart: builds a requested environment and puts the
     /// snapshot, with the environment in force, into the session.
     void apply_scene_changes();
@@ -90,12 +109,15 @@ private:
     FilmParams film_;
     StopConditions stop_;
     bool restart_ = true, paused_ = false, quit_ = false;
+    bool preview_wanted_ = true;  ///< a pending restart asked for a preview
+    bool heat_map_ = false;
     bool snapshot_changed_ = false;  ///< snapshot_ is not yet in the session
     std::optional<EnvironmentDesc> env_request_;
     std::shared_ptr<const EnvironmentLight> env_;  ///< set by set_environment, else null
     EnvironmentDesc env_desc_;
     WorkerStats stats_;
     FilmImage preview_;  ///< version: a count of previews
+    std::atomic<uint64_t> completed_passes_{0}, updates_{0};
 };
 
 }  // namespace kdt::ui

@@ -102,8 +102,8 @@ bool SplitView::drag(float u, float grab, bool pressed) {
     return dragging_;
 }
 
-void draw_split(const FilmDisplay& a, const FilmDisplay& b, int x, int y, int w, int h,
-                float divider, const ToneParams& tone, DisplayMode mode) {
+void draw_split(FilmDisplay& a, FilmDisplay& b, int x, int y, int w, int h, float divider,
+                const ToneParams& tone, DisplayMode mode) {
     const int split = x + int(std::lround(std::clamp(divider, 0.0f, 1.0f) * float(w)));
     glEnable(GL_SCISSOR_TEST);
     glScissor(x, y, split - x, h);

@@ -45,6 +45,7 @@ public:
     void update_image(std::optional<DebugLayer> layer, const HeatScale& a_scale);
     /// The texture of image B; null before the first update_image().
     const FilmDisplay* display() const { return display_.get(); }
+    FilmDisplay* display() { return display_.get(); }
     /// Deletes the texture (GL context current), so that the rest can be destroyed on
     /// another thread.
     void release_display() { display_.reset(); }
@@ -79,7 +80,7 @@ private:
 /// bottom-left origin) left of x + divider * w and texture b right of it (each stretched
 /// over the whole viewport, so a pixel column shows the same image point on both sides),
 /// with a 2-pixel light line at the divider. Leaves the scissor test off.
-void draw_split(const FilmDisplay& a, const FilmDisplay& b, int x, int y, int w, int h,
-                float divider, const ToneParams& tone, DisplayMode mode);
+void draw_split(FilmDisplay& a, FilmDisplay& b, int x, int y, int w, int h, float divider,
+                const ToneParams& tone, DisplayMode mode);
 
 }  // namespace kdt::ui

@@ -41,7 +41,8 @@ bool TreeRebuilder::busy() const {
 }
 
 void TreeRebuilder::run() {
-    setpriority(PRIO_PROCESS, 0, 5);  // as the render threads: the UI thread goes first
+    // The builder's OpenMP pool inherits this thread's nice value (Linux: per thread).
+    setpriority(PRIO_PROCESS, 0, kBuildNice);
     for (;;) {
         std::shared_ptr<const RenderSnapshot> base;
         KdTreeParams params;
@@ -67,6 +68,7 @@ void TreeRebuilder::run() {
         std::lock_guard<std::mutex> lock(mutex_);
         building_ = false;
         if (id == requested_) result_ = std::move(r);  // else a newer request supersedes it
+        ++finished_;
     }
 }
 

@@ -5,6 +5,7 @@
 // Depends on renderer/render only.
 #pragma once
 
+#include <atomic>
 #include <condition_variable>
 #include <memory>
 #include <mutex>
@@ -15,6 +16,10 @@
 #include "renderer/render/snapshot.h"
 
 namespace kdt::ui {
+
+/// The nice value of the builder threads: below the UI thread's 0, above the render threads'
+/// (render_worker.h kRenderNice).
+constexpr int kBuildNice = 2;
 
 struct RebuildResult {
     std::shared_ptr<const RenderSnapshot> snapshot;  ///< null when the build failed
@@ -36,6 +41,9 @@ public:
     std::optional<RebuildResult> take();
     /// Whether a request is queued or building.
     bool busy() const;
+    /// Builds finished since the start, superseded ones included (lock-free): when it grows,
+    /// take() may have a result.
+    uint64_t finished() const { return finished_.load(); }
 
 private:
     void run();
@@ -47,6 +55,7 @@ private:
     uint64_t requested_ = 0, started_ = 0;
     bool building_ = false, quit_ = false;
     std::optional<RebuildResult> result_;
+    std::atomic<uint64_t> finished_{0};
     std::thread thread_;
 };
 

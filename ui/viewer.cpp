@@ -18,6 +18,7 @@
 #include "renderer/io/image_io.h"
 #include "renderer/scene/views.h"
 #include "ui/camera_control.h"
+#include "ui/frame_pacer.h"
 #include "ui/viewer_app.h"
 
 namespace kdt::ui {
@@ -139,6 +140,7 @@ void Viewer::poll_rebuild() {
     opts_.tree = tree_edit_;
     lat_.build_seconds.push_back(r->seconds);
     worker_->set_snapshot(r->snapshot);
+    swapped_at_ = Clock::now();
     rebuild_restarts_ = worker_->stats().restarts;
     awaiting_rebuild_image_ = true;
 }
@@ -167,6 +169,13 @@ void Viewer::update_image() {
             awaiting_preview_ = false;
         }
     }
+    const uint64_t passes = worker_->completed_passes();
+    // Copied at once: a new pass, a recolour (version 0), a heat view still showing radiance.
+    const bool now =
+        passes != copied_passes_ || image_.version == 0 || (heat && image_.heat_nodes.empty());
+    if (!now && ms_since(copied_at_) < kPartialImageMs) return;
+    copied_passes_ = passes;
+    copied_at_ = Clock::now();
     if (!worker_->session().copy_image(image_, heat)) return;
     if (image_.complete_passes == 0) return;
     upload(image_);
@@ -174,12 +183,13 @@ void Viewer::update_image() {
         const WorkerStats s = worker_->stats();
         if (s.restarts == rebuild_restarts_ && s.full_passes >= 1) {
             lat_.rebuild_ms.push_back(ms_since(rebuild_requested_at_));
+            lat_.swap_ms.push_back(ms_since(swapped_at_));
             awaiting_rebuild_image_ = false;
         }
     }
 }
 
-void Viewer::draw_image(int fb_width, int fb_height) const {
+void Viewer::draw_image(int fb_width, int fb_height) {
     const DisplayMode mode =
         view_ == ViewMode::radiance ? DisplayMode::radiance : DisplayMode::direct;
     // image_y_ counts from the top; GL's viewport from the bottom.
@@ -342,14 +352,16 @@ std::string Viewer::summary() const {
     const WorkerStats s = worker_ ? worker_->stats() : WorkerStats{};
     char buf[512];
     std::snprintf(buf, sizeof buf,
-                  "view: %zu frames, frame ms median %.2f p99 %.2f; preview ms median %.1f (%zu); "
-                  "rebuild to full image ms median %.1f (%zu), build s median %.3f; "
+                  "view: %zu frames (%zu unchanged, not drawn), frame ms median %.2f p99 %.2f; "
+                  "preview ms median %.1f (%zu); "
+                  "rebuild to full image ms median %.1f (%zu), build s median %.3f, swap to full "
+                  "image ms median %.1f; "
                   "%.1f spp, %d passes, %.3f Mrays/s, error %.4f",
-                  lat_.frame_ms.size(), percentile(lat_.frame_ms, 0.5),
+                  lat_.frame_ms.size(), frames_unchanged_, percentile(lat_.frame_ms, 0.5),
                   percentile(lat_.frame_ms, 0.99), percentile(lat_.preview_ms, 0.5),
                   lat_.preview_ms.size(), percentile(lat_.rebuild_ms, 0.5), lat_.rebuild_ms.size(),
-                  percentile(lat_.build_seconds, 0.5), s.spp, s.full_passes, s.mrays_per_second,
-                  s.mean_error);
+                  percentile(lat_.build_seconds, 0.5), percentile(lat_.swap_ms, 0.5), s.spp,
+                  s.full_passes, s.mrays_per_second, s.mean_error);
     return buf;
 }
 
@@ -388,6 +400,40 @@ void layout(Viewer& v, int fb_w, int fb_h) {
     v.image_y_ = (fb_h - h) / 2;
 }
 
+constexpr auto kFramePeriod = std::chrono::microseconds(16667);
+
+// Input events seen by GLFW's callbacks (all on the UI thread, in glfwPollEvents).
+uint64_t g_input_events = 0;
+
+void count_input_events(GLFWwindow* window) {
+    glfwSetCursorPosCallback(window, [](GLFWwindow*, double, double) { ++g_input_events; });
+    glfwSetMouseButtonCallback(window, [](GLFWwindow*, int, int, int) { ++g_input_events; });
+    glfwSetScrollCallback(window, [](GLFWwindow*, double, double) { ++g_input_events; });
+    glfwSetKeyCallback(window, [](GLFWwindow*, int, int, int, int) { ++g_input_events; });
+    glfwSetCharCallback(window, [](GLFWwindow*, unsigned) { ++g_input_events; });
+    glfwSetCursorEnterCallback(window, [](GLFWwindow*, int) { ++g_input_events; });
+    glfwSetWindowFocusCallback(window, [](GLFWwindow*, int) { ++g_input_events; });
+    glfwSetWindowSizeCallback(window, [](GLFWwindow*, int, int) { ++g_input_events; });
+    glfwSetWindowRefreshCallback(window, [](GLFWwindow*) { ++g_input_events; });
+}
+
+// What the frame pacer needs to know about the viewer before a tick.
+FrameSignals observe(Viewer& v) {
+    FrameSignals s;
+    s.input_events = g_input_events;
+    // Both counters only grow: their sum changes when either does. A build in flight draws
+    // nothing new until it finishes, so the builder gets the UI's time meanwhile.
+    s.updates = (v.worker_ ? v.worker_->updates() : 0) + v.rebuilder_->finished();
+    if (v.split_) s.updates += v.split_->worker().updates();
+    // An image still to come, a change the loop cannot see, a script command to run now or a
+    // wait that counts frames.
+    // A load in flight: its progress bar moves at display rate.
+    s.busy = !v.have_image_ || v.redraw_frames_ > 0 || v.loading() ||
+             (v.waiting_.empty() && v.script_next_ < v.script_.size()) || v.waiting_ == "wait";
+    v.redraw_frames_ = std::max(v.redraw_frames_ - 1, 0);
+    return s;
+}
+
 }  // namespace
 
 void run_viewer(const ViewerOptions& options) {
@@ -411,6 +457,7 @@ void run_viewer(const ViewerOptions& options) {
     ImGui::CreateContext();
     ImGui::GetIO().IniFilename = nullptr;  // no imgui.ini next to the user's files
     ImGui::StyleColorsDark();
+    count_input_events(window);  // before the ImGui backend, which chains to these
     ImGui_ImplGlfw_InitForOpenGL(window, true);
     ImGui_ImplOpenGL3_Init("#version 330 core");
     struct ImGuiGuard {
@@ -424,12 +471,19 @@ void run_viewer(const ViewerOptions& options) {
     v.install_drop_callback(window);
 
     int frames_after_script = 0;
+    FramePacer pacer;
     auto last = Viewer::Clock::now();
     while (!glfwWindowShouldClose(window)) {
         const auto start = Viewer::Clock::now();
-        const double dt = std::chrono::duration<double>(start - last).count();
-        last = start;
         glfwPollEvents();
+        if (!pacer.due(observe(v), start)) {
+            ++v.frames_unchanged_;
+            std::this_thread::sleep_until(start + kFramePeriod);
+            continue;
+        }
+        // Capped: after an idle spell the first frame's fly step is not the whole pause.
+        const double dt = std::min(std::chrono::duration<double>(start - last).count(), 0.05);
+        last = start;
         int fb_w = 0, fb_h = 0;
         glfwGetFramebufferSize(window, &fb_w, &fb_h);
         int ww = 0, wh = 0;
@@ -472,7 +526,7 @@ void run_viewer(const ViewerOptions& options) {
         if (last_frame) break;
         // At most 60 frames a second where the swap does not wait for the display (Xvfb,
         // vsync off): the render threads get the time a spinning UI would take.
-        std::this_thread::sleep_until(start + std::chrono::microseconds(16667));
+        std::this_thread::sleep_until(start + kFramePeriod);
     }
     glfwDestroyWindow(window);
     std::printf("%s\n", v.summary().c_str());

@@ -33,6 +33,7 @@ struct Latencies {
     std::vector<double> frame_ms;       ///< work per frame, input to buffer swap
     std::vector<double> preview_ms;     ///< camera change to the first preview on screen
     std::vector<double> rebuild_ms;     ///< tree request to the first full image with it
+    std::vector<double> swap_ms;        ///< of rebuild_ms, the new tree's swap to that image
     std::vector<double> build_seconds;  ///< the rebuilds' build times
 };
 
@@ -63,7 +64,7 @@ public:
     /// Copies the published image when it changed and uploads it (GL context current).
     void update_image();
     void upload(const FilmImage& image);
-    void draw_image(int fb_width, int fb_height) const;
+    void draw_image(int fb_width, int fb_height);
     void draw_panels();
     /// Throws kdt::Error naming the first command of the script that does not exist.
     void check_script() const;
@@ -145,13 +146,27 @@ public:
     double mouse_x_ = 0.0, mouse_y_ = 0.0;
     float content_scale_ = 1.0f;
 
+    // The session's image is copied and uploaded when a pass completes, and while one is in
+    // flight (its tiles) at most every kPartialImageMs: a copy and an upload a frame would
+    // cost the render threads more than the tiles show.
+    static constexpr double kPartialImageMs = 250.0;
+    uint64_t copied_passes_ = 0;  ///< the worker's completed_passes() at the last copy
+    Clock::time_point copied_at_{};
+
+    // Frame pacing (run_viewer draws a frame only when it may differ from the last one).
+    /// Frames to draw whatever else happens: set by a change the frame loop cannot see
+    /// (a state another thread moves on); counts down by one per 60 Hz tick.
+    int redraw_frames_ = 0;
+    size_t frames_unchanged_ = 0;  ///< ticks with no frame drawn
+
     // Latency bookkeeping.
     Latencies lat_;
     Clock::time_point camera_changed_at_{};
     bool awaiting_preview_ = false;
     uint64_t camera_restart_ = 0;  ///< the worker's restart count after the camera change
     Clock::time_point rebuild_requested_at_{};
-    uint64_t rebuild_restarts_ = 0;  ///< worker restarts when the new tree was swapped in
+    uint64_t rebuild_restarts_ = 0;   ///< worker restarts when the new tree was swapped in
+    Clock::time_point swapped_at_{};  ///< when the new tree was given to the worker
     bool awaiting_rebuild_image_ = false;
 
     // Script state.

@@ -106,6 +106,42 @@ TEST(ViewerThreads, HundredChangesWhileRenderingAndRebuilding) {
     EXPECT_GT(worker.stats().mrays_per_second, 0.0);
 }
 
+TEST(ViewerThreads, ATreeSwapAloneSkipsThePreviewACameraMoveDoesNot) {
+    auto snap = stress_snapshot();
+    TraceParams tp;
+    tp.threads = 2;
+    RenderWorker worker(snap, tp, FilmParams{}, StopConditions{}, 4);
+    FilmImage preview;
+    auto settled = [&](uint64_t restarts) {
+        return wait_for(
+            [&] {
+                const WorkerStats s = worker.stats();
+                return s.restarts == restarts && s.full_passes >= 1;
+            },
+            120.0);
+    };
+    ASSERT_TRUE(settled(worker.stats().restarts));
+    ASSERT_TRUE(worker.copy_preview(preview));  // the first image starts with a preview
+    EXPECT_EQ(preview.width, 48 / 4);
+    KdTreeParams kp;
+    kp.builder = KdBuilder::thesis;
+    const auto rebuilt = with_tree(*snap, build_kdtree(snap->scene->mesh, kp));
+    worker.set_snapshot(rebuilt);
+    ASSERT_TRUE(settled(worker.stats().restarts));
+    EXPECT_FALSE(worker.copy_preview(preview)) << "a tree swap made a preview";
+    EXPECT_EQ(worker.snapshot()->scene->tree, rebuilt->scene->tree);
+    worker.set_camera(orbit(snap->camera_desc, 10.0f, 0.0f));
+    ASSERT_TRUE(settled(worker.stats().restarts));
+    EXPECT_TRUE(worker.copy_preview(preview)) << "a camera move made no preview";
+    // With the heat map on, a new tree changes the picture: it gets a preview.
+    worker.set_heat_map(true);
+    ASSERT_TRUE(settled(worker.stats().restarts));
+    worker.copy_preview(preview);
+    worker.set_snapshot(snap);
+    ASSERT_TRUE(settled(worker.stats().restarts));
+    EXPECT_TRUE(worker.copy_preview(preview)) << "a tree swap under the heat map made no preview";
+}
+
 TEST(ViewerThreads, ANewerRebuildRequestSupersedesAnOlderOne) {
     auto snap = stress_snapshot();
     TreeRebuilder rebuilder;

@@ -81,6 +81,34 @@ TEST(FilmDisplay, DirectModeShowsValuesAndALowResolutionImageFillsTheViewport) {
     EXPECT_NEAR(px[right + 2], 128, 1);
 }
 
+TEST(FilmDisplay, TheToneMappedImageFollowsUploadsAndRedrawsTheSameWithoutOne) {
+    test::OffscreenGL gl(kW, kH);
+    ASSERT_TRUE(gl.ok());
+    FilmDisplay display;
+    display.init();
+    ToneParams tone;
+    tone.curve = ToneCurve::reinhard;
+    const std::vector<float> a = known_image(1.0f), b = known_image(0.37f);
+    auto check = [&](const std::vector<float>& img, const char* what) {
+        const std::vector<uint8_t> px = gl.read_rgb();
+        ASSERT_EQ(gl_errors(what), "");
+        for (size_t i = 0; i < img.size(); ++i)
+            ASSERT_LE(std::abs(int(px[i]) - tonemap_to_srgb8(img[i], tone)), 1) << what << i;
+    };
+    display.upload(kW, kH, a.data());
+    display.draw(0, 0, kW, kH, tone, DisplayMode::radiance);
+    check(a, "first draw");
+    // Same image and tone: drawn from the cached tone map, over a cleared framebuffer.
+    glClearColor(0.0f, 1.0f, 0.0f, 1.0f);
+    glClear(GL_COLOR_BUFFER_BIT);
+    display.draw(0, 0, kW, kH, tone, DisplayMode::radiance);
+    check(a, "redraw");
+    // A new upload with the same tone is shown, not the cached image.
+    display.upload(kW, kH, b.data());
+    display.draw(0, 0, kW, kH, tone, DisplayMode::radiance);
+    check(b, "after upload");
+}
+
 TEST(Screenshot, SrgbCodesDecodedToLinearEncodeBackToThemselves) {
     // Viewer::screenshot writes window pixels through the PNG writer's tone map.
     for (int c = 0; c < 256; ++c) {

@@ -21,6 +21,7 @@ if(KDT_OSMESA_LIB)
   add_executable(kdt_ui_tests ${CMAKE_CURRENT_LIST_DIR}/display_test.cpp
                  ${CMAKE_CURRENT_LIST_DIR}/camera_control_test.cpp
                  ${CMAKE_CURRENT_LIST_DIR}/heat_map_test.cpp
+                 ${CMAKE_CURRENT_LIST_DIR}/frame_pacer_test.cpp
                  ${CMAKE_CURRENT_LIST_DIR}/panels_test.cpp
                  ${CMAKE_CURRENT_LIST_DIR}/split_view_test.cpp
                  ${CMAKE_CURRENT_LIST_DIR}/viewer_files_test.cpp
