@@ -350,9 +350,9 @@ void Viewer::draw_panels() {
     inspector(*this);
     ImGui::End();
     if (split_) {
-        // In the bottom-left corner, as small as its contents: mostly below the image.
-        ImGui::SetNextWindowPos(ImVec2(6.0f, ImGui::GetIO().DisplaySize.y - 6.0f),
-                                ImGuiCond_FirstUseEver, ImVec2(0.0f, 1.0f));
+        // In the top-left corner (the File panel has the bottom-left), as small as its
+        // contents; the user may drag it elsewhere.
+        ImGui::SetNextWindowPos(ImVec2(6.0f, 6.0f), ImGuiCond_FirstUseEver);
         ImGui::Begin("Split view: A left, B right", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
         split_panel(*this);
         ImGui::End();
