@@ -206,9 +206,10 @@ TEST(SplitView, PanelsAndDebugViewsDrawWithNoGlErrorAndTheDividerWhereSet) {
             EXPECT_GT(v.heat_scale_.hi, v.heat_scale_.lo);
         }
     }
-    // The divider line at a quarter of the image, in a row below the panels' reach.
+    // The divider line at a quarter of the image, in a row (from the top) below the split
+    // panel in the top-left corner and above the File panel in the bottom-left one.
     const std::vector<uint8_t> px = gl.read_rgb();
-    const uint8_t* line = &px[3 * (size_t(240) * kW + 159)];
+    const uint8_t* line = &px[3 * (size_t(400) * kW + 159)];
     EXPECT_GT(line[0], 200);
     EXPECT_GT(line[1], 200);
     EXPECT_GT(line[2], 200);
