@@ -60,6 +60,18 @@ void check_radiance_bound(double channel, float intensity, const std::string& pa
     }
 }
 
+/// Sampling cells per pixel along each axis: 8, 4, 2, or 1, the largest whose grid stays
+/// within kMaxSamplingCells (4M cells, about 50 MB of tables): 8 up to 256x256 pixels
+/// (e.g. 362x181), 4 up to 512x512 (724x362), 2 up to 1024x1024 (1448x724), 1 above.
+int sampling_subdivision(int w, int h) {
+    constexpr uint64_t kMaxSamplingCells = uint64_t(1) << 22;
+    const uint64_t pixels = uint64_t(w) * uint64_t(h);
+    for (int s = 8; s > 1; s /= 2) {
+        if (pixels * uint64_t(s * s) <= kMaxSamplingCells) return s;
+    }
+    return 1;
+}
+
 }  // namespace
 
 void check_environment_texels(const ImageRGB& image, float intensity, const std::string& path) {
@@ -116,7 +128,7 @@ EnvSample ConstantEnvironment::sample(const Vec2f& u) const {
 }
 
 ImageEnvironment::ImageEnvironment(ImageRGB image, EnvMapping mapping, float rotation_degrees,
-                                   float intensity, const std::string& name)
+                                   float intensity, const std::string& name, int cells_per_pixel)
     : image_(std::move(image)), mapping_(mapping), intensity_(intensity) {
     const int w = image_.width, h = image_.height;
     if (w < 1 || h < 1 || image_.rgb.size() != image_.pixel_count() * 3) {
@@ -128,84 +140,88 @@ ImageEnvironment::ImageEnvironment(ImageRGB image, EnvMapping mapping, float rot
     if (!std::isfinite(intensity) || intensity < 0.0f) {
         throw Error(ErrorLocation{where(name)}, "intensity must be finite and >= 0");
     }
+    if (cells_per_pixel != 0 && cells_per_pixel != 1 &&
+        !(cells_per_pixel % 2 == 0 && cells_per_pixel >= 2 && cells_per_pixel <= 16)) {
+        throw Error(ErrorLocation{where(name)},
+                    "sampling cells per pixel must be 0 (automatic), 1 or even in [2, 16]");
+    }
     float radians = rotation_degrees * (kPi / 180.0f);
     cos_rot_ = std::cos(radians);
     sin_rot_ = std::sin(radians);
 
     check_environment_texels(image_, intensity, where(name));
 
-    // Sampling weights: the mean luminance of the bilinear reconstruction over the pixel
-    // times the pixel's solid angle per unit uv area, so that the solid-angle pdf is close
-    // to proportional to what eval() returns, and positive wherever eval() is.
-    // In double: luminance times a Jacobian of up to 4 pi^2 overflows float for huge pixels.
+    // Sampling weights on the grid of sampling cells (sub_ x sub_ per pixel): the mean
+    // luminance of the bilinear reconstruction over the cell times the cell's solid angle per
+    // unit uv area, so that the solid-angle pdf is close to proportional to what eval()
+    // returns, and positive wherever eval() is.
+    // In double: luminance times a Jacobian of up to 4 pi^2 overflows float for huge cells.
+    sub_ = cells_per_pixel != 0 ? cells_per_pixel : sampling_subdivision(w, h);
+    const int gw = w * sub_, gh = h * sub_;
+    const size_t cells = size_t(gw) * size_t(gh);
     const std::vector<double> lum = cell_mean_luminance();
-    std::vector<double> weights(image_.pixel_count(), 0.0);
-    std::vector<float> coverage(image_.pixel_count(), 1.0f);
+    std::vector<double> weights(cells, 0.0);
+    std::vector<float> cover(cells, 1.0f);
     if (mapping_ == EnvMapping::latlong) {
-        for (int y = 0; y < h; ++y) {
+        for (int y = 0; y < gh; ++y) {
             // Mean of sin(theta) over the row: (cos theta0 - cos theta1) / (theta1 - theta0).
-            double t0 = M_PI * y / h, t1 = M_PI * (y + 1) / h;
+            double t0 = M_PI * y / gh, t1 = M_PI * (y + 1) / gh;
             double mean_sin = (std::cos(t0) - std::cos(t1)) / (t1 - t0);
-            for (int x = 0; x < w; ++x) {
-                size_t i = size_t(y) * size_t(w) + size_t(x);
+            for (int x = 0; x < gw; ++x) {
+                size_t i = size_t(y) * size_t(gw) + size_t(x);
                 weights[i] = lum[i] * mean_sin;
             }
         }
     } else {
-        constexpr int kSub = 4;
-        for (int y = 0; y < h; ++y) {
-            for (int x = 0; x < w; ++x) {
-                size_t i = size_t(y) * size_t(w) + size_t(x);
-                // Disk coordinates of the pixel: a right, b up.
-                double a0 = 2.0 * x / w - 1.0, a1 = 2.0 * (x + 1) / w - 1.0;
-                double b0 = 1.0 - 2.0 * (y + 1) / h, b1 = 1.0 - 2.0 * y / h;
-                double far_a = std::max(std::abs(a0), std::abs(a1));
-                double far_b = std::max(std::abs(b0), std::abs(b1));
-                bool inside = far_a * far_a + far_b * far_b <= 1.0;
-                double cov =
-                    inside ? 1.0 : disk_rect_area(a0, a1, b0, b1) / ((a1 - a0) * (b1 - b0));
-                coverage[i] = float(cov);
-                if (!(cov > 0.0) || lum[i] <= 0.0) continue;
-                // Mean Jacobian over the pixel (zero outside the disk): the centre value for
-                // pixels inside the disk, a kSub^2 grid for pixels cut by the rim. It only
-                // shapes the weights; the density below stays exact.
-                double mean_j = 0.0;
-                if (inside) {
-                    mean_j = angular_jacobian(*angular_dir_from_uv(
-                        {(float(x) + 0.5f) / float(w), (float(y) + 0.5f) / float(h)}));
-                } else {
-                    for (int sy = 0; sy < kSub; ++sy) {
-                        for (int sx = 0; sx < kSub; ++sx) {
-                            Vec2f uv((float(x) + (float(sx) + 0.5f) / kSub) / float(w),
-                                     (float(y) + (float(sy) + 0.5f) / kSub) / float(h));
-                            if (auto d = angular_dir_from_uv(uv)) mean_j += angular_jacobian(*d);
-                        }
-                    }
-                    mean_j /= kSub * kSub;
-                }
-                // A floor keeps pixels cut by the rim with no grid point inside samplable,
+        for (int y = 0; y < gh; ++y) {
+            for (int x = 0; x < gw; ++x) {
+                size_t i = size_t(y) * size_t(gw) + size_t(x);
+                cover[i] = coverage(x, y);
+                if (!(cover[i] > 0.0f) || lum[i] <= 0.0) continue;
+                // A floor keeps cells cut by the rim with no grid point inside samplable,
                 // so that pdf > 0 wherever eval > 0.
-                weights[i] = lum[i] * std::max(mean_j, cov * 1e-3);
+                weights[i] =
+                    lum[i] * std::max(angular_mean_jacobian(x, y), double(cover[i]) * 1e-3);
             }
         }
     }
     // Normalised to a maximum of 1 so that the float distribution can neither overflow nor
-    // lose the scale; pixels below 1e-38 of the brightest one round to weight 0.
+    // lose the scale; cells below 1e-38 of the brightest one round to weight 0.
     double max_weight = *std::max_element(weights.begin(), weights.end());
     std::vector<float> normalised(weights.size(), 0.0f);
     if (max_weight > 0.0) {
         for (size_t i = 0; i < weights.size(); ++i) normalised[i] = float(weights[i] / max_weight);
     }
-    distribution_ = Distribution2D(normalised, w, h);
-    density_.assign(image_.pixel_count(), 0.0f);
+    distribution_ = Distribution2D(normalised, gw, gh);
+    density_.assign(cells, 0.0f);
     if (!distribution_.empty()) {
-        for (int y = 0; y < h; ++y) {
-            for (int x = 0; x < w; ++x) {
-                size_t i = size_t(y) * size_t(w) + size_t(x);
-                if (normalised[i] > 0.0f) density_[i] = distribution_.pdf(x, y) / coverage[i];
+        for (int y = 0; y < gh; ++y) {
+            for (int x = 0; x < gw; ++x) {
+                size_t i = size_t(y) * size_t(gw) + size_t(x);
+                if (normalised[i] > 0.0f) density_[i] = distribution_.pdf(x, y) / cover[i];
             }
         }
     }
+}
+
+double ImageEnvironment::angular_mean_jacobian(int x, int y) const {
+    // Zero outside the disk: the centre value for cells inside the disk, a kSub^2 grid for
+    // cells cut by the rim. It only shapes the weights; the density stays exact.
+    constexpr int kSub = 4;
+    const float gw = float(image_.width * sub_), gh = float(image_.height * sub_);
+    if (coverage(x, y) >= 1.0f) {
+        if (auto d = angular_dir_from_uv({(float(x) + 0.5f) / gw, (float(y) + 0.5f) / gh}))
+            return angular_jacobian(*d);
+    }
+    double mean_j = 0.0;
+    for (int sy = 0; sy < kSub; ++sy) {
+        for (int sx = 0; sx < kSub; ++sx) {
+            Vec2f uv((float(x) + (float(sx) + 0.5f) / kSub) / gw,
+                     (float(y) + (float(sy) + 0.5f) / kSub) / gh);
+            if (auto d = angular_dir_from_uv(uv)) mean_j += angular_jacobian(*d);
+        }
+    }
+    return mean_j / (kSub * kSub);
 }
 
 int ImageEnvironment::column(int x) const {
@@ -215,25 +231,51 @@ int ImageEnvironment::column(int x) const {
 }
 
 std::vector<double> ImageEnvironment::cell_mean_luminance() const {
-    // Over a pixel, the bilinear reconstruction's mean is the pixel and its neighbours
-    // weighted 1/8, 3/4, 1/8 along each axis (each half of the pixel interpolates towards
-    // one neighbour), with the neighbours eval() uses at the edges.
     const int w = image_.width, h = image_.height;
-    std::vector<double> row(image_.pixel_count()), out(image_.pixel_count());
-    for (int y = 0; y < h; ++y) {
-        for (int x = 0; x < w; ++x) {
-            auto l = [&](int xx) { return double(luminance(image_.at(column(xx), y))); };
-            row[size_t(y) * size_t(w) + size_t(x)] =
-                0.125 * l(x - 1) + 0.75 * l(x) + 0.125 * l(x + 1);
-        }
+    std::vector<double> texel(image_.pixel_count());
+    for (size_t i = 0; i < texel.size(); ++i) {
+        texel[i] = double(luminance(image_.at(int(i % size_t(w)), int(i / size_t(w)))));
     }
-    for (int y = 0; y < h; ++y) {
-        const int up = std::max(y - 1, 0), down = std::min(y + 1, h - 1);
-        for (int x = 0; x < w; ++x) {
-            out[size_t(y) * size_t(w) + size_t(x)] =
-                0.125 * row[size_t(up) * size_t(w) + size_t(x)] +
-                0.75 * row[size_t(y) * size_t(w) + size_t(x)] +
-                0.125 * row[size_t(down) * size_t(w) + size_t(x)];
+    auto at = [&](int x, int y) { return texel[size_t(y) * size_t(w) + size_t(x)]; };
+    if (sub_ == 1) {
+        // Over a pixel, the bilinear reconstruction's mean is the pixel and its neighbours
+        // weighted 1/8, 3/4, 1/8 along each axis (each half of the pixel interpolates towards
+        // one neighbour), with the neighbours eval() uses at the edges.
+        std::vector<double> row(texel.size()), out(texel.size());
+        for (int y = 0; y < h; ++y) {
+            for (int x = 0; x < w; ++x) {
+                row[size_t(y) * size_t(w) + size_t(x)] =
+                    0.125 * at(column(x - 1), y) + 0.75 * at(x, y) + 0.125 * at(column(x + 1), y);
+            }
+        }
+        for (int y = 0; y < h; ++y) {
+            const int up = std::max(y - 1, 0), down = std::min(y + 1, h - 1);
+            for (int x = 0; x < w; ++x) {
+                out[size_t(y) * size_t(w) + size_t(x)] =
+                    0.125 * row[size_t(up) * size_t(w) + size_t(x)] +
+                    0.75 * row[size_t(y) * size_t(w) + size_t(x)] +
+                    0.125 * row[size_t(down) * size_t(w) + size_t(x)];
+            }
+        }
+        return out;
+    }
+    // sub_ even: pixel centres lie on cell edges, so each cell lies inside one bilinear patch
+    // and the mean over it is the interpolated value at its centre, which is strictly inside
+    // the patch: positive if any of the patch's four texels is (the same texels, wrapping
+    // and clamping as lookup()).
+    const int gw = w * sub_, gh = h * sub_;
+    std::vector<double> out(size_t(gw) * size_t(gh));
+    for (int gy = 0; gy < gh; ++gy) {
+        const double fy = (gy + 0.5) / sub_ - 0.5, y_floor = std::floor(fy), ty = fy - y_floor;
+        const int ya = std::clamp(int(y_floor), 0, h - 1),
+                  yb = std::clamp(int(y_floor) + 1, 0, h - 1);
+        for (int gx = 0; gx < gw; ++gx) {
+            const double fx = (gx + 0.5) / sub_ - 0.5, x_floor = std::floor(fx), tx = fx - x_floor;
+            const int xa = column(std::clamp(int(x_floor), -1, w)),
+                      xb = column(std::clamp(int(x_floor) + 1, -1, w));
+            out[size_t(gy) * size_t(gw) + size_t(gx)] =
+                (at(xa, ya) * (1.0 - tx) + at(xb, ya) * tx) * (1.0 - ty) +
+                (at(xa, yb) * (1.0 - tx) + at(xb, yb) * tx) * ty;
         }
     }
     return out;
@@ -257,9 +299,12 @@ Vec3f ImageEnvironment::lookup(const Vec2f& uv) const {
 
 float ImageEnvironment::coverage(int x, int y) const {
     if (mapping_ == EnvMapping::latlong) return 1.0f;
-    const int w = image_.width, h = image_.height;
+    const int w = image_.width * sub_, h = image_.height * sub_;
     double a0 = 2.0 * x / w - 1.0, a1 = 2.0 * (x + 1) / w - 1.0;
     double b0 = 1.0 - 2.0 * (y + 1) / h, b1 = 1.0 - 2.0 * y / h;
+    double far_a = std::max(std::abs(a0), std::abs(a1));
+    double far_b = std::max(std::abs(b0), std::abs(b1));
+    if (far_a * far_a + far_b * far_b <= 1.0) return 1.0f;  // exactly, inside the disk
     return float(disk_rect_area(a0, a1, b0, b1) / ((a1 - a0) * (b1 - b0)));
 }
 
@@ -270,15 +315,16 @@ Vec3f ImageEnvironment::to_map(const Vec3f& world_dir) const {
     return d;
 }
 
-size_t ImageEnvironment::pixel_index(const Vec3f& map_dir) const {
+size_t ImageEnvironment::cell_index(const Vec3f& map_dir) const {
     Vec2f uv = env_uv_from_dir(mapping_, map_dir);
-    int x = std::clamp(int(uv.x * float(image_.width)), 0, image_.width - 1);
-    int y = std::clamp(int(uv.y * float(image_.height)), 0, image_.height - 1);
-    return size_t(y) * size_t(image_.width) + size_t(x);
+    const int gw = image_.width * sub_, gh = image_.height * sub_;
+    int x = std::clamp(int(uv.x * float(gw)), 0, gw - 1);
+    int y = std::clamp(int(uv.y * float(gh)), 0, gh - 1);
+    return size_t(y) * size_t(gw) + size_t(x);
 }
 
-float ImageEnvironment::pdf_map(const Vec3f& map_dir, size_t pixel) const {
-    float density = density_[pixel];
+float ImageEnvironment::pdf_map(const Vec3f& map_dir, size_t cell) const {
+    float density = density_[cell];
     if (density <= 0.0f) return 0.0f;
     float jacobian = env_jacobian(mapping_, map_dir);
     return jacobian > 0.0f ? density / jacobian : 0.0f;
@@ -301,7 +347,7 @@ Vec3f ImageEnvironment::eval(const Vec3f& dir) const {
 float ImageEnvironment::pdf(const Vec3f& dir) const {
     Vec3f d = to_map(dir);
     if (!(glm::dot(d, d) > 0.0f)) return 0.0f;
-    return pdf_map(d, pixel_index(d));
+    return pdf_map(d, cell_index(d));
 }
 
 EnvSample ImageEnvironment::sample(const Vec2f& u) const {
@@ -311,12 +357,12 @@ EnvSample ImageEnvironment::sample(const Vec2f& u) const {
     Vec2f uv = distribution_.sample_continuous(u, &cell);
     std::optional<Vec3f> map_dir = env_dir_from_uv(mapping_, uv);
     if (!map_dir) {
-        // Angular map, a pixel cut by the rim: uniform within its part of the disk by
+        // Angular map, a cell cut by the rim: uniform within its part of the disk by
         // rejection, with random numbers derived from u. The density stays
-        // pdf(pixel) / coverage; failing 256 times has negligible probability and yields
+        // pdf(cell) / coverage; failing 256 times has negligible probability and yields
         // a zero-pdf sample the integrator skips.
         uint64_t state = (uint64_t(float_bits(u.x)) << 32) | float_bits(u.y);
-        const float w = float(image_.width), h = float(image_.height);
+        const float w = float(image_.width * sub_), h = float(image_.height * sub_);
         for (int attempt = 0; attempt < 256 && !map_dir; ++attempt) {
             uint64_t r = splitmix64(state);
             Vec2f p((float(cell.x) + unit_float(r)) / w, (float(cell.y) + unit_float(r << 24)) / h);
@@ -327,11 +373,11 @@ EnvSample ImageEnvironment::sample(const Vec2f& u) const {
     }
     s.dir = rotate_y(*map_dir, cos_rot_, sin_rot_);
     // Radiance and pdf are looked up again from the final direction, exactly as eval() and
-    // pdf() do, so that they agree bit for bit (a sample on a pixel edge may round into the
-    // neighbouring pixel; it is then that pixel's density that counts).
+    // pdf() do, so that they agree bit for bit (a sample on a cell edge may round into the
+    // neighbouring cell; it is then that cell's density that counts).
     Vec3f d = to_map(s.dir);
     s.radiance = lookup(env_uv_from_dir(mapping_, d)) * intensity_;
-    s.pdf_solid_angle = pdf_map(d, pixel_index(d));
+    s.pdf_solid_angle = pdf_map(d, cell_index(d));
     return s;
 }
 

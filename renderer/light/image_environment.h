@@ -30,20 +30,25 @@ private:
 
 /// An HDR environment map. eval() interpolates bilinearly between pixel centres (wrapping
 /// in longitude for lat-long maps, clamped at other edges), so the map shows no pixel
-/// blocks. Sampling stays piecewise constant per pixel: it picks a pixel with probability
-/// proportional to the mean luminance of the interpolated map over the pixel times the
-/// pixel's solid angle, then a point uniformly inside the pixel (for the angular map:
-/// inside the pixel's part of the unit disk), hence
-///   pdf_solid_angle(d) = density_uv(pixel(d)) / jacobian(d),
+/// blocks. Sampling is piecewise constant on a grid of sampling cells, S x S per pixel
+/// (S = 8, or 4, 2, 1 for larger maps, see sampling_cells_per_pixel()): it picks a cell with
+/// probability proportional to the mean luminance of the interpolated map over the cell
+/// times the cell's solid angle, then a point uniformly inside the cell (for the angular
+/// map: inside the cell's part of the unit disk), hence
+///   pdf_solid_angle(d) = density_uv(cell(d)) / jacobian(d),
 /// jacobian = 2 pi^2 sin(theta) (lat-long) or 4 pi^2 sin(theta')/theta' (angular).
-/// sample() and pdf() agree exactly, and the pdf is positive wherever eval() is (a pixel's
-/// interpolated values come from it and its 8 neighbours, which all weigh in its mean), so
-/// estimates stay unbiased; the density only follows eval() less closely within a pixel.
+/// With S even each cell lies inside one bilinear patch, so its mean is the interpolated
+/// value at its centre and the density follows eval() to within the patch's variation over
+/// 1/S pixel; with S = 1 a pixel's mean weighs it and its 8 neighbours.
+/// sample() and pdf() agree exactly, and the pdf is positive wherever eval() is, so
+/// estimates stay unbiased.
 class ImageEnvironment final : public EnvironmentLight {
 public:
-    /// Throws kdt::Error (naming `name`, usually the file) as check_environment_texels().
+    /// Throws kdt::Error (naming `name`, usually the file) as check_environment_texels(), and
+    /// unless cells_per_pixel is 0 (automatic, see sampling_cells_per_pixel()), 1 or even in
+    /// [2, 16].
     ImageEnvironment(ImageRGB image, EnvMapping mapping, float rotation_degrees, float intensity,
-                     const std::string& name = "");
+                     const std::string& name = "", int cells_per_pixel = 0);
 
     Vec3f eval(const Vec3f& dir) const override;
     EnvSample sample(const Vec2f& u) const override;
@@ -58,11 +63,15 @@ public:
     Vec2f uv_from_dir(const Vec3f& world_dir) const;
     /// World direction of image coordinates (u, v); nullopt outside the angular disk.
     std::optional<Vec3f> dir_from_uv(const Vec2f& uv) const;
-    /// Sampling density w.r.t. image area (u, v) in [0,1]^2 inside pixel (x, y).
+    /// Sampling cells per pixel along each axis (S); automatic: 8 up to 256x256 pixels, 4 up
+    /// to 512x512, 2 up to 1024x1024, 1 above (the tables stay within 4M cells).
+    int sampling_cells_per_pixel() const { return sub_; }
+    /// Sampling density w.r.t. image area (u, v) in [0,1]^2 inside sampling cell (x, y),
+    /// x < width S, y < height S.
     float density_uv(int x, int y) const {
-        return density_[size_t(y) * size_t(image_.width) + size_t(x)];
+        return density_[size_t(y) * size_t(image_.width * sub_) + size_t(x)];
     }
-    /// Fraction of pixel (x, y) inside the angular map's disk (1 for lat-long).
+    /// Fraction of sampling cell (x, y) inside the angular map's disk (1 for lat-long).
     float coverage(int x, int y) const;
     const Distribution2D& distribution() const { return distribution_; }
 
@@ -73,17 +82,20 @@ private:
     Vec3f lookup(const Vec2f& uv) const;
     /// Column x of the map for x in [-1, width]: wrapped (lat-long) or clamped (angular).
     int column(int x) const;
-    /// Per pixel, the mean luminance of the bilinear reconstruction over the pixel.
+    /// Per sampling cell (row-major), the mean luminance of the bilinear reconstruction.
     std::vector<double> cell_mean_luminance() const;
-    size_t pixel_index(const Vec3f& map_dir) const;
-    float pdf_map(const Vec3f& map_dir, size_t pixel) const;
+    /// Angular map: mean Jacobian over sampling cell (x, y), zero outside the disk.
+    double angular_mean_jacobian(int x, int y) const;
+    size_t cell_index(const Vec3f& map_dir) const;
+    float pdf_map(const Vec3f& map_dir, size_t cell) const;
 
     ImageRGB image_;
     EnvMapping mapping_;
     float intensity_;
     float cos_rot_, sin_rot_;
+    int sub_ = 1;  ///< sampling cells per pixel along each axis
     Distribution2D distribution_;
-    std::vector<float> density_;  ///< per pixel, w.r.t. uv area
+    std::vector<float> density_;  ///< per sampling cell, w.r.t. uv area
 };
 
 /// Throws kdt::Error naming path unless every texel is finite and >= 0 (naming the first

@@ -1,0 +1,137 @@
+// Tests of ImageEnvironment's sampling grid (S x S cells per pixel, weighted by the bilinear
+// reconstruction): on a map with a single bright texel, sample() agrees with pdf() and eval(),
+// the pdf integrates to one and is positive exactly where eval() is, and the estimator of the
+// map's power has a much lower variance than with one cell per pixel.
+#include <cmath>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "renderer/core/color.h"
+#include "renderer/core/error.h"
+#include "renderer/io/image_io.h"
+#include "renderer/light/image_environment.h"
+#include "renderer/light/mapping.h"
+#include "tests/test_util.h"
+
+namespace kdt {
+namespace {
+
+using test::HashRng;
+
+/// A black map with one bright texel: at the seam (x 0) for lat-long, off centre for angular.
+ImageEnvironment single_texel(EnvMapping mapping, int cells_per_pixel = 0) {
+    const bool latlong = mapping == EnvMapping::latlong;
+    ImageRGB img(32, latlong ? 16 : 32);
+    if (latlong) {
+        img.set(0, 6, Vec3f(900.0f, 1000.0f, 800.0f));
+    } else {
+        img.set(20, 11, Vec3f(900.0f, 1000.0f, 800.0f));
+    }
+    return ImageEnvironment(img, mapping, 0.0f, 1.0f, "", cells_per_pixel);
+}
+
+/// Midpoint-rule integrals over the sphere, as integrals over the image with the Jacobian,
+/// on a grid of `per_pixel`^2 points per pixel (never on a sampling-cell edge for S <= 16).
+struct SphereIntegrals {
+    double pdf = 0.0;           ///< of pdf
+    double power = 0.0;         ///< of f = luminance(eval)
+    double second = 0.0;        ///< of f^2 / pdf (where f > 0)
+    int positive_mismatch = 0;  ///< points where (f > 0) != (pdf > 0)
+};
+
+SphereIntegrals integrate(const ImageEnvironment& env, int per_pixel) {
+    SphereIntegrals r;
+    const int nu = env.image().width * per_pixel, nv = env.image().height * per_pixel;
+    for (int y = 0; y < nv; ++y) {
+        for (int x = 0; x < nu; ++x) {
+            auto d = env.dir_from_uv({(x + 0.5f) / float(nu), (y + 0.5f) / float(nv)});
+            if (!d) continue;
+            const double j = env_jacobian(env.mapping(), *d) / (double(nu) * nv);
+            const double f = luminance(env.eval(*d)), p = env.pdf(*d);
+            r.pdf += p * j;
+            r.power += f * j;
+            if (f > 0.0 && p > 0.0) r.second += f * f / p * j;
+            r.positive_mismatch += (f > 0.0) != (p > 0.0) ? 1 : 0;
+        }
+    }
+    return r;
+}
+
+class SingleTexelTest : public ::testing::TestWithParam<EnvMapping> {};
+
+TEST_P(SingleTexelTest, SampleAgreesWithPdfAndEval) {
+    ImageEnvironment env = single_texel(GetParam());
+    EXPECT_EQ(env.sampling_cells_per_pixel(), 8);
+    HashRng rng(11);
+    int zero = 0, black = 0;
+    for (int i = 0; i < 100000; ++i) {
+        EnvSample s = env.sample(rng.next2());
+        if (!(s.pdf_solid_angle > 0.0f)) {
+            ++zero;
+            continue;
+        }
+        ASSERT_FLOAT_EQ(env.pdf(s.dir), s.pdf_solid_angle);
+        ASSERT_EQ(env.eval(s.dir), s.radiance);
+        black += luminance(s.radiance) > 0.0f ? 0 : 1;
+    }
+    // Each cell lies inside one bilinear patch, so no cell is partly black: only float
+    // rounding at the support's edge can give a black or zero-pdf sample.
+    EXPECT_LE(zero, 2);
+    EXPECT_LE(black, 2);
+}
+
+TEST_P(SingleTexelTest, PdfIntegratesToOneAndIsPositiveExactlyWhereEvalIs) {
+    for (int cells : {0, 1, 2}) {
+        ImageEnvironment env = single_texel(GetParam(), cells);
+        SphereIntegrals r = integrate(env, 64);
+        EXPECT_NEAR(r.pdf, 1.0, 1e-3) << "cells per pixel " << env.sampling_cells_per_pixel();
+        if (cells != 1) {  // with S = 1 the density also covers black parts of pixels
+            EXPECT_EQ(r.positive_mismatch, 0) << env.sampling_cells_per_pixel();
+        }
+    }
+}
+
+TEST_P(SingleTexelTest, FinerGridLowersTheVarianceOfThePowerEstimate) {
+    // Relative variance of f/pdf under the sampling density: int f^2/p / (int f)^2 - 1.
+    // With one cell per pixel, pdf is flat where the bilinear bump rises from 0 to its
+    // peak; with 8 cells it follows the bump to within 1/8 pixel.
+    auto relvar = [&](int cells) {
+        SphereIntegrals r = integrate(single_texel(GetParam(), cells), 64);
+        return r.second / (r.power * r.power) - 1.0;
+    };
+    const double coarse = relvar(1), s2 = relvar(2), s4 = relvar(4), fine = relvar(0);
+    EXPECT_GT(coarse, 0.5);  // the bump is far from flat over a pixel
+    EXPECT_LT(s2, coarse);
+    EXPECT_LT(s4, s2);
+    EXPECT_LT(fine, s4);
+    EXPECT_LT(fine, 0.1 * coarse) << "S=1 " << coarse << ", S=8 " << fine;
+}
+
+INSTANTIATE_TEST_SUITE_P(Mappings, SingleTexelTest,
+                         ::testing::Values(EnvMapping::latlong, EnvMapping::angular),
+                         [](const ::testing::TestParamInfo<EnvMapping>& param_info) {
+                             return std::string(kEnvMappingNames[size_t(param_info.param)]);
+                         });
+
+TEST(Environment, SamplingCellsPerPixelAreCheckedAndFollowTheMapSize) {
+    ImageRGB img(8, 4);
+    img.set(1, 1, Vec3f(1.0f));
+    for (int bad : {-2, 3, 5, 18}) {
+        EXPECT_THROW(ImageEnvironment(img, EnvMapping::latlong, 0.0f, 1.0f, "m.hdr", bad), Error)
+            << bad;
+    }
+    EXPECT_EQ(ImageEnvironment(img, EnvMapping::latlong, 0.0f, 1.0f).sampling_cells_per_pixel(), 8);
+    EXPECT_EQ(ImageEnvironment(ImageRGB(512, 256), EnvMapping::latlong, 0.0f, 1.0f)
+                  .sampling_cells_per_pixel(),
+              4);
+    EXPECT_EQ(ImageEnvironment(ImageRGB(1024, 512), EnvMapping::latlong, 0.0f, 1.0f)
+                  .sampling_cells_per_pixel(),
+              2);
+    EXPECT_EQ(ImageEnvironment(ImageRGB(2048, 1024), EnvMapping::latlong, 0.0f, 1.0f)
+                  .sampling_cells_per_pixel(),
+              1);
+}
+
+}  // namespace
+}  // namespace kdt
