@@ -26,7 +26,7 @@ public:
     using Clock = std::chrono::steady_clock;
     static constexpr int kSettleFrames = 1;
     static constexpr std::chrono::milliseconds kRecentInput{500};
-    static constexpr std::chrono::milliseconds kMaxIdle{100};
+    static constexpr std::chrono::milliseconds kMaxIdle{250};
 
     /// Whether to draw at `now`; the first call always draws.
     bool due(const FrameSignals& s, Clock::time_point now);
