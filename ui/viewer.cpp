@@ -309,6 +309,7 @@ void Viewer::save_session(const std::string& path) const {
     o.scene.camera = camera_;
     o.scene.env_intensity = env_intensity_;
     o.stop = stop_;
+    o.scene.materials = materials_;  // as on screen, edited or not
     std::ofstream f(path);
     f << options_to_json(o) << "\n";
     if (!f) throw Error(ErrorLocation{path, "", -1}, "cannot write the session file");
@@ -326,6 +327,11 @@ void Viewer::load_session(const std::string& path) {
         throw Error(ErrorLocation{path, "scene", -1},
                     "the session is of another scene or image size; open it with kdtrace view");
     }
+    if (!o.scene.materials.empty() && o.scene.materials.size() != materials_.size()) {
+        throw Error(ErrorLocation{path, "/scene/materials", -1},
+                    std::to_string(o.scene.materials.size()) + " materials for a scene of " +
+                        std::to_string(materials_.size()) + " mesh instances");
+    }
     opts_.trace = o.trace;
     opts_.film = o.film;
     // A probe opened in the session's viewer: loaded in the background like any other.
@@ -339,6 +345,10 @@ void Viewer::load_session(const std::string& path) {
     }
     stop_ = o.stop;
     tone_.exposure = o.film.exposure;
+    if (!o.scene.materials.empty() && o.scene.materials != materials_) {
+        materials_ = o.scene.materials;
+        apply_materials();
+    }
     apply_params();
     if (options_to_json(o) !=
         options_to_json(RenderOptions{o.scene, tree_edit_, o.trace, o.film, o.stop})) {

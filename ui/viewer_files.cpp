@@ -76,6 +76,7 @@ void Viewer::request_scene(const std::string& path) {
     s.up = cli_scene ? cli.up : std::nullopt;
     s.vfov_degrees = cli_scene ? cli.vfov_degrees : std::nullopt;
     s.tree_file = cli_scene ? cli.tree_file : std::string();
+    s.materials = cli_scene ? cli.materials : std::vector<MaterialDesc>();
     scene_loader_->request(std::move(r));
     scene_pending_ = true;
 }

@@ -24,6 +24,8 @@ struct MaterialDesc {
     float ior = 1.5f;        ///< dielectric index of refraction (outside is 1)
     Vec3f emission{0.0f};    ///< emissive radiance
     float roughness = 0.2f;  ///< conductor: GGX alpha
+
+    bool operator==(const MaterialDesc&) const = default;
 };
 
 /// How the diffuse BSDF samples directions: cosine-weighted (default) or uniform over the

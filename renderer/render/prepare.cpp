@@ -1,6 +1,7 @@
 #include "renderer/render/prepare.h"
 
 #include <cstdio>
+#include <string>
 
 #include "renderer/accel/kdtree_cache.h"
 #include "renderer/core/timer.h"
@@ -31,6 +32,14 @@ Scene load_scene_with_overrides(const SceneOptions& o) {
     if (o.target) scene.camera.target = *o.target;
     if (o.up) scene.camera.up = *o.up;
     if (o.vfov_degrees) scene.camera.vfov_degrees = *o.vfov_degrees;
+    if (!o.materials.empty()) {
+        if (o.materials.size() != scene.meshes.size()) {
+            throw Error("scene.materials: " + std::to_string(o.materials.size()) +
+                        " materials for a scene of " + std::to_string(scene.meshes.size()) +
+                        " mesh instances");
+        }
+        for (size_t i = 0; i < o.materials.size(); ++i) scene.meshes[i].material = o.materials[i];
+    }
     return scene;
 }
 

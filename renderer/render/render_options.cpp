@@ -202,6 +202,13 @@ void scene_from_json(const json& v, SceneOptions& scene, const std::string& wher
             scene.vfov_degrees = number();
         } else if (key == "camera") {
             scene.camera = camera_from_json(x, where, pointer);
+        } else if (key == "materials") {
+            if (!x.is_array()) throw Error(ErrorLocation{where, pointer}, "expected an array");
+            scene.materials.clear();
+            for (size_t i = 0; i < x.size(); ++i) {
+                scene.materials.push_back(
+                    material_from_json(x[i].dump(), where, pointer + "/" + std::to_string(i)));
+            }
         } else {
             rest[key] = x;
         }
@@ -290,6 +297,12 @@ std::string options_to_json(const RenderOptions& o) {
     if (o.scene.target) scene["target"] = vec_json(*o.scene.target);
     if (o.scene.up) scene["up"] = vec_json(*o.scene.up);
     if (o.scene.vfov_degrees) scene["vfov_degrees"] = float_for_text(*o.scene.vfov_degrees);
+    if (!o.scene.materials.empty()) {
+        json materials = json::array();
+        for (const MaterialDesc& m : o.scene.materials)
+            materials.push_back(json::parse(material_to_json(m)));
+        scene["materials"] = materials;
+    }
     j["scene"] = scene;
     j["tree"] = group_json(o.tree, kd_tree_fields());
     j["trace"] = group_json(o.trace, trace_fields());

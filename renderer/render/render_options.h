@@ -8,6 +8,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "renderer/accel/kdtree.h"
 #include "renderer/core/fields.h"
@@ -48,6 +49,9 @@ struct SceneOptions {
     /// against the scene's mesh like a cache file; its parameters are the file's.
     std::string tree_file;
     bool drop_invalid = false;  ///< drop faces with non-finite vertices
+    /// One per mesh instance of the scene, replacing the scene's materials when non-empty
+    /// (the viewer's edits, saved with its session); another count is an error.
+    std::vector<MaterialDesc> materials;
 };
 
 struct RenderOptions {

@@ -220,6 +220,19 @@ MaterialDesc read_material(const Reader& r) {
     return m;
 }
 
+// Floats as their shortest text (2.6, not 2.5999999046325684); they read back the same.
+json vec3_text(const Vec3f& v) {
+    return json::array({float_for_text(v.x), float_for_text(v.y), float_for_text(v.z)});
+}
+
+json material_json(const MaterialDesc& m) {
+    return {{"type", kMaterialTypeNames[size_t(m.type)]},
+            {"albedo", vec3_text(m.albedo)},
+            {"ior", float_for_text(m.ior)},
+            {"emission", vec3_text(m.emission)},
+            {"roughness", float_for_text(m.roughness)}};
+}
+
 CameraDesc read_camera(const Reader& r) {
     // vfov_degrees as in views files and the docs; "vfov" is read for files written before.
     r.allow({"eye", "target", "up", "vfov_degrees", "vfov"});
@@ -476,13 +489,25 @@ std::vector<std::string> scene_input_files(const Scene& scene) {
     return files;
 }
 
+std::string material_to_json(const MaterialDesc& material) {
+    return material_json(material).dump();
+}
+
+MaterialDesc material_from_json(const std::string& json_text, const std::string& file,
+                                const std::string& where) {
+    json j;
+    try {
+        j = json::parse(json_text);
+    } catch (const json::exception& e) {
+        throw Error(ErrorLocation{file, where}, std::string("malformed JSON: ") + e.what());
+    }
+    return read_material(Reader(file, j, where));
+}
+
 std::string scene_to_json(const Scene& scene) {
     json root;
     root["name"] = scene.name;
-    // Floats as their shortest text (2.6, not 2.5999999046325684); they read back the same.
-    auto v3 = [](const Vec3f& v) {
-        return json::array({float_for_text(v.x), float_for_text(v.y), float_for_text(v.z)});
-    };
+    const auto v3 = vec3_text;
     root["camera"] = {{"eye", v3(scene.camera.eye)},
                       {"target", v3(scene.camera.target)},
                       {"up", v3(scene.camera.up)},
@@ -506,11 +531,7 @@ std::string scene_to_json(const Scene& scene) {
             for (int col = 0; col < 4; ++col)
                 mat.push_back(float_for_text(m.world_from_object[col][row]));
         jm["transform"] = {{"matrix", mat}};
-        jm["material"] = {{"type", kMaterialTypeNames[size_t(m.material.type)]},
-                          {"albedo", v3(m.material.albedo)},
-                          {"ior", float_for_text(m.material.ior)},
-                          {"emission", v3(m.material.emission)},
-                          {"roughness", float_for_text(m.material.roughness)}};
+        jm["material"] = material_json(m.material);
         jm["smooth"] = m.smooth;
         meshes.push_back(jm);
     }

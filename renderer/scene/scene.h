@@ -104,6 +104,12 @@ std::vector<std::string> scene_input_files(const Scene& scene);
 /// Writes a scene as JSON that load_scene() reads back (generated meshes as "builtin:" names).
 std::string scene_to_json(const Scene& scene);
 
+/// One material as a scene file's mesh "material" object (JSON text), and back: the reader
+/// checks keys and ranges as scene files do, errors naming `file` and the JSON `where`.
+std::string material_to_json(const MaterialDesc& material);
+MaterialDesc material_from_json(const std::string& json_text, const std::string& file,
+                                const std::string& where);
+
 /// A camera that frames `bounds` from the front-right, above.
 CameraDesc frame_bounds(const Bounds3f& bounds, float vfov_degrees = 40.0f);
 

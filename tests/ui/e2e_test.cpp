@@ -114,6 +114,36 @@ TEST(ViewerE2E, ImageAfterNSamplesEqualsRenderBitwise) {
     EXPECT_TRUE(v == r) << "the viewer's image differs from kdtrace render's";
 }
 
+// A material edited in the viewer travels in its session file: `kdtrace render --session`
+// of it renders the image on screen, bit for bit.
+TEST(ViewerE2E, EditedMaterialSessionRendersTheSameImage) {
+    const auto dir = test::temp_dir("view_material_session");
+    const std::string common = " --width 96 --height 64 --spp 4 --no-cache --seed 7";
+    const std::string view = (dir / "view.pfm").string(), render = (dir / "render.pfm").string(),
+                      plain = (dir / "plain.pfm").string(),
+                      session = (dir / "session.json").string();
+    std::string log;
+    ASSERT_EQ(run(xvfb() + KDT_EXE + " view" + common +
+                      " --script 'set material.albedo 0.1,0.7,0.2; wait_done; save " + view +
+                      "; save_session " + session + "' --frames 1",
+                  dir / "view.txt", &log),
+              0)
+        << log;
+    ASSERT_EQ(run(std::string(KDT_EXE) + " render --session " + session + " --quiet -o " + render,
+                  dir / "render.txt", &log),
+              0)
+        << log;
+    ASSERT_EQ(run(std::string(KDT_EXE) + " render" + common + " --quiet -o " + plain,
+                  dir / "plain.txt", &log),
+              0)
+        << log;
+    const std::vector<unsigned char> v = test::read_bytes(view), r = test::read_bytes(render),
+                                     p = test::read_bytes(plain);
+    ASSERT_GT(r.size(), size_t(96 * 64 * 12));
+    EXPECT_TRUE(v == r) << "the session's render differs from the viewer's image";
+    EXPECT_FALSE(v == p) << "the material edit did not change the image";
+}
+
 // The split view end to end: side B with its own tree, the divider moved, the normals and
 // radiance views drawn with no GL error (check_gl fails the script, and the run, on one).
 TEST(ViewerE2E, SplitViewDrawsBothSidesWithNoGlError) {

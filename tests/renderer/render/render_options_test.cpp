@@ -11,6 +11,7 @@
 #include "tests/test_util.h"
 
 #include "renderer/core/error.h"
+#include "renderer/render/prepare.h"
 
 namespace kdt {
 namespace {
@@ -168,6 +169,56 @@ TEST(RenderOptions, JsonRefusesWhatItCannotHonour) {
     EXPECT_NE(bad("{\"scene\": {\"width\": 1.5}}").find("whole number"), std::string::npos);
     EXPECT_NE(bad("[1, 2]"), "");
     EXPECT_NE(bad("{"), "");
+}
+
+}  // namespace
+}  // namespace kdt
+
+namespace kdt {
+namespace {
+
+// A session's materials (the viewer's edits) read back as written, are checked as a scene
+// file's are, and replace the scene's own, one per mesh instance.
+TEST(RenderOptions, MaterialsReadBackAreCheckedAndReplaceTheScenes) {
+    RenderOptions o;
+    MaterialDesc m;
+    m.albedo = Vec3f(0.1f, 0.6f, 0.3f);
+    MaterialDesc glass;
+    glass.type = MaterialType::dielectric;
+    glass.ior = 1.33f;
+    o.scene.materials = {m, glass};
+    const std::string text = options_to_json(o);
+    RenderOptions back;
+    options_from_json(text, back, "s.json");
+    ASSERT_EQ(back.scene.materials.size(), 2u);
+    EXPECT_TRUE(back.scene.materials[0] == m);
+    EXPECT_TRUE(back.scene.materials[1] == glass);
+    EXPECT_EQ(options_to_json(back), text);
+
+    auto bad = [&](const std::string& json) {
+        RenderOptions x;
+        return test::error_of_call([&] { options_from_json(json, x, "s.json"); });
+    };
+    EXPECT_NE(bad("{\"scene\": {\"materials\": [{\"albedo\": [2, 0, 0]}]}}")
+                  .find("/scene/materials/0/albedo"),
+              std::string::npos);
+    EXPECT_NE(bad("{\"scene\": {\"materials\": [{\"colour\": 1}]}}").find("unknown key \"colour\""),
+              std::string::npos);
+    EXPECT_NE(bad("{\"scene\": {\"materials\": 3}}").find("/scene/materials: expected an array"),
+              std::string::npos);
+
+    // The default scene has two mesh instances (object and ground).
+    SceneOptions s;
+    const size_t n = load_scene_with_overrides(s).meshes.size();
+    ASSERT_GE(n, 1u);
+    s.materials.assign(n, m);
+    for (const MeshInstance& inst : load_scene_with_overrides(s).meshes)
+        EXPECT_TRUE(inst.material == m);
+    s.materials.push_back(m);
+    EXPECT_NE(test::error_of_call([&] { load_scene_with_overrides(s); })
+                  .find("scene.materials: " + std::to_string(n + 1) + " materials for a scene of " +
+                        std::to_string(n) + " mesh instances"),
+              std::string::npos);
 }
 
 }  // namespace
