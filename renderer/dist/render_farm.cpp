@@ -42,9 +42,13 @@ int tiles_x(const Camera& c) {
 
 }  // namespace
 
-void render_tiles_to_spp(RenderSession& session, const std::vector<int>& tiles, int spp) {
+void render_tiles_to_spp(RenderSession& session, const std::vector<int>& tiles, int spp,
+                         const std::function<void()>& poll) {
     const int per_pass = std::max(session.trace_params().samples_per_pass, 1);
-    for (int drawn = 0; drawn < spp; drawn += per_pass) session.render_pass(tiles, spp);
+    for (int drawn = 0; drawn < spp; drawn += per_pass) {
+        session.render_pass(tiles, spp);
+        if (poll) poll();
+    }
 }
 
 void render_frame(RenderSession& session, const StopConditions& stop,
@@ -104,8 +108,12 @@ FarmResult render_tile_farm(const MpiContext& ctx, std::shared_ptr<const RenderS
     params.columns = tiles_x(snapshot->camera);
     if (ctx.rank() == 0) film->resize(snapshot->camera.width, snapshot->camera.height);
 
-    const RenderItems render = [&](const std::vector<int>& tiles, const std::function<void()>&) {
-        render_tiles_to_spp(session, tiles, spp);
+    // Rank 0 serves the workers after every pass of its own tiles: answering only between
+    // its batches, it would answer a worker, that renders batches as long as its own, about
+    // one batch late, just as the worker runs out of work, and both would idle.
+    const RenderItems render = [&](const std::vector<int>& tiles,
+                                   const std::function<void()>& poll) {
+        render_tiles_to_spp(session, tiles, spp, poll);
         const Film& f = session.film();
         size_t pixels = 0;
         for (int t : tiles) pixels += tile_rect(f, t).pixel_count();

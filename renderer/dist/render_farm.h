@@ -16,8 +16,10 @@
 namespace kdt::dist {
 
 /// Draws samples for `tiles` of the session's film until each of their pixels has `spp`
-/// (passes of the session's samples_per_pass, capped at spp). Non-adaptive films only.
-void render_tiles_to_spp(RenderSession& session, const std::vector<int>& tiles, int spp);
+/// (passes of the session's samples_per_pass, capped at spp), calling `poll` (if set) after
+/// every pass. Non-adaptive films only.
+void render_tiles_to_spp(RenderSession& session, const std::vector<int>& tiles, int spp,
+                         const std::function<void()>& poll = {});
 
 /// Renders the session's whole frame as run_render(session, stop) does, bitwise, calling
 /// `poll` between parts: between batches of `tiles_per_part` tiles for a fixed stop.spp
