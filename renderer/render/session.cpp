@@ -261,7 +261,7 @@ PassStats RenderSession::run_tiles(const std::vector<int>& tiles, int max_spp) {
     for (int64_t k = 0; k < ntiles; ++k) {
         if (cancel_requested_.load(std::memory_order_relaxed)) continue;
         const int tile = tiles[size_t(k)];
-        TileRect r;
+        FilmRect r;
         r.x0 = (tile % tiles_x) * kTileSize;
         r.y0 = (tile / tiles_x) * kTileSize;
         r.x1 = std::min(r.x0 + kTileSize, width);

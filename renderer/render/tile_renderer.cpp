@@ -22,7 +22,7 @@ Vec3f aov_shading_normal(const TraceScene& scene, const Ray& ray, const Hit& hit
     return glm::dot(n, ray.dir) > 0.0f ? -n : n;
 }
 
-size_t render_tile(const TileTarget& t, const TileRect& tile, PathCounters& counters) {
+size_t render_tile(const TileTarget& t, const FilmRect& tile, PathCounters& counters) {
     const TraceScene& scene = *t.scene;
     const Camera& camera = *t.camera;
     const TraceParams& trace = *t.trace;
