@@ -315,8 +315,7 @@ Vec3f ImageEnvironment::to_map(const Vec3f& world_dir) const {
     return d;
 }
 
-size_t ImageEnvironment::cell_index(const Vec3f& map_dir) const {
-    Vec2f uv = env_uv_from_dir(mapping_, map_dir);
+size_t ImageEnvironment::cell_index(const Vec2f& uv) const {
     const int gw = image_.width * sub_, gh = image_.height * sub_;
     int x = std::clamp(int(uv.x * float(gw)), 0, gw - 1);
     int y = std::clamp(int(uv.y * float(gh)), 0, gh - 1);
@@ -347,7 +346,7 @@ Vec3f ImageEnvironment::eval(const Vec3f& dir) const {
 float ImageEnvironment::pdf(const Vec3f& dir) const {
     Vec3f d = to_map(dir);
     if (!(glm::dot(d, d) > 0.0f)) return 0.0f;
-    return pdf_map(d, cell_index(d));
+    return pdf_map(d, cell_index(env_uv_from_dir(mapping_, d)));
 }
 
 EnvSample ImageEnvironment::sample(const Vec2f& u) const {
@@ -375,9 +374,10 @@ EnvSample ImageEnvironment::sample(const Vec2f& u) const {
     // Radiance and pdf are looked up again from the final direction, exactly as eval() and
     // pdf() do, so that they agree bit for bit (a sample on a cell edge may round into the
     // neighbouring cell; it is then that cell's density that counts).
-    Vec3f d = to_map(s.dir);
-    s.radiance = lookup(env_uv_from_dir(mapping_, d)) * intensity_;
-    s.pdf_solid_angle = pdf_map(d, cell_index(d));
+    const Vec3f d = to_map(s.dir);
+    const Vec2f uv_d = env_uv_from_dir(mapping_, d);  // one mapping for both lookups
+    s.radiance = lookup(uv_d) * intensity_;
+    s.pdf_solid_angle = pdf_map(d, cell_index(uv_d));
     return s;
 }
 

@@ -86,7 +86,7 @@ private:
     std::vector<double> cell_mean_luminance() const;
     /// Angular map: mean Jacobian over sampling cell (x, y), zero outside the disk.
     double angular_mean_jacobian(int x, int y) const;
-    size_t cell_index(const Vec3f& map_dir) const;
+    size_t cell_index(const Vec2f& uv) const;  // uv: env_uv_from_dir of a map direction
     float pdf_map(const Vec3f& map_dir, size_t cell) const;
 
     ImageRGB image_;

@@ -132,9 +132,11 @@ void RenderSession::publish_tile(int x0, int y0, int x1, int y1) {
             samples[i] = film_.count(x, y);
             error[i] = film_.relative_error(x, y);
             const size_t pi = size_t(y) * size_t(film_.width()) + size_t(x);
-            const float inv = samples[i] > 0 ? 1.0f / float(samples[i]) : 0.0f;
-            nodes[i] = heat ? float(heat_nodes_[pi]) * inv : 0.0f;
-            tris[i] = heat ? float(heat_tris_[pi]) * inv : 0.0f;
+            if (heat) {
+                const float inv = samples[i] > 0 ? 1.0f / float(samples[i]) : 0.0f;
+                nodes[i] = float(heat_nodes_[pi]) * inv;
+                tris[i] = float(heat_tris_[pi]) * inv;
+            }
             if (aov) {
                 const uint32_t hits = aov_hits_[pi];
                 const float inv_hits = hits > 0 ? 1.0f / float(hits) : 0.0f;
@@ -153,8 +155,10 @@ void RenderSession::publish_tile(int x0, int y0, int x1, int y1) {
         std::copy_n(rgb + 3 * i, 3 * w, p.image.rgb.begin() + ptrdiff_t(3 * row));
         std::copy_n(samples + i, w, p.samples.begin() + ptrdiff_t(row));
         std::copy_n(error + i, w, p.error.begin() + ptrdiff_t(row));
-        std::copy_n(nodes + i, w, p.nodes.begin() + ptrdiff_t(row));
-        std::copy_n(tris + i, w, p.triangles.begin() + ptrdiff_t(row));
+        if (heat) {  // without a heat map the published counts stay reset_published()'s 0
+            std::copy_n(nodes + i, w, p.nodes.begin() + ptrdiff_t(row));
+            std::copy_n(tris + i, w, p.triangles.begin() + ptrdiff_t(row));
+        }
         if (aov && !p.depth.empty()) {
             std::copy_n(normals + 3 * i, 3 * w, p.normals.begin() + ptrdiff_t(3 * row));
             std::copy_n(depth + i, w, p.depth.begin() + ptrdiff_t(row));
@@ -261,7 +265,7 @@ PassStats RenderSession::run_tiles(const std::vector<int>& tiles, int max_spp) {
     for (int64_t k = 0; k < ntiles; ++k) {
         if (cancel_requested_.load(std::memory_order_relaxed)) continue;
         const int tile = tiles[size_t(k)];
-        TileRect r;
+        FilmRect r;
         r.x0 = (tile % tiles_x) * kTileSize;
         r.y0 = (tile / tiles_x) * kTileSize;
         r.x1 = std::min(r.x0 + kTileSize, width);

@@ -22,7 +22,7 @@ Vec3f aov_shading_normal(const TraceScene& scene, const Ray& ray, const Hit& hit
     return glm::dot(n, ray.dir) > 0.0f ? -n : n;
 }
 
-size_t render_tile(const TileTarget& t, const TileRect& tile, PathCounters& counters) {
+size_t render_tile(const TileTarget& t, const FilmRect& tile, PathCounters& counters) {
     const TraceScene& scene = *t.scene;
     const Camera& camera = *t.camera;
     const TraceParams& trace = *t.trace;
@@ -97,14 +97,17 @@ size_t render_tile(const TileTarget& t, const TileRect& tile, PathCounters& coun
             for (int i = 0; i < n; ++i) {
                 CameraSample& c = batch[i];
                 const uint64_t nodes0 = counters.nodes_visited, tris0 = counters.triangles_tested;
-                Vec3f L =
-                    heat ? trace_camera_ray(scene, trace, rays[i], c.sampler, counters)
-                         : trace_camera_hit(scene, trace, rays[i], hits[i], c.sampler, counters);
-                // The heat map's path traces its own camera ray: whoever needs its hit asks
-                // the tree again, uncounted.
+                // With a heat map each camera ray is traced on its own, its counts kept (as
+                // trace_camera_ray() does); its hit then serves the path, coverage and AOVs.
                 Hit own;
-                if (heat && (t.transparent || aov)) scene.tree->intersect(rays[i], own);
+                if (heat) {
+                    TraversalCounters tc;
+                    scene.tree->intersect(rays[i], own, trace.count_traversal ? &tc : nullptr);
+                    counters.nodes_visited += tc.nodes_visited;
+                    counters.triangles_tested += tc.triangles_tested;
+                }
                 const Hit& hit = heat ? own : hits[i];
+                Vec3f L = trace_camera_hit(scene, trace, rays[i], hit, c.sampler, counters);
                 bool covered = true;
                 if (t.transparent) {
                     covered = hit.valid();

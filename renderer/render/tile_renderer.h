@@ -13,11 +13,6 @@
 
 namespace kdt {
 
-/// A pixel rectangle [x0, x1) x [y0, y1) of the film.
-struct TileRect {
-    int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
-};
-
 /// What a tile reads and where it writes. Only the tile's pixels of `film` and of the heat
 /// arrays are written, so tiles render concurrently without locks.
 struct TileTarget {
@@ -49,6 +44,6 @@ Vec3f aov_shading_normal(const TraceScene& scene, const Ray& ray, const Hit& hit
 
 /// Renders trace->samples_per_pass samples (at least 1) for every active pixel of `tile`
 /// and adds the ray counts to `counters`. Returns the number of pixels that took a sample.
-size_t render_tile(const TileTarget& target, const TileRect& tile, PathCounters& counters);
+size_t render_tile(const TileTarget& target, const FilmRect& tile, PathCounters& counters);
 
 }  // namespace kdt

@@ -4,7 +4,6 @@
 // coherent; hard rays (axis-aligned, in a split plane, aimed at vertices, non-finite) in
 // packets too.
 #include <cmath>
-#include <limits>
 #include <random>
 #include <string>
 #include <vector>
@@ -17,9 +16,6 @@
 
 namespace kdt {
 namespace {
-
-constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
-constexpr float kInf = std::numeric_limits<float>::infinity();
 
 using test::bitwise_equal;
 
@@ -201,28 +197,7 @@ TEST_P(Batch, VertexAimedPacketsNeverEscape) {
 TEST_P(Batch, BadRaysInsidePacketsAndTails) {
     auto tree = build(test::make_blob(4, 1.0f, 14));
     auto rays = camera_rays(Vec3f(0.1f, 0.2f, 3.0f), Vec3f(0.0f), 12, 10, 8, 35.0f, 2);
-    for (size_t i = 0; i < rays.size(); i += 13) {
-        switch ((i / 13) % 6) {
-            case 0:
-                rays[i].dir.x = kNaN;
-                break;
-            case 1:
-                rays[i].origin.y = kInf;
-                break;
-            case 2:
-                rays[i].dir = Vec3f(0.0f);
-                break;
-            case 3:
-                rays[i].tmax = -1.0f;
-                break;
-            case 4:
-                rays[i].tmax = 1e-3f;
-                break;
-            case 5:
-                rays[i].tmin = kNaN;
-                break;
-        }
-    }
+    test::spoil_rays(rays, 13, 6);
     for (size_t n : {rays.size(), rays.size() - 3, size_t(5), size_t(1)}) {
         std::vector<Ray> part(rays.begin(), rays.begin() + long(n));
         expect_batch_equals_single(*tree, part, "n " + std::to_string(n), n > 8);

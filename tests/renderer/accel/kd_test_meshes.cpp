@@ -2,11 +2,15 @@
 
 #include <cmath>
 #include <cstring>
+#include <filesystem>
+#include <limits>
 #include <random>
 #include <string>
 
 #include "renderer/core/error.h"
 #include "renderer/geometry/intersect.h"
+#include "renderer/io/mesh_io.h"
+#include "tests/test_util.h"
 
 namespace kdt::test {
 
@@ -96,6 +100,45 @@ std::shared_ptr<const KdTree> try_build(std::shared_ptr<const TriangleMesh> mesh
         if (std::string(e.what()).find("not built yet") != std::string::npos) return nullptr;
         throw;
     }
+}
+
+void spoil_rays(std::vector<Ray>& rays, size_t stride, int kinds) {
+    constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+    constexpr float kInf = std::numeric_limits<float>::infinity();
+    for (size_t i = 0; i < rays.size(); i += stride) {
+        switch ((i / stride) % size_t(kinds)) {
+            case 0:
+                rays[i].dir.x = kNaN;
+                break;
+            case 1:
+                rays[i].origin.y = kInf;
+                break;
+            case 2:
+                rays[i].dir = Vec3f(0.0f);
+                break;
+            case 3:
+                rays[i].tmax = -1.0f;
+                break;
+            case 4:
+                rays[i].tmax = 1e-3f;
+                break;
+            case 5:
+                rays[i].tmin = kNaN;
+                break;
+            case 6:
+                rays[i].dir *= 1e30f;
+                break;
+            case 7:
+                rays[i].dir *= 1e-30f;
+                break;
+        }
+    }
+}
+
+std::shared_ptr<const TriangleMesh> load_dragon_res2() {
+    const auto dir = dragon_dir();
+    if (dir.empty() || !std::filesystem::exists(dir / "dragon_vrip_res2.ply")) return nullptr;
+    return std::make_shared<const TriangleMesh>(load_mesh((dir / "dragon_vrip_res2.ply").string()));
 }
 
 }  // namespace kdt::test

