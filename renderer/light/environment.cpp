@@ -371,9 +371,10 @@ EnvSample ImageEnvironment::sample(const Vec2f& u) const {
         if (!map_dir) return s;
     }
     s.dir = rotate_y(*map_dir, cos_rot_, sin_rot_);
-    // Radiance and pdf are looked up again from the final direction, exactly as eval() and
-    // pdf() do, so that they agree bit for bit (a sample on a cell edge may round into the
-    // neighbouring cell; it is then that cell's density that counts).
+    // Radiance and pdf are looked up again from the final direction, as eval() and pdf() do,
+    // so that they agree to a few ulps (the compiler may contract the float operations of
+    // the two call sites differently; a sample on a cell edge may round into the
+    // neighbouring cell, and it is then that cell's density that counts).
     const Vec3f d = to_map(s.dir);
     const Vec2f uv_d = env_uv_from_dir(mapping_, d);  // one mapping for both lookups
     s.radiance = lookup(uv_d) * intensity_;
