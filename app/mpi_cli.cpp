@@ -17,7 +17,6 @@
 #include <nlohmann/json.hpp>
 
 #include "renderer/core/error.h"
-#include "renderer/core/open_file.h"
 #include "renderer/core/output_path.h"
 #include "renderer/core/timer.h"
 #include "renderer/io/image_io.h"
@@ -157,8 +156,7 @@ RenderOptions session_frame_options(const DistArgs& a, const std::string& path) 
         ~Restore() { target = saved; }
     } restore{target, target};
     target = RenderOptions{};
-    const std::vector<uint8_t> text = read_regular_file(path, uint64_t(1) << 20, "a session file");
-    options_from_json(std::string(text.begin(), text.end()), target, path);
+    options_from_session_file(path, target);
     for (CLI::Option* opt : a.command->get_options()) {
         if (opt->count() > 0) opt->run_callback();
     }

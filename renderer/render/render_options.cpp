@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "renderer/core/error.h"
+#include "renderer/core/open_file.h"
 #include "renderer/render/settings.h"
 
 namespace kdt {
@@ -346,6 +347,11 @@ void options_from_json(const std::string& text, RenderOptions& o, const std::str
         throw Error(ErrorLocation{where}, std::string("bad value: ") + e.what());
     }
     validate(o);
+}
+
+void options_from_session_file(const std::string& path, RenderOptions& o) {
+    const std::vector<uint8_t> text = read_regular_file(path, uint64_t(1) << 20, "a session file");
+    options_from_json(std::string(text.begin(), text.end()), o, path);
 }
 
 }  // namespace kdt
