@@ -289,12 +289,7 @@ SceneGroups load_scenes(const std::vector<FramePlan>& frames,
 std::shared_ptr<const RenderSnapshot> frame_snapshot(const SceneGroups& g, const FramePlan& f) {
     const RenderSnapshot& base = *g.prepared[size_t(g.of(f.options))].snapshot;
     const SceneOptions& o = f.options.scene;
-    CameraDesc c = base.camera_desc;
-    if (o.camera) c = *o.camera;
-    if (o.eye) c.eye = *o.eye;
-    if (o.target) c.target = *o.target;
-    if (o.up) c.up = *o.up;
-    if (o.vfov_degrees) c.vfov_degrees = *o.vfov_degrees;
+    CameraDesc c = with_camera_overrides(base.camera_desc, o);
     if (f.turns > 0) c = turntable_camera(c, f.turn, f.turns);
     // A copy shares the mesh, tree and environment; only the camera changes.
     auto s = std::make_shared<RenderSnapshot>(base);
