@@ -17,7 +17,6 @@
 #include <nlohmann/json.hpp>
 
 #include "renderer/core/error.h"
-#include "renderer/core/open_file.h"
 #include "renderer/core/output_path.h"
 #include "renderer/core/timer.h"
 #include "renderer/io/image_io.h"
@@ -157,8 +156,7 @@ RenderOptions session_frame_options(const DistArgs& a, const std::string& path) 
         ~Restore() { target = saved; }
     } restore{target, target};
     target = RenderOptions{};
-    const std::vector<uint8_t> text = read_regular_file(path, uint64_t(1) << 20, "a session file");
-    options_from_json(std::string(text.begin(), text.end()), target, path);
+    options_from_session_file(path, target);
     for (CLI::Option* opt : a.command->get_options()) {
         if (opt->count() > 0) opt->run_callback();
     }
@@ -291,12 +289,7 @@ SceneGroups load_scenes(const std::vector<FramePlan>& frames,
 std::shared_ptr<const RenderSnapshot> frame_snapshot(const SceneGroups& g, const FramePlan& f) {
     const RenderSnapshot& base = *g.prepared[size_t(g.of(f.options))].snapshot;
     const SceneOptions& o = f.options.scene;
-    CameraDesc c = base.camera_desc;
-    if (o.camera) c = *o.camera;
-    if (o.eye) c.eye = *o.eye;
-    if (o.target) c.target = *o.target;
-    if (o.up) c.up = *o.up;
-    if (o.vfov_degrees) c.vfov_degrees = *o.vfov_degrees;
+    CameraDesc c = with_camera_overrides(base.camera_desc, o);
     if (f.turns > 0) c = turntable_camera(c, f.turn, f.turns);
     // A copy shares the mesh, tree and environment; only the camera changes.
     auto s = std::make_shared<RenderSnapshot>(base);

@@ -9,7 +9,6 @@
 #include <utility>
 
 #include "renderer/core/error.h"
-#include "renderer/core/open_file.h"
 #include "renderer/scene/views.h"
 
 namespace kdt::app {
@@ -146,12 +145,7 @@ void add_scene_options(CLI::App& app, SceneOptions& scene) {
 void add_render_options(CLI::App& app, RenderOptions& o) {
     // First, so that the flags given with it (their callbacks run after its) override it.
     app.add_option_function<std::string>(
-           "--session",
-           [&o](const std::string& path) {
-               const std::vector<uint8_t> text =
-                   read_regular_file(path, uint64_t(1) << 20, "a session file");
-               options_from_json(std::string(text.begin(), text.end()), o, path);
-           },
+           "--session", [&o](const std::string& path) { options_from_session_file(path, o); },
            "Session file (the viewer's, or any options JSON): all its options, then the flags")
         ->type_name("FILE");
     add_scene_options(app, o.scene);

@@ -9,6 +9,15 @@
 
 namespace kdt {
 
+CameraDesc with_camera_overrides(CameraDesc c, const SceneOptions& o) {
+    if (o.camera) c = *o.camera;
+    if (o.eye) c.eye = *o.eye;
+    if (o.target) c.target = *o.target;
+    if (o.up) c.up = *o.up;
+    if (o.vfov_degrees) c.vfov_degrees = *o.vfov_degrees;
+    return c;
+}
+
 Scene load_scene_with_overrides(const SceneOptions& o) {
     validate(o);
     SceneLoadOptions lo;
@@ -27,11 +36,7 @@ Scene load_scene_with_overrides(const SceneOptions& o) {
     }
     if (o.env_intensity) env.intensity = *o.env_intensity;
     env.rotation_degrees += o.env_rotation_degrees;
-    if (o.camera) scene.camera = *o.camera;
-    if (o.eye) scene.camera.eye = *o.eye;
-    if (o.target) scene.camera.target = *o.target;
-    if (o.up) scene.camera.up = *o.up;
-    if (o.vfov_degrees) scene.camera.vfov_degrees = *o.vfov_degrees;
+    scene.camera = with_camera_overrides(scene.camera, o);
     if (!o.materials.empty()) {
         if (o.materials.size() != scene.meshes.size()) {
             throw Error("scene.materials: " + std::to_string(o.materials.size()) +

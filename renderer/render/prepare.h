@@ -44,6 +44,10 @@ struct PrepareHooks {
 Prepared prepare_render(const RenderOptions& options, const PrepareLog& log = {},
                         const PrepareHooks& hooks = {});
 
+/// `camera` with the camera overrides of `options` applied: camera, then eye, target, up and
+/// vfov_degrees, each when set.
+CameraDesc with_camera_overrides(CameraDesc camera, const SceneOptions& options);
+
 /// The loaded scene with options.scene's overrides (environment file, mapping, intensity,
 /// rotation, camera) applied; no snapshot.
 Scene load_scene_with_overrides(const SceneOptions& options);

@@ -2,10 +2,12 @@
 
 #include <cmath>
 #include <string>
+#include <utility>
 
 #include <nlohmann/json.hpp>
 
 #include "renderer/core/error.h"
+#include "renderer/core/open_file.h"
 #include "renderer/render/settings.h"
 
 namespace kdt {
@@ -78,6 +80,27 @@ const Field<SC> kStopFields[] = {
               1e6, true, {}, true),
     KDT_FIELD(SC, max_spp, "--max-spp", "Cap on samples per pixel", 1, 1 << 30),
 };
+
+// The scene group's strings (written when not empty) and camera parts (written when set),
+// by their JSON keys; the other scene keys are read and written one by one below.
+template <class T>
+using SceneMember = std::pair<const char*, T SO::*>;
+constexpr SceneMember<std::string> kSceneStrings[] = {{"scene_path", &SO::scene_path},
+                                                      {"env_file", &SO::env_file},
+                                                      {"env_mapping", &SO::env_mapping},
+                                                      {"cache_dir", &SO::cache_dir},
+                                                      {"tree_file", &SO::tree_file}};
+constexpr SceneMember<std::optional<Vec3f>> kSceneVectors[] = {
+    {"eye", &SO::eye}, {"target", &SO::target}, {"up", &SO::up}};
+
+// The member named key, or nullptr.
+template <class T, size_t N>
+T SO::*find_member(const SceneMember<T> (&table)[N], const std::string& key) {
+    for (const auto& [name, m] : table) {
+        if (key == name) return m;
+    }
+    return nullptr;
+}
 
 template <class S>
 json group_json(const S& s, std::span<const Field<S>> fields) {
@@ -172,32 +195,17 @@ void scene_from_json(const json& v, SceneOptions& scene, const std::string& wher
         const std::string& key = s.key();
         const std::string pointer = "/scene/" + key;
         const json& x = s.value();
-        auto str = [&]() {
-            if (!x.is_string()) throw Error(ErrorLocation{where, pointer}, "expected a string");
-            return x.get<std::string>();
-        };
         auto number = [&]() {
             if (!x.is_number()) throw Error(ErrorLocation{where, pointer}, "expected a number");
             return x.get<float>();
         };
-        if (key == "scene_path") {
-            scene.scene_path = str();
-        } else if (key == "env_file") {
-            scene.env_file = str();
-        } else if (key == "env_mapping") {
-            scene.env_mapping = str();
-        } else if (key == "cache_dir") {
-            scene.cache_dir = str();
-        } else if (key == "tree_file") {
-            scene.tree_file = str();
+        if (auto text = find_member(kSceneStrings, key)) {
+            if (!x.is_string()) throw Error(ErrorLocation{where, pointer}, "expected a string");
+            scene.*text = x.get<std::string>();
+        } else if (auto part = find_member(kSceneVectors, key)) {
+            scene.*part = vec_from_json(x, where, pointer);
         } else if (key == "env_intensity") {
             scene.env_intensity = number();
-        } else if (key == "eye") {
-            scene.eye = vec_from_json(x, where, pointer);
-        } else if (key == "target") {
-            scene.target = vec_from_json(x, where, pointer);
-        } else if (key == "up") {
-            scene.up = vec_from_json(x, where, pointer);
         } else if (key == "vfov_degrees") {
             scene.vfov_degrees = number();
         } else if (key == "camera") {
@@ -281,21 +289,19 @@ std::string camera_to_json(const Camera& c) {
 std::string options_to_json(const RenderOptions& o) {
     json j;
     json scene = group_json(o.scene, scene_fields());
-    if (!o.scene.scene_path.empty()) scene["scene_path"] = o.scene.scene_path;
-    if (!o.scene.env_file.empty()) scene["env_file"] = o.scene.env_file;
-    if (!o.scene.env_mapping.empty()) scene["env_mapping"] = o.scene.env_mapping;
+    for (auto [name, m] : kSceneStrings) {
+        if (!(o.scene.*m).empty()) scene[name] = o.scene.*m;
+    }
+    for (auto [name, m] : kSceneVectors) {
+        if (o.scene.*m) scene[name] = vec_json(*(o.scene.*m));
+    }
     if (o.scene.env_intensity) scene["env_intensity"] = float_for_text(*o.scene.env_intensity);
-    if (!o.scene.cache_dir.empty()) scene["cache_dir"] = o.scene.cache_dir;
-    if (!o.scene.tree_file.empty()) scene["tree_file"] = o.scene.tree_file;
     if (o.scene.camera) {
         scene["camera"] = {{"eye", vec_json(o.scene.camera->eye)},
                            {"target", vec_json(o.scene.camera->target)},
                            {"up", vec_json(o.scene.camera->up)},
                            {"vfov_degrees", float_for_text(o.scene.camera->vfov_degrees)}};
     }
-    if (o.scene.eye) scene["eye"] = vec_json(*o.scene.eye);
-    if (o.scene.target) scene["target"] = vec_json(*o.scene.target);
-    if (o.scene.up) scene["up"] = vec_json(*o.scene.up);
     if (o.scene.vfov_degrees) scene["vfov_degrees"] = float_for_text(*o.scene.vfov_degrees);
     if (!o.scene.materials.empty()) {
         json materials = json::array();
@@ -341,6 +347,11 @@ void options_from_json(const std::string& text, RenderOptions& o, const std::str
         throw Error(ErrorLocation{where}, std::string("bad value: ") + e.what());
     }
     validate(o);
+}
+
+void options_from_session_file(const std::string& path, RenderOptions& o) {
+    const std::vector<uint8_t> text = read_regular_file(path, uint64_t(1) << 20, "a session file");
+    options_from_json(std::string(text.begin(), text.end()), o, path);
 }
 
 }  // namespace kdt

@@ -91,5 +91,8 @@ std::string options_to_json(const RenderOptions& options);
 /// groups or keys and invalid values throw kdt::Error naming `where` and the key.
 void options_from_json(const std::string& json, RenderOptions& options,
                        const std::string& where = "options");
+/// options_from_json() of a session file: a regular file of at most 1 MiB (a FIFO or a
+/// device is refused, not read), errors naming `path`.
+void options_from_session_file(const std::string& path, RenderOptions& options);
 
 }  // namespace kdt
