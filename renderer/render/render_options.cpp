@@ -164,7 +164,10 @@ Vec3f vec_from_json(const json& j, const std::string& where, const std::string& 
     if (!j.is_array() || j.size() != 3 || !j[0].is_number() || !j[1].is_number() ||
         !j[2].is_number())
         throw Error(ErrorLocation{where, pointer}, "expected an array of 3 numbers");
-    return Vec3f(j[0].get<float>(), j[1].get<float>(), j[2].get<float>());
+    const Vec3f v(j[0].get<float>(), j[1].get<float>(), j[2].get<float>());
+    if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z))
+        throw Error(ErrorLocation{where, pointer}, "expected 3 finite numbers (a float overflows)");
+    return v;
 }
 
 CameraDesc camera_from_json(const json& x, const std::string& where, const std::string& pointer) {

@@ -223,3 +223,25 @@ TEST(RenderOptions, MaterialsReadBackAreCheckedAndReplaceTheScenes) {
 
 }  // namespace
 }  // namespace kdt
+
+namespace kdt {
+namespace {
+
+// A camera vector whose number overflows a float is refused where it is written, not as an
+// infinite eye at render time.
+TEST(RenderOptions, JsonVectorsMustBeFiniteFloats) {
+    RenderOptions o;
+    const std::string e = test::error_of_call([&] {
+        options_from_json("{\"scene\": {\"camera\": {\"eye\": [1e300, 0, 0]}}}", o, "s.json");
+    });
+    EXPECT_NE(e.find("s.json"), std::string::npos) << e;
+    EXPECT_NE(e.find("/scene/camera/eye"), std::string::npos) << e;
+    EXPECT_NE(e.find("finite"), std::string::npos) << e;
+    EXPECT_NE(test::error_of_call([&] {
+                  options_from_json("{\"scene\": {\"up\": [0, 1e39, 0]}}", o, "s.json");
+              }).find("/scene/up"),
+              std::string::npos);
+}
+
+}  // namespace
+}  // namespace kdt
