@@ -25,7 +25,8 @@ if(KDT_OSMESA_LIB)
                  ${CMAKE_CURRENT_LIST_DIR}/panels_test.cpp
                  ${CMAKE_CURRENT_LIST_DIR}/split_view_test.cpp
                  ${CMAKE_CURRENT_LIST_DIR}/viewer_files_test.cpp
-                 ${CMAKE_CURRENT_LIST_DIR}/osmesa_context.cpp ${CMAKE_CURRENT_SOURCE_DIR}/test_util.cpp)
+                 ${CMAKE_CURRENT_LIST_DIR}/osmesa_context.cpp
+                 ${CMAKE_CURRENT_LIST_DIR}/viewer_gui.cpp ${CMAKE_CURRENT_SOURCE_DIR}/test_util.cpp)
   target_link_libraries(kdt_ui_tests PRIVATE kdt_ui_core ${KDT_OSMESA_LIB} GTest::gtest
                         GTest::gtest_main kdt_warnings kdt_options)
   target_compile_definitions(kdt_ui_tests PRIVATE KDT_SOURCE_DIR="${CMAKE_SOURCE_DIR}"
