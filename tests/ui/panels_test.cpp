@@ -42,12 +42,20 @@ TEST(ViewerPanels, EveryPanelDrawsWithNoGlError) {
     for (ViewMode mode : {ViewMode::radiance, ViewMode::heat_nodes, ViewMode::heat_triangles}) {
         v.set_view_mode(mode);
         v.have_image_ = false;
+        // A heat view waits for an image with heat counts: a preview before it shows radiance
+        // and leaves the heat scale as it was.
+        const bool heat = mode != ViewMode::radiance;
+        auto shown = [&] {
+            return v.have_image_ &&
+                   (!heat || (!v.image_.heat_nodes.empty() && v.image_.complete_passes > 0));
+        };
         do {
             frame();
             ASSERT_EQ(gl_errors("frame"), "");
             std::this_thread::sleep_for(std::chrono::milliseconds(5));
-        } while (!v.have_image_ && std::chrono::steady_clock::now() < deadline);
+        } while (!shown() && std::chrono::steady_clock::now() < deadline);
         ASSERT_TRUE(v.have_image_) << "no image within a minute";
+        ASSERT_TRUE(shown()) << "no heat counts within a minute";
         frame();  // the panels with the image's statistics
         EXPECT_EQ(gl_errors("frame"), "");
         for (const char* name : {"kd-tree", "Stats", "View", "Render", "File"}) {
