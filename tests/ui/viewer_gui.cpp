@@ -49,7 +49,7 @@ bool ViewerGui::frame(bool file_panel) {
     glViewport(0, 0, width_, height_);
     glClearColor(0.0f, 0.0f, 0.0f, 1.0f);
     glClear(GL_COLOR_BUFFER_BIT);
-    v_.draw_image(width_, height_);
+    v_.draw_image(height_);
     ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
     glFinish();
     return running;
