@@ -146,13 +146,8 @@ void Viewer::poll_rebuild() {
 }
 
 void Viewer::upload(const FilmImage& img) {
-    const std::optional<DebugLayer> layer = debug_layer(view_);
-    std::vector<float> rgb;
-    if (layer && debug_colors(*layer, img, rgb, heat_scale_, split_ ? &split_->scale() : nullptr)) {
-        display_.upload(img.width, img.height, rgb.data());
-    } else {
-        display_.upload(img.width, img.height, img.rgb.data());
-    }
+    upload_layer(display_, img, debug_layer(view_), heat_scale_,
+                 split_ ? &split_->scale() : nullptr);
     have_image_ = true;
 }
 
