@@ -163,12 +163,22 @@ TEST(SplitView, PanelsAndDebugViewsDrawWithNoGlErrorAndTheDividerWhereSet) {
          {ViewMode::normals, ViewMode::depth, ViewMode::heat_nodes, ViewMode::radiance}) {
         v.set_view_mode(mode);
         v.have_image_ = false;
+        // A debug view waits for a full pass with its layer: a preview before it shows
+        // radiance and leaves the heat scale as it was.
+        auto has_layer = [&] {
+            const FilmImage& im = v.image_;
+            if (mode == ViewMode::radiance) return true;
+            const bool layer =
+                mode == ViewMode::heat_nodes ? !im.heat_nodes.empty() : !im.aov_depth.empty();
+            return layer && im.complete_passes > 0;
+        };
         do {
             frame();
             ASSERT_EQ(gl_errors("frame"), "");
             std::this_thread::sleep_for(std::chrono::milliseconds(5));
-        } while (!(v.have_image_ && v.split_->display()) && Clock::now() < deadline);
+        } while (!(v.have_image_ && v.split_->display() && has_layer()) && Clock::now() < deadline);
         ASSERT_TRUE(v.have_image_);
+        ASSERT_TRUE(has_layer()) << "no full pass with the view's layer in time";
         frame();
         EXPECT_EQ(gl_errors("frame"), "");
         const ImGuiWindow* w = ImGui::FindWindowByName("Split view: A left, B right");
