@@ -82,13 +82,7 @@ void SplitView::update_image(std::optional<DebugLayer> layer, const HeatScale& a
     if (worker_->copy_preview(preview_)) show = &preview_;
     if (worker_->session().copy_image(image_, layer.has_value()) && image_.complete_passes > 0)
         show = &image_;
-    if (!show) return;
-    std::vector<float> rgb;
-    if (layer && debug_colors(*layer, *show, rgb, scale_, &a_scale)) {
-        display_->upload(show->width, show->height, rgb.data());
-    } else {
-        display_->upload(show->width, show->height, show->rgb.data());
-    }
+    if (show) upload_layer(*display_, *show, layer, scale_, &a_scale);
 }
 
 bool SplitView::drag(float u, float grab, bool pressed) {
@@ -115,6 +109,16 @@ void draw_split(FilmDisplay& a, FilmDisplay& b, int x, int y, int w, int h, floa
     glClearColor(0.9f, 0.9f, 0.9f, 1.0f);
     glClear(GL_COLOR_BUFFER_BIT);
     glDisable(GL_SCISSOR_TEST);
+}
+
+void upload_layer(FilmDisplay& display, const FilmImage& image, std::optional<DebugLayer> layer,
+                  HeatScale& scale, const HeatScale* also) {
+    std::vector<float> rgb;
+    if (layer && debug_colors(*layer, image, rgb, scale, also)) {
+        display.upload(image.width, image.height, rgb.data());
+    } else {
+        display.upload(image.width, image.height, image.rgb.data());
+    }
 }
 
 std::optional<DebugLayer> debug_layer(ViewMode mode) {

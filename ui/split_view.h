@@ -83,4 +83,9 @@ private:
 void draw_split(FilmDisplay& a, FilmDisplay& b, int x, int y, int w, int h, float divider,
                 const ToneParams& tone, DisplayMode mode);
 
+/// Uploads `layer` of `image` coloured (debug_colors: sets `scale`, widened to `also`) into
+/// `display`, or its radiance when there is no layer or the image lacks it (a preview).
+void upload_layer(FilmDisplay& display, const FilmImage& image, std::optional<DebugLayer> layer,
+                  HeatScale& scale, const HeatScale* also);
+
 }  // namespace kdt::ui

@@ -146,13 +146,8 @@ void Viewer::poll_rebuild() {
 }
 
 void Viewer::upload(const FilmImage& img) {
-    const std::optional<DebugLayer> layer = debug_layer(view_);
-    std::vector<float> rgb;
-    if (layer && debug_colors(*layer, img, rgb, heat_scale_, split_ ? &split_->scale() : nullptr)) {
-        display_.upload(img.width, img.height, rgb.data());
-    } else {
-        display_.upload(img.width, img.height, img.rgb.data());
-    }
+    upload_layer(display_, img, debug_layer(view_), heat_scale_,
+                 split_ ? &split_->scale() : nullptr);
     have_image_ = true;
 }
 
@@ -189,7 +184,7 @@ void Viewer::update_image() {
     }
 }
 
-void Viewer::draw_image(int fb_width, int fb_height) {
+void Viewer::draw_image(int fb_height) {
     const DisplayMode mode =
         view_ == ViewMode::radiance ? DisplayMode::radiance : DisplayMode::direct;
     // image_y_ counts from the top; GL's viewport from the bottom.
@@ -199,7 +194,6 @@ void Viewer::draw_image(int fb_width, int fb_height) {
     } else {
         display_.draw(image_x_, fb_height - image_y_ - image_h_, image_w_, image_h_, tone_, mode);
     }
-    (void)fb_width;
 }
 
 void Viewer::handle_input(GLFWwindow* window, double dt) {
@@ -523,7 +517,7 @@ void run_viewer(const ViewerOptions& options) {
         glViewport(0, 0, fb_w, fb_h);
         glClearColor(0.08f, 0.08f, 0.09f, 1.0f);
         glClear(GL_COLOR_BUFFER_BIT);
-        v.draw_image(fb_w, fb_h);
+        v.draw_image(fb_h);
         glViewport(0, 0, fb_w, fb_h);
         ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
         for (const std::string& path : v.screenshot_requests_) v.screenshot(path, fb_w, fb_h);

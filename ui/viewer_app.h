@@ -64,7 +64,8 @@ public:
     /// Copies the published image when it changed and uploads it (GL context current).
     void update_image();
     void upload(const FilmImage& image);
-    void draw_image(int fb_width, int fb_height);
+    /// Draws the image in its rectangle of a framebuffer fb_height pixels high.
+    void draw_image(int fb_height);
     void draw_panels();
     /// Throws kdt::Error naming the first command of the script that does not exist.
     void check_script() const;

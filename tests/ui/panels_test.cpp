@@ -2,7 +2,6 @@
 // inspector, render, files), drawn by the real OpenGL3 backend in an offscreen OSMesa context
 // with no GL error; and the script and option errors of the viewer.
 #include <imgui.h>
-#include <imgui_impl_opengl3.h>
 #include <imgui_internal.h>
 
 #include <chrono>
@@ -14,20 +13,17 @@
 #include "renderer/io/image_io.h"
 #include "tests/test_util.h"
 #include "tests/ui/osmesa_context.h"
+#include "tests/ui/viewer_gui.h"
 #include "ui/viewer_app.h"
 
 namespace kdt::ui {
 namespace {
 
 ViewerOptions small_options() {
-    ViewerOptions vo;
-    vo.options.scene.width = 64;
-    vo.options.scene.height = 48;
+    ViewerOptions vo = test::small_viewer_options(64, 48);
     // One tree build for all the viewers of these tests, cached in a directory of their own.
     static const std::string cache = test::temp_dir("ui_tree_cache").string();
     vo.options.scene.cache_dir = cache;
-    vo.options.tree.threads = 1;
-    vo.options.trace.threads = 1;
     return vo;
 }
 
@@ -37,43 +33,29 @@ TEST(ViewerPanels, EveryPanelDrawsWithNoGlError) {
     ASSERT_TRUE(gl.ok()) << "OSMesa could not create a GL 3.3 core context";
     Viewer v(small_options());
     v.finish_loading();
-    ImGui::CreateContext();
-    ImGuiIO& io = ImGui::GetIO();
-    io.IniFilename = nullptr;
-    io.DisplaySize = ImVec2(float(kW), float(kH));
-    io.DeltaTime = 1.0f / 60.0f;
-    ASSERT_TRUE(ImGui_ImplOpenGL3_Init("#version 330 core"));
-    v.display_.init();
-    v.image_x_ = 0;
-    v.image_y_ = 0;
-    v.image_w_ = 640;
-    v.image_h_ = 480;
+    test::ViewerGui gui(v, kW, kH);
+    ASSERT_TRUE(gui.ok());
     v.mouse_x_ = 20.0;  // over the image: the inspector shows a pixel
     v.mouse_y_ = 20.0;
-    auto frame = [&] {
-        ImGui_ImplOpenGL3_NewFrame();
-        ImGui::NewFrame();
-        v.poll_rebuild();
-        v.update_image();
-        v.draw_panels();
-        v.draw_file_panel();
-        ImGui::Render();
-        glViewport(0, 0, kW, kH);
-        glClear(GL_COLOR_BUFFER_BIT);
-        v.draw_image(kW, kH);
-        ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
-        glFinish();
-    };
+    auto frame = [&] { gui.frame(true); };
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
     for (ViewMode mode : {ViewMode::radiance, ViewMode::heat_nodes, ViewMode::heat_triangles}) {
         v.set_view_mode(mode);
         v.have_image_ = false;
+        // A heat view waits for an image with heat counts: a preview before it shows radiance
+        // and leaves the heat scale as it was.
+        const bool heat = mode != ViewMode::radiance;
+        auto shown = [&] {
+            return v.have_image_ &&
+                   (!heat || (!v.image_.heat_nodes.empty() && v.image_.complete_passes > 0));
+        };
         do {
             frame();
             ASSERT_EQ(gl_errors("frame"), "");
             std::this_thread::sleep_for(std::chrono::milliseconds(5));
-        } while (!v.have_image_ && std::chrono::steady_clock::now() < deadline);
+        } while (!shown() && std::chrono::steady_clock::now() < deadline);
         ASSERT_TRUE(v.have_image_) << "no image within a minute";
+        ASSERT_TRUE(shown()) << "no heat counts within a minute";
         frame();  // the panels with the image's statistics
         EXPECT_EQ(gl_errors("frame"), "");
         for (const char* name : {"kd-tree", "Stats", "View", "Render", "File"}) {
@@ -99,8 +81,6 @@ TEST(ViewerPanels, EveryPanelDrawsWithNoGlError) {
     size_t lit = 0;
     for (uint8_t c : px) lit += c > 40;
     EXPECT_GT(lit, px.size() / 10);
-    ImGui_ImplOpenGL3_Shutdown();
-    ImGui::DestroyContext();
 }
 
 TEST(ViewerScript, BadCommandsAndOptionsNameTheProblem) {

@@ -4,7 +4,6 @@
 // debug views draw with the split on and no GL error; the divider's drag and the script's
 // errors.
 #include <imgui.h>
-#include <imgui_impl_opengl3.h>
 #include <imgui_internal.h>
 
 #include <chrono>
@@ -16,6 +15,7 @@
 #include "renderer/core/error.h"
 #include "tests/test_util.h"
 #include "tests/ui/osmesa_context.h"
+#include "tests/ui/viewer_gui.h"
 #include "ui/camera_control.h"
 #include "ui/viewer_app.h"
 
@@ -25,13 +25,9 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 ViewerOptions split_options() {
-    ViewerOptions vo;
-    vo.options.scene.width = 64;
-    vo.options.scene.height = 48;
+    ViewerOptions vo = test::small_viewer_options(64, 48);
     static const std::string cache = test::temp_dir("split_tree_cache").string();
     vo.options.scene.cache_dir = cache;
-    vo.options.tree.threads = 1;
-    vo.options.trace.threads = 1;
     vo.options.stop.spp = 4;
     return vo;
 }
@@ -150,36 +146,12 @@ TEST(SplitView, PanelsAndDebugViewsDrawWithNoGlErrorAndTheDividerWhereSet) {
     ASSERT_TRUE(gl.ok()) << "OSMesa could not create a GL 3.3 core context";
     Viewer v(split_options());
     v.finish_loading();
-    ImGui::CreateContext();
-    ImGuiIO& io = ImGui::GetIO();
-    io.IniFilename = nullptr;
-    io.DisplaySize = ImVec2(float(kW), float(kH));
-    io.DeltaTime = 1.0f / 60.0f;
-    ASSERT_TRUE(ImGui_ImplOpenGL3_Init("#version 330 core"));
-    v.display_.init();
-    v.image_x_ = 0;
-    v.image_y_ = 0;
-    v.image_w_ = 640;
-    v.image_h_ = 480;
+    test::ViewerGui gui(v, kW, kH);
+    ASSERT_TRUE(gui.ok());
     v.mouse_x_ = 600.0;  // right of the divider: the inspector reads side B
     v.mouse_y_ = 20.0;
     v.script_ = {"split on", "split.set tree.n0 2", "divider 0.25", "wait_split", "check_gl"};
-    auto frame = [&] {
-        ImGui_ImplOpenGL3_NewFrame();
-        ImGui::NewFrame();
-        v.poll_rebuild();
-        const bool running = v.script_step();
-        v.update_image();
-        v.draw_panels();
-        ImGui::Render();
-        glViewport(0, 0, kW, kH);
-        glClearColor(0.0f, 0.0f, 0.0f, 1.0f);
-        glClear(GL_COLOR_BUFFER_BIT);
-        v.draw_image(kW, kH);
-        ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
-        glFinish();
-        return running;
-    };
+    auto frame = [&] { return gui.frame(false); };
     const auto deadline = Clock::now() + std::chrono::seconds(90);
     while (frame() && Clock::now() < deadline) {
         ASSERT_EQ(gl_errors("frame"), "");
@@ -191,12 +163,22 @@ TEST(SplitView, PanelsAndDebugViewsDrawWithNoGlErrorAndTheDividerWhereSet) {
          {ViewMode::normals, ViewMode::depth, ViewMode::heat_nodes, ViewMode::radiance}) {
         v.set_view_mode(mode);
         v.have_image_ = false;
+        // A debug view waits for a full pass with its layer: a preview before it shows
+        // radiance and leaves the heat scale as it was.
+        auto has_layer = [&] {
+            const FilmImage& im = v.image_;
+            if (mode == ViewMode::radiance) return true;
+            const bool layer =
+                mode == ViewMode::heat_nodes ? !im.heat_nodes.empty() : !im.aov_depth.empty();
+            return layer && im.complete_passes > 0;
+        };
         do {
             frame();
             ASSERT_EQ(gl_errors("frame"), "");
             std::this_thread::sleep_for(std::chrono::milliseconds(5));
-        } while (!(v.have_image_ && v.split_->display()) && Clock::now() < deadline);
+        } while (!(v.have_image_ && v.split_->display() && has_layer()) && Clock::now() < deadline);
         ASSERT_TRUE(v.have_image_);
+        ASSERT_TRUE(has_layer()) << "no full pass with the view's layer in time";
         frame();
         EXPECT_EQ(gl_errors("frame"), "");
         const ImGuiWindow* w = ImGui::FindWindowByName("Split view: A left, B right");
@@ -214,8 +196,6 @@ TEST(SplitView, PanelsAndDebugViewsDrawWithNoGlErrorAndTheDividerWhereSet) {
     EXPECT_GT(line[1], 200);
     EXPECT_GT(line[2], 200);
     v.set_split(false);
-    ImGui_ImplOpenGL3_Shutdown();
-    ImGui::DestroyContext();
 }
 
 TEST(SplitView, DividerDragStartsOnlyNearIt) {

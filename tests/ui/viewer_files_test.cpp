@@ -10,18 +10,15 @@
 #include "renderer/core/error.h"
 #include "renderer/io/image_io.h"
 #include "tests/test_util.h"
+#include "tests/ui/viewer_gui.h"
 #include "ui/viewer_app.h"
 
 namespace kdt::ui {
 namespace {
 
 ViewerOptions tiny_options() {
-    ViewerOptions vo;
-    vo.options.scene.width = 48;
-    vo.options.scene.height = 32;
+    ViewerOptions vo = test::small_viewer_options(48, 32);
     vo.options.scene.use_cache = false;
-    vo.options.tree.threads = 1;
-    vo.options.trace.threads = 1;
     return vo;
 }
 
