@@ -14,7 +14,6 @@
 #include <thread>
 
 #include "renderer/core/error.h"
-#include "renderer/core/open_file.h"
 #include "renderer/io/image_io.h"
 #include "renderer/scene/views.h"
 #include "ui/camera_control.h"
@@ -310,12 +309,9 @@ void Viewer::save_session(const std::string& path) const {
 }
 
 void Viewer::load_session(const std::string& path) {
-    // Regular files only, bounded: a FIFO or /dev/zero given as a session must not hang.
-    const std::vector<uint8_t> text = read_regular_file(path, uint64_t(1) << 20, "a session file");
     RenderOptions o = opts_;
     o.stop = stop_;
-    options_from_json(std::string(text.begin(), text.end()), o, path);
-    validate(o);
+    options_from_session_file(path, o);  // validates
     if (o.scene.scene_path != opts_.scene.scene_path || o.scene.width != opts_.scene.width ||
         o.scene.height != opts_.scene.height) {
         throw Error(ErrorLocation{path, "scene", -1},
