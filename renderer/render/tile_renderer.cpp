@@ -93,6 +93,11 @@ size_t render_tile(const TileTarget& t, const FilmRect& tile, PathCounters& coun
                 scene.tree->intersect(rays, size_t(n), hits, trace.count_traversal ? &tc : nullptr);
                 counters.nodes_visited += tc.nodes_visited;
                 counters.triangles_tested += tc.triangles_tested;
+                // Shading reads each hit's vertex indices from the mesh, likely a cache miss
+                // (the traversal reads its own copy): start those loads for the whole batch
+                // before the first path needs one.
+                for (int i = 0; i < n; ++i)
+                    if (hits[i].valid()) __builtin_prefetch(&scene.mesh->triangles[hits[i].prim]);
             }
             for (int i = 0; i < n; ++i) {
                 CameraSample& c = batch[i];
