@@ -171,7 +171,7 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
             if (specular_bounce || !env_nee) {
                 radiance += beta * env.eval(ray.dir);
             } else if (use_mis) {
-                const float light_pdf = params.env_importance ? env.pdf(ray.dir) : kInv4Pi;
+                const float light_pdf = params.env_importance ? env.pdf_mis(ray.dir) : kInv4Pi;
                 radiance += beta * env.eval(ray.dir) * power_heuristic(prev_bsdf_pdf, light_pdf);
             }
             break;
@@ -222,7 +222,7 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
         if (env_nee && !is_delta(mat)) {
             EnvSample ls;
             if (params.env_importance) {
-                ls = env.sample(u_light);
+                ls = use_mis ? env.sample_mis(u_light) : env.sample(u_light);
             } else {
                 ls.dir = sample_uniform_sphere(u_light);
                 ls.radiance = env.eval(ls.dir);

@@ -160,31 +160,46 @@ ImageEnvironment::ImageEnvironment(ImageRGB image, EnvMapping mapping, float rot
     const int gw = w * sub_, gh = h * sub_;
     const size_t cells = size_t(gw) * size_t(gh);
     const std::vector<double> lum = cell_mean_luminance();
-    std::vector<double> weights(cells, 0.0);
+    // jac: each cell's solid angle per unit uv area (its mean Jacobian), zero outside the
+    // angular map's disk.
+    std::vector<double> jac(cells, 0.0);
     std::vector<float> cover(cells, 1.0f);
     if (mapping_ == EnvMapping::latlong) {
         for (int y = 0; y < gh; ++y) {
             // Mean of sin(theta) over the row: (cos theta0 - cos theta1) / (theta1 - theta0).
             double t0 = M_PI * y / gh, t1 = M_PI * (y + 1) / gh;
             double mean_sin = (std::cos(t0) - std::cos(t1)) / (t1 - t0);
-            for (int x = 0; x < gw; ++x) {
-                size_t i = size_t(y) * size_t(gw) + size_t(x);
-                weights[i] = lum[i] * mean_sin;
-            }
+            std::fill_n(jac.begin() + ptrdiff_t(size_t(y) * size_t(gw)), gw, mean_sin);
         }
     } else {
         for (int y = 0; y < gh; ++y) {
             for (int x = 0; x < gw; ++x) {
                 size_t i = size_t(y) * size_t(gw) + size_t(x);
                 cover[i] = coverage(x, y);
-                if (!(cover[i] > 0.0f) || lum[i] <= 0.0) continue;
+                if (!(cover[i] > 0.0f)) continue;
                 // A floor keeps cells cut by the rim with no grid point inside samplable,
                 // so that pdf > 0 wherever eval > 0.
-                weights[i] =
-                    lum[i] * std::max(angular_mean_jacobian(x, y), double(cover[i]) * 1e-3);
+                jac[i] = std::max(angular_mean_jacobian(x, y), double(cover[i]) * 1e-3);
             }
         }
     }
+    std::vector<double> weights(cells, 0.0);
+    double sum_weights = 0.0, sum_jac = 0.0;
+    for (size_t i = 0; i < cells; ++i) {
+        weights[i] = lum[i] * jac[i];
+        sum_weights += weights[i];
+        sum_jac += jac[i];
+    }
+    full_ = make_cell_sampling(weights, cover);
+    // MIS compensation: the map's mean luminance over the sphere subtracted.
+    const double mean = sum_jac > 0.0 ? sum_weights / sum_jac : 0.0;
+    for (size_t i = 0; i < cells; ++i) weights[i] = std::max(lum[i] - mean, 0.0) * jac[i];
+    mis_ = make_cell_sampling(weights, cover);
+}
+
+ImageEnvironment::CellSampling ImageEnvironment::make_cell_sampling(
+    const std::vector<double>& weights, const std::vector<float>& cover) const {
+    const int gw = image_.width * sub_, gh = image_.height * sub_;
     // Normalised to a maximum of 1 so that the float distribution can neither overflow nor
     // lose the scale; cells below 1e-38 of the brightest one round to weight 0.
     double max_weight = *std::max_element(weights.begin(), weights.end());
@@ -192,16 +207,18 @@ ImageEnvironment::ImageEnvironment(ImageRGB image, EnvMapping mapping, float rot
     if (max_weight > 0.0) {
         for (size_t i = 0; i < weights.size(); ++i) normalised[i] = float(weights[i] / max_weight);
     }
-    distribution_ = Distribution2D(normalised, gw, gh);
-    density_.assign(cells, 0.0f);
-    if (!distribution_.empty()) {
+    CellSampling cs;
+    cs.distribution = Distribution2D(normalised, gw, gh);
+    cs.density.assign(weights.size(), 0.0f);
+    if (!cs.distribution.empty()) {
         for (int y = 0; y < gh; ++y) {
             for (int x = 0; x < gw; ++x) {
                 size_t i = size_t(y) * size_t(gw) + size_t(x);
-                if (normalised[i] > 0.0f) density_[i] = distribution_.pdf(x, y) / cover[i];
+                if (normalised[i] > 0.0f) cs.density[i] = cs.distribution.pdf(x, y) / cover[i];
             }
         }
     }
+    return cs;
 }
 
 double ImageEnvironment::angular_mean_jacobian(int x, int y) const {
@@ -322,14 +339,17 @@ size_t ImageEnvironment::cell_index(const Vec2f& uv) const {
     return size_t(y) * size_t(gw) + size_t(x);
 }
 
-float ImageEnvironment::pdf_map(const Vec3f& map_dir, size_t cell) const {
-    float density = density_[cell];
+float ImageEnvironment::pdf_map(const CellSampling& cs, const Vec3f& map_dir, size_t cell) const {
+    float density = cs.density[cell];
     if (density <= 0.0f) return 0.0f;
     float jacobian = env_jacobian(mapping_, map_dir);
     return jacobian > 0.0f ? density / jacobian : 0.0f;
 }
 
-Vec2f ImageEnvironment::uv_from_dir(const Vec3f& world_dir) const {
+// Out of line, as radiance_at(): eval() and sample() then run one compiled copy of the
+// mapping and the lookup, which the compiler could otherwise contract into FMAs differently
+// at each call site, so both give bitwise the same radiance for a direction.
+[[gnu::noinline]] Vec2f ImageEnvironment::uv_from_dir(const Vec3f& world_dir) const {
     return env_uv_from_dir(mapping_, to_map(world_dir));
 }
 
@@ -339,21 +359,31 @@ std::optional<Vec3f> ImageEnvironment::dir_from_uv(const Vec2f& uv) const {
     return rotate_y(*d, cos_rot_, sin_rot_);
 }
 
-Vec3f ImageEnvironment::eval(const Vec3f& dir) const {
-    return lookup(env_uv_from_dir(mapping_, to_map(dir))) * intensity_;
+[[gnu::noinline]] Vec3f ImageEnvironment::radiance_at(const Vec2f& uv) const {
+    return lookup(uv) * intensity_;
 }
 
-float ImageEnvironment::pdf(const Vec3f& dir) const {
+Vec3f ImageEnvironment::eval(const Vec3f& dir) const { return radiance_at(uv_from_dir(dir)); }
+
+float ImageEnvironment::pdf(const Vec3f& dir) const { return pdf_from(full_, dir); }
+
+float ImageEnvironment::pdf_mis(const Vec3f& dir) const { return pdf_from(mis_, dir); }
+
+EnvSample ImageEnvironment::sample(const Vec2f& u) const { return sample_from(full_, u); }
+
+EnvSample ImageEnvironment::sample_mis(const Vec2f& u) const { return sample_from(mis_, u); }
+
+float ImageEnvironment::pdf_from(const CellSampling& cs, const Vec3f& dir) const {
     Vec3f d = to_map(dir);
     if (!(glm::dot(d, d) > 0.0f)) return 0.0f;
-    return pdf_map(d, cell_index(env_uv_from_dir(mapping_, d)));
+    return pdf_map(cs, d, cell_index(env_uv_from_dir(mapping_, d)));
 }
 
-EnvSample ImageEnvironment::sample(const Vec2f& u) const {
+EnvSample ImageEnvironment::sample_from(const CellSampling& cs, const Vec2f& u) const {
     EnvSample s;
-    if (distribution_.empty()) return s;
+    if (cs.distribution.empty()) return s;
     Vec2i cell;
-    Vec2f uv = distribution_.sample_continuous(u, &cell);
+    Vec2f uv = cs.distribution.sample_continuous(u, &cell);
     std::optional<Vec3f> map_dir = env_dir_from_uv(mapping_, uv);
     if (!map_dir) {
         // Angular map, a cell cut by the rim: uniform within its part of the disk by
@@ -371,14 +401,13 @@ EnvSample ImageEnvironment::sample(const Vec2f& u) const {
         if (!map_dir) return s;
     }
     s.dir = rotate_y(*map_dir, cos_rot_, sin_rot_);
-    // Radiance and pdf are looked up again from the final direction, as eval() and pdf() do,
-    // so that they agree to a few ulps (the compiler may contract the float operations of
-    // the two call sites differently; a sample on a cell edge may round into the
-    // neighbouring cell, and it is then that cell's density that counts).
-    const Vec3f d = to_map(s.dir);
-    const Vec2f uv_d = env_uv_from_dir(mapping_, d);  // one mapping for both lookups
-    s.radiance = lookup(uv_d) * intensity_;
-    s.pdf_solid_angle = pdf_map(d, cell_index(uv_d));
+    // Radiance and pdf are looked up again from the final direction, as eval() and pdf() do:
+    // the radiance bit for bit (the same out-of-line functions), the pdf to a few ulps (its
+    // Jacobian is computed inline); a sample on a cell edge may round into the neighbouring
+    // cell, and it is then that cell's density that counts.
+    const Vec2f uv_d = uv_from_dir(s.dir);
+    s.radiance = radiance_at(uv_d);
+    s.pdf_solid_angle = pdf_map(cs, to_map(s.dir), cell_index(uv_d));
     return s;
 }
 

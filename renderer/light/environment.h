@@ -44,6 +44,14 @@ public:
     virtual float pdf(const Vec3f& dir) const = 0;
     /// True for a constant colour (a furnace); lets the integrator sample cosine-weighted.
     virtual bool is_constant() const = 0;
+    /// sample() and pdf() for next-event estimation that multiple importance sampling
+    /// combines with BSDF sampling: a map may follow its radiance minus its mean (MIS
+    /// compensation, Karlik et al. 2019), leaving directions darker than the mean (pdf 0
+    /// here) to BSDF sampling, which takes them at full weight. Unbiased only in such a
+    /// combination, with a BSDF sample whose pdf is positive wherever the BSDF is; next-event
+    /// estimation alone uses sample() and pdf().
+    virtual EnvSample sample_mis(const Vec2f& u) const { return sample(u); }
+    virtual float pdf_mis(const Vec3f& dir) const { return pdf(dir); }
 };
 
 /// Radiance (colour or brightest texel channel, times intensity) beyond this is refused:

@@ -41,7 +41,10 @@ private:
 /// value at its centre and the density follows eval() to within the patch's variation over
 /// 1/S pixel; with S = 1 a pixel's mean weighs it and its 8 neighbours.
 /// sample() and pdf() agree exactly, and the pdf is positive wherever eval() is, so
-/// estimates stay unbiased.
+/// estimates stay unbiased. sample_mis() and pdf_mis() use a second distribution on the same
+/// cells, weighted by max(0, luminance - mean) times the solid angle, the mean being the
+/// map's mean luminance over the sphere; with no cell above the mean it is empty
+/// (sample_mis() returns pdf 0, and BSDF sampling alone estimates the map).
 class ImageEnvironment final : public EnvironmentLight {
 public:
     /// Throws kdt::Error (naming `name`, usually the file) as check_environment_texels(), and
@@ -54,6 +57,8 @@ public:
     EnvSample sample(const Vec2f& u) const override;
     float pdf(const Vec3f& dir) const override;
     bool is_constant() const override { return false; }
+    EnvSample sample_mis(const Vec2f& u) const override;
+    float pdf_mis(const Vec3f& dir) const override;
 
     EnvMapping mapping() const { return mapping_; }
     /// The map, not multiplied by intensity.
@@ -69,15 +74,32 @@ public:
     /// Sampling density w.r.t. image area (u, v) in [0,1]^2 inside sampling cell (x, y),
     /// x < width S, y < height S.
     float density_uv(int x, int y) const {
-        return density_[size_t(y) * size_t(image_.width * sub_) + size_t(x)];
+        return full_.density[size_t(y) * size_t(image_.width * sub_) + size_t(x)];
     }
     /// Fraction of sampling cell (x, y) inside the angular map's disk (1 for lat-long).
     float coverage(int x, int y) const;
-    const Distribution2D& distribution() const { return distribution_; }
+    const Distribution2D& distribution() const { return full_.distribution; }
+    /// The compensated distribution of sample_mis(), and its density in cell (x, y).
+    const Distribution2D& mis_distribution() const { return mis_.distribution; }
+    float mis_density_uv(int x, int y) const {
+        return mis_.density[size_t(y) * size_t(image_.width * sub_) + size_t(x)];
+    }
 
 private:
+    /// A distribution over the sampling cells and its density w.r.t. uv area per cell.
+    struct CellSampling {
+        Distribution2D distribution;
+        std::vector<float> density;
+    };
+    /// The cell sampling of weights (one per cell, >= 0); empty if all are 0.
+    CellSampling make_cell_sampling(const std::vector<double>& weights,
+                                    const std::vector<float>& cover) const;
+    EnvSample sample_from(const CellSampling& cs, const Vec2f& u) const;
+    float pdf_from(const CellSampling& cs, const Vec3f& dir) const;
     /// World direction -> unit map direction (rotation undone); zero stays zero.
     Vec3f to_map(const Vec3f& world_dir) const;
+    /// lookup(uv) times the intensity: eval()'s radiance.
+    Vec3f radiance_at(const Vec2f& uv) const;
     /// Bilinear lookup of the map (no intensity) at image coordinates uv.
     Vec3f lookup(const Vec2f& uv) const;
     /// Column x of the map for x in [-1, width]: wrapped (lat-long) or clamped (angular).
@@ -87,15 +109,14 @@ private:
     /// Angular map: mean Jacobian over sampling cell (x, y), zero outside the disk.
     double angular_mean_jacobian(int x, int y) const;
     size_t cell_index(const Vec2f& uv) const;  // uv: env_uv_from_dir of a map direction
-    float pdf_map(const Vec3f& map_dir, size_t cell) const;
+    float pdf_map(const CellSampling& cs, const Vec3f& map_dir, size_t cell) const;
 
     ImageRGB image_;
     EnvMapping mapping_;
     float intensity_;
     float cos_rot_, sin_rot_;
-    int sub_ = 1;  ///< sampling cells per pixel along each axis
-    Distribution2D distribution_;
-    std::vector<float> density_;  ///< per sampling cell, w.r.t. uv area
+    int sub_ = 1;              ///< sampling cells per pixel along each axis
+    CellSampling full_, mis_;  ///< for sample() / pdf() and sample_mis() / pdf_mis()
 };
 
 /// Throws kdt::Error naming path unless every texel is finite and >= 0 (naming the first

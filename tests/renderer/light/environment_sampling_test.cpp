@@ -114,6 +114,81 @@ INSTANTIATE_TEST_SUITE_P(Mappings, SingleTexelTest,
                              return std::string(kEnvMappingNames[size_t(param_info.param)]);
                          });
 
+// MIS compensation: sample_mis() / pdf_mis() follow the map minus its mean luminance over
+// the sphere. On a map of a dim sky (luminance 1) with a bright patch (100): the density is
+// zero in the sky and positive on the patch, integrates to one, and sample_mis() agrees with
+// pdf_mis() and eval().
+ImageEnvironment sky_with_patch(EnvMapping mapping) {
+    const bool latlong = mapping == EnvMapping::latlong;
+    ImageRGB img(32, latlong ? 16 : 32);
+    for (int y = 0; y < img.height; ++y)
+        for (int x = 0; x < img.width; ++x) img.set(x, y, Vec3f(1.0f));
+    for (int y = 10; y < 13; ++y)
+        for (int x = 18; x < 21; ++x) img.set(x, latlong ? y - 4 : y, Vec3f(100.0f));
+    return ImageEnvironment(img, mapping, 0.0f, 1.0f);
+}
+
+class MisCompensationTest : public ::testing::TestWithParam<EnvMapping> {};
+
+TEST_P(MisCompensationTest, DensityIsZeroBelowTheMeanAndIntegratesToOne) {
+    const ImageEnvironment env = sky_with_patch(GetParam());
+    const bool latlong = GetParam() == EnvMapping::latlong;
+    const int per_pixel = 16;
+    const int nu = env.image().width * per_pixel, nv = env.image().height * per_pixel;
+    double integral = 0.0;
+    for (int y = 0; y < nv; ++y) {
+        for (int x = 0; x < nu; ++x) {
+            auto d = env.dir_from_uv({(x + 0.5f) / float(nu), (y + 0.5f) / float(nv)});
+            if (!d) continue;
+            integral += env.pdf_mis(*d) * env_jacobian(env.mapping(), *d) / (double(nu) * nv);
+        }
+    }
+    EXPECT_NEAR(integral, 1.0, 1e-3);
+    // Texel centres: the sky far from the patch, and the patch's middle texel.
+    const float w = float(env.image().width), h = float(env.image().height);
+    auto centre = [&](int x, int y) { return *env.dir_from_uv({(x + 0.5f) / w, (y + 0.5f) / h}); };
+    const Vec3f sky = centre(4, latlong ? 4 : 16), patch = centre(19, latlong ? 7 : 11);
+    EXPECT_EQ(env.pdf_mis(sky), 0.0f);
+    EXPECT_GT(env.pdf(sky), 0.0f);
+    // On the patch the compensated density is the larger one: the sky's share moved there.
+    EXPECT_GT(env.pdf_mis(patch), env.pdf(patch));
+}
+
+TEST_P(MisCompensationTest, SampleAgreesWithPdfAndEval) {
+    const ImageEnvironment env = sky_with_patch(GetParam());
+    HashRng rng(5);
+    int zero = 0;
+    for (int i = 0; i < 100000; ++i) {
+        const EnvSample s = env.sample_mis(rng.next2());
+        if (!(s.pdf_solid_angle > 0.0f)) {
+            ++zero;
+            continue;
+        }
+        ASSERT_FLOAT_EQ(env.pdf_mis(s.dir), s.pdf_solid_angle);
+        ASSERT_EQ(env.eval(s.dir), s.radiance);
+        // Only directions brighter than the mean are drawn.
+        ASSERT_GT(luminance(s.radiance), 1.0f);
+    }
+    EXPECT_LE(zero, 2);
+}
+
+TEST_P(MisCompensationTest, AUniformMapLeavesEverythingToBsdfSampling) {
+    ImageRGB img(16, GetParam() == EnvMapping::latlong ? 8 : 16);
+    for (int y = 0; y < img.height; ++y)
+        for (int x = 0; x < img.width; ++x) img.set(x, y, Vec3f(0.5f));
+    const ImageEnvironment env(img, GetParam(), 0.0f, 1.0f);
+    EXPECT_TRUE(env.mis_distribution().empty());
+    EXPECT_FALSE(env.distribution().empty());
+    EXPECT_EQ(env.sample_mis({0.3f, 0.6f}).pdf_solid_angle, 0.0f);
+    EXPECT_EQ(env.pdf_mis(Vec3f(0.0f, 1.0f, 0.0f)), 0.0f);
+}
+
+INSTANTIATE_TEST_SUITE_P(Mappings, MisCompensationTest,
+                         ::testing::Values(EnvMapping::latlong, EnvMapping::angular),
+                         [](const ::testing::TestParamInfo<EnvMapping>& param_info) {
+                             return std::string(kEnvMappingNames[size_t(param_info.param)]);
+                         });
+
 TEST(Environment, SamplingCellsPerPixelAreCheckedAndFollowTheMapSize) {
     ImageRGB img(8, 4);
     img.set(1, 1, Vec3f(1.0f));
