@@ -39,7 +39,9 @@ struct TraceParams {
     bool sample_emitters = true;
     DiffuseSampling diffuse_sampling = DiffuseSampling::cosine;
     PixelFilter filter = PixelFilter::box;
-    int samples_per_pass = 1;     ///< per active pixel and pass
+    /// Per active pixel and pass; 0 = automatic: run_render() picks up to
+    /// kMaxAutoSamplesPerPass for renders without adaptive sampling, else 1.
+    int samples_per_pass = 0;
     uint64_t seed = 0;            ///< keys all randomness with the pixel and sample index
     int threads = 0;              ///< OpenMP threads; 0 = default
     bool count_traversal = true;  ///< count nodes visited and triangles tested

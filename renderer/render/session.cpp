@@ -210,23 +210,23 @@ std::optional<PixelInfo> RenderSession::inspect(int x, int y) const {
     return info;
 }
 
-PassStats RenderSession::render_pass(int max_spp) {
+PassStats RenderSession::render_pass(int max_spp, int per_pass) {
     // Cleared before the changes are taken: a cancel() that follows a change never goes
     // missing, it can at worst stop the first pass that already has the change.
     cancel_requested_.store(false);
     apply_pending();
     std::vector<int> tiles(static_cast<size_t>(tile_count()));
     for (size_t i = 0; i < tiles.size(); ++i) tiles[i] = int(i);
-    return run_tiles(tiles, max_spp);
+    return run_tiles(tiles, max_spp, per_pass);
 }
 
-PassStats RenderSession::render_pass(const std::vector<int>& tiles, int max_spp) {
+PassStats RenderSession::render_pass(const std::vector<int>& tiles, int max_spp, int per_pass) {
     cancel_requested_.store(false);
     apply_pending();
-    return run_tiles(tiles, max_spp);
+    return run_tiles(tiles, max_spp, per_pass);
 }
 
-PassStats RenderSession::run_tiles(const std::vector<int>& tiles, int max_spp) {
+PassStats RenderSession::run_tiles(const std::vector<int>& tiles, int max_spp, int per_pass) {
     Timer timer;
     PassStats stats;
     // The first pass samples everything; later passes ask the film which pixels remain.
@@ -236,10 +236,12 @@ PassStats RenderSession::run_tiles(const std::vector<int>& tiles, int max_spp) {
     const int width = film_.width(), height = film_.height();
     const int tiles_x = (width + kTileSize - 1) / kTileSize;
     const int threads = trace_.threads > 0 ? trace_.threads : omp_get_max_threads();
+    TraceParams pass_trace = trace_;
+    if (per_pass > 0) pass_trace.samples_per_pass = per_pass;
     TileTarget target;
     target.scene = snapshot_->scene.get();
     target.camera = &snapshot_->camera;
-    target.trace = &trace_;
+    target.trace = &pass_trace;
     target.film = &film_;
     if (heat_map_ && !heat_nodes_.empty()) {
         target.heat_nodes = heat_nodes_.data();
@@ -287,6 +289,33 @@ PassStats RenderSession::run_tiles(const std::vector<int>& tiles, int max_spp) {
     return stats;
 }
 
+namespace {
+
+// The automatic pass size after a pass of `last` samples per pixel that took `seconds`
+// (run_render() without adaptive sampling): at most kMaxAutoSamplesPerPass, the samples
+// left to an spp target, a second of work, a quarter of the time left to a time target,
+// and, for an error target, a quarter of the samples the error's 1/sqrt(n) decay predicts.
+int next_pass_size(const StopConditions& stop, int last, double seconds, double pixels,
+                   const RenderProgress& p) {
+    double k = kMaxAutoSamplesPerPass;
+    const double per_sample = seconds / double(std::max(last, 1));
+    if (per_sample > 0.0) {
+        double budget = 1.0;
+        if (stop.seconds > 0.0) budget = std::min(budget, 0.25 * (stop.seconds - p.seconds));
+        k = std::min(k, std::floor(budget / per_sample));
+    }
+    const double done_spp = double(p.samples) / pixels;
+    if (stop.spp > 0) k = std::min(k, double(stop.spp) - done_spp);
+    if (stop.error > 0.0f) {
+        if (!p.error_known || !(p.mean_relative_error > 0.0)) return 1;
+        const double ratio = p.mean_relative_error / double(stop.error);
+        k = std::min(k, 0.25 * done_spp * (ratio * ratio - 1.0));
+    }
+    return std::max(1, int(std::min(k, double(kMaxAutoSamplesPerPass))));
+}
+
+}  // namespace
+
 RenderProgress run_render(RenderSession& session, const StopConditions& stop,
                           const std::function<void(const RenderProgress&)>& progress) {
     validate(stop);
@@ -298,10 +327,12 @@ RenderProgress run_render(RenderSession& session, const StopConditions& stop,
     // Without adaptivity, --spp is exact per pixel; with it, a total budget and a cap.
     int cap = stop.max_spp;
     if (stop.spp > 0 && !adaptive) cap = std::min(cap, stop.spp);
+    const bool auto_pass = session.trace_params().samples_per_pass == 0 && !adaptive;
     Timer timer;
     RenderProgress p;
+    int per_pass = auto_pass ? 1 : 0;  // 0: the session's samples_per_pass
     for (;;) {
-        const PassStats ps = session.render_pass(cap);
+        const PassStats ps = session.render_pass(cap, per_pass);
         const Film& film = session.film();
         p.passes = session.passes();
         p.seconds = timer.seconds();
@@ -336,6 +367,7 @@ RenderProgress run_render(RenderSession& session, const StopConditions& stop,
             p.mean_relative_error = film.mean_relative_error();
         if (progress) progress(p);
         if (done) break;
+        if (auto_pass) per_pass = next_pass_size(stop, per_pass, ps.seconds, pixels, p);
     }
     return p;
 }

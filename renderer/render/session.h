@@ -91,10 +91,11 @@ public:
     void cancel() { cancel_requested_.store(true); }
 
     /// One pass: samples_per_pass samples for every active pixel (all pixels without
-    /// adaptive sampling). max_spp > 0 caps samples drawn per pixel.
-    PassStats render_pass(int max_spp = 0);
+    /// adaptive sampling; per_pass > 0 replaces trace_params().samples_per_pass for this
+    /// pass, and 0 there means 1). max_spp > 0 caps samples drawn per pixel.
+    PassStats render_pass(int max_spp = 0, int per_pass = 0);
     /// The same restricted to the given tile indices (row-major, tile_count() of them).
-    PassStats render_pass(const std::vector<int>& tiles, int max_spp = 0);
+    PassStats render_pass(const std::vector<int>& tiles, int max_spp = 0, int per_pass = 0);
 
     /// Copies the published image (and with `layers`, the heat maps and AOVs that are on)
     /// into `out` when its version differs from out.version; returns whether it copied. Holds
@@ -141,7 +142,7 @@ private:
     };
 
     void apply_pending();
-    PassStats run_tiles(const std::vector<int>& tiles, int max_spp);
+    PassStats run_tiles(const std::vector<int>& tiles, int max_spp, int per_pass);
     void reset_published();
     void publish_tile(int x0, int y0, int x1, int y1);
 
@@ -179,7 +180,15 @@ struct RenderProgress {
     bool error_known = false;
 };
 
+/// Largest pass run_render() picks for samples_per_pass 0 (automatic).
+inline constexpr int kMaxAutoSamplesPerPass = 16;
+
 /// Runs passes until a stop condition holds (or cancel). Calls progress after each pass.
+/// With samples_per_pass 0 and no adaptive sampling, the first pass takes 1 sample per
+/// pixel and later ones up to kMaxAutoSamplesPerPass, fewer as the stop conditions near
+/// and so that a pass takes about a second at most: the image is the same for any pass
+/// size (each sample is a function of its pixel and index, added in index order), and
+/// several samples of one pixel in a row trace as coherent camera packets.
 /// Throws kdt::Error when the conditions do not pass validate().
 RenderProgress run_render(RenderSession& session, const StopConditions& stop,
                           const std::function<void(const RenderProgress&)>& progress = {});

@@ -1,5 +1,7 @@
 // run_render's progress is honest: 100 % only at the end, whatever the stop condition, and no
-// error estimate before there is a variance to estimate it from.
+// error estimate before there is a variance to estimate it from. Automatic pass sizes change
+// the passes, not the image.
+#include <cstring>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -70,6 +72,41 @@ TEST(RunRender, NoErrorEstimateBelowTwoSamples) {
     EXPECT_FALSE(seen.front().error_known);
     EXPECT_TRUE(seen.back().error_known);
     EXPECT_GT(seen.back().mean_relative_error, 0.0);
+}
+
+TEST(RunRender, AutomaticPassesGiveTheImageOfOneSamplePerPass) {
+    StopConditions stop;
+    stop.spp = 21;
+    std::vector<float> images[2];
+    int passes[2] = {};
+    for (int k = 0; k < 2; ++k) {
+        TraceParams tp;
+        tp.samples_per_pass = k == 0 ? 0 : 1;
+        tp.seed = 9;
+        RenderSession s(scene_snapshot(), tp, FilmParams{});
+        const RenderProgress p = run_render(s, stop);
+        passes[k] = p.passes;
+        EXPECT_EQ(p.samples, 21u * 24u * 16u);
+        images[k] = s.film().linear_rgb();
+    }
+    EXPECT_EQ(passes[1], 21);
+    // 1 sample, then at most kMaxAutoSamplesPerPass (fewer if a pass would exceed a second).
+    EXPECT_LT(passes[0], 21);
+    EXPECT_GE(passes[0], 1 + (21 - 1 + kMaxAutoSamplesPerPass - 1) / kMaxAutoSamplesPerPass);
+    ASSERT_EQ(images[0].size(), images[1].size());
+    EXPECT_EQ(0, std::memcmp(images[0].data(), images[1].data(), images[0].size() * sizeof(float)));
+}
+
+TEST(RunRender, AdaptiveSamplingKeepsOneSamplePerPassUnlessAsked) {
+    TraceParams tp;  // samples_per_pass 0
+    FilmParams fp;
+    fp.adaptive = true;
+    fp.adaptive_min_spp = 4;
+    StopConditions stop;
+    stop.spp = 6;
+    const auto seen = run(tp, fp, stop);
+    ASSERT_FALSE(seen.empty());
+    EXPECT_EQ(seen.front().samples, 24u * 16u);  // the first pass: one sample per pixel
 }
 
 }  // namespace

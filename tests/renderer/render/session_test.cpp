@@ -243,7 +243,8 @@ TEST(RenderSession, RejectsBadParametersWithTheirNames) {
     EXPECT_TRUE(has(bad_trace([](TraceParams& t) { t.threads = -1; }), "threads"));
     EXPECT_TRUE(has(bad_trace([](TraceParams& t) { t.max_depth = -1; }), "max_depth"));
     EXPECT_TRUE(has(bad_trace([](TraceParams& t) { t.rr_min_depth = -2; }), "rr_min_depth"));
-    EXPECT_TRUE(has(bad_trace([](TraceParams& t) { t.samples_per_pass = 0; }), "samples_per_pass"));
+    EXPECT_TRUE(
+        has(bad_trace([](TraceParams& t) { t.samples_per_pass = -1; }), "samples_per_pass"));
     EXPECT_TRUE(has(bad_trace([](TraceParams& t) { t.filter = PixelFilter(7); }), "filter"));
     EXPECT_TRUE(has(bad_film([](FilmParams& f) { f.adaptive_threshold = std::nanf(""); }),
                     "adaptive_threshold"));
