@@ -171,6 +171,9 @@ void RenderWorker::run() {
     bool preview = false;  // the pass in the session is the low-resolution preview
     uint64_t restart = 0;  // the restart (WorkerStats::restarts) the passes belong to
     PathCounters totals;
+    // Samples per pixel of the next full pass with automatic pass sizes (1 after a restart,
+    // then as run_render() grows them), 0 = the session's own samples_per_pass.
+    int per_pass = 1;
     for (;;) {
         StopConditions stop;
         bool adaptive = false, restarted = false;
@@ -185,6 +188,7 @@ void RenderWorker::run() {
                 preview = preview_wanted_ && preview_divisor_ > 1 && pw >= 8 && ph >= 8;
                 restarted = true;
                 totals = PathCounters{};
+                per_pass = 1;
             }
             stop = stop_;
             adaptive = film_.adaptive;
@@ -202,7 +206,7 @@ void RenderWorker::run() {
         int cap = stop.max_spp;
         if (stop.spp > 0 && !adaptive) cap = std::min(cap, stop.spp);
         if (preview) cap = std::min(cap, 1);
-        const PassStats ps = session_->render_pass(cap);
+        const PassStats ps = session_->render_pass(cap, preview ? 1 : per_pass);
         if (ps.cancelled) continue;  // a change (or pause) is waiting
         if (preview) {
             preview = false;
@@ -235,6 +239,16 @@ void RenderWorker::run() {
         s.nodes_per_ray = double(totals.nodes_visited) / rays;
         s.triangles_per_ray = double(totals.triangles_tested) / rays;
         if (error > 0.0) s.error_curve.emplace_back(s.seconds, error);  // 0: < 2 samples
+        if (session_->trace_params().samples_per_pass == 0 && !adaptive) {
+            RenderProgress p;
+            p.seconds = s.seconds;
+            p.samples = session_->totals().samples;
+            p.error_known = error > 0.0;  // 0 until every pixel has 2 samples
+            p.mean_relative_error = error;
+            per_pass = auto_samples_per_pass(stop, std::max(per_pass, 1), ps.seconds, pixels, p);
+        } else {
+            per_pass = 0;
+        }
         bool done = ps.active_pixels == 0;
         if (stop.spp > 0 && adaptive && s.spp >= double(stop.spp)) done = true;
         if (stop.seconds > 0.0 && s.seconds >= stop.seconds) done = true;

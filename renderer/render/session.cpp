@@ -289,14 +289,8 @@ PassStats RenderSession::run_tiles(const std::vector<int>& tiles, int max_spp, i
     return stats;
 }
 
-namespace {
-
-// The automatic pass size after a pass of `last` samples per pixel that took `seconds`
-// (run_render() without adaptive sampling): at most kMaxAutoSamplesPerPass, the samples
-// left to an spp target, a second of work, a quarter of the time left to a time target,
-// and, for an error target, a quarter of the samples the error's 1/sqrt(n) decay predicts.
-int next_pass_size(const StopConditions& stop, int last, double seconds, double pixels,
-                   const RenderProgress& p) {
+int auto_samples_per_pass(const StopConditions& stop, int last, double seconds, double pixels,
+                          const RenderProgress& p) {
     double k = kMaxAutoSamplesPerPass;
     const double per_sample = seconds / double(std::max(last, 1));
     if (per_sample > 0.0) {
@@ -313,8 +307,6 @@ int next_pass_size(const StopConditions& stop, int last, double seconds, double 
     }
     return std::max(1, int(std::min(k, double(kMaxAutoSamplesPerPass))));
 }
-
-}  // namespace
 
 RenderProgress run_render(RenderSession& session, const StopConditions& stop,
                           const std::function<void(const RenderProgress&)>& progress) {
@@ -367,7 +359,7 @@ RenderProgress run_render(RenderSession& session, const StopConditions& stop,
             p.mean_relative_error = film.mean_relative_error();
         if (progress) progress(p);
         if (done) break;
-        if (auto_pass) per_pass = next_pass_size(stop, per_pass, ps.seconds, pixels, p);
+        if (auto_pass) per_pass = auto_samples_per_pass(stop, per_pass, ps.seconds, pixels, p);
     }
     return p;
 }
