@@ -21,6 +21,7 @@ struct Slot {
 Slot g_slots[kMaxTempFiles];
 std::atomic<int> g_signal{0};
 std::atomic<int> g_mode{int(Mode::exit_now)};
+std::atomic<bool> g_dying{false};
 static_assert(std::atomic<int>::is_always_lock_free, "the handler needs lock-free atomics");
 
 void write_stderr(const char* s) {
@@ -37,6 +38,7 @@ void remove_registered_temps() {
 // Dies of `sig` itself (so a parent shell sees a death by signal, status 128 + sig), after
 // removing the temporary files. Only async-signal-safe calls.
 [[noreturn]] void die(int sig) {
+    g_dying.store(true);  // before any removal: a committing thread checks it (wait_if_dying)
     remove_registered_temps();
     struct sigaction dfl {};
     dfl.sa_handler = SIG_DFL;
@@ -107,6 +109,13 @@ int exit_code() {
     return sig ? 128 + sig : 0;
 }
 
+bool dying() { return g_dying.load(); }
+
+void wait_if_dying() {
+    // The dying thread's raise() ends every thread, this one included.
+    while (g_dying.load()) ::pause();
+}
+
 void exit_interrupted() {
     std::fflush(stdout);
     std::fflush(stderr);
@@ -150,5 +159,7 @@ Watcher::~Watcher() {
 }
 
 void reset_for_testing() { g_signal.store(0); }
+
+void set_dying_for_testing() { g_dying.store(true); }
 
 }  // namespace kdt::interrupt

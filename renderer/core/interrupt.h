@@ -35,6 +35,14 @@ int signal_number();
 const char* signal_name();
 /// The shell's exit status for the signal: 130 (SIGINT), 143 (SIGTERM), 0 when none.
 int exit_code();
+/// True once a signal is ending the process: its handler, on whichever thread the kernel
+/// chose, is removing the registered temporary files and then dies of the signal.
+/// Async-signal-safe.
+bool dying();
+/// Returns at once unless dying(); then blocks the calling thread until the process is gone.
+/// TempFile calls it before its rename and when the rename fails: a file the handler removes
+/// under another thread must end as that signal's death, not as a written file or an error.
+void wait_if_dying();
 /// Flushes stdout and stderr and exits with exit_code() (static destructors run; the
 /// caller has removed or committed its temporary files).
 [[noreturn]] void exit_interrupted();
@@ -69,5 +77,7 @@ private:
 
 /// For tests: forgets a received signal (requested() false again).
 void reset_for_testing();
+/// For tests: makes dying() true without a signal or a handler (nothing will end the process).
+void set_dying_for_testing();
 
 }  // namespace kdt::interrupt

@@ -78,8 +78,12 @@ void TempFile::commit() {
         errno = err;
         fail("cannot close " + path_);
     }
+    // A signal handler on another thread may be removing this file on its way to ending the
+    // process: then neither commit nor report an error (the signal is the outcome).
+    interrupt::wait_if_dying();
     if (std::rename(path_.c_str(), target_.c_str()) != 0) {
         const int err = errno;
+        interrupt::wait_if_dying();
         ::unlink(path_.c_str());
         interrupt::unregister_temp(slot_);
         slot_ = -1;

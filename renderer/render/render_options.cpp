@@ -9,6 +9,7 @@
 #include "renderer/core/error.h"
 #include "renderer/core/open_file.h"
 #include "renderer/render/settings.h"
+#include "renderer/scene/json_vec.h"
 
 namespace kdt {
 
@@ -156,10 +157,6 @@ void group_from_json(const json& j, S& s, std::span<const Field<S>> fields,
     }
 }
 
-json vec_json(const Vec3f& v) {
-    return json::array({float_for_text(v.x), float_for_text(v.y), float_for_text(v.z)});
-}
-
 Vec3f vec_from_json(const json& j, const std::string& where, const std::string& pointer) {
     if (!j.is_array() || j.size() != 3 || !j[0].is_number() || !j[1].is_number() ||
         !j[2].is_number())
@@ -280,9 +277,9 @@ void validate_render_params(const TraceParams& t, const FilmParams& f) {
 
 std::string camera_to_json(const Camera& c) {
     json j;
-    j["eye"] = vec_json(c.eye);
-    j["target"] = vec_json(c.eye + c.forward);
-    j["up"] = vec_json(c.up);
+    j["eye"] = vec3_json(c.eye);
+    j["target"] = vec3_json(c.eye + c.forward);
+    j["up"] = vec3_json(c.up);
     j["vfov_degrees"] = float_for_text(c.vfov_degrees);
     j["width"] = c.width;
     j["height"] = c.height;
@@ -296,13 +293,13 @@ std::string options_to_json(const RenderOptions& o) {
         if (!(o.scene.*m).empty()) scene[name] = o.scene.*m;
     }
     for (auto [name, m] : kSceneVectors) {
-        if (o.scene.*m) scene[name] = vec_json(*(o.scene.*m));
+        if (o.scene.*m) scene[name] = vec3_json(*(o.scene.*m));
     }
     if (o.scene.env_intensity) scene["env_intensity"] = float_for_text(*o.scene.env_intensity);
     if (o.scene.camera) {
-        scene["camera"] = {{"eye", vec_json(o.scene.camera->eye)},
-                           {"target", vec_json(o.scene.camera->target)},
-                           {"up", vec_json(o.scene.camera->up)},
+        scene["camera"] = {{"eye", vec3_json(o.scene.camera->eye)},
+                           {"target", vec3_json(o.scene.camera->target)},
+                           {"up", vec3_json(o.scene.camera->up)},
                            {"vfov_degrees", float_for_text(o.scene.camera->vfov_degrees)}};
     }
     if (o.scene.vfov_degrees) scene["vfov_degrees"] = float_for_text(*o.scene.vfov_degrees);

@@ -20,6 +20,7 @@
 #include "renderer/core/fields.h"
 #include "renderer/core/open_file.h"
 #include "renderer/io/mesh_io.h"
+#include "renderer/scene/json_vec.h"
 
 namespace kdt {
 namespace {
@@ -220,16 +221,11 @@ MaterialDesc read_material(const Reader& r) {
     return m;
 }
 
-// Floats as their shortest text (2.6, not 2.5999999046325684); they read back the same.
-json vec3_text(const Vec3f& v) {
-    return json::array({float_for_text(v.x), float_for_text(v.y), float_for_text(v.z)});
-}
-
 json material_json(const MaterialDesc& m) {
     return {{"type", kMaterialTypeNames[size_t(m.type)]},
-            {"albedo", vec3_text(m.albedo)},
+            {"albedo", vec3_json(m.albedo)},
             {"ior", float_for_text(m.ior)},
-            {"emission", vec3_text(m.emission)},
+            {"emission", vec3_json(m.emission)},
             {"roughness", float_for_text(m.roughness)}};
 }
 
@@ -507,7 +503,7 @@ MaterialDesc material_from_json(const std::string& json_text, const std::string&
 std::string scene_to_json(const Scene& scene) {
     json root;
     root["name"] = scene.name;
-    const auto v3 = vec3_text;
+    const auto v3 = vec3_json;
     root["camera"] = {{"eye", v3(scene.camera.eye)},
                       {"target", v3(scene.camera.target)},
                       {"up", v3(scene.camera.up)},

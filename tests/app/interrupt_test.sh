@@ -5,16 +5,17 @@
 # nothing), build_int (a signal while the tree file is written). Every case then checks that
 # no temporary file is left in the output directory.
 set -u
-# Job control: without it bash starts background commands with SIGINT ignored, and kdtrace
-# (rightly) leaves an inherited "ignore" alone.
-set -m
 kdt=$1 case=$2 dir=$3
 model=/usr/share/assimp/models/PLY/cube.ply
 rm -rf "$dir" && mkdir -p "$dir" || exit 1
 fail() { echo "FAIL: $*"; cat "$dir/log" 2>/dev/null; exit 1; }
 
-# Starts kdtrace in the background (pid in $pid), output in $dir/log.
-start() { "$kdt" "$@" >"$dir/log" 2>&1 & pid=$!; }
+# Starts kdtrace in the background (pid in $pid), output in $dir/log. Without job control
+# bash starts it with SIGINT ignored, and kdtrace (rightly) leaves an inherited "ignore"
+# alone: env restores the default. Not `set -m` instead: with job control `wait` returns
+# 128 + SIGSTOP for a job that bash last saw stopped, and the child's SIGCHLD for SIGCONT
+# comes only once the child runs again (build_int below failed so with 147 under load).
+start() { env --default-signal=INT "$kdt" "$@" >"$dir/log" 2>&1 & pid=$!; }
 # Waits until the log matches $1 (the command reached that point), at most 60 s.
 wait_for_log() {
     for _ in $(seq 600); do
@@ -23,6 +24,19 @@ wait_for_log() {
         sleep 0.1
     done
     fail "kdtrace did not print '$1' within 60 s"
+}
+# True once every thread of $pid is stopped (state T); false if it ended first. kill -s STOP
+# returns before the threads have stopped, and a running thread may still finish its write.
+all_stopped() {
+    local states
+    for _ in $(seq 1000); do
+        states=$(sed 's/.*) //; s/ .*//' /proc/$pid/task/*/stat 2>/dev/null) || return 1
+        [ -n "$states" ] || return 1
+        grep -qv '^T$' <<< "$states" || return 0
+        grep -q '^[ZX]$' <<< "$states" && return 1
+        sleep 0.01
+    done
+    fail "kdtrace did not stop within 10 s"
 }
 no_temp_files() {
     local left
@@ -67,8 +81,9 @@ render_twice)
     ;;
 build_int)
     # The tree's temporary file exists only while it is written: stop the process (SIGSTOP)
-    # as soon as the file appears; if it is still there, the process is frozen inside the
-    # window, so SIGINT then lands there for certain. Otherwise try again.
+    # as soon as the file appears; if it is still there once every thread has stopped, the
+    # process is frozen inside the window, so SIGINT then lands there for certain. Otherwise
+    # try again.
     hit=0
     for attempt in 1 2 3 4 5 6 7 8 9 10; do
         rm -f "$dir"/wuson.kdt*
@@ -76,7 +91,7 @@ build_int)
         while kill -0 $pid 2>/dev/null; do
             compgen -G "$dir/wuson.kdt?*" >/dev/null || continue
             kill -s STOP $pid
-            if compgen -G "$dir/wuson.kdt?*" >/dev/null; then
+            if all_stopped && compgen -G "$dir/wuson.kdt?*" >/dev/null; then
                 hit=1
                 kill -s INT $pid
             fi

@@ -73,24 +73,36 @@ frames)
     grep -q "mpi: rank 0: 1 frames" "log_3:strips.txt" || fail "strips: rank 0 did not render 1 frame"
     echo "ok: 5 turntable frames identical locally and over 2 and 3 ranks, every distribution" ;;
 throttle)
-    # Rank 1 sleeps 7x its render time. Dynamic gives it fewer tiles than either other rank;
-    # the static distributions give it its fixed share whatever its speed.
-    big=(render "$model" --no-cache --width 160 --height 128 --spp 8 --threads 1 --quiet
-         --throttle 1:8)
-    for dist in dynamic strips interleaved; do
-        mpi 3 "${big[@]}" --mpi --distribution "$dist" -o "t_$dist.pfm" > "t_$dist.txt" 2>&1 ||
-            { cat "t_$dist.txt"; fail "$dist throttled"; }
-        cat "t_$dist.txt"
+    # Rank 1 sleeps (F - 1)x its render time after each tile. Under dynamic it takes the 2
+    # tiles it requests ahead, then one more per F tile times while the others drain the
+    # queue; strips and interleaved give it its fixed 30 or 27 whatever its speed. The check
+    # is a wide margin, not a race between ranks: the camera fills every tile with the model
+    # (3-5 ms each, above the scheduler's time slice and the throttle's 1 ms sleep), and with
+    # F = 100 rank 1 reaches half its static share (13) only if the other two together take
+    # over 16x its tile time per tile (its 11 results after the first 2 span 1100 tile times,
+    # in which they did at most 67 tiles). Beside three busy loops (load 10 on 2 cores) it took
+    # 2-6 tiles in 11 runs; the old check (fewer tiles than each other rank, F = 8, 0.3 ms
+    # tiles mostly of background) failed there 9 runs in 9.
+    big=(render "$model" --no-cache --width 160 --height 128 --spp 32 --threads 1 --quiet
+         --eye 5,0.95,0 --target 0,0.95,0 --fov 8 --mpi)
+    mpi 3 "${big[@]}" --throttle 1:100 -o t_dynamic.pfm > t_dynamic.txt 2>&1 ||
+        { cat t_dynamic.txt; fail "dynamic throttled"; }
+    # The static runs only count tiles: a milder throttle keeps them short.
+    for dist in strips interleaved; do
+        mpi 3 "${big[@]}" --throttle 1:4 --distribution "$dist" -o "t_$dist.pfm" \
+            > "t_$dist.txt" 2>&1 || { cat "t_$dist.txt"; fail "$dist throttled"; }
     done
+    cat t_dynamic.txt t_strips.txt t_interleaved.txt
     t0=$(tiles_of t_dynamic.txt 0) t1=$(tiles_of t_dynamic.txt 1) t2=$(tiles_of t_dynamic.txt 2)
-    [ "$t1" -lt "$t0" ] && [ "$t1" -lt "$t2" ] ||
-        fail "dynamic: throttled rank 1 did $t1 tiles, ranks 0 and 2 did $t0 and $t2"
+    [ $((t0 + t1 + t2)) -eq 80 ] || fail "dynamic: ranks did $t0 + $t1 + $t2 tiles, not 80"
+    [ "$t1" -le 13 ] ||
+        fail "dynamic: throttled rank 1 did $t1 tiles (ranks 0 and 2: $t0, $t2), over half its static share"
     # 80 tiles: strips of 10 tile columns give rows 0-2, 3-5, 6-7; interleaved 27, 27, 26.
     [ "$(tiles_of t_strips.txt 1)" -eq 30 ] || fail "strips: rank 1 did not do its 30 tiles"
     [ "$(tiles_of t_interleaved.txt 1)" -eq 27 ] || fail "interleaved: rank 1 did not do 27 tiles"
     cmp t_dynamic.pfm t_strips.pfm && cmp t_dynamic.pfm t_interleaved.pfm ||
         fail "throttled renders differ"
-    echo "ok: dynamic gave the throttled rank $t1 tiles (others $t0, $t2)" ;;
+    echo "ok: dynamic gave the throttled rank $t1 tiles (others $t0, $t2), static 30 and 27" ;;
 fail_load)
     out=$(mpi 3 "${common[@]}" --mpi --mpi-inject 1:load -o x.pfm 2>&1); rc=$?
     echo "$out"

@@ -14,10 +14,13 @@ function(kdt_ui_gtest name lib label)
                              KDT_BINARY_DIR="${CMAKE_BINARY_DIR}")
   gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES LABELS ${label})
 endfunction()
-# The background scene loader (no GL): in every preset, so it runs under ASan and TSan.
+# The background scene loader, and the viewer's threads under stress (render thread, tree
+# rebuilds, UI-side setters; source beside the TSan suppressions): no GL, in every preset, so
+# they run under ASan and TSan (scripts/run_tsan.sh).
 if(TARGET kdt_ui_render)
   kdt_ui_gtest(kdt_ui_loader_tests kdt_ui_render unit scene_loader_test.cpp)
-  add_dependencies(kdt_unit_tests kdt_ui_loader_tests)
+  kdt_ui_gtest(kdt_ui_stress_tests kdt_ui_render unit ../tsan/viewer_stress_test.cpp)
+  add_dependencies(kdt_unit_tests kdt_ui_loader_tests kdt_ui_stress_tests)
 endif()
 if(NOT TARGET kdt_ui_core)
   return()

@@ -94,5 +94,63 @@ TEST(InterruptDeathTest, SignalsRemoveTemporaryFiles) {
     }
 }
 
+// The kernel hands a process-directed signal to any thread that does not block it: here
+// the handler runs on `other` and removes the file that this thread is committing. The
+// process must still die of the signal, with no file written and no error reported.
+void commit_while_another_thread_dies(const fs::path& dir) {
+    interrupt::reset_for_testing();
+    interrupt::install(interrupt::Mode::exit_now);
+    std::thread other([] {
+        for (;;) ::pause();
+    });
+    other.detach();
+    sigset_t set;
+    sigemptyset(&set);
+    sigaddset(&set, SIGINT);
+    pthread_sigmask(SIG_BLOCK, &set, nullptr);  // after `other` started: only it takes SIGINT
+    TempFile tmp((dir / "tree.kdt").string());
+    tmp.write("data", 4);
+    ::kill(::getpid(), SIGINT);
+    while (!interrupt::dying()) std::this_thread::yield();
+    tmp.commit();  // blocks until the handler's raise() ends the process
+    std::fprintf(stderr, "committed\n");
+    std::_Exit(0);
+}
+
+TEST(InterruptDeathTest, CommitRacingTheHandlerOnAnotherThreadDiesOfTheSignal) {
+    GTEST_FLAG_SET(death_test_style, "threadsafe");
+    const fs::path dir = test::temp_dir("interrupt_death_commit");
+    EXPECT_EXIT(commit_while_another_thread_dies(dir), ::testing::KilledBySignal(SIGINT), "");
+    EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 0) << dir;
+}
+
+// While a handler is ending the process (here only marked so: no signal, no handler), a
+// commit neither renames its file over the target nor returns or throws. 200 ms is ample for
+// an unguarded commit of 4 bytes; a slower machine could only hide a regression.
+void commit_while_dying(const fs::path& dir) {
+    TempFile tmp((dir / "tree.kdt").string());
+    tmp.write("data", 4);
+    interrupt::set_dying_for_testing();
+    std::atomic<bool> returned{false};
+    std::thread committer([&] {
+        try {
+            tmp.commit();
+        } catch (...) {
+        }
+        returned.store(true);
+    });
+    committer.detach();
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    const bool written = fs::exists(dir / "tree.kdt");
+    std::fprintf(stderr, "written %d, returned %d\n", int(written), int(returned.load()));
+    std::_Exit(0);
+}
+
+TEST(InterruptDeathTest, CommitWaitsWhileTheProcessIsDying) {
+    GTEST_FLAG_SET(death_test_style, "threadsafe");
+    const fs::path dir = test::temp_dir("interrupt_death_dying");
+    EXPECT_EXIT(commit_while_dying(dir), ::testing::ExitedWithCode(0), "written 0, returned 0");
+}
+
 }  // namespace
 }  // namespace kdt
