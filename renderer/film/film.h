@@ -26,6 +26,23 @@ struct FilmParams {
     bool transparent = false;
 };
 
+/// Share of the open pixels at or above adaptive_min_spp that an adaptive pass samples. A
+/// pixel takes at most one pass's samples per pass, so it can take at most 1 /
+/// kAdaptivePassShare times the mean open pixel's samples per pass; a smaller share follows
+/// the optimal allocation further at the price of more passes.
+inline constexpr float kAdaptivePassShare = 0.25f;
+/// Most samples an active pixel takes in one adaptive pass (Film::pass_samples).
+inline constexpr int kAdaptiveMaxPassSamples = 8;
+
+/// What Film::update_active() needs besides FilmParams (RenderSession fills it in).
+struct AdaptiveInputs {
+    /// Each pixel's cost per sample, row-major, in any positive unit (e.g. traversal steps);
+    /// empty: equal costs.
+    std::span<const float> cost_per_sample;
+    uint32_t sample_cap = 0;   ///< pixels that drew this many samples stop; 0 = no cap
+    int samples_per_pass = 1;  ///< the fewest samples an active pixel takes in a pass
+};
+
 /// Linear -> sRGB-encoded 8-bit value (clamped to [0, 1] first).
 uint8_t linear_to_srgb8(float v);
 
@@ -101,11 +118,29 @@ public:
     /// Total samples over all pixels.
     uint64_t total_samples() const;
 
-    /// Recomputes which pixels still take samples; returns how many are active. Without
-    /// adaptivity all pixels are active. With it a pixel stops when it has at least
-    /// adaptive_min_spp samples and the largest relative error in its 3x3 neighbourhood is
-    /// below the threshold (or when it reached adaptive_max_spp).
-    size_t update_active(const FilmParams& params);
+    /// Recomputes which pixels take samples in the next pass, and how many each takes
+    /// (pass_samples()); returns how many pixels do. Without adaptivity all pixels are
+    /// active. With it a pixel is *open* until it stops, and it stops when it has
+    /// adaptive_max_spp samples (when > 0) or drew in.sample_cap (when > 0), or when it has
+    /// at least adaptive_min_spp samples and the largest relative error in its 3x3
+    /// neighbourhood is below adaptive_threshold. Open pixels below adaptive_min_spp are all
+    /// active. Of the other open pixels the pass takes the kAdaptivePassShare with the
+    /// largest expected drop of the image's squared error per unit cost, v / (n (n + m) c):
+    /// v the per-sample luminance variance averaged over the 3x3 neighbourhood (one pixel's
+    /// few samples can agree by chance), n the pixel's samples, m = pass_samples(), c its
+    /// in.cost_per_sample. Over passes this drives n towards proportional to sigma /
+    /// sqrt(c), the allocation that minimises the summed variance of the pixel means for a
+    /// given total cost. The result depends on the film's sums and the inputs only (ties go
+    /// to the lower pixel index), so it is the same for any thread count. At least one pixel
+    /// is active while any is open. Throws kdt::Error for costs of the wrong size.
+    size_t update_active(const FilmParams& params, const AdaptiveInputs& in = {});
+    /// Pixels open after the last update_active() (all of them without adaptivity).
+    size_t open_count() const { return open_; }
+    /// Samples each active pixel takes in the next pass: in.samples_per_pass, and while
+    /// adaptive, once no open pixel is below adaptive_min_spp, a quarter of the open pixels'
+    /// mean count (at most kAdaptiveMaxPassSamples), so that a pass stays long enough to
+    /// pay for its fixed costs (a serial update, a parallel region).
+    int pass_samples() const { return pass_samples_; }
     bool active(int x, int y) const { return active_[index(x, y)] != 0; }
     void set_active(int x, int y, bool on) { active_[index(x, y)] = on ? 1 : 0; }
     size_t active_count() const;
@@ -138,7 +173,14 @@ private:
     int width_ = 0, height_ = 0;
     std::vector<Pixel> pixels_;
     std::vector<uint8_t> active_;
-    std::vector<float> error_scratch_;
+    std::vector<float> error_scratch_, variance_scratch_;
+    struct Candidate {
+        float priority;
+        uint32_t pixel;
+    };
+    std::vector<Candidate> candidates_;
+    size_t open_ = 0;
+    int pass_samples_ = 1;
     bool keep_coverage_ = false;
     std::vector<double> coverage_;  ///< sums of kept samples' alpha (keep_coverage_ only)
 };
