@@ -23,6 +23,18 @@ uint64_t sample_work(const PathCounters& c) {
     return steps > 0 ? steps : c.rays();
 }
 
+/// The most samples a pixel may draw in a pass; 0 = no cap. max_spp is the pass's cap and,
+/// while adaptive, adaptive_max_spp caps too, counted as drawn samples so that a pass of
+/// several samples per pixel (Film::pass_samples) stops at it rather than past it.
+uint32_t sample_cap(int max_spp, const FilmParams& film) {
+    uint32_t cap = max_spp > 0 ? uint32_t(max_spp) : 0;
+    if (film.adaptive && film.adaptive_max_spp > 0) {
+        const auto a = uint32_t(film.adaptive_max_spp);
+        cap = cap > 0 ? std::min(cap, a) : a;
+    }
+    return cap;
+}
+
 }  // namespace
 
 RenderSession::RenderSession(std::shared_ptr<const RenderSnapshot> snapshot,
@@ -267,7 +279,7 @@ size_t RenderSession::update_active(int max_spp) {
     }
     AdaptiveInputs in;
     in.cost_per_sample = pixel_cost_;
-    in.sample_cap = max_spp > 0 ? uint32_t(max_spp) : 0;
+    in.sample_cap = sample_cap(max_spp, film_params_);
     in.samples_per_pass = trace_.samples_per_pass;
     return film_.update_active(film_params_, in);
 }
@@ -298,7 +310,7 @@ PassStats RenderSession::run_tiles(const std::vector<int>& tiles, int max_spp) {
         target.aov_depth = aov_depth_.data();
         target.aov_hits = aov_hits_.data();
     }
-    if (max_spp > 0) target.max_spp = uint32_t(max_spp);
+    if (const uint32_t cap = sample_cap(max_spp, film_params_); cap > 0) target.max_spp = cap;
     target.transparent = film_params_.transparent;
 
     // One cache line per thread for its counters.

@@ -225,6 +225,19 @@ TEST(RenderSession, AdaptiveSamplingSpendsSamplesWhereTheNoiseIs) {
     EXPECT_EQ(s.film().count(0, 0), 8u);     // background stopped at the minimum
     EXPECT_GT(s.film().count(16, 16), 32u);  // the object got the rest
     EXPECT_NEAR(s.film().mean(16, 16).x, 0.8f, 0.1f);
+
+    // adaptive_max_spp holds exactly, although a late pass gives a pixel several samples;
+    // with every open pixel at it the render ends before the budget.
+    fp.adaptive_max_spp = 21;
+    RenderSession capped(snap, tp, fp);
+    const RenderProgress q = run_render(capped, stop);
+    EXPECT_LT(q.samples, 32u * 32u * 32u);
+    EXPECT_EQ(q.active_pixels, 0u);
+    EXPECT_EQ(capped.film().count(0, 0), 8u);
+    EXPECT_EQ(capped.film().count(16, 16), 21u);
+    for (int y = 0; y < 32; ++y) {
+        for (int x = 0; x < 32; ++x) ASSERT_LE(capped.film().count(x, y), 21u) << x << "," << y;
+    }
 }
 
 // Adaptive sampling chooses how many samples a pixel gets from its samples, but each pixel
