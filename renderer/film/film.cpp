@@ -99,8 +99,8 @@ size_t Film::update_active(const FilmParams& params, const AdaptiveInputs& in) {
     }
     const auto min_spp = uint32_t(std::max(params.adaptive_min_spp, 2));
     const auto max_spp = uint32_t(std::max(params.adaptive_max_spp, 0));
-    size_t warming = 0;  // open pixels below min_spp, all active
-    uint64_t candidate_samples = 0;
+    size_t warming = 0;   // open pixels below min_spp, all active
+    size_t doubling = 0;  // open pixels between powers of two, all active
     open_ = 0;
     candidates_.clear();
     for (int y = 0; y < height_; ++y) {
@@ -134,28 +134,28 @@ size_t Film::update_active(const FilmParams& params, const AdaptiveInputs& in) {
                 }
             }
             if (e < params.adaptive_threshold) continue;
-            // The priority's variance term for now; the cost and counts follow below.
-            candidates_.push_back({v / float(std::max(known, 1)), uint32_t(i)});
-            candidate_samples += p.count;
+            if ((p.drawn & (p.drawn - 1)) != 0) {  // a doubling under way runs to its end
+                active_[i] = 1;
+                ++doubling;
+                continue;
+            }
+            // Doubling n samples costs n c and cuts the variance of the mean by v / (2 n).
+            const double n = double(p.count);
+            const double c = cost.empty() ? 1.0 : std::max(double(cost[i]), 1e-6);
+            const double gain = double(v) / double(std::max(known, 1)) / (n * n * c);
+            candidates_.push_back({float(gain), uint32_t(i)});
         }
     }
-    open_ = warming + candidates_.size();
-    if (candidates_.empty()) return warming;
-    if (warming == 0) {
-        const double mean_n = double(candidate_samples) / double(candidates_.size());
-        pass_samples_ = std::clamp(int(mean_n * 0.25), pass_samples_,
-                                   std::max(pass_samples_, kAdaptiveMaxPassSamples));
-    }
-    const double m = double(pass_samples_);
-    for (Candidate& c : candidates_) {
-        const double n = double(pixels_[c.pixel].count);
-        const double ci = cost.empty() ? 1.0 : std::max(double(cost[c.pixel]), 1e-6);
-        c.priority = float(double(c.priority) / (n * (n + m) * ci));
-    }
-    // The top share under a total order (priority, then the lower index first): the same
-    // set whatever order nth_element visits the candidates in.
-    const size_t k = std::max<size_t>(
-        1, size_t(std::ceil(double(candidates_.size()) * double(kAdaptivePassShare))));
+    open_ = warming + doubling + candidates_.size();
+    if (warming == 0) pass_samples_ = std::max(pass_samples_, kAdaptivePassSamples);
+    // New doublings, best first, while fewer than the share of the open pixels are doubling;
+    // at least one when nothing else would sample.
+    const double share = std::ceil(double(open_) * double(kAdaptivePassShare));
+    size_t k = share > double(doubling) ? size_t(share - double(doubling)) : 0;
+    if (warming + doubling == 0) k = std::max<size_t>(k, 1);
+    k = std::min(k, candidates_.size());
+    // The top k under a total order (gain, then the lower index first): the same set
+    // whatever order nth_element visits the candidates in.
     const auto before = [](const Candidate& a, const Candidate& b) {
         return a.priority != b.priority ? a.priority > b.priority : a.pixel < b.pixel;
     };
@@ -163,9 +163,8 @@ size_t Film::update_active(const FilmParams& params, const AdaptiveInputs& in) {
         std::nth_element(candidates_.begin(), candidates_.begin() + ptrdiff_t(k), candidates_.end(),
                          before);
     }
-    const size_t take = std::min(k, candidates_.size());
-    for (size_t j = 0; j < take; ++j) active_[candidates_[j].pixel] = 1;
-    return warming + take;
+    for (size_t j = 0; j < k; ++j) active_[candidates_[j].pixel] = 1;
+    return warming + doubling + k;
 }
 
 size_t Film::active_count() const {

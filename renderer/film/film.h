@@ -26,13 +26,16 @@ struct FilmParams {
     bool transparent = false;
 };
 
-/// Share of the open pixels at or above adaptive_min_spp that an adaptive pass samples. A
-/// pixel takes at most one pass's samples per pass, so it can take at most 1 /
-/// kAdaptivePassShare times the mean open pixel's samples per pass; a smaller share follows
-/// the optimal allocation further at the price of more passes.
+/// Adaptive sampling grows a pixel's sample count in doublings once it has
+/// adaptive_min_spp samples: the Owen-scrambled Sobol samples of a pixel are best
+/// stratified at power-of-two counts. New doublings start while fewer than this share of
+/// the open pixels are doubling; a smaller share follows the priority order more closely.
 inline constexpr float kAdaptivePassShare = 0.25f;
-/// Most samples an active pixel takes in one adaptive pass (Film::pass_samples).
-inline constexpr int kAdaptiveMaxPassSamples = 8;
+/// Samples each active pixel takes in a pass once no open pixel is below adaptive_min_spp
+/// (at least TraceParams::samples_per_pass): 8 divides every power of two from 8 on, so a
+/// doubling from 16 or more ends on one, in passes long enough to pay for their serial
+/// update and parallel region.
+inline constexpr int kAdaptivePassSamples = 8;
 
 /// What Film::update_active() needs besides FilmParams (RenderSession fills it in).
 struct AdaptiveInputs {
@@ -124,22 +127,22 @@ public:
     /// adaptive_max_spp samples (when > 0) or drew in.sample_cap (when > 0), or when it has
     /// at least adaptive_min_spp samples and the largest relative error in its 3x3
     /// neighbourhood is below adaptive_threshold. Open pixels below adaptive_min_spp are all
-    /// active. Of the other open pixels the pass takes the kAdaptivePassShare with the
-    /// largest expected drop of the image's squared error per unit cost, v / (n (n + m) c):
-    /// v the per-sample luminance variance averaged over the 3x3 neighbourhood (one pixel's
-    /// few samples can agree by chance), n the pixel's samples, m = pass_samples(), c its
-    /// in.cost_per_sample. Over passes this drives n towards proportional to sigma /
-    /// sqrt(c), the allocation that minimises the summed variance of the pixel means for a
-    /// given total cost. The result depends on the film's sums and the inputs only (ties go
-    /// to the lower pixel index), so it is the same for any thread count. At least one pixel
-    /// is active while any is open. Throws kdt::Error for costs of the wrong size.
+    /// active, and so are open pixels whose drawn count is not a power of two (a doubling
+    /// under way). Of the other open pixels the pass starts doublings for those with the
+    /// largest drop of the image's squared error per unit cost, v / (n^2 c), while fewer
+    /// than kAdaptivePassShare of the open pixels are doubling: v the per-sample luminance
+    /// variance averaged over the 3x3 neighbourhood (one pixel's few samples can agree by
+    /// chance), n the pixel's samples, c its in.cost_per_sample. This drives n towards
+    /// proportional to sigma / sqrt(c) (within a factor of 2), the allocation that
+    /// minimises the summed variance of the pixel means for a given total cost. The result
+    /// depends on the film's sums and the inputs only (ties go to the lower pixel index),
+    /// so it is the same for any thread count. At least one pixel is active while any is
+    /// open. Throws kdt::Error for costs of the wrong size.
     size_t update_active(const FilmParams& params, const AdaptiveInputs& in = {});
     /// Pixels open after the last update_active() (all of them without adaptivity).
     size_t open_count() const { return open_; }
-    /// Samples each active pixel takes in the next pass: in.samples_per_pass, and while
-    /// adaptive, once no open pixel is below adaptive_min_spp, a quarter of the open pixels'
-    /// mean count (at most kAdaptiveMaxPassSamples), so that a pass stays long enough to
-    /// pay for its fixed costs (a serial update, a parallel region).
+    /// Samples each active pixel takes in the next pass: in.samples_per_pass, or while
+    /// adaptive and no open pixel is below adaptive_min_spp, at least kAdaptivePassSamples.
     int pass_samples() const { return pass_samples_; }
     bool active(int x, int y) const { return active_[index(x, y)] != 0; }
     void set_active(int x, int y, bool on) { active_[index(x, y)] = on ? 1 : 0; }

@@ -76,12 +76,17 @@ TEST(FilmAdaptive, SamplesFollowSigmaOverSqrtCost) {
     const Allocation r = allocate(200.0 * mean_cost * kW * kH, 7);  // 200 spp's worth
     const double n0 = block_samples(r.film, 0);
     EXPECT_GT(n0, 8.0);
-    // 1 : 4 : 1 : 4, not the relative rule's 1 : 16 : 16 : 256 nor uniform 1 : 1 : 1 : 1.
-    EXPECT_NEAR(block_samples(r.film, 1) / n0, 4.0, 0.6);
-    EXPECT_NEAR(block_samples(r.film, 2) / n0, 1.0, 0.15);
-    EXPECT_NEAR(block_samples(r.film, 3) / n0, 4.0, 0.6);
+    // 1 : 4 : 1 : 4, not the relative rule's 1 : 16 : 16 : 256 nor uniform 1 : 1 : 1 : 1,
+    // each within a factor sqrt(2): counts grow in doublings, some under way at the end.
+    const double expected[4] = {1.0, 4.0, 1.0, 4.0};
+    for (int b = 1; b < 4; ++b) {
+        EXPECT_LE(std::abs(std::log2(block_samples(r.film, b) / n0 / expected[b])), 0.5)
+            << "block " << b << ": " << block_samples(r.film, b) / n0;
+    }
     // The summed variance of the pixel means, sum sigma^2 / n, is close to the optimum for
     // the cost spent, (sum sigma sqrt(c))^2 / cost, and well below uniform sampling's.
+    // Counts that are powers of two cost up to 6 % against the optimum (n off by sqrt(2)
+    // costs (sqrt(2) + 1 / sqrt(2)) / 2), doublings under way at the end a little more.
     double mse = 0.0, root = 0.0, sigma2 = 0.0, costs = 0.0;
     for (int y = 0; y < kH; ++y) {
         for (int x = 0; x < kW; ++x) {
@@ -94,7 +99,7 @@ TEST(FilmAdaptive, SamplesFollowSigmaOverSqrtCost) {
     }
     const double optimum = root * root / r.spent;
     const double uniform = sigma2 * costs / r.spent;
-    EXPECT_LT(mse, 1.05 * optimum) << "optimum " << optimum << ", uniform " << uniform;
+    EXPECT_LT(mse, 1.12 * optimum) << "optimum " << optimum << ", uniform " << uniform;
     EXPECT_LT(mse, 0.85 * uniform);
 }
 
@@ -118,29 +123,35 @@ TEST(FilmAdaptive, EqualPrioritiesGoToTheLowerIndex) {
     p.adaptive_min_spp = 4;
     AdaptiveInputs in;
     in.samples_per_pass = 2;
-    // Every pixel open with the same priority: the pass takes the first quarter, row-major.
+    // Every pixel open with the same priority: the pass starts doublings for the first
+    // quarter, row-major.
     ASSERT_EQ(f.update_active(p, in), 16u);
     EXPECT_EQ(f.open_count(), 64u);
     for (int y = 0; y < 8; ++y) {
         for (int x = 0; x < 8; ++x) EXPECT_EQ(f.active(x, y), y < 2) << x << "," << y;
     }
-    // 16 samples each: a quarter of that per pass.
-    EXPECT_EQ(f.pass_samples(), 4);
+    EXPECT_EQ(f.pass_samples(), kAdaptivePassSamples);
 }
 
-TEST(FilmAdaptive, PassSamplesStayWithinTheirBounds) {
+TEST(FilmAdaptive, PassSamplesOnceWarm) {
     Film f(4, 4);
     FilmParams p;
     p.adaptive = true;
     p.adaptive_threshold = 1e-3f;
-    p.adaptive_min_spp = 2;
+    p.adaptive_min_spp = 8;
     AdaptiveInputs in;
-    in.samples_per_pass = 1;
-    for (int s = 0; s < 400; ++s) {
-        for (int i = 0; i < 16; ++i) f.add_sample(i % 4, i / 4, Vec3f(float(s % 3)));
+    in.samples_per_pass = 2;
+    for (int s = 0; s < 8; ++s) {
+        for (int i = 0; i < 15; ++i) f.add_sample(i % 4, i / 4, Vec3f(float(s % 3)));
     }
+    f.add_sample(3, 3, Vec3f(1.0f));
+    // Pixel (3, 3) is below the minimum; 4 of the others start doublings (a quarter of 16).
+    EXPECT_EQ(f.update_active(p, in), 5u);
+    EXPECT_TRUE(f.active(3, 3));
+    EXPECT_EQ(f.pass_samples(), 2);
+    for (int s = 1; s < 8; ++s) f.add_sample(3, 3, Vec3f(float(s % 3)));
     f.update_active(p, in);
-    EXPECT_EQ(f.pass_samples(), kAdaptiveMaxPassSamples);  // 400 / 4 capped
+    EXPECT_EQ(f.pass_samples(), kAdaptivePassSamples);
     in.samples_per_pass = 32;  // never below the session's samples per pass
     f.update_active(p, in);
     EXPECT_EQ(f.pass_samples(), 32);
@@ -148,6 +159,29 @@ TEST(FilmAdaptive, PassSamplesStayWithinTheirBounds) {
     in.samples_per_pass = 3;
     EXPECT_EQ(f.update_active(p, in), 16u);
     EXPECT_EQ(f.pass_samples(), 3);
+}
+
+TEST(FilmAdaptive, DoublingsRunToTheirEnd) {
+    // Pixels 0..3 are quiet (low priority) but mid-doubling (24 samples drawn): they stay
+    // active; of the noisy pixels at 16 samples, the pass starts doublings for the best
+    // ones while fewer than a quarter of the open pixels are doubling.
+    Film f(16, 1);
+    for (int x = 0; x < 16; ++x) {
+        const int n = x < 4 ? 24 : 16;
+        const float spread = x < 4 ? 0.01f : 1.0f + 0.1f * float(x);
+        for (int s = 0; s < n; ++s) f.add_sample(x, 0, Vec3f(1.0f + (s % 2 ? spread : -spread)));
+    }
+    FilmParams p;
+    p.adaptive = true;
+    p.adaptive_threshold = 1e-4f;
+    p.adaptive_min_spp = 8;
+    EXPECT_EQ(f.update_active(p), 4u);  // 4 doubling = ceil(16 / 4): nothing new starts
+    for (int x = 0; x < 16; ++x) EXPECT_EQ(f.active(x, 0), x < 4) << x;
+    for (int x = 0; x < 4; ++x) {
+        for (int s = 0; s < 8; ++s) f.add_sample(x, 0, Vec3f(1.0f));  // now at 32
+    }
+    EXPECT_EQ(f.update_active(p), 4u);  // 4 new doublings, the noisiest (highest x)
+    for (int x = 0; x < 16; ++x) EXPECT_EQ(f.active(x, 0), x >= 12) << x;
 }
 
 TEST(FilmAdaptive, CappedPixelsAreNeverPicked) {
