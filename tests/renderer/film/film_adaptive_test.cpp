@@ -21,6 +21,14 @@ constexpr float kSigma[4] = {1.0f, 4.0f, 4.0f, 16.0f};
 constexpr float kCost[4] = {1.0f, 1.0f, 16.0f, 16.0f};
 int block(int x) { return x / 10; }
 
+FilmParams adaptive_params(float threshold, int min_spp) {
+    FilmParams p;
+    p.adaptive = true;
+    p.adaptive_threshold = threshold;
+    p.adaptive_min_spp = min_spp;
+    return p;
+}
+
 struct Allocation {
     Film film{kW, kH};
     std::vector<float> cost = std::vector<float>(size_t(kW) * kH);
@@ -42,10 +50,7 @@ Allocation allocate(double budget, uint64_t seed) {
     for (int y = 0; y < kH; ++y) {
         for (int x = 0; x < kW; ++x) r.cost[size_t(y) * kW + size_t(x)] = kCost[block(x)];
     }
-    FilmParams p;
-    p.adaptive = true;
-    p.adaptive_threshold = 1e-6f;  // nobody stops: the budget decides
-    p.adaptive_min_spp = 8;
+    const FilmParams p = adaptive_params(1e-6f, 8);  // nobody stops: the budget decides
     AdaptiveInputs in;
     in.cost_per_sample = r.cost;
     Pcg32 rng(seed);
@@ -117,10 +122,7 @@ TEST(FilmAdaptive, EqualPrioritiesGoToTheLowerIndex) {
             for (int s = 0; s < 16; ++s) f.add_sample(x, y, Vec3f(s % 2 ? 1.0f : 3.0f));
         }
     }
-    FilmParams p;
-    p.adaptive = true;
-    p.adaptive_threshold = 1e-3f;
-    p.adaptive_min_spp = 4;
+    const FilmParams p = adaptive_params(1e-3f, 4);
     AdaptiveInputs in;
     in.samples_per_pass = 2;
     // Every pixel open with the same priority: the pass starts doublings for the first
@@ -135,10 +137,7 @@ TEST(FilmAdaptive, EqualPrioritiesGoToTheLowerIndex) {
 
 TEST(FilmAdaptive, PassSamplesOnceWarm) {
     Film f(4, 4);
-    FilmParams p;
-    p.adaptive = true;
-    p.adaptive_threshold = 1e-3f;
-    p.adaptive_min_spp = 8;
+    FilmParams p = adaptive_params(1e-3f, 8);
     AdaptiveInputs in;
     in.samples_per_pass = 2;
     for (int s = 0; s < 8; ++s) {
@@ -171,10 +170,7 @@ TEST(FilmAdaptive, DoublingsRunToTheirEnd) {
         const float spread = x < 4 ? 0.01f : 1.0f + 0.1f * float(x);
         for (int s = 0; s < n; ++s) f.add_sample(x, 0, Vec3f(1.0f + (s % 2 ? spread : -spread)));
     }
-    FilmParams p;
-    p.adaptive = true;
-    p.adaptive_threshold = 1e-4f;
-    p.adaptive_min_spp = 8;
+    const FilmParams p = adaptive_params(1e-4f, 8);
     EXPECT_EQ(f.update_active(p), 4u);  // 4 doubling = ceil(16 / 4): nothing new starts
     for (int x = 0; x < 16; ++x) EXPECT_EQ(f.active(x, 0), x < 4) << x;
     for (int x = 0; x < 4; ++x) {
@@ -191,10 +187,7 @@ TEST(FilmAdaptive, CappedPixelsAreNeverPicked) {
     for (int x = 1; x < 4; ++x) {
         for (int s = 0; s < 16; ++s) f.add_sample(x, 0, Vec3f(s % 2 ? 1.0f : 1.5f));
     }
-    FilmParams p;
-    p.adaptive = true;
-    p.adaptive_threshold = 1e-3f;
-    p.adaptive_min_spp = 4;
+    const FilmParams p = adaptive_params(1e-3f, 4);
     EXPECT_EQ(f.update_active(p), 1u);  // a quarter of 4
     EXPECT_EQ(f.open_count(), 4u);
     AdaptiveInputs in;
