@@ -21,12 +21,15 @@ void Film::resize(int width, int height) {
     pixels_.assign(pixel_count(), Pixel{});
     active_.assign(pixel_count(), 1);
     error_scratch_.assign(pixel_count(), 0.0f);
+    variance_scratch_.assign(pixel_count(), 0.0f);
+    open_ = pixel_count();
     keep_coverage(keeps_coverage());
 }
 
 void Film::clear() {
     std::fill(pixels_.begin(), pixels_.end(), Pixel{});
     std::fill(active_.begin(), active_.end(), uint8_t(1));
+    open_ = pixel_count();
     std::fill(coverage_.begin(), coverage_.end(), 0.0);
 }
 
@@ -74,42 +77,94 @@ uint64_t Film::total_samples() const {
     return n;
 }
 
-size_t Film::update_active(const FilmParams& params) {
+size_t Film::update_active(const FilmParams& params, const AdaptiveInputs& in) {
+    pass_samples_ = std::max(in.samples_per_pass, 1);
     if (!params.adaptive) {
         std::fill(active_.begin(), active_.end(), uint8_t(1));
+        open_ = pixel_count();
         return pixel_count();
     }
-    for (int y = 0; y < height_; ++y) {
-        for (int x = 0; x < width_; ++x) error_scratch_[index(x, y)] = relative_error(x, y);
+    const std::span<const float> cost = in.cost_per_sample;
+    if (!cost.empty() && cost.size() != pixel_count()) {
+        throw Error("film: " + std::to_string(cost.size()) + " sample costs for a film of " +
+                    std::to_string(pixel_count()) + " pixels");
+    }
+    for (size_t i = 0; i < pixels_.size(); ++i) {
+        const Pixel& p = pixels_[i];
+        error_scratch_[i] = relative_error(int(i % size_t(width_)), int(i / size_t(width_)));
+        // Per-sample variance of the luminance; negative marks "unknown" (below 2 samples).
+        const double n = double(p.count);
+        variance_scratch_[i] =
+            p.count < 2 ? -1.0f : float(std::max(0.0, (p.lum2 - p.lum * (p.lum / n)) / (n - 1.0)));
     }
     const auto min_spp = uint32_t(std::max(params.adaptive_min_spp, 2));
-    size_t n = 0;
+    const auto max_spp = uint32_t(std::max(params.adaptive_max_spp, 0));
+    size_t warming = 0;   // open pixels below min_spp, all active
+    size_t doubling = 0;  // open pixels between powers of two, all active
+    open_ = 0;
+    candidates_.clear();
     for (int y = 0; y < height_; ++y) {
         for (int x = 0; x < width_; ++x) {
-            const uint32_t count = pixels_[index(x, y)].count;
-            bool on;
-            if (params.adaptive_max_spp > 0 && count >= uint32_t(params.adaptive_max_spp)) {
-                on = false;
-            } else if (count < min_spp) {
-                on = true;
-            } else {
-                // The 3x3 maximum guards against a pixel whose few samples happened to agree
-                // (e.g. all missed a small bright light) stopping while its neighbours are noisy.
-                float e = 0.0f;
-                for (int dy = -1; dy <= 1; ++dy) {
-                    for (int dx = -1; dx <= 1; ++dx) {
-                        const int xx = x + dx, yy = y + dy;
-                        if (xx < 0 || yy < 0 || xx >= width_ || yy >= height_) continue;
-                        e = std::max(e, error_scratch_[index(xx, yy)]);
+            const size_t i = index(x, y);
+            const Pixel& p = pixels_[i];
+            active_[i] = 0;
+            if ((max_spp > 0 && p.count >= max_spp) ||
+                (in.sample_cap > 0 && p.drawn >= in.sample_cap))
+                continue;
+            if (p.count < min_spp) {
+                active_[i] = 1;
+                ++warming;
+                continue;
+            }
+            // The 3x3 maximum guards against a pixel whose few samples happened to agree
+            // (e.g. all missed a small bright light) stopping while its neighbours are noisy;
+            // the 3x3 mean of the variances keeps such a pixel from ranking last.
+            float e = 0.0f, v = 0.0f;
+            int known = 0;
+            for (int dy = -1; dy <= 1; ++dy) {
+                for (int dx = -1; dx <= 1; ++dx) {
+                    const int xx = x + dx, yy = y + dy;
+                    if (xx < 0 || yy < 0 || xx >= width_ || yy >= height_) continue;
+                    const size_t j = index(xx, yy);
+                    e = std::max(e, error_scratch_[j]);
+                    if (variance_scratch_[j] >= 0.0f) {
+                        v += variance_scratch_[j];
+                        ++known;
                     }
                 }
-                on = !(e < params.adaptive_threshold);
             }
-            active_[index(x, y)] = on ? 1 : 0;
-            n += on;
+            if (e < params.adaptive_threshold) continue;
+            if ((p.drawn & (p.drawn - 1)) != 0) {  // a doubling under way runs to its end
+                active_[i] = 1;
+                ++doubling;
+                continue;
+            }
+            // Doubling n samples costs n c and cuts the variance of the mean by v / (2 n).
+            const double n = double(p.count);
+            const double c = cost.empty() ? 1.0 : std::max(double(cost[i]), 1e-6);
+            const double gain = double(v) / double(std::max(known, 1)) / (n * n * c);
+            candidates_.push_back({float(gain), uint32_t(i)});
         }
     }
-    return n;
+    open_ = warming + doubling + candidates_.size();
+    if (warming == 0) pass_samples_ = std::max(pass_samples_, kAdaptivePassSamples);
+    // New doublings, best first, while fewer than the share of the open pixels are doubling;
+    // at least one when nothing else would sample.
+    const double share = std::ceil(double(open_) * double(kAdaptivePassShare));
+    size_t k = share > double(doubling) ? size_t(share - double(doubling)) : 0;
+    if (warming + doubling == 0) k = std::max<size_t>(k, 1);
+    k = std::min(k, candidates_.size());
+    // The top k under a total order (gain, then the lower index first): the same set
+    // whatever order nth_element visits the candidates in.
+    const auto before = [](const Candidate& a, const Candidate& b) {
+        return a.priority != b.priority ? a.priority > b.priority : a.pixel < b.pixel;
+    };
+    if (k < candidates_.size()) {
+        std::nth_element(candidates_.begin(), candidates_.begin() + ptrdiff_t(k), candidates_.end(),
+                         before);
+    }
+    for (size_t j = 0; j < k; ++j) active_[candidates_[j].pixel] = 1;
+    return warming + doubling + k;
 }
 
 size_t Film::active_count() const {

@@ -26,6 +26,26 @@ struct FilmParams {
     bool transparent = false;
 };
 
+/// Adaptive sampling grows a pixel's sample count in doublings once it has
+/// adaptive_min_spp samples: the Owen-scrambled Sobol samples of a pixel are best
+/// stratified at power-of-two counts. New doublings start while fewer than this share of
+/// the open pixels are doubling; a smaller share follows the priority order more closely.
+inline constexpr float kAdaptivePassShare = 0.25f;
+/// Samples each active pixel takes in a pass once no open pixel is below adaptive_min_spp
+/// (at least TraceParams::samples_per_pass): 8 divides every power of two from 8 on, so a
+/// doubling from 16 or more ends on one, in passes long enough to pay for their serial
+/// update and parallel region.
+inline constexpr int kAdaptivePassSamples = 8;
+
+/// What Film::update_active() needs besides FilmParams (RenderSession fills it in).
+struct AdaptiveInputs {
+    /// Each pixel's cost per sample, row-major, in any positive unit (e.g. traversal steps);
+    /// empty: equal costs.
+    std::span<const float> cost_per_sample;
+    uint32_t sample_cap = 0;   ///< pixels that drew this many samples stop; 0 = no cap
+    int samples_per_pass = 1;  ///< the fewest samples an active pixel takes in a pass
+};
+
 /// Linear -> sRGB-encoded 8-bit value (clamped to [0, 1] first).
 uint8_t linear_to_srgb8(float v);
 
@@ -101,11 +121,29 @@ public:
     /// Total samples over all pixels.
     uint64_t total_samples() const;
 
-    /// Recomputes which pixels still take samples; returns how many are active. Without
-    /// adaptivity all pixels are active. With it a pixel stops when it has at least
-    /// adaptive_min_spp samples and the largest relative error in its 3x3 neighbourhood is
-    /// below the threshold (or when it reached adaptive_max_spp).
-    size_t update_active(const FilmParams& params);
+    /// Recomputes which pixels take samples in the next pass, and how many each takes
+    /// (pass_samples()); returns how many pixels do. Without adaptivity all pixels are
+    /// active. With it a pixel is *open* until it stops, and it stops when it has
+    /// adaptive_max_spp samples (when > 0) or drew in.sample_cap (when > 0), or when it has
+    /// at least adaptive_min_spp samples and the largest relative error in its 3x3
+    /// neighbourhood is below adaptive_threshold. Open pixels below adaptive_min_spp are all
+    /// active, and so are open pixels whose drawn count is not a power of two (a doubling
+    /// under way). Of the other open pixels the pass starts doublings for those with the
+    /// largest drop of the image's squared error per unit cost, v / (n^2 c), while fewer
+    /// than kAdaptivePassShare of the open pixels are doubling: v the per-sample luminance
+    /// variance averaged over the 3x3 neighbourhood (one pixel's few samples can agree by
+    /// chance), n the pixel's samples, c its in.cost_per_sample. This drives n towards
+    /// proportional to sigma / sqrt(c) (within a factor of 2), the allocation that
+    /// minimises the summed variance of the pixel means for a given total cost. The result
+    /// depends on the film's sums and the inputs only (ties go to the lower pixel index),
+    /// so it is the same for any thread count. At least one pixel is active while any is
+    /// open. Throws kdt::Error for costs of the wrong size.
+    size_t update_active(const FilmParams& params, const AdaptiveInputs& in = {});
+    /// Pixels open after the last update_active() (all of them without adaptivity).
+    size_t open_count() const { return open_; }
+    /// Samples each active pixel takes in the next pass: in.samples_per_pass, or while
+    /// adaptive and no open pixel is below adaptive_min_spp, at least kAdaptivePassSamples.
+    int pass_samples() const { return pass_samples_; }
     bool active(int x, int y) const { return active_[index(x, y)] != 0; }
     void set_active(int x, int y, bool on) { active_[index(x, y)] = on ? 1 : 0; }
     size_t active_count() const;
@@ -138,7 +176,14 @@ private:
     int width_ = 0, height_ = 0;
     std::vector<Pixel> pixels_;
     std::vector<uint8_t> active_;
-    std::vector<float> error_scratch_;
+    std::vector<float> error_scratch_, variance_scratch_;
+    struct Candidate {
+        float priority;
+        uint32_t pixel;
+    };
+    std::vector<Candidate> candidates_;
+    size_t open_ = 0;
+    int pass_samples_ = 1;
     bool keep_coverage_ = false;
     std::vector<double> coverage_;  ///< sums of kept samples' alpha (keep_coverage_ only)
 };

@@ -13,6 +13,30 @@
 
 namespace kdt {
 
+namespace {
+
+/// The cost of samples for adaptive sampling: kd-tree nodes visited plus triangles tested
+/// (the traversal work, which dominates a sample's time and varies with where its rays
+/// go), or the rays traced when traversal is not counted.
+uint64_t sample_work(const PathCounters& c) {
+    const uint64_t steps = c.nodes_visited + c.triangles_tested;
+    return steps > 0 ? steps : c.rays();
+}
+
+/// The most samples a pixel may draw in a pass; 0 = no cap. max_spp is the pass's cap and,
+/// while adaptive, adaptive_max_spp caps too, counted as drawn samples so that a pass of
+/// several samples per pixel (Film::pass_samples) stops at it rather than past it.
+uint32_t sample_cap(int max_spp, const FilmParams& film) {
+    uint32_t cap = max_spp > 0 ? uint32_t(max_spp) : 0;
+    if (film.adaptive && film.adaptive_max_spp > 0) {
+        const auto a = uint32_t(film.adaptive_max_spp);
+        cap = cap > 0 ? std::min(cap, a) : a;
+    }
+    return cap;
+}
+
+}  // namespace
+
 RenderSession::RenderSession(std::shared_ptr<const RenderSnapshot> snapshot,
                              const TraceParams& trace, const FilmParams& film)
     : snapshot_(std::move(snapshot)), trace_(trace), film_params_(film) {
@@ -89,6 +113,8 @@ void RenderSession::apply_pending() {
         aov_depth_.assign(aov_ ? film_.pixel_count() : 0, 0.0f);
         aov_hits_.assign(aov_ ? film_.pixel_count() : 0, 0);
         totals_ = PathCounters{};
+        tile_work_.clear();
+        tile_samples_.clear();
         passes_ = 0;
         reset_published();
     }
@@ -226,21 +252,54 @@ PassStats RenderSession::render_pass(const std::vector<int>& tiles, int max_spp,
     return run_tiles(tiles, max_spp, per_pass);
 }
 
+size_t RenderSession::update_active(int max_spp, int per_pass) {
+    // The first pass samples everything; later passes ask the film which pixels remain.
+    if (passes_ == 0 || !film_params_.adaptive)
+        return film_.update_active(FilmParams{}, {.samples_per_pass = per_pass});
+    // A pixel's cost per sample is its tile's mean since the reset: counted per tile, so the
+    // same for any thread count. A tile without samples yet costs the film's mean.
+    const int width = film_.width(), height = film_.height();
+    const int tiles_x = (width + kTileSize - 1) / kTileSize;
+    uint64_t work = 0, samples = 0;
+    for (size_t t = 0; t < tile_work_.size(); ++t) {
+        work += tile_work_[t];
+        samples += tile_samples_[t];
+    }
+    const auto per_sample = [](uint64_t w, uint64_t n) { return float(double(w) / double(n)); };
+    const float mean_cost = samples > 0 && work > 0 ? per_sample(work, samples) : 1.0f;
+    pixel_cost_.resize(film_.pixel_count());
+    for (int y = 0; y < height; ++y) {
+        for (int x = 0; x < width; ++x) {
+            const size_t t = size_t((y / kTileSize) * tiles_x + x / kTileSize);
+            const bool known =
+                t < tile_samples_.size() && tile_samples_[t] > 0 && tile_work_[t] > 0;
+            pixel_cost_[size_t(y) * size_t(width) + size_t(x)] =
+                known ? per_sample(tile_work_[t], tile_samples_[t]) : mean_cost;
+        }
+    }
+    AdaptiveInputs in;
+    in.cost_per_sample = pixel_cost_;
+    in.sample_cap = sample_cap(max_spp, film_params_);
+    in.samples_per_pass = per_pass;
+    return film_.update_active(film_params_, in);
+}
+
 PassStats RenderSession::run_tiles(const std::vector<int>& tiles, int max_spp, int per_pass) {
     Timer timer;
     PassStats stats;
-    // The first pass samples everything; later passes ask the film which pixels remain.
-    stats.active_pixels = passes_ == 0 ? film_.pixel_count() : film_.update_active(film_params_);
-    if (passes_ == 0) film_.update_active(FilmParams{});
+    stats.active_pixels = update_active(max_spp, per_pass > 0 ? per_pass : trace_.samples_per_pass);
+    stats.open_pixels = film_.open_count();
 
     const int width = film_.width(), height = film_.height();
     const int tiles_x = (width + kTileSize - 1) / kTileSize;
     const int threads = trace_.threads > 0 ? trace_.threads : omp_get_max_threads();
-    TraceParams pass_trace = trace_;
-    if (per_pass > 0) pass_trace.samples_per_pass = per_pass;
     TileTarget target;
     target.scene = snapshot_->scene.get();
     target.camera = &snapshot_->camera;
+    // The pass's samples per pixel: per_pass or samples_per_pass, or more for an adaptive
+    // pass (Film::pass_samples).
+    TraceParams pass_trace = trace_;
+    pass_trace.samples_per_pass = film_.pass_samples();
     target.trace = &pass_trace;
     target.film = &film_;
     if (heat_map_ && !heat_nodes_.empty()) {
@@ -252,7 +311,7 @@ PassStats RenderSession::run_tiles(const std::vector<int>& tiles, int max_spp, i
         target.aov_depth = aov_depth_.data();
         target.aov_hits = aov_hits_.data();
     }
-    if (max_spp > 0) target.max_spp = uint32_t(max_spp);
+    if (const uint32_t cap = sample_cap(max_spp, film_params_); cap > 0) target.max_spp = cap;
     target.transparent = film_params_.transparent;
 
     // One cache line per thread for its counters.
@@ -262,6 +321,11 @@ PassStats RenderSession::run_tiles(const std::vector<int>& tiles, int max_spp, i
     std::vector<ThreadCounters> per_thread(static_cast<size_t>(threads));
     size_t pixels_done = 0;
     const auto ntiles = int64_t(tiles.size());
+    const bool cost_model = film_params_.adaptive;
+    if (cost_model && tile_work_.size() != size_t(tile_count())) {
+        tile_work_.assign(size_t(tile_count()), 0);
+        tile_samples_.assign(size_t(tile_count()), 0);
+    }
 
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads) reduction(+ : pixels_done)
     for (int64_t k = 0; k < ntiles; ++k) {
@@ -272,7 +336,13 @@ PassStats RenderSession::run_tiles(const std::vector<int>& tiles, int max_spp, i
         r.y0 = (tile / tiles_x) * kTileSize;
         r.x1 = std::min(r.x0 + kTileSize, width);
         r.y1 = std::min(r.y0 + kTileSize, height);
-        pixels_done += render_tile(target, r, per_thread[size_t(omp_get_thread_num())].c);
+        PathCounters counters;
+        pixels_done += render_tile(target, r, counters);
+        per_thread[size_t(omp_get_thread_num())].c += counters;
+        if (cost_model) {  // each tile index once per pass: no other thread writes its entry
+            tile_work_[size_t(tile)] += sample_work(counters);
+            tile_samples_[size_t(tile)] += counters.samples;
+        }
         if (publishing_) publish_tile(r.x0, r.y0, r.x1, r.y1);
     }
     for (const ThreadCounters& t : per_thread) stats.counters += t.c;
@@ -329,7 +399,7 @@ RenderProgress run_render(RenderSession& session, const StopConditions& stop,
         p.passes = session.passes();
         p.seconds = timer.seconds();
         p.samples = session.totals().samples;  // drawn, kept or dropped
-        p.active_pixels = ps.active_pixels;
+        p.active_pixels = ps.open_pixels;
         // A full pass over the film: only when someone looks at it.
         if (progress || stop.error > 0.0f) p.mean_relative_error = film.mean_relative_error();
         double frac = 0.0;
@@ -341,7 +411,7 @@ RenderProgress run_render(RenderSession& session, const StopConditions& stop,
         if (stop.error > 0.0f && adaptive) {
             // Adaptive: done when every pixel is below the target, so the share of pixels
             // that stopped, not the mean error (below the target long before the last pixel).
-            frac = std::max(frac, 1.0 - double(ps.active_pixels) / pixels);
+            frac = std::max(frac, 1.0 - double(ps.open_pixels) / pixels);
         } else if (stop.error > 0.0f && p.error_known && p.mean_relative_error > 0.0) {
             // Error falls as 1/sqrt(samples): (target / error)^2 is the share of samples done.
             frac = std::max(frac, std::pow(double(stop.error) / p.mean_relative_error, 2.0));

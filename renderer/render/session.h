@@ -25,6 +25,9 @@ namespace kdt {
 struct PassStats {
     double seconds = 0.0;
     size_t active_pixels = 0;  ///< pixels that took samples in this pass
+    /// Pixels not yet stopped at the start of the pass (Film::open_count); with adaptive
+    /// sampling a pass samples only some of them.
+    size_t open_pixels = 0;
     PathCounters counters;
     bool cancelled = false;  ///< cancel() stopped the pass early (finished tiles are kept)
 };
@@ -145,6 +148,9 @@ private:
     PassStats run_tiles(const std::vector<int>& tiles, int max_spp, int per_pass);
     void reset_published();
     void publish_tile(int x0, int y0, int x1, int y1);
+    /// Film::update_active for the next pass, whose active pixels take at least per_pass
+    /// samples (0 counts as 1).
+    size_t update_active(int max_spp, int per_pass);
 
     std::shared_ptr<const RenderSnapshot> snapshot_;
     TraceParams trace_;
@@ -155,6 +161,10 @@ private:
     bool heat_map_ = false;
     bool publishing_ = true;
     std::vector<uint64_t> heat_nodes_, heat_tris_;
+    /// Adaptive sampling's cost model: work (sample_work() in session.cpp) and samples per
+    /// tile since the last reset, and from them each pixel's cost per sample (its tile's).
+    std::vector<uint64_t> tile_work_, tile_samples_;
+    std::vector<float> pixel_cost_;
     bool aov_ = false;
     std::vector<float> aov_normal_, aov_depth_;  ///< per-pixel sums (TileTarget::aov_*)
     std::vector<uint32_t> aov_hits_;
@@ -173,7 +183,7 @@ struct RenderProgress {
     double seconds = 0.0;
     double fraction = 0.0;  ///< 0..1 estimate of completion
     uint64_t samples = 0;
-    size_t active_pixels = 0;
+    size_t active_pixels = 0;  ///< pixels not yet stopped (PassStats::open_pixels)
     double mean_relative_error = 0.0;
     /// False until every pixel has 2 samples: with fewer, no variance is known, and
     /// mean_relative_error is not an estimate (0 at 1 spp).

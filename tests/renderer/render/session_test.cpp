@@ -2,6 +2,7 @@
 // snapshot swaps, adaptive sampling and stop conditions; compiling a Scene.
 #include "renderer/render/session.h"
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstring>
@@ -40,6 +41,8 @@ bool same_bits(const std::vector<float>& a, const std::vector<float>& b) {
 
 TEST(RenderSession, ImagesAreBitwiseIdenticalForAnyThreadCountAndTileSplit) {
     auto snap = small_snapshot();
+    // Enough passes for the adaptive allocation to pick pixels and raise pass_samples().
+    constexpr int kPasses = 10;
     std::vector<std::vector<float>> images;
     for (int threads : {1, 2, 3}) {
         for (bool adaptive : {false, true}) {
@@ -51,7 +54,7 @@ TEST(RenderSession, ImagesAreBitwiseIdenticalForAnyThreadCountAndTileSplit) {
             fp.adaptive_min_spp = 4;
             fp.adaptive_threshold = 0.05f;
             RenderSession s(snap, tp, fp);
-            for (int pass = 0; pass < 4; ++pass) s.render_pass();
+            for (int pass = 0; pass < kPasses; ++pass) s.render_pass();
             if (threads == 1) {
                 images.push_back(s.film().linear_rgb());
             } else {
@@ -66,7 +69,7 @@ TEST(RenderSession, ImagesAreBitwiseIdenticalForAnyThreadCountAndTileSplit) {
     RenderSession s(snap, tp, FilmParams{});
     std::vector<int> even, odd;
     for (int t = s.tile_count() - 1; t >= 0; --t) (t % 2 ? odd : even).push_back(t);
-    for (int pass = 0; pass < 4; ++pass) {
+    for (int pass = 0; pass < kPasses; ++pass) {
         s.render_pass(odd);
         s.render_pass(even);
     }
@@ -222,6 +225,62 @@ TEST(RenderSession, AdaptiveSamplingSpendsSamplesWhereTheNoiseIs) {
     EXPECT_EQ(s.film().count(0, 0), 8u);     // background stopped at the minimum
     EXPECT_GT(s.film().count(16, 16), 32u);  // the object got the rest
     EXPECT_NEAR(s.film().mean(16, 16).x, 0.8f, 0.1f);
+
+    // adaptive_max_spp holds exactly, although a late pass gives a pixel several samples;
+    // with every open pixel at it the render ends before the budget.
+    fp.adaptive_max_spp = 21;
+    RenderSession capped(snap, tp, fp);
+    const RenderProgress q = run_render(capped, stop);
+    EXPECT_LT(q.samples, 32u * 32u * 32u);
+    EXPECT_EQ(q.active_pixels, 0u);
+    EXPECT_EQ(capped.film().count(0, 0), 8u);
+    EXPECT_EQ(capped.film().count(16, 16), 21u);
+    for (int y = 0; y < 32; ++y) {
+        for (int x = 0; x < 32; ++x) ASSERT_LE(capped.film().count(x, y), 21u) << x << "," << y;
+    }
+}
+
+// Adaptive sampling chooses how many samples a pixel gets from its samples, but each pixel
+// stays a plain mean: the image mean must agree with uniform sampling's within the noise.
+TEST(RenderSession, AdaptiveImagesAreUnbiased) {
+    auto snap = small_snapshot(40, 24);
+    struct Result {
+        double mean = 0.0, variance = 0.0;  // image mean luminance; variance of that mean
+        uint32_t min_count = ~0u, max_count = 0;
+    };
+    auto render = [&](bool adaptive, uint64_t seed) {
+        TraceParams tp;
+        tp.seed = seed;
+        FilmParams fp;
+        fp.adaptive = adaptive;
+        fp.adaptive_min_spp = 8;
+        fp.adaptive_threshold = 0.01f;
+        RenderSession s(snap, tp, fp);
+        StopConditions stop;
+        stop.spp = 64;
+        run_render(s, stop);
+        const Film& f = s.film();
+        Result r;
+        const double n = double(f.pixel_count());
+        for (int y = 0; y < f.height(); ++y) {
+            for (int x = 0; x < f.width(); ++x) {
+                const Vec3f m = f.mean(x, y);
+                const double lum = 0.2126 * m.x + 0.7152 * m.y + 0.0722 * m.z;
+                const double se = double(f.relative_error(x, y)) * std::max(lum, 1e-4);
+                r.mean += lum / n;
+                r.variance += se * se / (n * n);
+                r.min_count = std::min(r.min_count, f.count(x, y));
+                r.max_count = std::max(r.max_count, f.count(x, y));
+            }
+        }
+        return r;
+    };
+    const Result uniform = render(false, 1), adaptive = render(true, 2);
+    EXPECT_EQ(uniform.min_count, 64u);
+    EXPECT_GT(adaptive.max_count, 2 * adaptive.min_count);  // it did reallocate
+    const double z =
+        (adaptive.mean - uniform.mean) / std::sqrt(uniform.variance + adaptive.variance);
+    EXPECT_LT(std::abs(z), 4.0) << uniform.mean << " vs " << adaptive.mean;
 }
 
 TEST(RenderSession, RejectsBadParametersWithTheirNames) {
