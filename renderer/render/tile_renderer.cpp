@@ -72,32 +72,15 @@ struct TileScratch {
     WavefrontScratch wavefront;
 };
 
-// render_tile() through the wavefront (TraceParams::wavefront): every sample of the tile
-// pass is made first, in pixel and sample order, then their paths are traced together
-// (trace_camera_hits), then the film takes them in the same order. Without heat maps.
-size_t render_tile_wavefront(const TileTarget& t, const FilmRect& tile, PathCounters& counters) {
+// Samples a wavefront takes at most: 16 samples per pass of a 16x16 tile. Larger passes
+// are traced in chunks of this many, in order, so memory stays bounded.
+constexpr size_t kMaxWavefront = 4096;
+
+// Traces the samples s.samples (their samplers have made no draw yet) as one wavefront and
+// hands them to the film in order.
+void trace_wavefront(const TileTarget& t, TileScratch& s, PathCounters& counters) {
     const TraceScene& scene = *t.scene;
     const TraceParams& trace = *t.trace;
-    Film& film = *t.film;
-    const int spp = std::max(trace.samples_per_pass, 1);
-    thread_local TileScratch s;
-    s.samples.clear();
-    size_t pixels_done = 0;
-    for (int y = tile.y0; y < tile.y1; ++y) {
-        for (int x = tile.x0; x < tile.x1; ++x) {
-            if (!film.active(x, y)) continue;
-            const uint32_t first_index = film.next_sample_index(x, y);
-            const uint64_t key = PixelSampler::pixel_key(trace.seed, uint32_t(x), uint32_t(y));
-            int k = 0;
-            for (; k < spp && first_index + uint32_t(k) < t.max_spp; ++k) {
-                TileSample& c = s.samples.emplace_back();
-                c.sampler = PixelSampler(key, first_index + uint32_t(k));
-                c.x = x;
-                c.y = y;
-            }
-            pixels_done += k > 0;
-        }
-    }
     const size_t n = s.samples.size();
     if (s.rays.size() < n) {
         s.rays.resize(n);
@@ -127,6 +110,37 @@ size_t render_tile_wavefront(const TileTarget& t, const FilmRect& tile, PathCoun
     for (size_t i = 0; i < n; ++i)
         add_sample(t, s.samples[i].x, s.samples[i].y, s.rays[i], s.hits[i], s.radiance[i],
                    counters);
+    s.samples.clear();
+}
+
+// render_tile() through the wavefront (TraceParams::wavefront): the samples of the tile
+// pass are made in pixel and sample order, their paths traced together (up to
+// kMaxWavefront at a time), and the film takes them in that order. Without heat maps.
+size_t render_tile_wavefront(const TileTarget& t, const FilmRect& tile, PathCounters& counters) {
+    const TraceParams& trace = *t.trace;
+    const Film& film = *t.film;
+    const int spp = std::max(trace.samples_per_pass, 1);
+    thread_local TileScratch s;
+    s.samples.clear();
+    size_t pixels_done = 0;
+    for (int y = tile.y0; y < tile.y1; ++y) {
+        for (int x = tile.x0; x < tile.x1; ++x) {
+            if (!film.active(x, y)) continue;
+            // Read once: a chunk traced in the middle of the pixel adds to its count.
+            const uint32_t first_index = film.next_sample_index(x, y);
+            const uint64_t key = PixelSampler::pixel_key(trace.seed, uint32_t(x), uint32_t(y));
+            int k = 0;
+            for (; k < spp && first_index + uint32_t(k) < t.max_spp; ++k) {
+                TileSample& c = s.samples.emplace_back();
+                c.sampler = PixelSampler(key, first_index + uint32_t(k));
+                c.x = x;
+                c.y = y;
+                if (s.samples.size() == kMaxWavefront) trace_wavefront(t, s, counters);
+            }
+            pixels_done += k > 0;
+        }
+    }
+    if (!s.samples.empty()) trace_wavefront(t, s, counters);
     return pixels_done;
 }
 
