@@ -16,28 +16,6 @@
 namespace kdt {
 namespace {
 
-using test::diffuse;
-using test::flat;
-using test::make_box;
-using test::make_icosphere;
-using test::make_quad;
-using test::make_scene;
-
-// A diffuse sphere and a glass sphere on a box, an emissive quad above them.
-TraceScene mixed_scene(std::shared_ptr<const EnvironmentLight> env) {
-    Material glass = test::of_type(MaterialType::dielectric);
-    glass.ior = 1.5f;
-    TraceScene s =
-        make_scene({{make_icosphere({-0.5f, 0.4f, 0}, 0.4f, 2), test::smooth(diffuse(0.7f))},
-                    {make_icosphere({0.5f, 0.4f, 0.2f}, 0.4f, 2), test::smooth(glass)},
-                    {make_box({-1.5f, -1, -1.5f}, {1.5f, 0, 1.5f}), flat(diffuse(0.5f))},
-                    {make_quad({-0.3f, 1.5f, -0.3f}, {0.6f, 0, 0}, {0, 0, 0.6f}),
-                     flat(diffuse(0.0f, Vec3f(8.0f, 7.0f, 6.0f)))}},
-                   std::move(env));
-    s.emitters = build_emitter_table(s);
-    return s;
-}
-
 bool same_bits(const Vec3f& a, const Vec3f& b) { return std::memcmp(&a, &b, sizeof(Vec3f)) == 0; }
 
 void expect_same_counters(const PathCounters& a, const PathCounters& b, const std::string& what) {
@@ -119,7 +97,8 @@ std::string describe(const TraceParams& tp) {
 }
 
 TEST(Wavefront, MatchesOnePathUnderAConstantSky) {
-    const TraceScene scene = mixed_scene(std::make_shared<test::ConstantEnv>(Vec3f(1.0f)));
+    const TraceScene scene =
+        test::make_mixed_scene(std::make_shared<test::ConstantEnv>(Vec3f(1.0f)));
     for (const TraceParams& tp : strategies()) {
         const PathCounters c = expect_wavefront_equals_one_path(scene, tp, describe(tp), 1000);
         EXPECT_GT(c.bounce_rays, 100u) << describe(tp);
@@ -129,7 +108,7 @@ TEST(Wavefront, MatchesOnePathUnderAConstantSky) {
 // Environment shadow rays (a non-constant sky under nee and mis), emitter shadow rays, the
 // glass sphere's lobes; batches of 1, 7 and all samples.
 TEST(Wavefront, MatchesOnePathWithShadowRaysEmittersAndGlass) {
-    const TraceScene scene = mixed_scene(std::make_shared<test::GradientEnv>());
+    const TraceScene scene = test::make_mixed_scene(std::make_shared<test::GradientEnv>());
     for (const TraceParams& tp : strategies()) {
         for (size_t batch : {size_t(1), size_t(7), size_t(1000)}) {
             const std::string what = describe(tp) + ", batch " + std::to_string(batch);
@@ -153,7 +132,7 @@ TEST(Wavefront, MatchesOnePathUnderTheGraceProbe) {
     }
     EnvironmentDesc desc;
     desc.file = (data / "probes" / "grace.hdr").string();
-    const TraceScene scene = mixed_scene(make_environment_light(desc));
+    const TraceScene scene = test::make_mixed_scene(make_environment_light(desc));
     for (const TraceParams& tp : strategies())
         expect_wavefront_equals_one_path(scene, tp, describe(tp) + ", grace", 1000);
 }

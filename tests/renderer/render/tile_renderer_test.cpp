@@ -18,12 +18,6 @@
 namespace kdt {
 namespace {
 
-using test::diffuse;
-using test::flat;
-using test::make_box;
-using test::make_icosphere;
-using test::make_quad;
-
 struct Result {
     FilmImage image;
     PathCounters totals;
@@ -47,15 +41,7 @@ bool same_bits(const std::vector<T>& a, const std::vector<T>& b) {
 }
 
 TEST(TileRenderer, WavefrontFilmEqualsOnePathAtATime) {
-    Material glass = test::of_type(MaterialType::dielectric);
-    TraceScene scene =
-        test::make_scene({{make_icosphere({-0.5f, 0.4f, 0}, 0.4f, 2), test::smooth(diffuse(0.7f))},
-                          {make_icosphere({0.5f, 0.4f, 0.2f}, 0.4f, 2), test::smooth(glass)},
-                          {make_box({-1.5f, -1, -1.5f}, {1.5f, 0, 1.5f}), flat(diffuse(0.5f))},
-                          {make_quad({-0.3f, 1.5f, -0.3f}, {0.6f, 0, 0}, {0, 0, 0.6f}),
-                           flat(diffuse(0.0f, Vec3f(8.0f, 7.0f, 6.0f)))}},
-                         std::make_shared<test::GradientEnv>());
-    scene.emitters = build_emitter_table(scene);
+    const TraceScene scene = test::make_mixed_scene(std::make_shared<test::GradientEnv>());
     // 40 x 24: partial tiles on the right and bottom.
     const auto snap = compile_snapshot(
         scene, make_camera({0.3f, 1.2f, 3.2f}, {0, 0.3f, 0}, {0, 1, 0}, 45.0f, 40, 24));
