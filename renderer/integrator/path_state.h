@@ -4,6 +4,7 @@
 // integrator/path_tracer.h.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 
 #include "renderer/integrator/path_tracer.h"
@@ -53,8 +54,18 @@ void path_step(const TraceScene& scene, const TraceParams& params, const PathRul
                PathState& st, const Hit& hit, PixelSampler& sampler, PathCounters& counters);
 
 /// The outcome of shadow ray k of the last step. Resolve them in order k = 0, 1, ...
+/// The sum is rounded as written (one FMA per channel on FMA builds), not as the compiler
+/// would contract it where this is inlined.
 inline void path_shadow_result(PathState& st, int k, bool occluded) {
-    if (!occluded) st.radiance += st.shadow_color[k] * st.shadow_scale[k];
+    if (occluded) return;
+#ifdef __FMA__
+    const Vec3f& c = st.shadow_color[k];
+    const float s = st.shadow_scale[k];
+    st.radiance = Vec3f(std::fma(c.x, s, st.radiance.x), std::fma(c.y, s, st.radiance.y),
+                        std::fma(c.z, s, st.radiance.z));
+#else
+    st.radiance += st.shadow_color[k] * st.shadow_scale[k];
+#endif
 }
 
 }  // namespace kdt

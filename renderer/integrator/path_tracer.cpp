@@ -153,10 +153,8 @@ PathRules path_rules(const TraceScene& scene, const TraceParams& params) {
     return r;
 }
 
-[[gnu::always_inline]] inline void path_step_impl(const TraceScene& scene,
-                                                  const TraceParams& params, const PathRules& rules,
-                                                  PathState& st, const Hit& hit,
-                                                  PixelSampler& sampler, PathCounters& counters) {
+void path_step(const TraceScene& scene, const TraceParams& params, const PathRules& rules,
+               PathState& st, const Hit& hit, PixelSampler& sampler, PathCounters& counters) {
     const EnvironmentLight& env = *scene.env;
     const bool use_mis = rules.use_mis, env_nee = rules.env_nee;
     const bool sample_emitters = rules.sample_emitters;
@@ -328,11 +326,6 @@ PathRules path_rules(const TraceScene& scene, const TraceParams& params) {
     ++counters.bounce_rays;
 }
 
-void path_step(const TraceScene& scene, const TraceParams& params, const PathRules& rules,
-               PathState& st, const Hit& hit, PixelSampler& sampler, PathCounters& counters) {
-    path_step_impl(scene, params, rules, st, hit, sampler, counters);
-}
-
 namespace {
 
 // Records nothing: the rendering path (compiles away).
@@ -347,7 +340,8 @@ struct VectorRecorder {
     void any(const Ray& r) { out->any.push_back(r); }
 };
 
-// One path at a time: path_step() on each closest hit, its shadow rays traced at once.
+// One path at a time: path_step() on each closest hit, its shadow rays traced at once. The
+// step is the one compiled function the wavefront calls too, so both round alike.
 // first_hit: when set, the closest hit of camera_ray, already found (and counted) by the
 // caller.
 template <class Recorder>
@@ -369,7 +363,7 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
             hitp = first_hit;
         else
             tree.intersect(st.ray, found, tcp);
-        path_step_impl(scene, params, rules, st, *hitp, sampler, counters);
+        path_step(scene, params, rules, st, *hitp, sampler, counters);
         for (int k = 0; k < st.shadow_count; ++k) {
             recorder.any(st.shadow[k]);
             path_shadow_result(st, k, tree.occluded(st.shadow[k], tcp));
