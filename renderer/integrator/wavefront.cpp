@@ -7,7 +7,7 @@ namespace {
 
 // Rays in flight per stream query: the most the stream takes (four octets). On the dragon
 // under a constant sky (docs/performance.md, "Streams in the renderer") 32 lanes rendered
-// 8-12% faster than 16; a bounce's rays are independent, so more of them hide more latency.
+// 7-13% faster than 16; a bounce's rays are independent, so more of them hide more latency.
 constexpr int kWavefrontLanes = 32;
 
 }  // namespace
