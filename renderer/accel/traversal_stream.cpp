@@ -37,6 +37,12 @@ using detail::StackItem;
 using detail::TreeView;
 using detail::upper_slack;
 
+// Traversal work of a whole stream, counted as the single-ray traversal counts it: every
+// node whose word is read, every triangle tested (an any-hit query stops at its first hit).
+struct StreamCounts {
+    uint64_t nodes = 0, triangles = 0;
+};
+
 // What a lane does on its next visit.
 enum class Phase : uint8_t {
     descend,       // nodes[idx] has been prefetched
@@ -137,13 +143,14 @@ inline bool start(const TreeView& tv, const Ray& ray, uint32_t i, Lane& l) {
 // subtree without reaching one, to the next stacked node (prefetched). Returns false when
 // the ray is done (nothing left on its stack). Ending a visit at every node whose cache
 // line differs from the last one's, or at every node, was slower (docs/performance.md).
-inline bool descend(const TreeView& tv, Lane& l) {
+inline bool descend(const TreeView& tv, Lane& l, StreamCounts& counts) {
     const KdNode* nodes = tv.nodes;
     const RayState& rs = l.rs;
     uint32_t idx = l.idx;
     float t0 = l.t0, t1 = l.t1;
     for (;;) {
         const KdNode node = nodes[idx];
+        ++counts.nodes;
         if (node.is_leaf()) {
             l.idx = idx;
             l.t0 = t0;
@@ -204,12 +211,13 @@ inline const Vec3u& reference(const TreeView& tv, const KdNode leaf, uint32_t k)
 // test_leaf() of traversal.cpp on the lane's leaf, triangle by triangle; true when kAnyHit
 // and one is hit.
 template <bool kAnyHit, bool kDirect>
-inline bool test_leaf(const TreeView& tv, Lane& l) {
+inline bool test_leaf(const TreeView& tv, Lane& l, StreamCounts& counts) {
     const KdNode leaf = l.leaf;
     const uint32_t count = leaf.count();
     const Vec3f* p = tv.positions;
     for (uint32_t k = 0; k < count; ++k) {
         const Vec3u tri = reference<kDirect>(tv, leaf, k);
+        ++counts.triangles;
         float t, u, v;
         if (intersect_triangle(l.rs.wr, p[tri.x], p[tri.y], p[tri.z], l.rs.tmin, l.best_t, t, u,
                                v)) {
@@ -226,17 +234,17 @@ inline bool test_leaf(const TreeView& tv, Lane& l) {
 // One visit of a lane; false when its ray is done (for kAnyHit: done with a hit when
 // l.best_prim was set to 0, without one otherwise).
 template <bool kAnyHit, bool kDirect>
-inline bool advance(const TreeView& tv, Lane& l) {
+inline bool advance(const TreeView& tv, Lane& l, StreamCounts& counts) {
     switch (l.phase) {
         case Phase::descend:
-            return descend(tv, l);
+            return descend(tv, l, counts);
         case Phase::leaf_refs: {
             prefetch_vertices(tv, l.leaf);
             l.phase = Phase::leaf_vertices;
             return true;
         }
         case Phase::leaf_vertices:
-            if (test_leaf<kAnyHit, kDirect>(tv, l)) {
+            if (test_leaf<kAnyHit, kDirect>(tv, l, counts)) {
                 l.best_prim = 0;
                 return false;
             }
@@ -251,7 +259,8 @@ inline bool advance(const TreeView& tv, Lane& l) {
 // Traces rays[0, count) with K lanes: a lane whose ray is done takes the next ray; when no
 // ray is left, the lane is dropped from the round.
 template <bool kAnyHit, bool kDirect, int K>
-void trace_stream(const TreeView& tv, const Ray* rays, size_t count, Hit* hits, uint8_t* occluded) {
+void trace_stream(const TreeView& tv, const Ray* rays, size_t count, Hit* hits, uint8_t* occluded,
+                  StreamCounts& counts) {
     Lane lanes[K];
     int order[K];  // the lanes in the round, in visiting order
     size_t next = 0;
@@ -268,7 +277,7 @@ void trace_stream(const TreeView& tv, const Ray* rays, size_t count, Hit* hits, 
     while (active > 0) {
         for (int j = 0; j < active;) {
             Lane& l = lanes[order[j]];
-            if (advance<kAnyHit, kDirect>(tv, l)) {
+            if (advance<kAnyHit, kDirect>(tv, l, counts)) {
                 ++j;
                 continue;
             }
@@ -322,7 +331,8 @@ struct Octet {
 // slack products are exact, so no FMA contraction can differ). Lanes that reach a leaf
 // leave the vector step with l.leaf set, their records prefetched; returns the mask of
 // lanes that enter neither child (they pop).
-inline uint32_t octet_step(const TreeView& tv, Octet& o) {
+inline uint32_t octet_step(const TreeView& tv, Octet& o, StreamCounts& counts) {
+    counts.nodes += uint32_t(__builtin_popcount(o.vector_mask));
     const __m256i lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
     const __m256i active = _mm256_cmpeq_epi32(
         _mm256_and_si256(_mm256_set1_epi32(int(o.vector_mask)), lane_bits), lane_bits);
@@ -416,7 +426,8 @@ inline uint32_t octet_step(const TreeView& tv, Octet& o) {
 // Traces rays[0, count) with kGroups octets, visited in turn: while one octet steps, the
 // nodes the others prefetched arrive. A lane whose ray is done takes the next ray.
 template <bool kAnyHit, int kGroups>
-void trace_octets(const TreeView& tv, const Ray* rays, size_t count, Hit* hits, uint8_t* occluded) {
+void trace_octets(const TreeView& tv, const Ray* rays, size_t count, Hit* hits, uint8_t* occluded,
+                  StreamCounts& counts) {
     Octet octets[kGroups];
     size_t next = 0;
     auto finish = [&](const Lane& l) { write_result<kAnyHit>(l, hits, occluded); };
@@ -459,7 +470,7 @@ void trace_octets(const TreeView& tv, const Ray* rays, size_t count, Hit* hits, 
         any_live = 0;
         for (Octet& o : octets) {
             if (o.vector_mask) {
-                for (uint32_t m = octet_step(tv, o); m; m &= m - 1)
+                for (uint32_t m = octet_step(tv, o, counts); m; m &= m - 1)
                     pop_or_finish(o, __builtin_ctz(m));
             }
             // Lanes outside the vector step have just reached a leaf: tested at once (their
@@ -468,8 +479,8 @@ void trace_octets(const TreeView& tv, const Ray* rays, size_t count, Hit* hits, 
             for (uint32_t m = o.live_mask & ~o.vector_mask; m; m &= m - 1) {
                 const int j = __builtin_ctz(m);
                 Lane& l = o.lanes[j];
-                const bool hit = tv.reference_triangles ? test_leaf<kAnyHit, true>(tv, l)
-                                                        : test_leaf<kAnyHit, false>(tv, l);
+                const bool hit = tv.reference_triangles ? test_leaf<kAnyHit, true>(tv, l, counts)
+                                                        : test_leaf<kAnyHit, false>(tv, l, counts);
                 if (hit) {
                     l.best_prim = 0;
                     finish(l);
@@ -488,57 +499,63 @@ void trace_octets(const TreeView& tv, const Ray* rays, size_t count, Hit* hits, 
 // octets (the scalar round-robin was slower at every such count), other counts round-robin.
 template <bool kAnyHit, bool kDirect>
 void dispatch_lanes(const TreeView& tv, const Ray* rays, size_t count, Hit* hits, uint8_t* occluded,
-                    int lanes) {
+                    int lanes, StreamCounts& counts) {
 #if KDT_SIMD_TRAVERSAL
     if (lanes >= 8) {
         if (lanes < 16)
-            trace_octets<kAnyHit, 1>(tv, rays, count, hits, occluded);
+            trace_octets<kAnyHit, 1>(tv, rays, count, hits, occluded, counts);
         else if (lanes < 24)
-            trace_octets<kAnyHit, 2>(tv, rays, count, hits, occluded);
+            trace_octets<kAnyHit, 2>(tv, rays, count, hits, occluded, counts);
         else if (lanes < 32)
-            trace_octets<kAnyHit, 3>(tv, rays, count, hits, occluded);
+            trace_octets<kAnyHit, 3>(tv, rays, count, hits, occluded, counts);
         else
-            trace_octets<kAnyHit, 4>(tv, rays, count, hits, occluded);
+            trace_octets<kAnyHit, 4>(tv, rays, count, hits, occluded, counts);
         return;
     }
 #endif
     if (lanes < 4)
-        trace_stream<kAnyHit, kDirect, 1>(tv, rays, count, hits, occluded);
+        trace_stream<kAnyHit, kDirect, 1>(tv, rays, count, hits, occluded, counts);
     else if (lanes < 8)
-        trace_stream<kAnyHit, kDirect, 4>(tv, rays, count, hits, occluded);
+        trace_stream<kAnyHit, kDirect, 4>(tv, rays, count, hits, occluded, counts);
     else if (lanes < 16)
-        trace_stream<kAnyHit, kDirect, 8>(tv, rays, count, hits, occluded);
+        trace_stream<kAnyHit, kDirect, 8>(tv, rays, count, hits, occluded, counts);
     else if (lanes < 24)
-        trace_stream<kAnyHit, kDirect, 16>(tv, rays, count, hits, occluded);
+        trace_stream<kAnyHit, kDirect, 16>(tv, rays, count, hits, occluded, counts);
     else if (lanes < 32)
-        trace_stream<kAnyHit, kDirect, 24>(tv, rays, count, hits, occluded);
+        trace_stream<kAnyHit, kDirect, 24>(tv, rays, count, hits, occluded, counts);
     else
-        trace_stream<kAnyHit, kDirect, 32>(tv, rays, count, hits, occluded);
+        trace_stream<kAnyHit, kDirect, 32>(tv, rays, count, hits, occluded, counts);
 }
 
 template <bool kAnyHit>
 void dispatch(const KdTree& tree, const Ray* rays, size_t count, Hit* hits, uint8_t* occluded,
-              int lanes) {
+              int lanes, TraversalCounters* counters) {
     const TreeView tv = detail::view_of(tree);
+    StreamCounts counts;
     if (tv.reference_triangles)
-        dispatch_lanes<kAnyHit, true>(tv, rays, count, hits, occluded, lanes);
+        dispatch_lanes<kAnyHit, true>(tv, rays, count, hits, occluded, lanes, counts);
     else
-        dispatch_lanes<kAnyHit, false>(tv, rays, count, hits, occluded, lanes);
+        dispatch_lanes<kAnyHit, false>(tv, rays, count, hits, occluded, lanes, counts);
+    if (counters) {
+        counters->nodes_visited += counts.nodes;
+        counters->triangles_tested += counts.triangles;
+    }
 }
 
 }  // namespace
 
-void intersect_stream(const KdTree& tree, const Ray* rays, size_t count, Hit* hits, int lanes) {
+void intersect_stream(const KdTree& tree, const Ray* rays, size_t count, Hit* hits, int lanes,
+                      TraversalCounters* counters) {
     for (size_t i = 0; i < count; ++i) hits[i] = Hit{};
     if (tree.nodes().empty() || tree.mesh_ptr() == nullptr) return;
-    dispatch<false>(tree, rays, count, hits, nullptr, lanes);
+    dispatch<false>(tree, rays, count, hits, nullptr, lanes, counters);
 }
 
 void occluded_stream(const KdTree& tree, const Ray* rays, size_t count, uint8_t* occluded,
-                     int lanes) {
+                     int lanes, TraversalCounters* counters) {
     for (size_t i = 0; i < count; ++i) occluded[i] = 0;
     if (tree.nodes().empty() || tree.mesh_ptr() == nullptr) return;
-    dispatch<true>(tree, rays, count, nullptr, occluded, lanes);
+    dispatch<true>(tree, rays, count, nullptr, occluded, lanes, counters);
 }
 
 }  // namespace kdt

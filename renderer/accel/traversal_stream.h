@@ -20,11 +20,12 @@ inline constexpr int kStreamLaneChoices[] = {1, 4, 8, 16, 24, 32};
 /// Closest hits of rays[0, count): hits[i] is bit for bit what tree.intersect(rays[i],
 /// hits[i]) gives (same t, triangle, u, v), for any `lanes`. The rays need not be coherent;
 /// `lanes` of them (see kStreamLaneChoices) are traced at a time, interleaved step by step.
-/// Never throws or allocates.
+/// Never throws or allocates. counters, when set, gets the nodes visited and triangles
+/// tested that the single-ray queries would count for these rays (the same totals).
 void intersect_stream(const KdTree& tree, const Ray* rays, size_t count, Hit* hits,
-                      int lanes = kStreamLanes);
+                      int lanes = kStreamLanes, TraversalCounters* counters = nullptr);
 /// Any-hit queries: occluded[i] = 1 exactly when tree.occluded(rays[i]) is true, else 0.
 void occluded_stream(const KdTree& tree, const Ray* rays, size_t count, uint8_t* occluded,
-                     int lanes = kStreamLanes);
+                     int lanes = kStreamLanes, TraversalCounters* counters = nullptr);
 
 }  // namespace kdt

@@ -3,6 +3,8 @@
 #include <bit>
 #include <cmath>
 
+#include "renderer/integrator/path_state.h"
+
 namespace kdt {
 
 PathCounters& PathCounters::operator+=(const PathCounters& o) {
@@ -75,6 +77,22 @@ struct Frame {
     Vec3f to_world(const Vec3f& v) const { return v.x * t + v.y * b + v.z * n; }
 };
 
+// normalize(frame.to_world(wi)) for a sampled direction wi, rounded as written: with FMA
+// (-march=native) the compiler may contract products into FMAs, and how it does depends on
+// the code around (it vectorised x and y apart from z), so bounce directions, and images,
+// would change with unrelated edits. The FMAs below are the ones the images are made with.
+Vec3f sampled_direction(const Frame& f, const Vec3f& wi) {
+#ifdef __FMA__
+    const Vec3f v(std::fma(wi.z, f.n.x, std::fma(wi.x, f.t.x, wi.y * f.b.x)),
+                  std::fma(wi.z, f.n.y, std::fma(wi.x, f.t.y, wi.y * f.b.y)),
+                  std::fma(wi.z, f.n.z, std::fma(wi.y, f.b.z, wi.x * f.t.z)));
+    const float inv_len = 1.0f / std::sqrt(std::fma(v.z, v.z, std::fma(v.y, v.y, v.x * v.x)));
+    return v * inv_len;
+#else
+    return glm::normalize(f.to_world(wi));
+#endif
+}
+
 // Everything shading needs about a hit.
 struct SurfacePoint {
     Vec3f p;
@@ -121,6 +139,193 @@ SurfacePoint make_surface(const TraceScene& scene, const Ray& ray, const Hit& hi
 
 }  // namespace
 
+PathRules path_rules(const TraceScene& scene, const TraceParams& params) {
+    PathRules r;
+    r.use_nee = params.light_sampling != LightSampling::bsdf;
+    r.use_mis = params.light_sampling == LightSampling::mis;
+    r.sample_emitters = r.use_nee && params.sample_emitters && !scene.emitters.empty();
+    // Under mis a constant environment is left to BSDF sampling alone: its integrand at a
+    // vertex is f cos times a constant times visibility, which BSDF sampling follows and a
+    // uniform sphere sample does not, so an environment sample would add a shadow ray and
+    // variance and nothing else (Cycles likewise drops its background light when the world
+    // shader is constant). Escaping rays then count fully. Emitter sampling is unaffected.
+    r.env_nee = r.use_nee && !(r.use_mis && scene.env->is_constant());
+    return r;
+}
+
+void path_step(const TraceScene& scene, const TraceParams& params, const PathRules& rules,
+               PathState& st, const Hit& hit, PixelSampler& sampler, PathCounters& counters) {
+    const EnvironmentLight& env = *scene.env;
+    const bool use_mis = rules.use_mis, env_nee = rules.env_nee;
+    const bool sample_emitters = rules.sample_emitters;
+    const Ray& ray = st.ray;  // replaced only at the end
+    const int depth = st.depth;
+    st.shadow_count = 0;
+    if (!hit.valid()) {
+        if (st.specular_bounce || !env_nee) {
+            st.radiance += st.beta * env.eval(ray.dir);
+        } else if (use_mis) {
+            const float light_pdf = params.env_importance ? env.pdf_mis(ray.dir) : kInv4Pi;
+            st.radiance +=
+                st.beta * env.eval(ray.dir) * power_heuristic(st.prev_bsdf_pdf, light_pdf);
+        }
+        st.alive = false;
+        return;
+    }
+    // The traversal has just read the hit triangle's positions, but its shading normals
+    // (and its instance, without runs) are likely cache misses: start those loads, then
+    // draw this vertex's samples, which do not depend on them, while they are in flight.
+    // A path that ends here draws samples it does not use, which changes nothing.
+    // (Written out here: GCC deletes calls to a function that only prefetches, which it
+    // finds free of side effects.)
+    if (!scene.normals.empty()) {
+        const Vec3u& tri = scene.mesh->triangles[hit.prim];
+        __builtin_prefetch(&scene.normals[tri.x]);
+        __builtin_prefetch(&scene.normals[tri.y]);
+        __builtin_prefetch(&scene.normals[tri.z]);
+    }
+    if (scene.runs.first.empty()) __builtin_prefetch(&scene.triangle_instance[hit.prim]);
+    // Draws are made only where they are used, BSDF direction first, so that under BSDF
+    // sampling alone (a constant sky) bounce k's direction is draw k: all Sobol, and the
+    // first one stratified jointly with the film position (PixelSampler). The lobe /
+    // roulette draw waits until the material is known.
+    const Vec2f u_bsdf = sampler.next_2d();
+    const Vec2f u_light = env_nee ? sampler.next_2d() : Vec2f(0.0f);
+
+    // Surface hit after `depth` scattering events; scattering here makes depth + 1.
+    const SurfacePoint sp = make_surface(scene, ray, hit);
+    const Material& mat = *sp.material;
+    // Emission found by a BSDF ray: counts fully unless emitter NEE also estimates it
+    // (then weighted by MIS, or left to NEE alone without MIS). Bounce rays have unit
+    // directions, so hit.t is the distance.
+    if (mat.emission != Vec3f(0.0f)) {
+        if (st.specular_bounce || !sample_emitters) {
+            st.radiance += st.beta * mat.emission;
+        } else if (use_mis) {
+            const float cos_l = std::fabs(glm::dot(sp.ng, ray.dir));
+            const auto light_pdf = float(double(mean_component(mat.emission)) /
+                                         scene.emitters.total * double(hit.t) * hit.t / cos_l);
+            st.radiance += st.beta * mat.emission * power_heuristic(st.prev_bsdf_pdf, light_pdf);
+        }
+    }
+    st.alive = false;  // until the next ray is set
+    if (depth + 1 > params.max_depth || is_black(mat)) return;
+
+    const Vec3f wo_world = -ray.dir;
+    const Vec3f wo = sp.frame.to_local(wo_world);
+    // Emits a shadow ray that adds color * scale when unoccluded.
+    auto emit_shadow = [&](const Ray& shadow, const Vec3f& color, float scale) {
+        const int k = st.shadow_count++;
+        st.shadow[k] = shadow;
+        st.shadow_color[k] = color;
+        st.shadow_scale[k] = scale;
+        ++counters.shadow_rays;
+    };
+
+    // Next-event estimation of the environment.
+    if (env_nee && !is_delta(mat)) {
+        EnvSample ls;
+        if (params.env_importance) {
+            ls = use_mis ? env.sample_mis(u_light) : env.sample(u_light);
+        } else {
+            ls.dir = sample_uniform_sphere(u_light);
+            ls.radiance = env.eval(ls.dir);
+            ls.pdf_solid_angle = kInv4Pi;
+        }
+        if (ls.pdf_solid_angle > 0.0f && max_component(ls.radiance) > 0.0f &&
+            glm::dot(ls.dir, sp.ng) > 0.0f) {
+            const Vec3f wi = sp.frame.to_local(ls.dir);
+            const Vec3f f = bsdf_eval(mat, wo, wi, params.diffuse_sampling);
+            if (max_component(f) > 0.0f) {
+                Ray shadow;
+                shadow.origin = offset_ray_origin(sp.p, sp.ng, sp.offset_scale);
+                shadow.dir = ls.dir;
+                const float w =
+                    use_mis ? power_heuristic(ls.pdf_solid_angle,
+                                              bsdf_pdf(mat, wo, wi, params.diffuse_sampling))
+                            : 1.0f;
+                emit_shadow(shadow, st.beta * f * ls.radiance, w / ls.pdf_solid_angle);
+            }
+        }
+    }
+
+    // Next-event estimation of the emissive triangles: a uniform point on a triangle
+    // picked by power; the shadow ray ends a few ULPs before the emitter's surface.
+    if (sample_emitters && !is_delta(mat)) {
+        const Vec2f u_pick = sampler.next_2d();
+        size_t cell = 0;
+        scene.emitters.dist.sample_continuous(u_pick.x, &cell);
+        const uint32_t prim = scene.emitters.triangles[cell];
+        const Vec3u& tri = scene.mesh->triangles[prim];
+        const Vec3f& p0 = scene.mesh->positions[tri.x];
+        const Vec3f& p1 = scene.mesh->positions[tri.y];
+        const Vec3f& p2 = scene.mesh->positions[tri.z];
+        const float su = std::sqrt(u_pick.y);
+        const Vec2f u_pt = sampler.next_2d();
+        const float b1 = su * (1.0f - u_pt.x), b2 = su * u_pt.x;
+        const Vec3f pl = (1.0f - b1 - b2) * p0 + b1 * p1 + b2 * p2;
+        const Vec3f nl = triangle_normal(p0, p1, p2);
+        // Distances in double: a float squared distance overflows beyond about 1e19.
+        const Vec3d d = Vec3d(pl) - Vec3d(sp.p);
+        const double dist2 = glm::dot(d, d);
+        const Vec3f wi_l(d / std::sqrt(dist2));
+        const float cos_l = std::fabs(glm::dot(nl, wi_l));
+        const Material& lm = scene.instances[scene.instance_of(prim)].material;
+        const auto pdf =
+            float(double(mean_component(lm.emission)) / scene.emitters.total * dist2 / cos_l);
+        if (dist2 > 0.0 && cos_l > 0.0f && std::isfinite(pdf) && pdf > 0.0f &&
+            glm::dot(wi_l, sp.ng) > 0.0f) {
+            const Vec3f wi = sp.frame.to_local(wi_l);
+            const Vec3f f = bsdf_eval(mat, wo, wi, params.diffuse_sampling);
+            if (max_component(f) > 0.0f) {
+                Ray shadow;
+                shadow.origin = offset_ray_origin(sp.p, sp.ng, sp.offset_scale);
+                const Vec3f end = offset_ray_origin(pl, glm::dot(nl, wi_l) < 0.0f ? nl : -nl,
+                                                    offset_scale(pl, p0, p1, p2));
+                shadow.dir = end - shadow.origin;
+                shadow.tmax = 1.0f;
+                const float w =
+                    use_mis ? power_heuristic(pdf, bsdf_pdf(mat, wo, wi, params.diffuse_sampling))
+                            : 1.0f;
+                emit_shadow(shadow, st.beta * f * lm.emission, w / pdf);
+            }
+        }
+    }
+
+    // x picks a dielectric's lobe, y decides Russian roulette.
+    const bool roulette = params.russian_roulette && depth + 1 >= params.rr_min_depth;
+    const Vec2f u_lobe_rr =
+        roulette || mat.type == MaterialType::dielectric ? sampler.next_2d() : Vec2f(0.0f);
+    // Continue the path by sampling the BSDF.
+    BsdfSample bs;
+    if (!bsdf_sample(mat, wo, u_bsdf, u_lobe_rr.x, bs, params.diffuse_sampling)) return;
+    const Vec3f wi_world = sampled_direction(sp.frame, bs.wi);
+    const float cos_g_in = glm::dot(wi_world, sp.ng);
+    // Reject directions on the wrong side of the geometric surface (light leaks from
+    // shading normals): reflection must leave on wo's side, transmission on the other.
+    const bool transmit = bs.wi.z * wo.z < 0.0f;
+    const float cos_g_out = glm::dot(wo_world, sp.ng);
+    if (transmit ? cos_g_in * cos_g_out >= 0.0f : cos_g_in * cos_g_out <= 0.0f) return;
+    st.beta *= bs.weight;
+    st.specular_bounce = bs.delta;
+    st.prev_bsdf_pdf = bs.pdf_solid_angle;
+    if (!(max_component(st.beta) > 0.0f)) return;
+
+    // Russian roulette: survive with probability min(1, max throughput) and reweight.
+    if (roulette) {
+        const float survive = std::min(1.0f, max_component(st.beta));
+        if (u_lobe_rr.y >= survive) return;
+        st.beta /= survive;
+    }
+    Ray next;
+    next.origin = offset_ray_origin(sp.p, cos_g_in > 0.0f ? sp.ng : -sp.ng, sp.offset_scale);
+    next.dir = wi_world;
+    st.ray = next;
+    st.depth = depth + 1;
+    st.alive = true;
+    ++counters.bounce_rays;
+}
+
 namespace {
 
 // Records nothing: the rendering path (compiles away).
@@ -135,6 +340,8 @@ struct VectorRecorder {
     void any(const Ray& r) { out->any.push_back(r); }
 };
 
+// One path at a time: path_step() on each closest hit, its shadow rays traced at once. The
+// step is the one compiled function the wavefront calls too, so both round alike.
 // first_hit: when set, the closest hit of camera_ray, already found (and counted) by the
 // caller.
 template <class Recorder>
@@ -143,194 +350,28 @@ Vec3f trace_path_impl(const TraceScene& scene, const TraceParams& params, const 
                       const Hit* first_hit = nullptr) {
     const KdTree& tree = *scene.tree;
     TraversalCounters tc;
-    const EnvironmentLight& env = *scene.env;
     TraversalCounters* tcp = params.count_traversal ? &tc : nullptr;
-    const bool use_nee = params.light_sampling != LightSampling::bsdf;
-    const bool use_mis = params.light_sampling == LightSampling::mis;
-    const bool sample_emitters = use_nee && params.sample_emitters && !scene.emitters.empty();
-    // Under mis a constant environment is left to BSDF sampling alone: its integrand at a
-    // vertex is f cos times a constant times visibility, which BSDF sampling follows and a
-    // uniform sphere sample does not, so an environment sample would add a shadow ray and
-    // variance and nothing else (Cycles likewise drops its background light when the world
-    // shader is constant). Escaping rays then count fully. Emitter sampling is unaffected.
-    const bool env_nee = use_nee && !(use_mis && env.is_constant());
-
-    Vec3f radiance(0.0f), beta(1.0f);
-    Ray ray = camera_ray;
-    bool specular_bounce = true;  // camera rays and delta bounces see the env unweighted
-    float prev_bsdf_pdf = 0.0f;
-    for (int depth = 0;; ++depth) {
+    const PathRules rules = path_rules(scene, params);
+    PathState st = start_path(camera_ray);
+    do {
         // A pointer, not a copy of *first_hit: reloading the caller's fresh scalar stores as
         // one vector would stall store forwarding.
         Hit found;
         const Hit* hitp = &found;
-        recorder.closest(ray);
-        if (depth == 0 && first_hit) {
+        recorder.closest(st.ray);
+        if (st.depth == 0 && first_hit)
             hitp = first_hit;
-        } else if (!tree.intersect(ray, found, tcp)) {
-            if (specular_bounce || !env_nee) {
-                radiance += beta * env.eval(ray.dir);
-            } else if (use_mis) {
-                const float light_pdf = params.env_importance ? env.pdf_mis(ray.dir) : kInv4Pi;
-                radiance += beta * env.eval(ray.dir) * power_heuristic(prev_bsdf_pdf, light_pdf);
-            }
-            break;
+        else
+            tree.intersect(st.ray, found, tcp);
+        path_step(scene, params, rules, st, *hitp, sampler, counters);
+        for (int k = 0; k < st.shadow_count; ++k) {
+            recorder.any(st.shadow[k]);
+            path_shadow_result(st, k, tree.occluded(st.shadow[k], tcp));
         }
-        const Hit& hit = *hitp;
-        // The traversal has just read the hit triangle's positions, but its shading normals
-        // (and its instance, without runs) are likely cache misses: start those loads, then
-        // draw this vertex's samples, which do not depend on them, while they are in flight.
-        // A path that ends here draws samples it does not use, which changes nothing.
-        // (Written out here: GCC deletes calls to a function that only prefetches, which it
-        // finds free of side effects.)
-        if (!scene.normals.empty()) {
-            const Vec3u& tri = scene.mesh->triangles[hit.prim];
-            __builtin_prefetch(&scene.normals[tri.x]);
-            __builtin_prefetch(&scene.normals[tri.y]);
-            __builtin_prefetch(&scene.normals[tri.z]);
-        }
-        if (scene.runs.first.empty()) __builtin_prefetch(&scene.triangle_instance[hit.prim]);
-        // Draws are made only where they are used, BSDF direction first, so that under BSDF
-        // sampling alone (a constant sky) bounce k's direction is draw k: all Sobol, and the
-        // first one stratified jointly with the film position (PixelSampler). The lobe /
-        // roulette draw waits until the material is known.
-        const Vec2f u_bsdf = sampler.next_2d();
-        const Vec2f u_light = env_nee ? sampler.next_2d() : Vec2f(0.0f);
-
-        // Surface hit after `depth` scattering events; scattering here makes depth + 1.
-        const SurfacePoint sp = make_surface(scene, ray, hit);
-        const Material& mat = *sp.material;
-        // Emission found by a BSDF ray: counts fully unless emitter NEE also estimates it
-        // (then weighted by MIS, or left to NEE alone without MIS). Bounce rays have unit
-        // directions, so hit.t is the distance.
-        if (mat.emission != Vec3f(0.0f)) {
-            if (specular_bounce || !sample_emitters) {
-                radiance += beta * mat.emission;
-            } else if (use_mis) {
-                const float cos_l = std::fabs(glm::dot(sp.ng, ray.dir));
-                const auto light_pdf = float(double(mean_component(mat.emission)) /
-                                             scene.emitters.total * double(hit.t) * hit.t / cos_l);
-                radiance += beta * mat.emission * power_heuristic(prev_bsdf_pdf, light_pdf);
-            }
-        }
-        if (depth + 1 > params.max_depth || is_black(mat)) break;
-
-        const Vec3f wo_world = -ray.dir;
-        const Vec3f wo = sp.frame.to_local(wo_world);
-
-        // Next-event estimation of the environment.
-        if (env_nee && !is_delta(mat)) {
-            EnvSample ls;
-            if (params.env_importance) {
-                ls = use_mis ? env.sample_mis(u_light) : env.sample(u_light);
-            } else {
-                ls.dir = sample_uniform_sphere(u_light);
-                ls.radiance = env.eval(ls.dir);
-                ls.pdf_solid_angle = kInv4Pi;
-            }
-            if (ls.pdf_solid_angle > 0.0f && max_component(ls.radiance) > 0.0f &&
-                glm::dot(ls.dir, sp.ng) > 0.0f) {
-                const Vec3f wi = sp.frame.to_local(ls.dir);
-                const Vec3f f = bsdf_eval(mat, wo, wi, params.diffuse_sampling);
-                if (max_component(f) > 0.0f) {
-                    Ray shadow;
-                    shadow.origin = offset_ray_origin(sp.p, sp.ng, sp.offset_scale);
-                    shadow.dir = ls.dir;
-                    ++counters.shadow_rays;
-                    recorder.any(shadow);
-                    if (!tree.occluded(shadow, tcp)) {
-                        const float w =
-                            use_mis
-                                ? power_heuristic(ls.pdf_solid_angle,
-                                                  bsdf_pdf(mat, wo, wi, params.diffuse_sampling))
-                                : 1.0f;
-                        radiance += beta * f * ls.radiance * (w / ls.pdf_solid_angle);
-                    }
-                }
-            }
-        }
-
-        // Next-event estimation of the emissive triangles: a uniform point on a triangle
-        // picked by power; the shadow ray ends a few ULPs before the emitter's surface.
-        if (sample_emitters && !is_delta(mat)) {
-            const Vec2f u_pick = sampler.next_2d();
-            size_t cell = 0;
-            scene.emitters.dist.sample_continuous(u_pick.x, &cell);
-            const uint32_t prim = scene.emitters.triangles[cell];
-            const Vec3u& tri = scene.mesh->triangles[prim];
-            const Vec3f& p0 = scene.mesh->positions[tri.x];
-            const Vec3f& p1 = scene.mesh->positions[tri.y];
-            const Vec3f& p2 = scene.mesh->positions[tri.z];
-            const float su = std::sqrt(u_pick.y);
-            const Vec2f u_pt = sampler.next_2d();
-            const float b1 = su * (1.0f - u_pt.x), b2 = su * u_pt.x;
-            const Vec3f pl = (1.0f - b1 - b2) * p0 + b1 * p1 + b2 * p2;
-            const Vec3f nl = triangle_normal(p0, p1, p2);
-            // Distances in double: a float squared distance overflows beyond about 1e19.
-            const Vec3d d = Vec3d(pl) - Vec3d(sp.p);
-            const double dist2 = glm::dot(d, d);
-            const Vec3f wi_l(d / std::sqrt(dist2));
-            const float cos_l = std::fabs(glm::dot(nl, wi_l));
-            const Material& lm = scene.instances[scene.instance_of(prim)].material;
-            const auto pdf =
-                float(double(mean_component(lm.emission)) / scene.emitters.total * dist2 / cos_l);
-            if (dist2 > 0.0 && cos_l > 0.0f && std::isfinite(pdf) && pdf > 0.0f &&
-                glm::dot(wi_l, sp.ng) > 0.0f) {
-                const Vec3f wi = sp.frame.to_local(wi_l);
-                const Vec3f f = bsdf_eval(mat, wo, wi, params.diffuse_sampling);
-                if (max_component(f) > 0.0f) {
-                    Ray shadow;
-                    shadow.origin = offset_ray_origin(sp.p, sp.ng, sp.offset_scale);
-                    const Vec3f end = offset_ray_origin(pl, glm::dot(nl, wi_l) < 0.0f ? nl : -nl,
-                                                        offset_scale(pl, p0, p1, p2));
-                    shadow.dir = end - shadow.origin;
-                    shadow.tmax = 1.0f;
-                    ++counters.shadow_rays;
-                    recorder.any(shadow);
-                    if (!tree.occluded(shadow, tcp)) {
-                        const float w =
-                            use_mis ? power_heuristic(
-                                          pdf, bsdf_pdf(mat, wo, wi, params.diffuse_sampling))
-                                    : 1.0f;
-                        radiance += beta * f * lm.emission * (w / pdf);
-                    }
-                }
-            }
-        }
-
-        // x picks a dielectric's lobe, y decides Russian roulette.
-        const bool roulette = params.russian_roulette && depth + 1 >= params.rr_min_depth;
-        const Vec2f u_lobe_rr =
-            roulette || mat.type == MaterialType::dielectric ? sampler.next_2d() : Vec2f(0.0f);
-        // Continue the path by sampling the BSDF.
-        BsdfSample bs;
-        if (!bsdf_sample(mat, wo, u_bsdf, u_lobe_rr.x, bs, params.diffuse_sampling)) break;
-        const Vec3f wi_world = glm::normalize(sp.frame.to_world(bs.wi));
-        const float cos_g_in = glm::dot(wi_world, sp.ng);
-        // Reject directions on the wrong side of the geometric surface (light leaks from
-        // shading normals): reflection must leave on wo's side, transmission on the other.
-        const bool transmit = bs.wi.z * wo.z < 0.0f;
-        const float cos_g_out = glm::dot(wo_world, sp.ng);
-        if (transmit ? cos_g_in * cos_g_out >= 0.0f : cos_g_in * cos_g_out <= 0.0f) break;
-        beta *= bs.weight;
-        specular_bounce = bs.delta;
-        prev_bsdf_pdf = bs.pdf_solid_angle;
-        if (!(max_component(beta) > 0.0f)) break;
-
-        // Russian roulette: survive with probability min(1, max throughput) and reweight.
-        if (roulette) {
-            const float survive = std::min(1.0f, max_component(beta));
-            if (u_lobe_rr.y >= survive) break;
-            beta /= survive;
-        }
-        ray = Ray{};
-        ray.origin = offset_ray_origin(sp.p, cos_g_in > 0.0f ? sp.ng : -sp.ng, sp.offset_scale);
-        ray.dir = wi_world;
-        ++counters.bounce_rays;
-    }
+    } while (st.alive);
     counters.nodes_visited += tc.nodes_visited;
     counters.triangles_tested += tc.triangles_tested;
-    return radiance;
+    return st.radiance;
 }
 
 }  // namespace

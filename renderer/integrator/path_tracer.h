@@ -45,6 +45,10 @@ struct TraceParams {
     uint64_t seed = 0;            ///< keys all randomness with the pixel and sample index
     int threads = 0;              ///< OpenMP threads; 0 = default
     bool count_traversal = true;  ///< count nodes visited and triangles tested
+    /// Render a tile pass's paths together, bounce by bounce, each bounce's rays traced as
+    /// streams (integrator/wavefront.h), else one path at a time; the image and the counters
+    /// are the same bit for bit. Tiles with a heat map take the one-path route.
+    bool wavefront = true;
 };
 
 /// Per-thread counters, summed at the end of a pass.

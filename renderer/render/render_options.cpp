@@ -53,6 +53,8 @@ const Field<TP> kTraceFields[] = {
     KDT_FIELD(TP, seed, "--seed", "Seed of all randomness", 0.0, kMaxSeed),
     KDT_FIELD(TP, threads, "--threads", "Threads (0 = all)", 0, 1024),
     KDT_FIELD(TP, count_traversal, nullptr, "Count kd-tree nodes and triangles per ray"),
+    KDT_FIELD(TP, wavefront, "--no-wavefront",
+              "Trace one path at a time instead of a tile pass's paths as ray streams"),
 };
 
 const Field<FP> kFilmFields[] = {

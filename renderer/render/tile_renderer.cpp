@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
+
+#include "renderer/integrator/wavefront.h"
 
 namespace kdt {
 
@@ -22,7 +25,130 @@ Vec3f aov_shading_normal(const TraceScene& scene, const Ray& ray, const Hit& hit
     return glm::dot(n, ray.dir) > 0.0f ? -n : n;
 }
 
+namespace {
+
+// Hands one finished sample of pixel (x, y) to the film and the AOVs: its radiance L and its
+// camera ray's hit. Non-finite or negative radiance is dropped and counted.
+void add_sample(const TileTarget& t, int x, int y, const Ray& ray, const Hit& hit, Vec3f L,
+                PathCounters& counters) {
+    Film& film = *t.film;
+    bool covered = true;
+    if (t.transparent) {
+        covered = hit.valid();
+        if (!covered) L = Vec3f(0.0f);
+    }
+    const size_t pi = size_t(y) * size_t(film.width()) + size_t(x);
+    if (t.aov_normal != nullptr && hit.valid()) {
+        const Vec3f sn = aov_shading_normal(*t.scene, ray, hit);
+        t.aov_normal[3 * pi] += sn.x;
+        t.aov_normal[3 * pi + 1] += sn.y;
+        t.aov_normal[3 * pi + 2] += sn.z;
+        t.aov_depth[pi] += hit.t;
+        ++t.aov_hits[pi];
+    }
+    if (is_finite(L) && L.x >= 0.0f && L.y >= 0.0f && L.z >= 0.0f) {
+        film.add_sample(x, y, L);
+        if (t.transparent) film.add_coverage(x, y, covered ? 1.0f : 0.0f);
+    } else {
+        film.skip_sample(x, y);
+        ++counters.nonfinite_dropped;
+    }
+}
+
+// One sample of the tile pass: its pixel and its sampler (one draw made: the film position).
+struct TileSample {
+    PixelSampler sampler;
+    Vec2f u_film{0.0f};
+    int x = 0, y = 0;
+};
+
+// Per-thread working memory of the wavefront route (grows to the largest tile pass).
+struct TileScratch {
+    std::vector<TileSample> samples;
+    std::vector<Ray> rays;
+    std::vector<Hit> hits;
+    std::vector<PixelSampler> samplers;
+    std::vector<Vec3f> radiance;
+    WavefrontScratch wavefront;
+};
+
+// Samples a wavefront takes at most: 16 samples per pass of a 16x16 tile. Larger passes
+// are traced in chunks of this many, in order, so memory stays bounded.
+constexpr size_t kMaxWavefront = 4096;
+
+// Traces the samples s.samples (their samplers have made no draw yet) as one wavefront and
+// hands them to the film in order.
+void trace_wavefront(const TileTarget& t, TileScratch& s, PathCounters& counters) {
+    const TraceScene& scene = *t.scene;
+    const TraceParams& trace = *t.trace;
+    const size_t n = s.samples.size();
+    if (s.rays.size() < n) {
+        s.rays.resize(n);
+        s.hits.resize(n);
+        s.samplers.resize(n);
+        s.radiance.resize(n);
+    }
+    for (size_t i = 0; i < n; ++i) s.samples[i].u_film = s.samples[i].sampler.next_2d();
+    for (size_t i = 0; i < n; ++i) {
+        const TileSample& c = s.samples[i];
+        s.rays[i] = camera_ray(*t.camera, trace, c.x, c.y, c.u_film);
+        s.samplers[i] = c.sampler;
+    }
+    // Camera rays row by row to the batch query (8-ray packets of neighbouring samples).
+    TraversalCounters tc;
+    for (size_t i = 0; i < n;) {
+        size_t e = i + 1;
+        while (e < n && s.samples[e].y == s.samples[i].y) ++e;
+        scene.tree->intersect(s.rays.data() + i, e - i, s.hits.data() + i,
+                              trace.count_traversal ? &tc : nullptr);
+        i = e;
+    }
+    counters.nodes_visited += tc.nodes_visited;
+    counters.triangles_tested += tc.triangles_tested;
+    trace_camera_hits(scene, trace, s.rays.data(), s.hits.data(), s.samplers.data(), n,
+                      s.radiance.data(), counters, s.wavefront);
+    for (size_t i = 0; i < n; ++i)
+        add_sample(t, s.samples[i].x, s.samples[i].y, s.rays[i], s.hits[i], s.radiance[i],
+                   counters);
+    s.samples.clear();
+}
+
+// render_tile() through the wavefront (TraceParams::wavefront): the samples of the tile
+// pass are made in pixel and sample order, their paths traced together (up to
+// kMaxWavefront at a time), and the film takes them in that order. Without heat maps.
+size_t render_tile_wavefront(const TileTarget& t, const FilmRect& tile, PathCounters& counters) {
+    const TraceParams& trace = *t.trace;
+    const Film& film = *t.film;
+    const int spp = std::max(trace.samples_per_pass, 1);
+    thread_local TileScratch s;
+    s.samples.clear();
+    size_t pixels_done = 0;
+    for (int y = tile.y0; y < tile.y1; ++y) {
+        for (int x = tile.x0; x < tile.x1; ++x) {
+            if (!film.active(x, y)) continue;
+            // Read once: a chunk traced in the middle of the pixel adds to its count.
+            const uint32_t first_index = film.next_sample_index(x, y);
+            const uint64_t key = PixelSampler::pixel_key(trace.seed, uint32_t(x), uint32_t(y));
+            int k = 0;
+            for (; k < spp && first_index + uint32_t(k) < t.max_spp; ++k) {
+                TileSample& c = s.samples.emplace_back();
+                c.sampler = PixelSampler(key, first_index + uint32_t(k));
+                c.x = x;
+                c.y = y;
+                if (s.samples.size() == kMaxWavefront) trace_wavefront(t, s, counters);
+            }
+            pixels_done += k > 0;
+        }
+    }
+    if (!s.samples.empty()) trace_wavefront(t, s, counters);
+    return pixels_done;
+}
+
+}  // namespace
+
 size_t render_tile(const TileTarget& t, const FilmRect& tile, PathCounters& counters) {
+    if (t.trace->wavefront && t.heat_nodes == nullptr)
+        return render_tile_wavefront(t, tile, counters);
     const TraceScene& scene = *t.scene;
     const Camera& camera = *t.camera;
     const TraceParams& trace = *t.trace;
@@ -30,7 +156,6 @@ size_t render_tile(const TileTarget& t, const FilmRect& tile, PathCounters& coun
     const int width = film.width();
     const int spp = std::max(trace.samples_per_pass, 1);
     const bool heat = t.heat_nodes != nullptr;
-    const bool aov = t.aov_normal != nullptr;
     size_t pixels_done = 0;
     // Camera rays are made for up to kBatch samples of a tile row (in pixel and sample
     // order) before they are traced, in separate loops for the sampler's first draw and
@@ -112,32 +237,13 @@ size_t render_tile(const TileTarget& t, const FilmRect& tile, PathCounters& coun
                     counters.triangles_tested += tc.triangles_tested;
                 }
                 const Hit& hit = heat ? own : hits[i];
-                Vec3f L = trace_camera_hit(scene, trace, rays[i], hit, c.sampler, counters);
-                bool covered = true;
-                if (t.transparent) {
-                    covered = hit.valid();
-                    if (!covered) L = Vec3f(0.0f);
-                }
-                const size_t pi = size_t(y) * size_t(width) + size_t(c.x);
-                if (aov && hit.valid()) {
-                    const Vec3f sn = aov_shading_normal(scene, rays[i], hit);
-                    t.aov_normal[3 * pi] += sn.x;
-                    t.aov_normal[3 * pi + 1] += sn.y;
-                    t.aov_normal[3 * pi + 2] += sn.z;
-                    t.aov_depth[pi] += hit.t;
-                    ++t.aov_hits[pi];
-                }
+                const Vec3f L = trace_camera_hit(scene, trace, rays[i], hit, c.sampler, counters);
                 if (heat) {
+                    const size_t pi = size_t(y) * size_t(width) + size_t(c.x);
                     t.heat_nodes[pi] += counters.nodes_visited - nodes0;
                     t.heat_triangles[pi] += counters.triangles_tested - tris0;
                 }
-                if (is_finite(L) && L.x >= 0.0f && L.y >= 0.0f && L.z >= 0.0f) {
-                    film.add_sample(c.x, y, L);
-                    if (t.transparent) film.add_coverage(c.x, y, covered ? 1.0f : 0.0f);
-                } else {
-                    film.skip_sample(c.x, y);
-                    ++counters.nonfinite_dropped;
-                }
+                add_sample(t, c.x, y, rays[i], hit, L, counters);
             }
         }
     }

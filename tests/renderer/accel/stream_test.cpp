@@ -18,22 +18,30 @@
 namespace kdt {
 namespace {
 
-// Stream closest hits and any-hits with every lane count against one query per ray;
-// returns how many rays hit something.
+// Stream closest hits and any-hits with every lane count against one query per ray, and
+// the traversal work they count against the sums of the single queries' counts; returns how
+// many rays hit something.
 size_t expect_stream_equals_single(const KdTree& tree, const std::vector<Ray>& rays,
                                    const std::string& what) {
     std::vector<Hit> single(rays.size());
     std::vector<uint8_t> single_occ(rays.size());
     size_t hits = 0;
+    TraversalCounters single_closest, single_any;
     for (size_t i = 0; i < rays.size(); ++i) {
-        hits += tree.intersect(rays[i], single[i]);
-        single_occ[i] = tree.occluded(rays[i]) ? 1 : 0;
+        hits += tree.intersect(rays[i], single[i], &single_closest);
+        single_occ[i] = tree.occluded(rays[i], &single_any) ? 1 : 0;
     }
     for (int lanes : kStreamLaneChoices) {
         std::vector<Hit> stream(rays.size(), Hit{1.0f, 0.5f, 0.5f, 3});
         std::vector<uint8_t> occ(rays.size(), 7);
-        intersect_stream(tree, rays.data(), rays.size(), stream.data(), lanes);
-        occluded_stream(tree, rays.data(), rays.size(), occ.data(), lanes);
+        TraversalCounters closest, any;
+        intersect_stream(tree, rays.data(), rays.size(), stream.data(), lanes, &closest);
+        occluded_stream(tree, rays.data(), rays.size(), occ.data(), lanes, &any);
+        EXPECT_EQ(closest.nodes_visited, single_closest.nodes_visited) << what << ", " << lanes;
+        EXPECT_EQ(closest.triangles_tested, single_closest.triangles_tested)
+            << what << ", " << lanes;
+        EXPECT_EQ(any.nodes_visited, single_any.nodes_visited) << what << ", " << lanes;
+        EXPECT_EQ(any.triangles_tested, single_any.triangles_tested) << what << ", " << lanes;
         for (size_t i = 0; i < rays.size(); ++i) {
             EXPECT_TRUE(test::bitwise_equal(single[i], stream[i]))
                 << what << ", " << lanes << " lanes: ray " << i << ": single prim "

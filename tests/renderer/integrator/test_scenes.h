@@ -124,4 +124,19 @@ inline TraceScene make_scene(const std::vector<std::pair<TriangleMesh, ShadingIn
 inline ShadingInstance flat(const Material& m) { return {m, false}; }
 inline ShadingInstance smooth(const Material& m) { return {m, true}; }
 
+/// A smooth diffuse sphere and a glass sphere on a box, an emissive quad above them, with its
+/// emitter table: every kind of shadow ray and lobe (wavefront and tile tests).
+inline TraceScene make_mixed_scene(std::shared_ptr<const EnvironmentLight> env) {
+    Material glass = of_type(MaterialType::dielectric);
+    glass.ior = 1.5f;
+    TraceScene s = make_scene({{make_icosphere({-0.5f, 0.4f, 0}, 0.4f, 2), smooth(diffuse(0.7f))},
+                               {make_icosphere({0.5f, 0.4f, 0.2f}, 0.4f, 2), smooth(glass)},
+                               {make_box({-1.5f, -1, -1.5f}, {1.5f, 0, 1.5f}), flat(diffuse(0.5f))},
+                               {make_quad({-0.3f, 1.5f, -0.3f}, {0.6f, 0, 0}, {0, 0, 0.6f}),
+                                flat(diffuse(0.0f, Vec3f(8.0f, 7.0f, 6.0f)))}},
+                              std::move(env));
+    s.emitters = build_emitter_table(s);
+    return s;
+}
+
 }  // namespace kdt::test
