@@ -147,6 +147,9 @@ void run_throughput(const ConvergeArgs& a, const RenderSnapshot& snap,
     tp.threads = a.threads;
     tp.max_depth = a.path_depth;
     tp.samples_per_pass = 4;
+    // One path at a time, as the replay traces one ray per query: the ratio is the shading's
+    // overhead, not the wavefront's stream gain (docs/performance.md measures that).
+    tp.wavefront = false;
     const int threads = a.threads > 0 ? a.threads : omp_get_max_threads();
     // The rays in the render pass's order (tile by tile, row by row, pixel by pixel, sample
     // by sample), so the replay has the same memory locality; the camera rays (each sample's

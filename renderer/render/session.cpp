@@ -365,7 +365,7 @@ int auto_samples_per_pass(const StopConditions& stop, int last, double seconds, 
     const double per_sample = seconds / double(std::max(last, 1));
     if (per_sample > 0.0) {
         double budget = 1.0;
-        if (stop.seconds > 0.0) budget = std::min(budget, 0.25 * (stop.seconds - p.seconds));
+        if (stop.seconds > 0.0) budget = std::min(budget, 0.5 * (stop.seconds - p.seconds));
         k = std::min(k, std::floor(budget / per_sample));
     }
     const double done_spp = double(p.samples) / pixels;

@@ -196,7 +196,7 @@ inline constexpr int kMaxAutoSamplesPerPass = 16;
 /// The automatic pass size after a pass of `last` samples per pixel that took `seconds`, with
 /// `p` the render's progress after it (samples, seconds, error) on `pixels` pixels: at most
 /// kMaxAutoSamplesPerPass, the samples left to an spp target, about a second of work, a
-/// quarter of the time left to a time target, and for an error target a quarter of the
+/// half of the time left to a time target, and for an error target a quarter of the
 /// samples the error's 1/sqrt(n) decay predicts (1 while no error is known). For renders
 /// without adaptive sampling, whose image does not depend on the pass sizes.
 int auto_samples_per_pass(const StopConditions& stop, int last, double seconds, double pixels,
