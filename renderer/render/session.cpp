@@ -389,7 +389,8 @@ RenderProgress run_render(RenderSession& session, const StopConditions& stop,
     // Without adaptivity, --spp is exact per pixel; with it, a total budget and a cap.
     int cap = stop.max_spp;
     if (stop.spp > 0 && !adaptive) cap = std::min(cap, stop.spp);
-    const bool auto_pass = session.trace_params().samples_per_pass == 0 && !adaptive;
+    const bool auto_pass = session.trace_params().samples_per_pass == 0;
+    const int min_spp = session.film_params().adaptive_min_spp;
     Timer timer;
     RenderProgress p;
     int per_pass = auto_pass ? 1 : 0;  // 0: the session's samples_per_pass
@@ -429,7 +430,21 @@ RenderProgress run_render(RenderSession& session, const StopConditions& stop,
             p.mean_relative_error = film.mean_relative_error();
         if (progress) progress(p);
         if (done) break;
-        if (auto_pass) per_pass = auto_samples_per_pass(stop, per_pass, ps.seconds, pixels, p);
+        if (auto_pass && !adaptive) {
+            per_pass = auto_samples_per_pass(stop, per_pass, ps.seconds, pixels, p);
+        } else if (auto_pass) {
+            // Adaptive: every pixel samples until adaptive_min_spp (Film::update_active), so
+            // that warm-up takes passes as large as the spp and time conditions allow, ending
+            // exactly at the minimum: the same samples as one per pass. Then the film sizes
+            // the passes (0).
+            const double left = double(min_spp) - double(p.samples) / pixels;
+            StopConditions warm = stop;
+            warm.error = 0.0f;  // the error target is the stopping rule's, not a sample count
+            per_pass = left >= 1.0 ? std::min(auto_samples_per_pass(warm, std::max(per_pass, 1),
+                                                                    ps.seconds, pixels, p),
+                                              int(left))
+                                   : 0;
+        }
     }
     return p;
 }

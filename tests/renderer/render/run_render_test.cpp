@@ -97,16 +97,30 @@ TEST(RunRender, AutomaticPassesGiveTheImageOfOneSamplePerPass) {
     EXPECT_EQ(0, std::memcmp(images[0].data(), images[1].data(), images[0].size() * sizeof(float)));
 }
 
-TEST(RunRender, AdaptiveSamplingKeepsOneSamplePerPassUnlessAsked) {
-    TraceParams tp;  // samples_per_pass 0
+TEST(RunRender, AdaptiveWarmUpInLargerPassesGivesTheSameImage) {
+    // Every pixel samples until adaptive_min_spp: automatic passes take those samples in
+    // fewer passes, ending exactly at the minimum, and the film then picks the same pixels.
     FilmParams fp;
     fp.adaptive = true;
-    fp.adaptive_min_spp = 4;
+    fp.adaptive_min_spp = 12;
+    fp.adaptive_threshold = 0.05f;
     StopConditions stop;
-    stop.spp = 6;
-    const auto seen = run(tp, fp, stop);
-    ASSERT_FALSE(seen.empty());
-    EXPECT_EQ(seen.front().samples, 24u * 16u);  // the first pass: one sample per pixel
+    stop.spp = 20;
+    std::vector<float> images[2];
+    std::vector<RenderProgress> seen[2];
+    for (int k = 0; k < 2; ++k) {
+        TraceParams tp;
+        tp.samples_per_pass = k == 0 ? 0 : 1;
+        RenderSession s(scene_snapshot(), tp, fp);
+        run_render(s, stop, [&](const RenderProgress& p) { seen[k].push_back(p); });
+        images[k] = s.film().linear_rgb();
+    }
+    ASSERT_FALSE(seen[0].empty());
+    EXPECT_EQ(seen[0].front().samples, 24u * 16u);  // the first pass: one sample per pixel
+    EXPECT_LT(seen[0].size(), seen[1].size());
+    EXPECT_EQ(seen[0].back().samples, seen[1].back().samples);
+    ASSERT_EQ(images[0].size(), images[1].size());
+    EXPECT_EQ(0, std::memcmp(images[0].data(), images[1].data(), images[0].size() * sizeof(float)));
 }
 
 }  // namespace
