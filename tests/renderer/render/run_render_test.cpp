@@ -74,27 +74,46 @@ TEST(RunRender, NoErrorEstimateBelowTwoSamples) {
     EXPECT_GT(seen.back().mean_relative_error, 0.0);
 }
 
-TEST(RunRender, AutomaticPassesGiveTheImageOfOneSamplePerPass) {
-    StopConditions stop;
-    stop.spp = 21;
-    std::vector<float> images[2];
-    int passes[2] = {};
+// One render with automatic passes (samples_per_pass 0) and one with 1 sample per pass: the
+// progress after each pass, and the image.
+struct AutoAndSingle {
+    std::vector<RenderProgress> seen[2];
+    std::vector<float> image[2];
+};
+
+AutoAndSingle render_auto_and_single(const FilmParams& fp, const StopConditions& stop) {
+    AutoAndSingle r;
     for (int k = 0; k < 2; ++k) {
         TraceParams tp;
         tp.samples_per_pass = k == 0 ? 0 : 1;
         tp.seed = 9;
-        RenderSession s(scene_snapshot(), tp, FilmParams{});
-        const RenderProgress p = run_render(s, stop);
-        passes[k] = p.passes;
-        EXPECT_EQ(p.samples, 21u * 24u * 16u);
-        images[k] = s.film().linear_rgb();
+        RenderSession s(scene_snapshot(), tp, fp);
+        run_render(s, stop, [&](const RenderProgress& p) { r.seen[k].push_back(p); });
+        r.image[k] = s.film().linear_rgb();
     }
-    EXPECT_EQ(passes[1], 21);
+    return r;
+}
+
+void expect_same_image(const AutoAndSingle& r) {
+    ASSERT_EQ(r.image[0].size(), r.image[1].size());
+    EXPECT_EQ(0,
+              std::memcmp(r.image[0].data(), r.image[1].data(), r.image[0].size() * sizeof(float)));
+}
+
+TEST(RunRender, AutomaticPassesGiveTheImageOfOneSamplePerPass) {
+    StopConditions stop;
+    stop.spp = 21;
+    const AutoAndSingle r = render_auto_and_single(FilmParams{}, stop);
+    for (const auto& seen : r.seen) {
+        ASSERT_FALSE(seen.empty());
+        EXPECT_EQ(seen.back().samples, 21u * 24u * 16u);
+    }
+    EXPECT_EQ(r.seen[1].size(), 21u);
     // 1 sample, then at most kMaxAutoSamplesPerPass (fewer if a pass would exceed a second).
-    EXPECT_LT(passes[0], 21);
-    EXPECT_GE(passes[0], 1 + (21 - 1 + kMaxAutoSamplesPerPass - 1) / kMaxAutoSamplesPerPass);
-    ASSERT_EQ(images[0].size(), images[1].size());
-    EXPECT_EQ(0, std::memcmp(images[0].data(), images[1].data(), images[0].size() * sizeof(float)));
+    EXPECT_LT(r.seen[0].size(), 21u);
+    EXPECT_GE(r.seen[0].size(),
+              size_t(1 + (21 - 1 + kMaxAutoSamplesPerPass - 1) / kMaxAutoSamplesPerPass));
+    expect_same_image(r);
 }
 
 TEST(RunRender, AdaptiveWarmUpInLargerPassesGivesTheSameImage) {
@@ -106,21 +125,12 @@ TEST(RunRender, AdaptiveWarmUpInLargerPassesGivesTheSameImage) {
     fp.adaptive_threshold = 0.05f;
     StopConditions stop;
     stop.spp = 20;
-    std::vector<float> images[2];
-    std::vector<RenderProgress> seen[2];
-    for (int k = 0; k < 2; ++k) {
-        TraceParams tp;
-        tp.samples_per_pass = k == 0 ? 0 : 1;
-        RenderSession s(scene_snapshot(), tp, fp);
-        run_render(s, stop, [&](const RenderProgress& p) { seen[k].push_back(p); });
-        images[k] = s.film().linear_rgb();
-    }
-    ASSERT_FALSE(seen[0].empty());
-    EXPECT_EQ(seen[0].front().samples, 24u * 16u);  // the first pass: one sample per pixel
-    EXPECT_LT(seen[0].size(), seen[1].size());
-    EXPECT_EQ(seen[0].back().samples, seen[1].back().samples);
-    ASSERT_EQ(images[0].size(), images[1].size());
-    EXPECT_EQ(0, std::memcmp(images[0].data(), images[1].data(), images[0].size() * sizeof(float)));
+    const AutoAndSingle r = render_auto_and_single(fp, stop);
+    ASSERT_FALSE(r.seen[0].empty());
+    EXPECT_EQ(r.seen[0].front().samples, 24u * 16u);  // the first pass: one sample per pixel
+    EXPECT_LT(r.seen[0].size(), r.seen[1].size());
+    EXPECT_EQ(r.seen[0].back().samples, r.seen[1].back().samples);
+    expect_same_image(r);
 }
 
 }  // namespace
