@@ -153,6 +153,94 @@ PathRules path_rules(const TraceScene& scene, const TraceParams& params) {
     return r;
 }
 
+namespace {
+
+// Emits a shadow ray of st's step that adds color * scale when unoccluded.
+void emit_shadow(PathState& st, PathCounters& counters, const Ray& shadow, const Vec3f& color,
+                 float scale) {
+    const int k = st.shadow_count++;
+    st.shadow[k] = shadow;
+    st.shadow_color[k] = color;
+    st.shadow_scale[k] = scale;
+    ++counters.shadow_rays;
+}
+
+// Next-event estimation of the environment at the non-delta surface point sp (path_step).
+void sample_environment(const TraceScene& scene, const TraceParams& params, bool use_mis,
+                        const SurfacePoint& sp, const Vec3f& wo, const Vec2f& u_light,
+                        PathState& st, PathCounters& counters) {
+    const EnvironmentLight& env = *scene.env;
+    const Material& mat = *sp.material;
+    EnvSample ls;
+    if (params.env_importance) {
+        ls = use_mis ? env.sample_mis(u_light) : env.sample(u_light);
+    } else {
+        ls.dir = sample_uniform_sphere(u_light);
+        ls.radiance = env.eval(ls.dir);
+        ls.pdf_solid_angle = kInv4Pi;
+    }
+    if (!(ls.pdf_solid_angle > 0.0f && max_component(ls.radiance) > 0.0f &&
+          glm::dot(ls.dir, sp.ng) > 0.0f))
+        return;
+    const Vec3f wi = sp.frame.to_local(ls.dir);
+    const Vec3f f = bsdf_eval(mat, wo, wi, params.diffuse_sampling);
+    if (!(max_component(f) > 0.0f)) return;
+    Ray shadow;
+    shadow.origin = offset_ray_origin(sp.p, sp.ng, sp.offset_scale);
+    shadow.dir = ls.dir;
+    const float w = use_mis ? power_heuristic(ls.pdf_solid_angle,
+                                              bsdf_pdf(mat, wo, wi, params.diffuse_sampling))
+                            : 1.0f;
+    emit_shadow(st, counters, shadow, st.beta * f * ls.radiance, w / ls.pdf_solid_angle);
+}
+
+// Next-event estimation of the emissive triangles at the non-delta surface point sp: a
+// uniform point on a triangle picked by power; the shadow ray ends a few ULPs before the
+// emitter's surface.
+void sample_emitter(const TraceScene& scene, const TraceParams& params, bool use_mis,
+                    const SurfacePoint& sp, const Vec3f& wo, PixelSampler& sampler, PathState& st,
+                    PathCounters& counters) {
+    const Material& mat = *sp.material;
+    const Vec2f u_pick = sampler.next_2d();
+    size_t cell = 0;
+    scene.emitters.dist.sample_continuous(u_pick.x, &cell);
+    const uint32_t prim = scene.emitters.triangles[cell];
+    const Vec3u& tri = scene.mesh->triangles[prim];
+    const Vec3f& p0 = scene.mesh->positions[tri.x];
+    const Vec3f& p1 = scene.mesh->positions[tri.y];
+    const Vec3f& p2 = scene.mesh->positions[tri.z];
+    const float su = std::sqrt(u_pick.y);
+    const Vec2f u_pt = sampler.next_2d();
+    const float b1 = su * (1.0f - u_pt.x), b2 = su * u_pt.x;
+    const Vec3f pl = (1.0f - b1 - b2) * p0 + b1 * p1 + b2 * p2;
+    const Vec3f nl = triangle_normal(p0, p1, p2);
+    // Distances in double: a float squared distance overflows beyond about 1e19.
+    const Vec3d d = Vec3d(pl) - Vec3d(sp.p);
+    const double dist2 = glm::dot(d, d);
+    const Vec3f wi_l(d / std::sqrt(dist2));
+    const float cos_l = std::fabs(glm::dot(nl, wi_l));
+    const Material& lm = scene.instances[scene.instance_of(prim)].material;
+    const auto pdf =
+        float(double(mean_component(lm.emission)) / scene.emitters.total * dist2 / cos_l);
+    if (!(dist2 > 0.0 && cos_l > 0.0f && std::isfinite(pdf) && pdf > 0.0f &&
+          glm::dot(wi_l, sp.ng) > 0.0f))
+        return;
+    const Vec3f wi = sp.frame.to_local(wi_l);
+    const Vec3f f = bsdf_eval(mat, wo, wi, params.diffuse_sampling);
+    if (!(max_component(f) > 0.0f)) return;
+    Ray shadow;
+    shadow.origin = offset_ray_origin(sp.p, sp.ng, sp.offset_scale);
+    const Vec3f end =
+        offset_ray_origin(pl, glm::dot(nl, wi_l) < 0.0f ? nl : -nl, offset_scale(pl, p0, p1, p2));
+    shadow.dir = end - shadow.origin;
+    shadow.tmax = 1.0f;
+    const float w =
+        use_mis ? power_heuristic(pdf, bsdf_pdf(mat, wo, wi, params.diffuse_sampling)) : 1.0f;
+    emit_shadow(st, counters, shadow, st.beta * f * lm.emission, w / pdf);
+}
+
+}  // namespace
+
 void path_step(const TraceScene& scene, const TraceParams& params, const PathRules& rules,
                PathState& st, const Hit& hit, PixelSampler& sampler, PathCounters& counters) {
     const EnvironmentLight& env = *scene.env;
@@ -213,83 +301,11 @@ void path_step(const TraceScene& scene, const TraceParams& params, const PathRul
 
     const Vec3f wo_world = -ray.dir;
     const Vec3f wo = sp.frame.to_local(wo_world);
-    // Emits a shadow ray that adds color * scale when unoccluded.
-    auto emit_shadow = [&](const Ray& shadow, const Vec3f& color, float scale) {
-        const int k = st.shadow_count++;
-        st.shadow[k] = shadow;
-        st.shadow_color[k] = color;
-        st.shadow_scale[k] = scale;
-        ++counters.shadow_rays;
-    };
-
-    // Next-event estimation of the environment.
     if (env_nee && !is_delta(mat)) {
-        EnvSample ls;
-        if (params.env_importance) {
-            ls = use_mis ? env.sample_mis(u_light) : env.sample(u_light);
-        } else {
-            ls.dir = sample_uniform_sphere(u_light);
-            ls.radiance = env.eval(ls.dir);
-            ls.pdf_solid_angle = kInv4Pi;
-        }
-        if (ls.pdf_solid_angle > 0.0f && max_component(ls.radiance) > 0.0f &&
-            glm::dot(ls.dir, sp.ng) > 0.0f) {
-            const Vec3f wi = sp.frame.to_local(ls.dir);
-            const Vec3f f = bsdf_eval(mat, wo, wi, params.diffuse_sampling);
-            if (max_component(f) > 0.0f) {
-                Ray shadow;
-                shadow.origin = offset_ray_origin(sp.p, sp.ng, sp.offset_scale);
-                shadow.dir = ls.dir;
-                const float w =
-                    use_mis ? power_heuristic(ls.pdf_solid_angle,
-                                              bsdf_pdf(mat, wo, wi, params.diffuse_sampling))
-                            : 1.0f;
-                emit_shadow(shadow, st.beta * f * ls.radiance, w / ls.pdf_solid_angle);
-            }
-        }
+        sample_environment(scene, params, use_mis, sp, wo, u_light, st, counters);
     }
-
-    // Next-event estimation of the emissive triangles: a uniform point on a triangle
-    // picked by power; the shadow ray ends a few ULPs before the emitter's surface.
     if (sample_emitters && !is_delta(mat)) {
-        const Vec2f u_pick = sampler.next_2d();
-        size_t cell = 0;
-        scene.emitters.dist.sample_continuous(u_pick.x, &cell);
-        const uint32_t prim = scene.emitters.triangles[cell];
-        const Vec3u& tri = scene.mesh->triangles[prim];
-        const Vec3f& p0 = scene.mesh->positions[tri.x];
-        const Vec3f& p1 = scene.mesh->positions[tri.y];
-        const Vec3f& p2 = scene.mesh->positions[tri.z];
-        const float su = std::sqrt(u_pick.y);
-        const Vec2f u_pt = sampler.next_2d();
-        const float b1 = su * (1.0f - u_pt.x), b2 = su * u_pt.x;
-        const Vec3f pl = (1.0f - b1 - b2) * p0 + b1 * p1 + b2 * p2;
-        const Vec3f nl = triangle_normal(p0, p1, p2);
-        // Distances in double: a float squared distance overflows beyond about 1e19.
-        const Vec3d d = Vec3d(pl) - Vec3d(sp.p);
-        const double dist2 = glm::dot(d, d);
-        const Vec3f wi_l(d / std::sqrt(dist2));
-        const float cos_l = std::fabs(glm::dot(nl, wi_l));
-        const Material& lm = scene.instances[scene.instance_of(prim)].material;
-        const auto pdf =
-            float(double(mean_component(lm.emission)) / scene.emitters.total * dist2 / cos_l);
-        if (dist2 > 0.0 && cos_l > 0.0f && std::isfinite(pdf) && pdf > 0.0f &&
-            glm::dot(wi_l, sp.ng) > 0.0f) {
-            const Vec3f wi = sp.frame.to_local(wi_l);
-            const Vec3f f = bsdf_eval(mat, wo, wi, params.diffuse_sampling);
-            if (max_component(f) > 0.0f) {
-                Ray shadow;
-                shadow.origin = offset_ray_origin(sp.p, sp.ng, sp.offset_scale);
-                const Vec3f end = offset_ray_origin(pl, glm::dot(nl, wi_l) < 0.0f ? nl : -nl,
-                                                    offset_scale(pl, p0, p1, p2));
-                shadow.dir = end - shadow.origin;
-                shadow.tmax = 1.0f;
-                const float w =
-                    use_mis ? power_heuristic(pdf, bsdf_pdf(mat, wo, wi, params.diffuse_sampling))
-                            : 1.0f;
-                emit_shadow(shadow, st.beta * f * lm.emission, w / pdf);
-            }
-        }
+        sample_emitter(scene, params, use_mis, sp, wo, sampler, st, counters);
     }
 
     // x picks a dielectric's lobe, y decides Russian roulette.
