@@ -55,73 +55,86 @@ void add_sample(const TileTarget& t, int x, int y, const Ray& ray, const Hit& hi
     }
 }
 
-// One sample of the tile pass: its pixel and its sampler (one draw made: the film position).
-struct TileSample {
-    PixelSampler sampler;
-    Vec2f u_film{0.0f};
-    int x = 0, y = 0;
-};
-
-// Per-thread working memory of the wavefront route (grows to the largest tile pass).
+// Per-thread working memory of render_tile (grows to the largest chunk): the chunk's
+// samples in order, their pixels and samplers, camera rays, hits and radiance.
 struct TileScratch {
-    std::vector<TileSample> samples;
+    std::vector<int> x, y;
+    std::vector<PixelSampler> samplers;
+    std::vector<Vec2f> u_film;
     std::vector<Ray> rays;
     std::vector<Hit> hits;
-    std::vector<PixelSampler> samplers;
     std::vector<Vec3f> radiance;
     WavefrontScratch wavefront;
 };
 
-// Samples a wavefront takes at most: 16 samples per pass of a 16x16 tile. Larger passes
-// are traced in chunks of this many, in order, so memory stays bounded.
-constexpr size_t kMaxWavefront = 4096;
+// Samples traced together at most: 16 samples per pass of a 16x16 tile. Larger passes are
+// traced in chunks of this many, in order, so memory stays bounded.
+constexpr size_t kMaxChunk = 4096;
 
-// Traces the samples s.samples (their samplers have made no draw yet) as one wavefront and
-// hands them to the film in order.
-void trace_wavefront(const TileTarget& t, TileScratch& s, PathCounters& counters) {
+// Traces the chunk of samples s.samplers (which have made no draw yet) and hands them to
+// the film in order. The camera rays go to the kd-tree's batch query (each 8 in a row that
+// are coherent, such as samples of one pixel or neighbouring pixels, as one packet, with
+// exactly the hits of one query per ray), then the paths advance together through the
+// wavefront (TraceParams::wavefront) or one at a time. A heat map needs each sample's own
+// traversal counts: then each camera ray is traced on its own and each path one at a time.
+void trace_chunk(const TileTarget& t, TileScratch& s, PathCounters& counters) {
     const TraceScene& scene = *t.scene;
     const TraceParams& trace = *t.trace;
-    const size_t n = s.samples.size();
-    if (s.rays.size() < n) {
-        s.rays.resize(n);
-        s.hits.resize(n);
-        s.samplers.resize(n);
-        s.radiance.resize(n);
-    }
-    for (size_t i = 0; i < n; ++i) s.samples[i].u_film = s.samples[i].sampler.next_2d();
-    for (size_t i = 0; i < n; ++i) {
-        const TileSample& c = s.samples[i];
-        s.rays[i] = camera_ray(*t.camera, trace, c.x, c.y, c.u_film);
-        s.samplers[i] = c.sampler;
-    }
-    // Camera rays row by row to the batch query (8-ray packets of neighbouring samples).
+    const bool heat = t.heat_nodes != nullptr;
+    const size_t n = s.samplers.size();
+    s.u_film.resize(n);
+    s.rays.resize(n);
+    s.hits.resize(n);
+    s.radiance.resize(n);
+    // The first draws, then the rays, in separate loops: the draws of different samples are
+    // short independent chains the CPU overlaps.
+    for (size_t i = 0; i < n; ++i) s.u_film[i] = s.samplers[i].next_2d();
+    for (size_t i = 0; i < n; ++i)
+        s.rays[i] = camera_ray(*t.camera, trace, s.x[i], s.y[i], s.u_film[i]);
     TraversalCounters tc;
-    for (size_t i = 0; i < n;) {
-        size_t e = i + 1;
-        while (e < n && s.samples[e].y == s.samples[i].y) ++e;
-        scene.tree->intersect(s.rays.data() + i, e - i, s.hits.data() + i,
-                              trace.count_traversal ? &tc : nullptr);
-        i = e;
-    }
+    TraversalCounters* tcp = trace.count_traversal ? &tc : nullptr;
+    if (!heat) scene.tree->intersect(s.rays.data(), n, s.hits.data(), tcp);
     counters.nodes_visited += tc.nodes_visited;
     counters.triangles_tested += tc.triangles_tested;
-    trace_camera_hits(scene, trace, s.rays.data(), s.hits.data(), s.samplers.data(), n,
-                      s.radiance.data(), counters, s.wavefront);
+    if (!heat && trace.wavefront) {
+        trace_camera_hits(scene, trace, s.rays.data(), s.hits.data(), s.samplers.data(), n,
+                          s.radiance.data(), counters, s.wavefront);
+    } else {
+        for (size_t i = 0; i < n; ++i) {
+            const uint64_t nodes0 = counters.nodes_visited, tris0 = counters.triangles_tested;
+            if (heat) {
+                TraversalCounters own;
+                s.hits[i] = Hit{};
+                scene.tree->intersect(s.rays[i], s.hits[i], trace.count_traversal ? &own : nullptr);
+                counters.nodes_visited += own.nodes_visited;
+                counters.triangles_tested += own.triangles_tested;
+            }
+            s.radiance[i] =
+                trace_camera_hit(scene, trace, s.rays[i], s.hits[i], s.samplers[i], counters);
+            if (heat) {
+                const size_t pi = size_t(s.y[i]) * size_t(t.film->width()) + size_t(s.x[i]);
+                t.heat_nodes[pi] += counters.nodes_visited - nodes0;
+                t.heat_triangles[pi] += counters.triangles_tested - tris0;
+            }
+        }
+    }
     for (size_t i = 0; i < n; ++i)
-        add_sample(t, s.samples[i].x, s.samples[i].y, s.rays[i], s.hits[i], s.radiance[i],
-                   counters);
-    s.samples.clear();
+        add_sample(t, s.x[i], s.y[i], s.rays[i], s.hits[i], s.radiance[i], counters);
+    s.x.clear();
+    s.y.clear();
+    s.samplers.clear();
 }
 
-// render_tile() through the wavefront (TraceParams::wavefront): the samples of the tile
-// pass are made in pixel and sample order, their paths traced together (up to
-// kMaxWavefront at a time), and the film takes them in that order. Without heat maps.
-size_t render_tile_wavefront(const TileTarget& t, const FilmRect& tile, PathCounters& counters) {
+}  // namespace
+
+size_t render_tile(const TileTarget& t, const FilmRect& tile, PathCounters& counters) {
     const TraceParams& trace = *t.trace;
     const Film& film = *t.film;
     const int spp = std::max(trace.samples_per_pass, 1);
     thread_local TileScratch s;
-    s.samples.clear();
+    s.x.clear();
+    s.y.clear();
+    s.samplers.clear();
     size_t pixels_done = 0;
     for (int y = tile.y0; y < tile.y1; ++y) {
         for (int x = tile.x0; x < tile.x1; ++x) {
@@ -131,122 +144,15 @@ size_t render_tile_wavefront(const TileTarget& t, const FilmRect& tile, PathCoun
             const uint64_t key = PixelSampler::pixel_key(trace.seed, uint32_t(x), uint32_t(y));
             int k = 0;
             for (; k < spp && first_index + uint32_t(k) < t.max_spp; ++k) {
-                TileSample& c = s.samples.emplace_back();
-                c.sampler = PixelSampler(key, first_index + uint32_t(k));
-                c.x = x;
-                c.y = y;
-                if (s.samples.size() == kMaxWavefront) trace_wavefront(t, s, counters);
+                s.x.push_back(x);
+                s.y.push_back(y);
+                s.samplers.emplace_back(key, first_index + uint32_t(k));
+                if (s.samplers.size() == kMaxChunk) trace_chunk(t, s, counters);
             }
             pixels_done += k > 0;
         }
     }
-    if (!s.samples.empty()) trace_wavefront(t, s, counters);
-    return pixels_done;
-}
-
-}  // namespace
-
-size_t render_tile(const TileTarget& t, const FilmRect& tile, PathCounters& counters) {
-    if (t.trace->wavefront && t.heat_nodes == nullptr)
-        return render_tile_wavefront(t, tile, counters);
-    const TraceScene& scene = *t.scene;
-    const Camera& camera = *t.camera;
-    const TraceParams& trace = *t.trace;
-    Film& film = *t.film;
-    const int width = film.width();
-    const int spp = std::max(trace.samples_per_pass, 1);
-    const bool heat = t.heat_nodes != nullptr;
-    size_t pixels_done = 0;
-    // Camera rays are made for up to kBatch samples of a tile row (in pixel and sample
-    // order) before they are traced, in separate loops for the sampler's first draw and
-    // for the rays: the draws (and the rays) of different samples are short independent
-    // chains the CPU overlaps, instead of one long latency-bound chain in front of every
-    // traversal. Each sample stays a pure function of its key, and the film sees the
-    // samples in the same order as one at a time.
-    constexpr int kBatch = 16;
-    struct CameraSample {
-        PixelSampler sampler;
-        Vec2f u_film{0.0f};
-        int x = 0;
-    };
-    CameraSample batch[kBatch];
-    Ray rays[kBatch];
-    Hit hits[kBatch];
-    for (int y = tile.y0; y < tile.y1; ++y) {
-        int x = tile.x0, s = 0;  // the next sample to make: sample s of this pass at pixel x
-        uint32_t first_index = 0;
-        uint64_t key = 0;
-        while (x < tile.x1) {
-            int n = 0;
-            while (n < kBatch && x < tile.x1) {
-                if (s == 0) {
-                    if (!film.active(x, y)) {
-                        ++x;
-                        continue;
-                    }
-                    first_index = film.next_sample_index(x, y);
-                    key = PixelSampler::pixel_key(trace.seed, uint32_t(x), uint32_t(y));
-                }
-                // Every sample made is traced and advances the pixel's index by one.
-                const uint32_t index = first_index + uint32_t(s);
-                if (s == spp || index >= t.max_spp) {
-                    pixels_done += s > 0;
-                    ++x;
-                    s = 0;
-                    continue;
-                }
-                CameraSample& c = batch[n++];
-                c.x = x;
-                c.sampler = PixelSampler(key, index);
-                ++s;
-            }
-            for (int i = 0; i < n; ++i) batch[i].u_film = batch[i].sampler.next_2d();
-            for (int i = 0; i < n; ++i) {
-                // Field by field: a whole-Ray copy from a temporary makes GCC reload
-                // just-stored floats as 16-byte vectors (a store-forwarding stall).
-                const Ray r = camera_ray(camera, trace, batch[i].x, y, batch[i].u_film);
-                rays[i].origin = r.origin;
-                rays[i].tmin = r.tmin;
-                rays[i].dir = r.dir;
-                rays[i].tmax = r.tmax;
-            }
-            // Without a heat map (which needs each ray's own counts), the camera rays go
-            // to the kd-tree's batch query: neighbouring samples' rays are coherent and
-            // traced as 8-ray packets, with exactly the hits of one query per ray.
-            if (!heat) {
-                TraversalCounters tc;
-                scene.tree->intersect(rays, size_t(n), hits, trace.count_traversal ? &tc : nullptr);
-                counters.nodes_visited += tc.nodes_visited;
-                counters.triangles_tested += tc.triangles_tested;
-                // Shading reads each hit's vertex indices from the mesh, likely a cache miss
-                // (the traversal reads its own copy): start those loads for the whole batch
-                // before the first path needs one.
-                for (int i = 0; i < n; ++i)
-                    if (hits[i].valid()) __builtin_prefetch(&scene.mesh->triangles[hits[i].prim]);
-            }
-            for (int i = 0; i < n; ++i) {
-                CameraSample& c = batch[i];
-                const uint64_t nodes0 = counters.nodes_visited, tris0 = counters.triangles_tested;
-                // With a heat map each camera ray is traced on its own, its counts kept (as
-                // trace_camera_ray() does); its hit then serves the path, coverage and AOVs.
-                Hit own;
-                if (heat) {
-                    TraversalCounters tc;
-                    scene.tree->intersect(rays[i], own, trace.count_traversal ? &tc : nullptr);
-                    counters.nodes_visited += tc.nodes_visited;
-                    counters.triangles_tested += tc.triangles_tested;
-                }
-                const Hit& hit = heat ? own : hits[i];
-                const Vec3f L = trace_camera_hit(scene, trace, rays[i], hit, c.sampler, counters);
-                if (heat) {
-                    const size_t pi = size_t(y) * size_t(width) + size_t(c.x);
-                    t.heat_nodes[pi] += counters.nodes_visited - nodes0;
-                    t.heat_triangles[pi] += counters.triangles_tested - tris0;
-                }
-                add_sample(t, c.x, y, rays[i], hit, L, counters);
-            }
-        }
-    }
+    if (!s.samplers.empty()) trace_chunk(t, s, counters);
     return pixels_done;
 }
 

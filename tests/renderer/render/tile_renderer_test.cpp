@@ -47,7 +47,7 @@ TEST(TileRenderer, WavefrontFilmEqualsOnePathAtATime) {
         scene, make_camera({0.3f, 1.2f, 3.2f}, {0, 0.3f, 0}, {0, 1, 0}, 45.0f, 40, 24));
     for (int threads : {1, 2}) {
         // {samples per pass, passes, sample cap}: 20 per pass on a full tile make 5120
-        // samples, more than one wavefront takes (kMaxWavefront), so a pixel's samples span two.
+        // samples, more than one chunk takes (kMaxChunk), so a pixel's samples span two.
         for (const auto& [per_pass, passes, cap] :
              {std::tuple{1, 4, 10}, std::tuple{3, 4, 10}, std::tuple{20, 2, 0}}) {
             for (bool transparent : {false, true}) {
