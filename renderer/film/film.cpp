@@ -101,7 +101,6 @@ size_t Film::update_active(const FilmParams& params, const AdaptiveInputs& in) {
     const auto max_spp = uint32_t(std::max(params.adaptive_max_spp, 0));
     size_t warming = 0;   // open pixels below min_spp, all active
     size_t doubling = 0;  // open pixels between powers of two, all active
-    open_ = 0;
     candidates_.clear();
     for (int y = 0; y < height_; ++y) {
         for (int x = 0; x < width_; ++x) {
@@ -165,10 +164,6 @@ size_t Film::update_active(const FilmParams& params, const AdaptiveInputs& in) {
     }
     for (size_t j = 0; j < k; ++j) active_[candidates_[j].pixel] = 1;
     return warming + doubling + k;
-}
-
-size_t Film::active_count() const {
-    return size_t(std::count(active_.begin(), active_.end(), uint8_t(1)));
 }
 
 namespace {

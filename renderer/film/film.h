@@ -146,7 +146,6 @@ public:
     int pass_samples() const { return pass_samples_; }
     bool active(int x, int y) const { return active_[index(x, y)] != 0; }
     void set_active(int x, int y, bool on) { active_[index(x, y)] = on ? 1 : 0; }
-    size_t active_count() const;
 
     /// Adds every pixel's sums and counts of `other` to this film's (the active mask is
     /// kept). Films of disjoint tile sets merge into exactly the film of all tiles, since
