@@ -146,20 +146,14 @@ TEST_P(Batch, AxisAlignedPacketsOnGridLinesAndInPlanes) {
         for (float sign : {-1.0f, 1.0f})
             for (float zero : {0.0f, -0.0f}) {
                 std::vector<Ray> rays;
-                for (int y = 0; y <= 24; ++y)
-                    for (int x = 0; x <= 24; ++x)
-                        for (float z : {-1.0f, 0.0f, 1.0f, 3.0f}) {
-                            Ray r;
-                            r.origin = Vec3f(0.5f * float(x) - 0.5f, 0.5f * float(y) - 0.5f, z);
-                            r.dir = Vec3f(zero);
-                            r.dir[axis] = sign;
-                            // Eight parallel rays a hair apart: a packet.
-                            for (int k = 0; k < 8; ++k) {
-                                Ray q = r;
-                                q.origin[(axis + 1) % 3] += float(k) * 1e-4f;
-                                rays.push_back(q);
-                            }
-                        }
+                for (const Ray& r : test::grid_line_rays(axis, sign, zero)) {
+                    // Eight parallel rays a hair apart: a packet.
+                    for (int k = 0; k < 8; ++k) {
+                        Ray q = r;
+                        q.origin[(axis + 1) % 3] += float(k) * 1e-4f;
+                        rays.push_back(q);
+                    }
+                }
                 // Rays along x or y may all lie in the grid's plane or miss it.
                 expect_batch_equals_single(*tree, rays,
                                            "axis " + std::to_string(axis) + " sign " +

@@ -102,6 +102,22 @@ std::shared_ptr<const KdTree> try_build(std::shared_ptr<const TriangleMesh> mesh
     }
 }
 
+std::vector<Ray> grid_line_rays(int axis, float sign, float zero) {
+    std::vector<Ray> rays;
+    for (int y = 0; y <= 24; ++y) {
+        for (int x = 0; x <= 24; ++x) {
+            for (float z : {-1.0f, 0.0f, 1.0f, 3.0f}) {
+                Ray r;
+                r.origin = Vec3f(0.5f * float(x) - 0.5f, 0.5f * float(y) - 0.5f, z);
+                r.dir = Vec3f(zero);
+                r.dir[axis] = sign;
+                rays.push_back(r);
+            }
+        }
+    }
+    return rays;
+}
+
 void spoil_rays(std::vector<Ray>& rays, size_t stride, int kinds) {
     constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
     constexpr float kInf = std::numeric_limits<float>::infinity();

@@ -36,6 +36,11 @@ bool brute_force_occluded(const TriangleMesh& mesh, const Ray& ray);
 std::shared_ptr<const KdTree> try_build(std::shared_ptr<const TriangleMesh> mesh,
                                         const KdTreeParams& params);
 
+/// Rays along `axis` (direction component `sign`, the others `zero`, +0 or -0) from the
+/// points (x / 2 - 1/2, y / 2 - 1/2, z), x and y in [0, 24], z in {-1, 0, 1, 3}: on the grid
+/// lines of make_planar_grid(12, ...) and in its plane z = 0, where t = 0 * inf = NaN.
+std::vector<Ray> grid_line_rays(int axis, float sign, float zero);
+
 /// Spoils every `stride`-th ray with the next of the first `kinds` (at most 8) bad or
 /// extreme cases, in turn: a NaN direction, an infinite origin, a zero direction, an empty
 /// interval (tmax -1), a tiny tmax (1e-3), a NaN tmin, a huge and a tiny direction.
