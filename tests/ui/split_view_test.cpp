@@ -148,7 +148,7 @@ TEST(SplitView, PanelsAndDebugViewsDrawWithNoGlErrorAndTheDividerWhereSet) {
     v.finish_loading();
     test::ViewerGui gui(v, kW, kH);
     ASSERT_TRUE(gui.ok());
-    v.mouse_x_ = 600.0;  // right of the divider: the inspector reads side B
+    v.mouse_x_ = 600.0;  // right of the divider: the frames draw side B's inspector
     v.mouse_y_ = 20.0;
     v.script_ = {"split on", "split.set tree.n0 2", "divider 0.25", "wait_split", "check_gl"};
     auto frame = [&] { return gui.frame(false); };
@@ -157,6 +157,7 @@ TEST(SplitView, PanelsAndDebugViewsDrawWithNoGlErrorAndTheDividerWhereSet) {
         ASSERT_EQ(gl_errors("frame"), "");
         std::this_thread::sleep_for(std::chrono::milliseconds(5));
     }
+    ASSERT_LT(Clock::now(), deadline) << "the script (wait_split, check_gl) did not finish";
     ASSERT_TRUE(v.split_);
     EXPECT_EQ(v.split_->tree_params().n0, 2);
     for (ViewMode mode :

@@ -114,6 +114,7 @@ TEST(Aov, RadianceIsBitwiseTheSameWithTheAovOn) {
         ASSERT_EQ(a.size(), b.size());
         EXPECT_EQ(std::memcmp(a.data(), b.data(), a.size() * sizeof(float)), 0) << heat;
         EXPECT_TRUE(with.aov());
+        EXPECT_FALSE(plain.aov());
         const std::optional<PixelInfo> p = with.inspect(kW / 2, kH / 2);
         ASSERT_TRUE(p);
         EXPECT_NEAR(p->depth, 4.0f, 0.01f);
