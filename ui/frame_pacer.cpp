@@ -19,4 +19,12 @@ bool FramePacer::due(const FrameSignals& s, Clock::time_point now) {
     return draw;
 }
 
+bool ImageCopyPacer::due(uint64_t completed_passes, bool force, Clock::time_point now) {
+    if (!force && completed_passes == copied_passes_ && now - copied_at_ < kPartialImage)
+        return false;
+    copied_passes_ = completed_passes;
+    copied_at_ = now;
+    return true;
+}
+
 }  // namespace kdt::ui

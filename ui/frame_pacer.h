@@ -38,4 +38,21 @@ private:
     int settle_ = 0;
 };
 
+/// When to copy a render's image for display: at once when a pass has completed since the
+/// last copy (or when forced: a recolour, a layer the image still lacks), and while a pass is
+/// in flight, its finished tiles at most every kPartialImage: a copy and an upload a frame
+/// would cost the render threads more than the tiles show.
+class ImageCopyPacer {
+public:
+    using Clock = std::chrono::steady_clock;
+    static constexpr std::chrono::milliseconds kPartialImage{250};
+
+    /// Whether to copy at `now`, given the worker's completed passes; records the copy.
+    bool due(uint64_t completed_passes, bool force, Clock::time_point now);
+
+private:
+    uint64_t copied_passes_ = 0;
+    Clock::time_point copied_at_{};
+};
+
 }  // namespace kdt::ui

@@ -125,21 +125,24 @@ HeatScale depth_colors(const std::vector<float>& depth, int width, std::vector<f
     return s;
 }
 
+bool has_layer(DebugLayer layer, const FilmImage& img) {
+    const bool heat = layer == DebugLayer::nodes || layer == DebugLayer::triangles;
+    return heat ? !img.heat_nodes.empty() : !img.aov_depth.empty();
+}
+
 bool debug_colors(DebugLayer layer, const FilmImage& img, std::vector<float>& rgb, HeatScale& scale,
                   const HeatScale* also) {
+    if (!has_layer(layer, img)) return false;
     switch (layer) {
         case DebugLayer::nodes:
         case DebugLayer::triangles:
-            if (img.heat_nodes.empty()) return false;
             scale = heat_colors(layer == DebugLayer::nodes ? img.heat_nodes : img.heat_triangles,
                                 rgb, also);
             return true;
         case DebugLayer::normals:
-            if (img.aov_depth.empty()) return false;
             scale = normal_colors(img.aov_normals, img.aov_depth, img.width, rgb);
             return true;
         case DebugLayer::depth:
-            if (img.aov_depth.empty()) return false;
             scale = depth_colors(img.aov_depth, img.width, rgb, also);
             return true;
     }

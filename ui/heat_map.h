@@ -46,6 +46,8 @@ HeatScale normal_colors(const std::vector<float>& normals, const std::vector<flo
 /// black without samples.
 HeatScale depth_colors(const std::vector<float>& depth, int width, std::vector<float>& rgb,
                        const HeatScale* also = nullptr);
+/// Whether `image` carries `layer` (the heat counts, or the normals and depth).
+bool has_layer(DebugLayer layer, const FilmImage& image);
 /// Colours `layer` of `image` into rgb and sets `scale` to the image's own; false (rgb
 /// untouched) when the image lacks the layer. `also` as for heat_colors.
 bool debug_colors(DebugLayer layer, const FilmImage& image, std::vector<float>& rgb,

@@ -73,15 +73,19 @@ void SplitView::update_image(std::optional<DebugLayer> layer, const HeatScale& a
         display_ = std::make_unique<FilmDisplay>();
         display_->init();
     }
-    if (!swapped_) {
-        const WorkerStats s = worker_->stats();
-        swapped_ = s.restarts != swap_restarts_ || s.full_passes >= 1;
-    }
-    // As Viewer::update_image: a change's preview shows until its first full pass is complete.
+    // As Viewer::update_image: a change's preview shows until its first full pass is complete,
+    // and the session's image is copied as ImageCopyPacer says.
     const FilmImage* show = nullptr;
     if (worker_->copy_preview(preview_)) show = &preview_;
-    if (worker_->session().copy_image(image_, layer.has_value()) && image_.complete_passes > 0)
-        show = &image_;
+    const bool force = image_.version == 0 || (layer && !has_layer(*layer, image_));
+    if (image_copies_.due(worker_->completed_passes(), force, ImageCopyPacer::Clock::now())) {
+        if (!swapped_) {
+            const WorkerStats s = worker_->stats();
+            swapped_ = s.restarts != swap_restarts_ || s.full_passes >= 1;
+        }
+        if (worker_->session().copy_image(image_, layer.has_value()) && image_.complete_passes > 0)
+            show = &image_;
+    }
     if (show) upload_layer(*display_, *show, layer, scale_, &a_scale);
 }
 

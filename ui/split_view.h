@@ -2,7 +2,8 @@
 // parameters on its own RenderWorker, its tree built in the background by its own
 // TreeRebuilder, and the display shows image A left of a draggable divider and image B right
 // of it, so a user sees which tree is faster where (each side's rays/s and cost per ray).
-// The Viewer owns one while the split is on; its changes go to both workers.
+// The Viewer owns one while the split is on; camera, render settings, environment, materials
+// and debug layers go to both workers, and a new scene closes it (B would show the old one).
 // Depends on the render worker, the tree rebuilder, the heat-map colours and GL (display).
 #pragma once
 
@@ -11,6 +12,7 @@
 #include <string>
 
 #include "ui/display.h"
+#include "ui/frame_pacer.h"
 #include "ui/heat_map.h"
 #include "ui/render_worker.h"
 #include "ui/tree_rebuild.h"
@@ -61,6 +63,10 @@ public:
     const std::shared_ptr<const KdTree>& tree() const { return tree_; }
     const HeatScale& scale() const { return scale_; }
     const FilmImage& image() const { return image_; }
+    /// Colours side B's image again at the next update_image() (a view mode changed).
+    void recolour() { image_.version = 0; }
+    /// Side B's tree builds finished since the start (TreeRebuilder::finished()).
+    uint64_t rebuilds_finished() const { return rebuilder_.finished(); }
     float divider = 0.5f;  ///< share of the image width shown from A, in [0, 1]
 
 private:
@@ -72,6 +78,7 @@ private:
     bool swapped_ = true;         ///< no tree swap waits for its first full pass
     std::unique_ptr<FilmDisplay> display_;
     FilmImage image_, preview_;
+    ImageCopyPacer image_copies_;
     HeatScale scale_;
     bool dragging_ = false, was_pressed_ = false;
 };

@@ -111,6 +111,7 @@ void Viewer::set_view_mode(ViewMode mode) {
     }
     view_ = mode;
     image_.version = 0;  // recolour at the next frame
+    if (split_) split_->recolour();
 }
 
 void Viewer::poll_rebuild() {
@@ -152,7 +153,6 @@ void Viewer::upload(const FilmImage& img) {
 
 void Viewer::update_image() {
     if (!worker_) return;
-    const bool heat = view_ != ViewMode::radiance;
     if (split_) split_->update_image(debug_layer(view_), heat_scale_);
     // The preview of a change is shown until a full-resolution pass of the change is complete
     // (the session's image of the pass in flight still shows the previous state).
@@ -163,14 +163,11 @@ void Viewer::update_image() {
             awaiting_preview_ = false;
         }
     }
-    const uint64_t passes = worker_->completed_passes();
-    // Copied at once: a new pass, a recolour (version 0), a heat view still showing radiance.
-    const bool now =
-        passes != copied_passes_ || image_.version == 0 || (heat && image_.heat_nodes.empty());
-    if (!now && ms_since(copied_at_) < kPartialImageMs) return;
-    copied_passes_ = passes;
-    copied_at_ = Clock::now();
-    if (!worker_->session().copy_image(image_, heat)) return;
+    // Copied at once: a new pass, a recolour (version 0), a debug view still showing radiance.
+    const std::optional<DebugLayer> layer = debug_layer(view_);
+    const bool force = image_.version == 0 || (layer && !has_layer(*layer, image_));
+    if (!image_copies_.due(worker_->completed_passes(), force, Clock::now())) return;
+    if (!worker_->session().copy_image(image_, layer.has_value())) return;
     if (image_.complete_passes == 0) return;
     upload(image_);
     if (awaiting_rebuild_image_) {
@@ -424,13 +421,11 @@ FrameSignals observe(Viewer& v) {
     // Both counters only grow: their sum changes when either does. A build in flight draws
     // nothing new until it finishes, so the builder gets the UI's time meanwhile.
     s.updates = (v.worker_ ? v.worker_->updates() : 0) + v.rebuilder_->finished();
-    if (v.split_) s.updates += v.split_->worker().updates();
-    // An image still to come, a change the loop cannot see, a script command to run now or a
-    // wait that counts frames.
-    // A load in flight: its progress bar moves at display rate.
-    s.busy = !v.have_image_ || v.redraw_frames_ > 0 || v.loading() ||
+    if (v.split_) s.updates += v.split_->worker().updates() + v.split_->rebuilds_finished();
+    // An image still to come, a load in flight (its progress bar moves at display rate), a
+    // script command to run now or a wait that counts frames.
+    s.busy = !v.have_image_ || v.loading() ||
              (v.waiting_.empty() && v.script_next_ < v.script_.size()) || v.waiting_ == "wait";
-    v.redraw_frames_ = std::max(v.redraw_frames_ - 1, 0);
     return s;
 }
 

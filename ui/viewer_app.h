@@ -12,6 +12,7 @@
 #include "renderer/core/color.h"
 #include "renderer/render/prepare.h"
 #include "ui/display.h"
+#include "ui/frame_pacer.h"
 #include "ui/heat_map.h"
 #include "ui/render_worker.h"
 #include "ui/scene_loader.h"
@@ -147,17 +148,9 @@ public:
     double mouse_x_ = 0.0, mouse_y_ = 0.0;
     float content_scale_ = 1.0f;
 
-    // The session's image is copied and uploaded when a pass completes, and while one is in
-    // flight (its tiles) at most every kPartialImageMs: a copy and an upload a frame would
-    // cost the render threads more than the tiles show.
-    static constexpr double kPartialImageMs = 250.0;
-    uint64_t copied_passes_ = 0;  ///< the worker's completed_passes() at the last copy
-    Clock::time_point copied_at_{};
+    ImageCopyPacer image_copies_;  ///< when the session's image is copied and uploaded
 
     // Frame pacing (run_viewer draws a frame only when it may differ from the last one).
-    /// Frames to draw whatever else happens: set by a change the frame loop cannot see
-    /// (a state another thread moves on); counts down by one per 60 Hz tick.
-    int redraw_frames_ = 0;
     size_t frames_unchanged_ = 0;  ///< ticks with no frame drawn
 
     // Latency bookkeeping.

@@ -165,6 +165,11 @@ void Viewer::poll_load() {
         return;
     }
     worker_->set_snapshot(prep_.snapshot);
+    // Side B renders its own tree of the old mesh: it closes rather than show another scene.
+    if (split_) {
+        set_split(false);
+        status_ += "; split view closed (a new scene)";
+    }
     set_camera(camera_);
     // The render thread keeps a light set by apply_environment() across snapshots: give it
     // the new scene's (with the probe override, rotation and intensity in force).
@@ -182,6 +187,10 @@ void Viewer::apply_materials() {
     if (!worker_) return;
     try {
         worker_->set_snapshot(with_materials(*worker_->snapshot(), materials_));
+        if (split_) {  // side B keeps its own tree
+            RenderWorker& b = split_->worker();
+            b.set_snapshot(with_materials(*b.snapshot(), materials_));
+        }
         materials_edited_ = true;
     } catch (const Error& e) {
         message_ = e.what();

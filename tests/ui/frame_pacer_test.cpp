@@ -62,5 +62,18 @@ TEST(FramePacer, InputWorkerNewsAndBusyDrawAtOnceAndSettle) {
     EXPECT_LE(run(p, s, t, 5), 1);
 }
 
+TEST(ImageCopyPacer, CopiesAtANewPassWhenForcedOrAfterThePartialInterval) {
+    ImageCopyPacer p;
+    const auto t0 = ImageCopyPacer::Clock::now();
+    const auto ms = [](int n) { return std::chrono::milliseconds(n); };
+    EXPECT_TRUE(p.due(0, false, t0));             // the first time
+    EXPECT_FALSE(p.due(0, false, t0 + ms(100)));  // tiles of the same pass, too soon
+    EXPECT_TRUE(p.due(1, false, t0 + ms(110)));   // a pass completed
+    EXPECT_FALSE(p.due(1, false, t0 + ms(200)));
+    EXPECT_TRUE(p.due(1, true, t0 + ms(210)));  // forced (a recolour)
+    EXPECT_FALSE(p.due(1, false, t0 + ms(210) + ImageCopyPacer::kPartialImage - ms(1)));
+    EXPECT_TRUE(p.due(1, false, t0 + ms(210) + ImageCopyPacer::kPartialImage));
+}
+
 }  // namespace
 }  // namespace kdt::ui
