@@ -171,9 +171,9 @@ void RenderWorker::run() {
     bool preview = false;  // the pass in the session is the low-resolution preview
     uint64_t restart = 0;  // the restart (WorkerStats::restarts) the passes belong to
     PathCounters totals;
-    // Samples per pixel of the next full pass with automatic pass sizes (1 after a restart,
-    // then as run_render() grows them), 0 = the session's own samples_per_pass.
-    int per_pass = 1;
+    // The per_pass of the next full pass (first_samples_per_pass() after a restart, then
+    // next_samples_per_pass(), as run_render() does).
+    int per_pass = first_samples_per_pass(*session_);
     for (;;) {
         StopConditions stop;
         bool adaptive = false, restarted = false;
@@ -188,7 +188,7 @@ void RenderWorker::run() {
                 preview = preview_wanted_ && preview_divisor_ > 1 && pw >= 8 && ph >= 8;
                 restarted = true;
                 totals = PathCounters{};
-                per_pass = 1;
+                per_pass = first_samples_per_pass(*session_);
             }
             stop = stop_;
             adaptive = film_.adaptive;
@@ -239,16 +239,12 @@ void RenderWorker::run() {
         s.nodes_per_ray = double(totals.nodes_visited) / rays;
         s.triangles_per_ray = double(totals.triangles_tested) / rays;
         if (error > 0.0) s.error_curve.emplace_back(s.seconds, error);  // 0: < 2 samples
-        if (session_->trace_params().samples_per_pass == 0 && !adaptive) {
-            RenderProgress p;
-            p.seconds = s.seconds;
-            p.samples = session_->totals().samples;
-            p.error_known = error > 0.0;  // 0 until every pixel has 2 samples
-            p.mean_relative_error = error;
-            per_pass = auto_samples_per_pass(stop, std::max(per_pass, 1), ps.seconds, pixels, p);
-        } else {
-            per_pass = 0;
-        }
+        RenderProgress p;
+        p.seconds = s.seconds;
+        p.samples = session_->totals().samples;
+        p.error_known = error > 0.0;  // 0 until every pixel has 2 samples
+        p.mean_relative_error = error;
+        per_pass = next_samples_per_pass(*session_, stop, per_pass, ps.seconds, p);
         bool done = ps.active_pixels == 0;
         if (stop.spp > 0 && adaptive && s.spp >= double(stop.spp)) done = true;
         if (stop.seconds > 0.0 && s.seconds >= stop.seconds) done = true;

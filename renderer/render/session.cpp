@@ -359,6 +359,9 @@ PassStats RenderSession::run_tiles(const std::vector<int>& tiles, int max_spp, i
     return stats;
 }
 
+namespace {
+
+// The automatic pass size without adaptive sampling (next_samples_per_pass()).
 int auto_samples_per_pass(const StopConditions& stop, int last, double seconds, double pixels,
                           const RenderProgress& p) {
     double k = kMaxAutoSamplesPerPass;
@@ -378,6 +381,25 @@ int auto_samples_per_pass(const StopConditions& stop, int last, double seconds, 
     return std::max(1, int(std::min(k, double(kMaxAutoSamplesPerPass))));
 }
 
+}  // namespace
+
+int next_samples_per_pass(const RenderSession& session, const StopConditions& stop, int last,
+                          double seconds, const RenderProgress& p) {
+    if (session.trace_params().samples_per_pass != 0) return 0;
+    const double pixels = double(session.film().pixel_count());
+    last = std::max(last, 1);
+    if (!session.film_params().adaptive)
+        return auto_samples_per_pass(stop, last, seconds, pixels, p);
+    // Adaptive: every pixel samples until adaptive_min_spp (Film::update_active), so that
+    // warm-up takes passes as large as the spp and time conditions allow, ending exactly at
+    // the minimum: the same samples as one per pass. Then the film sizes the passes (0).
+    const double left = double(session.film_params().adaptive_min_spp) - double(p.samples) / pixels;
+    if (left < 1.0) return 0;
+    StopConditions warm = stop;
+    warm.error = 0.0f;  // the error target is the stopping rule's, not a sample count
+    return std::min(auto_samples_per_pass(warm, last, seconds, pixels, p), int(left));
+}
+
 RenderProgress run_render(RenderSession& session, const StopConditions& stop,
                           const std::function<void(const RenderProgress&)>& progress) {
     validate(stop);
@@ -389,11 +411,9 @@ RenderProgress run_render(RenderSession& session, const StopConditions& stop,
     // Without adaptivity, --spp is exact per pixel; with it, a total budget and a cap.
     int cap = stop.max_spp;
     if (stop.spp > 0 && !adaptive) cap = std::min(cap, stop.spp);
-    const bool auto_pass = session.trace_params().samples_per_pass == 0;
-    const int min_spp = session.film_params().adaptive_min_spp;
     Timer timer;
     RenderProgress p;
-    int per_pass = auto_pass ? 1 : 0;  // 0: the session's samples_per_pass
+    int per_pass = first_samples_per_pass(session);
     for (;;) {
         const PassStats ps = session.render_pass(cap, per_pass);
         const Film& film = session.film();
@@ -430,21 +450,7 @@ RenderProgress run_render(RenderSession& session, const StopConditions& stop,
             p.mean_relative_error = film.mean_relative_error();
         if (progress) progress(p);
         if (done) break;
-        if (auto_pass && !adaptive) {
-            per_pass = auto_samples_per_pass(stop, per_pass, ps.seconds, pixels, p);
-        } else if (auto_pass) {
-            // Adaptive: every pixel samples until adaptive_min_spp (Film::update_active), so
-            // that warm-up takes passes as large as the spp and time conditions allow, ending
-            // exactly at the minimum: the same samples as one per pass. Then the film sizes
-            // the passes (0).
-            const double left = double(min_spp) - double(p.samples) / pixels;
-            StopConditions warm = stop;
-            warm.error = 0.0f;  // the error target is the stopping rule's, not a sample count
-            per_pass = left >= 1.0 ? std::min(auto_samples_per_pass(warm, std::max(per_pass, 1),
-                                                                    ps.seconds, pixels, p),
-                                              int(left))
-                                   : 0;
-        }
+        per_pass = next_samples_per_pass(session, stop, per_pass, ps.seconds, p);
     }
     return p;
 }

@@ -193,14 +193,22 @@ struct RenderProgress {
 /// Largest pass run_render() picks for samples_per_pass 0 (automatic).
 inline constexpr int kMaxAutoSamplesPerPass = 16;
 
-/// The automatic pass size after a pass of `last` samples per pixel that took `seconds`, with
-/// `p` the render's progress after it (samples, seconds, error) on `pixels` pixels: at most
-/// kMaxAutoSamplesPerPass, the samples left to an spp target, about a second of work, a
-/// half of the time left to a time target, and for an error target a quarter of the
-/// samples the error's 1/sqrt(n) decay predicts (1 while no error is known). For renders
-/// without adaptive sampling, whose image does not depend on the pass sizes.
-int auto_samples_per_pass(const StopConditions& stop, int last, double seconds, double pixels,
-                          const RenderProgress& p);
+/// The samples per pixel of a render's first pass, as RenderSession::render_pass()'s
+/// per_pass: 1 when samples_per_pass is 0 (automatic), else 0 (the session's own).
+inline int first_samples_per_pass(const RenderSession& session) {
+    return session.trace_params().samples_per_pass == 0 ? 1 : 0;
+}
+
+/// The per_pass of the next pass after one of `last` samples per pixel that took `seconds`,
+/// with `p` the render's progress after it (samples, seconds, error): 0 unless
+/// samples_per_pass is 0 (automatic). Then, without adaptive sampling, at most
+/// kMaxAutoSamplesPerPass, the samples left to an spp target, about a second of work, half
+/// of the time left to a time target, and for an error target a quarter of the samples the
+/// error's 1/sqrt(n) decay predicts (1 while no error is known); the image does not depend
+/// on the pass sizes. With adaptive sampling, the warm-up to adaptive_min_spp in such passes,
+/// ending exactly at the minimum, then 0 (the film sizes the passes).
+int next_samples_per_pass(const RenderSession& session, const StopConditions& stop, int last,
+                          double seconds, const RenderProgress& p);
 
 /// Runs passes until a stop condition holds (or cancel). Calls progress after each pass.
 /// With samples_per_pass 0 and no adaptive sampling, the first pass takes 1 sample per
