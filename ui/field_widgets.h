@@ -6,6 +6,7 @@
 #include <span>
 #include <string>
 
+#include "renderer/core/error.h"
 #include "renderer/core/fields.h"
 
 namespace kdt::ui {
@@ -28,6 +29,27 @@ const Field<S>* find_field(std::span<const Field<S>> fields, const std::string& 
         if (name == f.name) return &f;
     }
     return nullptr;
+}
+
+/// Whether a and b agree in every field of `fields` (as field_text() writes them).
+template <class S>
+bool same_fields(std::span<const Field<S>> fields, const S& a, const S& b) {
+    for (const Field<S>& f : fields) {
+        if (field_text(f, a) != field_text(f, b)) return false;
+    }
+    return true;
+}
+
+/// Parses `value` into the field of `fields` named `name`; false when there is none. Throws
+/// kdt::Error ("group.name must be ...") for a value the field refuses.
+template <class S>
+bool set_field(std::span<const Field<S>> fields, S& s, const std::string& group,
+               const std::string& name, const std::string& value) {
+    const Field<S>* f = find_field(fields, name);
+    if (!f) return false;
+    if (std::string why = parse_field(*f, s, value); !why.empty())
+        throw Error(group + "." + name + " " + why);
+    return true;
 }
 
 }  // namespace kdt::ui

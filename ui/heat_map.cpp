@@ -126,8 +126,7 @@ HeatScale depth_colors(const std::vector<float>& depth, int width, std::vector<f
 }
 
 bool has_layer(DebugLayer layer, const FilmImage& img) {
-    const bool heat = layer == DebugLayer::nodes || layer == DebugLayer::triangles;
-    return heat ? !img.heat_nodes.empty() : !img.aov_depth.empty();
+    return is_heat(layer) ? !img.heat_nodes.empty() : !img.aov_depth.empty();
 }
 
 bool debug_colors(DebugLayer layer, const FilmImage& img, std::vector<float>& rgb, HeatScale& scale,

@@ -4,6 +4,7 @@
 // Depends on core and the render session's FilmImage only.
 #pragma once
 
+#include <optional>
 #include <vector>
 
 #include "renderer/core/math.h"
@@ -46,6 +47,13 @@ HeatScale normal_colors(const std::vector<float>& normals, const std::vector<flo
 /// black without samples.
 HeatScale depth_colors(const std::vector<float>& depth, int width, std::vector<float>& rgb,
                        const HeatScale* also = nullptr);
+/// The heat-map layers (kd-tree cost counts) and the AOV layers (normals, depth).
+inline bool is_heat(std::optional<DebugLayer> layer) {
+    return layer == DebugLayer::nodes || layer == DebugLayer::triangles;
+}
+inline bool is_aov(std::optional<DebugLayer> layer) {
+    return layer == DebugLayer::normals || layer == DebugLayer::depth;
+}
 /// Whether `image` carries `layer` (the heat counts, or the normals and depth).
 bool has_layer(DebugLayer layer, const FilmImage& image);
 /// Colours `layer` of `image` into rgb and sets `scale` to the image's own; false (rgb

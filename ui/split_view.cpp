@@ -6,20 +6,10 @@
 #include <vector>
 
 #include "renderer/core/error.h"
+#include "ui/field_widgets.h"
 #include "ui/viewer_app.h"
 
 namespace kdt::ui {
-
-namespace {
-
-bool same_tree(const KdTreeParams& a, const KdTreeParams& b) {
-    for (const Field<KdTreeParams>& f : kd_tree_fields()) {
-        if (field_text(f, a) != field_text(f, b)) return false;
-    }
-    return true;
-}
-
-}  // namespace
 
 SplitView::SplitView(std::shared_ptr<const RenderSnapshot> base, const KdTreeParams& base_tree,
                      const KdTreeParams& tree, const CameraDesc& camera, const TraceParams& trace,
@@ -30,7 +20,7 @@ SplitView::SplitView(std::shared_ptr<const RenderSnapshot> base, const KdTreePar
     worker_->set_camera(camera);
     if (heat) worker_->set_heat_map(true);
     if (aov) worker_->set_aov(true);
-    if (!same_tree(tree, base_tree)) request_rebuild();
+    if (!same_fields(kd_tree_fields(), tree, base_tree)) request_rebuild();
 }
 
 void SplitView::request_rebuild() {
@@ -39,13 +29,8 @@ void SplitView::request_rebuild() {
 }
 
 void SplitView::set_tree_option(const std::string& name, const std::string& value) {
-    const Field<KdTreeParams>* field = nullptr;
-    for (const Field<KdTreeParams>& f : kd_tree_fields()) {
-        if (name == f.name) field = &f;
-    }
-    if (!field) throw Error("no kd-tree option " + name);
-    if (std::string why = parse_field(*field, tree_edit_, value); !why.empty())
-        throw Error("tree." + name + " " + why);
+    if (!set_field(kd_tree_fields(), tree_edit_, "tree", name, value))
+        throw Error("no kd-tree option " + name);
     request_rebuild();
 }
 
@@ -153,11 +138,9 @@ void Viewer::set_split(bool on) {
     }
     if (split_) return;
     const std::optional<DebugLayer> layer = debug_layer(view_);
-    const bool heat = layer == DebugLayer::nodes || layer == DebugLayer::triangles;
-    const bool aov = layer == DebugLayer::normals || layer == DebugLayer::depth;
-    split_ =
-        std::make_unique<SplitView>(worker_->snapshot(), opts_.tree, tree_edit_, camera_,
-                                    opts_.trace, opts_.film, stop_, vo_.preview_divisor, heat, aov);
+    split_ = std::make_unique<SplitView>(worker_->snapshot(), opts_.tree, tree_edit_, camera_,
+                                         opts_.trace, opts_.film, stop_, vo_.preview_divisor,
+                                         is_heat(layer), is_aov(layer));
     if (paused_) split_->worker().set_paused(true);
 }
 

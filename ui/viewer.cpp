@@ -94,18 +94,14 @@ void Viewer::apply_environment() {
 
 void Viewer::set_view_mode(ViewMode mode) {
     if (mode == view_) return;
-    const auto is_heat = [](ViewMode m) {
-        return m == ViewMode::heat_nodes || m == ViewMode::heat_triangles;
-    };
-    const auto is_aov = [](ViewMode m) { return m == ViewMode::normals || m == ViewMode::depth; };
-    const bool heat = is_heat(mode), aov = is_aov(mode);
-    if (heat != is_heat(view_)) {
+    const bool heat = is_heat(debug_layer(mode)), aov = is_aov(debug_layer(mode));
+    if (heat != is_heat(debug_layer(view_))) {
         opts_.trace.count_traversal = heat || resolve(vo_.options).trace.count_traversal;
         apply_params();
         worker_->set_heat_map(heat);
         if (split_) split_->worker().set_heat_map(heat);
     }
-    if (aov != is_aov(view_)) {
+    if (aov != is_aov(debug_layer(view_))) {
         worker_->set_aov(aov);
         if (split_) split_->worker().set_aov(aov);
     }

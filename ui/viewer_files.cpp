@@ -14,6 +14,7 @@
 #include "renderer/core/error.h"
 #include "renderer/core/fields.h"
 #include "renderer/render/settings.h"
+#include "ui/field_widgets.h"
 #include "ui/viewer_app.h"
 
 namespace kdt::ui {
@@ -29,13 +30,6 @@ std::string load_error(const LoadResult& r) {
     const std::string name = shown(r.what.path);
     if (r.error.find(r.what.path) != std::string::npos && !r.what.path.empty()) return r.error;
     return name + ": " + r.error;
-}
-
-bool same_tree_params(const KdTreeParams& a, const KdTreeParams& b) {
-    for (const Field<KdTreeParams>& f : kd_tree_fields()) {
-        if (field_text(f, a) != field_text(f, b)) return false;
-    }
-    return true;
 }
 
 // The progress bar's colour, distinct from ImGui's plots (tests find it in screenshots).
@@ -175,7 +169,7 @@ void Viewer::poll_load() {
     // the new scene's (with the probe override, rotation and intensity in force).
     if (env_overridden_) apply_environment();
     // Tree parameters edited while the scene loaded apply to it.
-    if (auto_rebuild_ && !same_tree_params(tree_edit_, opts_.tree)) request_rebuild();
+    if (auto_rebuild_ && !same_fields(kd_tree_fields(), tree_edit_, opts_.tree)) request_rebuild();
 }
 
 void Viewer::finish_loading() {

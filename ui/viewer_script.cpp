@@ -33,16 +33,6 @@ Error script_error(const std::string& cmd, const std::string& why) {
     return Error("view --script: '" + cmd + "': " + why);
 }
 
-template <class S>
-bool set_in(const std::span<const Field<S>> fields, S& s, const std::string& group,
-            const std::string& name, const std::string& value) {
-    const Field<S>* f = find_field(fields, name);
-    if (!f) return false;
-    if (std::string why = parse_field(*f, s, value); !why.empty())
-        throw Error(group + "." + name + " " + why);
-    return true;
-}
-
 }  // namespace
 
 void Viewer::set_option(const std::string& key, const std::string& value) {
@@ -56,12 +46,12 @@ void Viewer::set_option(const std::string& key, const std::string& value) {
         open_probe(value);
         return;
     }
-    if (group == "tree" && set_in(kd_tree_fields(), tree_edit_, group, name, value)) {
+    if (group == "tree" && set_field(kd_tree_fields(), tree_edit_, group, name, value)) {
         if (auto_rebuild_) request_rebuild();
         return;
     }
     if (group == "scene" && name == "env_rotation_degrees") {
-        set_in(scene_fields(), opts_.scene, group, name, value);
+        set_field(scene_fields(), opts_.scene, group, name, value);
         apply_environment();
         return;
     }
@@ -75,13 +65,13 @@ void Viewer::set_option(const std::string& key, const std::string& value) {
         return;
     }
     if (group == "film" && name == "exposure") {
-        set_in(film_fields(), opts_.film, group, name, value);
+        set_field(film_fields(), opts_.film, group, name, value);
         tone_.exposure = opts_.film.exposure;
         return;
     }
-    if ((group == "trace" && set_in(trace_fields(), opts_.trace, group, name, value)) ||
-        (group == "film" && set_in(film_fields(), opts_.film, group, name, value)) ||
-        (group == "stop" && set_in(stop_fields(), stop_, group, name, value))) {
+    if ((group == "trace" && set_field(trace_fields(), opts_.trace, group, name, value)) ||
+        (group == "film" && set_field(film_fields(), opts_.film, group, name, value)) ||
+        (group == "stop" && set_field(stop_fields(), stop_, group, name, value))) {
         apply_params();
         if (!message_.empty()) throw Error(message_);
         return;
