@@ -143,9 +143,8 @@ void run(const RenderCommand& cmd) {
     ImageRGB image(film.width(), film.height());
     image.rgb = film.linear_rgb();
     image.alpha = film.coverage();
-    image.alpha = film.coverage();
     const PathCounters& c = session.totals();
-    const double spp = double(film.total_samples() + c.nonfinite_dropped) / pixels;
+    const double spp = double(film.total_drawn()) / pixels;
     const std::string& scene = o.scene.scene_path;
     ImageMetadata meta;
     meta.emplace_back("Software", "kdtrace 0.1.0");

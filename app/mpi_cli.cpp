@@ -311,7 +311,9 @@ void write_film(const FramePlan& f, const Film& film, const Camera& camera,
     meta.emplace_back("kdtrace:camera", camera_to_json(camera));
     meta.emplace_back("kdtrace:params", options_to_json(o));
     meta.emplace_back("kdtrace:seed", std::to_string(o.trace.seed));
-    meta.emplace_back("kdtrace:spp", std::to_string(o.stop.spp));
+    // Measured: a farmed frame may be adaptive or stop on an error target.
+    meta.emplace_back("kdtrace:spp",
+                      std::to_string(double(film.total_drawn()) / double(film.pixel_count())));
     if (!f.name.empty()) meta.emplace_back("kdtrace:frame", f.name);
     meta.emplace_back("kdtrace:distribution", how);
     ToneParams tone;

@@ -37,9 +37,8 @@ struct Options {
     bool use_cache = false;
     bool robustness = true;
     int robust_rays = 100000;
-    std::string stream_lanes = "16";
-    bool cpu_time = false;  // time tracing by CPU seconds (bench_rays.h BenchClock)  // lane counts
-                            // of the stream engines; "" = none
+    std::string stream_lanes = "16";  // lane counts of the stream engines; "" = none
+    bool cpu_time = false;            // time tracing by CPU seconds (bench_rays.h BenchClock)
 };
 
 /// One configuration of table 6.1.

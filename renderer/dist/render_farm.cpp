@@ -40,6 +40,14 @@ int tiles_x(const Camera& c) {
     return (c.width + RenderSession::kTileSize - 1) / RenderSession::kTileSize;
 }
 
+// Farmed images travel without their coverage (alpha): `what` are tiles or frames.
+void check_opaque(const RenderOptions& o, const char* what) {
+    if (o.film.transparent) {
+        throw Error(std::string("a distributed render (--mpi) cannot be transparent yet: ") + what +
+                    " travel without their coverage (film.transparent)");
+    }
+}
+
 }  // namespace
 
 void render_tiles_to_spp(RenderSession& session, const std::vector<int>& tiles, int spp,
@@ -80,10 +88,7 @@ void check_tile_farm_options(const RenderOptions& o) {
             "on each rank's speed, so a tile rendered apart would not equal the same pixels of "
             "the single-process render; adaptive frames can be farmed whole (--frames)");
     }
-    if (o.film.transparent)
-        throw Error(
-            "a distributed render (--mpi) cannot be transparent yet: tiles travel "
-            "without their coverage (film.transparent)");
+    check_opaque(o, "tiles");
 }
 
 void check_frame_farm_options(const RenderOptions& o) {
@@ -93,10 +98,7 @@ void check_frame_farm_options(const RenderOptions& o) {
             "depend on the speed and load of the rank that draws it (and rank 0 serves the "
             "others while it renders); use stop.spp or stop.error");
     }
-    if (o.film.transparent)
-        throw Error(
-            "a distributed render (--mpi) cannot be transparent yet: frames travel "
-            "without their coverage (film.transparent)");
+    check_opaque(o, "frames");
 }
 
 FarmResult render_tile_farm(const MpiContext& ctx, std::shared_ptr<const RenderSnapshot> snapshot,

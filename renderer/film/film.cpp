@@ -77,6 +77,12 @@ uint64_t Film::total_samples() const {
     return n;
 }
 
+uint64_t Film::total_drawn() const {
+    uint64_t n = 0;
+    for (const Pixel& p : pixels_) n += p.drawn;
+    return n;
+}
+
 size_t Film::update_active(const FilmParams& params, const AdaptiveInputs& in) {
     pass_samples_ = std::max(in.samples_per_pass, 1);
     if (!params.adaptive) {

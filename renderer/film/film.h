@@ -120,6 +120,8 @@ public:
     double mean_relative_error() const;
     /// Total samples over all pixels.
     uint64_t total_samples() const;
+    /// Total samples drawn over all pixels, kept or dropped (non-finite).
+    uint64_t total_drawn() const;
 
     /// Recomputes which pixels take samples in the next pass, and how many each takes
     /// (pass_samples()); returns how many pixels do. Without adaptivity all pixels are
