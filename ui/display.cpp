@@ -195,8 +195,7 @@ void FilmDisplay::draw(int x, int y, int w, int h, const ToneParams& tone, Displ
     if (width_ == 0) return;
     glActiveTexture(GL_TEXTURE0);
     glBindVertexArray(vao_);
-    if (!valid_ || mode != toned_mode_ || tone.exposure != toned_tone_.exposure ||
-        tone.curve != toned_tone_.curve) {
+    if (!valid_ || mode != toned_mode_ || tone != toned_tone_) {
         tone_map(tone, mode);
     }
     glViewport(x, y, w, h);

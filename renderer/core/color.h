@@ -42,6 +42,7 @@ inline constexpr std::array<const char*, 4> kToneCurveNames = {"clamp", "reinhar
 struct ToneParams {
     float exposure = 0.0f;
     ToneCurve curve = ToneCurve::clamp;
+    bool operator==(const ToneParams&) const = default;
 };
 
 /// Hable's filmic curve ("Filmic Tonemapping Operators", Uncharted 2, GDC 2010) with his

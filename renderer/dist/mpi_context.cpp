@@ -70,14 +70,21 @@ void MpiContext::check_timeout() const {
     throw FarmError(buf, rank_ == 0);
 }
 
-void MpiContext::wait(MPI_Request& request) const {
+void MpiContext::poll_until(const std::function<bool()>& done) const {
     for (int spins = 0;; ++spins) {
-        int done = 0;
-        MPI_Test(&request, &done, MPI_STATUS_IGNORE);
-        if (done) return;
+        if (done()) return;
         check_timeout();
+        // Spin briefly for low latency, then yield the core to the renderers.
         if (spins > 1000) std::this_thread::sleep_for(std::chrono::microseconds(50));
     }
+}
+
+void MpiContext::wait(MPI_Request& request) const {
+    poll_until([&] {
+        int done = 0;
+        MPI_Test(&request, &done, MPI_STATUS_IGNORE);
+        return done != 0;
+    });
 }
 
 uint64_t snapshot_hash(const RenderSnapshot& snap, const std::string& options_json) {

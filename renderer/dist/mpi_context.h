@@ -63,6 +63,9 @@ public:
     /// speed unless mpi_yield_when_idle, which takes a core from the ranks still rendering
     /// on a machine with as many ranks as cores). Throws FarmError when the watchdog expired.
     void wait(MPI_Request& request) const;
+    /// The same polling for any condition (an MPI_Test, an MPI_Iprobe): returns once `done`
+    /// returns true; throws FarmError when the watchdog expired.
+    void poll_until(const std::function<bool()>& done) const;
 
 private:
     int rank_ = 0, size_ = 1;

@@ -50,14 +50,11 @@ double process_cpu_seconds() {
 // MPI_Probe that gives up when the context's timeout expires (every rank's waits do, so
 // all leave the farm together and finalize normally).
 void probe(const MpiContext& ctx, int source, int tag, MPI_Status* st) {
-    for (int spins = 0;; ++spins) {
+    ctx.poll_until([&] {
         int flag = 0;
         MPI_Iprobe(source, tag, MPI_COMM_WORLD, &flag, st);
-        if (flag) return;
-        ctx.check_timeout();
-        // Spin briefly for low latency, then yield the core to the renderers.
-        if (spins > 1000) std::this_thread::sleep_for(std::chrono::microseconds(50));
-    }
+        return flag != 0;
+    });
 }
 
 void throttle(const MpiContext& ctx, const FarmParams& p, double seconds) {
