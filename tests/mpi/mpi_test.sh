@@ -180,6 +180,10 @@ sessions)
             fail "single render of session $s"
     done
     cmp -s single_near.pfm single_far.pfm && fail "the two sessions rendered the same image"
+    # far.json's own 64 spp give another image: the comparisons below see the --spp override.
+    "$kdtrace" render "$model" --no-cache --threads 1 --quiet --session far.json \
+        -o own_far.pfm > /dev/null || fail "single render of session far at its own spp"
+    cmp -s own_far.pfm single_far.pfm && fail "--spp 3 did not override far.json's 64 spp"
     "$kdtrace" "${flags[@]}" --frames sessions:near.json,far.json -o local.pfm > /dev/null ||
         fail "local sessions"
     cmp single_near.pfm local_near.pfm && cmp single_far.pfm local_far.pfm ||

@@ -29,12 +29,10 @@ ViewerOptions small_options() {
 
 TEST(ViewerPanels, EveryPanelDrawsWithNoGlError) {
     constexpr int kW = 1100, kH = 760;
-    test::OffscreenGL gl(kW, kH);
-    ASSERT_TRUE(gl.ok()) << "OSMesa could not create a GL 3.3 core context";
-    Viewer v(small_options());
-    v.finish_loading();
-    test::ViewerGui gui(v, kW, kH);
-    ASSERT_TRUE(gui.ok());
+    test::GuiViewer g(small_options(), kW, kH);
+    ASSERT_TRUE(g.ok()) << "no OSMesa GL 3.3 core context or ImGui OpenGL3 backend";
+    Viewer& v = g.viewer();
+    test::ViewerGui& gui = g.gui();
     v.mouse_x_ = 20.0;  // over the image: the inspector shows a pixel
     v.mouse_y_ = 20.0;
     auto frame = [&] { gui.frame(true); };
@@ -77,7 +75,7 @@ TEST(ViewerPanels, EveryPanelDrawsWithNoGlError) {
     v.finish_loading();
     EXPECT_NE(v.message_.find("/nonexistent/model.ply"), std::string::npos) << v.message_;
     // The display shows the panels over the image: pixels differ from the clear colour.
-    const std::vector<uint8_t> px = gl.read_rgb();
+    const std::vector<uint8_t> px = g.gl().read_rgb();
     size_t lit = 0;
     for (uint8_t c : px) lit += c > 40;
     EXPECT_GT(lit, px.size() / 10);

@@ -142,12 +142,10 @@ TEST(SplitView, ExactTreesOfDifferentBuildersGiveTheSameImageAtTheirOwnCost) {
 
 TEST(SplitView, PanelsAndDebugViewsDrawWithNoGlErrorAndTheDividerWhereSet) {
     constexpr int kW = 1100, kH = 760;
-    test::OffscreenGL gl(kW, kH);
-    ASSERT_TRUE(gl.ok()) << "OSMesa could not create a GL 3.3 core context";
-    Viewer v(split_options());
-    v.finish_loading();
-    test::ViewerGui gui(v, kW, kH);
-    ASSERT_TRUE(gui.ok());
+    test::GuiViewer g(split_options(), kW, kH);
+    ASSERT_TRUE(g.ok()) << "no OSMesa GL 3.3 core context or ImGui OpenGL3 backend";
+    Viewer& v = g.viewer();
+    test::ViewerGui& gui = g.gui();
     v.mouse_x_ = 600.0;  // right of the divider: the frames draw side B's inspector
     v.mouse_y_ = 20.0;
     v.script_ = {"split on", "split.set tree.n0 2", "divider 0.25", "wait_split", "check_gl"};
@@ -191,7 +189,7 @@ TEST(SplitView, PanelsAndDebugViewsDrawWithNoGlErrorAndTheDividerWhereSet) {
     }
     // The divider line at a quarter of the image, in a row (from the top) below the split
     // panel in the top-left corner and above the File panel in the bottom-left one.
-    const std::vector<uint8_t> px = gl.read_rgb();
+    const std::vector<uint8_t> px = g.gl().read_rgb();
     const uint8_t* line = &px[3 * (size_t(400) * kW + 159)];
     EXPECT_GT(line[0], 200);
     EXPECT_GT(line[1], 200);

@@ -16,6 +16,13 @@ ui::ViewerOptions small_viewer_options(int width, int height) {
     return vo;
 }
 
+GuiViewer::GuiViewer(const ui::ViewerOptions& options, int width, int height) : gl_(width, height) {
+    if (!gl_.ok()) return;
+    viewer_.emplace(options);
+    viewer_->finish_loading();
+    gui_.emplace(*viewer_, width, height);
+}
+
 ViewerGui::ViewerGui(ui::Viewer& viewer, int width, int height)
     : v_(viewer), width_(width), height_(height) {
     ImGui::CreateContext();

@@ -2,6 +2,9 @@
 // the real OpenGL3 backend in the current (offscreen OSMesa) GL context.
 #pragma once
 
+#include <optional>
+
+#include "tests/ui/osmesa_context.h"
 #include "ui/viewer_app.h"
 
 namespace kdt::test {
@@ -27,6 +30,23 @@ private:
     ui::Viewer& v_;
     int width_, height_;
     bool ok_ = false;
+};
+
+/// The panel tests' setup: a width x height offscreen GL context, a viewer of `options` with
+/// its scene loaded, and its ViewerGui; ok() says whether GL and the backend started (the
+/// viewer and its GUI exist only then). Destroyed GUI first, then viewer, then context.
+class GuiViewer {
+public:
+    GuiViewer(const ui::ViewerOptions& options, int width, int height);
+    bool ok() const { return gui_ && gui_->ok(); }
+    OffscreenGL& gl() { return gl_; }
+    ui::Viewer& viewer() { return *viewer_; }
+    ViewerGui& gui() { return *gui_; }
+
+private:
+    OffscreenGL gl_;
+    std::optional<ui::Viewer> viewer_;
+    std::optional<ViewerGui> gui_;
 };
 
 }  // namespace kdt::test

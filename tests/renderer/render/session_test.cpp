@@ -201,6 +201,16 @@ TEST(RenderSession, CancelStopsAPassAndKeepsFinishedTiles) {
     EXPECT_EQ(s.film().count(63, 63), 1u);
 }
 
+// The adaptive settings of the tests below: a pixel stops after 8 samples once its 3x3
+// neighbourhood's relative error is under 1 %.
+FilmParams adaptive_film(bool adaptive) {
+    FilmParams fp;
+    fp.adaptive = adaptive;
+    fp.adaptive_min_spp = 8;
+    fp.adaptive_threshold = 0.01f;
+    return fp;
+}
+
 TEST(RenderSession, AdaptiveSamplingSpendsSamplesWhereTheNoiseIs) {
     // A constant-environment furnace with one noisy object: background pixels converge at
     // once (zero variance) and stop; the object keeps sampling.
@@ -213,10 +223,7 @@ TEST(RenderSession, AdaptiveSamplingSpendsSamplesWhereTheNoiseIs) {
     tp.light_sampling = LightSampling::bsdf;
     tp.diffuse_sampling = DiffuseSampling::uniform;
     tp.samples_per_pass = 4;
-    FilmParams fp;
-    fp.adaptive = true;
-    fp.adaptive_min_spp = 8;
-    fp.adaptive_threshold = 0.01f;
+    FilmParams fp = adaptive_film(true);
     RenderSession s(snap, tp, fp);
     StopConditions stop;
     stop.spp = 32;
@@ -251,11 +258,7 @@ TEST(RenderSession, AdaptiveImagesAreUnbiased) {
     auto render = [&](bool adaptive, uint64_t seed) {
         TraceParams tp;
         tp.seed = seed;
-        FilmParams fp;
-        fp.adaptive = adaptive;
-        fp.adaptive_min_spp = 8;
-        fp.adaptive_threshold = 0.01f;
-        RenderSession s(snap, tp, fp);
+        RenderSession s(snap, tp, adaptive_film(adaptive));
         StopConditions stop;
         stop.spp = 64;
         run_render(s, stop);
