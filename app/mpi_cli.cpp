@@ -226,6 +226,7 @@ std::vector<FramePlan> plan_frames(const RenderOptions& base, const std::string&
                                    const DistArgs& a, bool check_outputs) {
     std::vector<FramePlan> frames = list_frames(base, a);
     std::map<std::string, size_t> seen;
+    const std::string views = views_file(a);
     for (size_t i = 0; i < frames.size(); ++i) {
         FramePlan& f = frames[i];
         f.output = a.frames.empty() ? output : frame_output(output, int(i), f.name);
@@ -237,7 +238,7 @@ std::vector<FramePlan> plan_frames(const RenderOptions& base, const std::string&
         if (!check_outputs) continue;
         check_image_output(f.output, f.options.film.transparent);
         const SceneOptions& sc = f.options.scene;
-        check_output(f.output, {sc.scene_path, sc.env_file, sc.tree_file, f.session, views_file(a)},
+        check_output(f.output, {sc.scene_path, sc.env_file, sc.tree_file, f.session, views},
                      "the image");
     }
     return frames;
@@ -260,34 +261,34 @@ RenderOptions scene_options_of(const RenderOptions& o) {
     return k;
 }
 
-// The loaded scenes of a plan, one per distinct scene_options_of(), in order of first use.
+// The loaded scenes of a plan, one per distinct scene_options_of(), in order of first use,
+// and the scene of each frame.
 struct SceneGroups {
-    std::vector<std::string> keys;  // options_to_json(scene_options_of(frame))
     std::vector<Prepared> prepared;
-    int of(const RenderOptions& o) const {
-        const auto it = std::find(keys.begin(), keys.end(), options_to_json(scene_options_of(o)));
-        return int(it - keys.begin());
-    }
+    std::vector<size_t> of_frame;  // index into prepared, per frame of the plan
 };
 
 // Calls load(options) once per distinct scene of `frames`, in order.
 SceneGroups load_scenes(const std::vector<FramePlan>& frames,
                         const std::function<Prepared(const RenderOptions&)>& load) {
     SceneGroups g;
+    std::map<std::string, size_t> group;  // options_to_json(scene_options_of(frame))
     for (const FramePlan& f : frames) {
         const RenderOptions k = scene_options_of(f.options);
-        const std::string key = options_to_json(k);
-        if (std::find(g.keys.begin(), g.keys.end(), key) != g.keys.end()) continue;
-        g.keys.push_back(key);
-        g.prepared.push_back(load(k));
+        const auto [it, fresh] = group.emplace(options_to_json(k), g.prepared.size());
+        if (fresh) g.prepared.push_back(load(k));
+        g.of_frame.push_back(it->second);
     }
     return g;
 }
 
 // The snapshot of a frame: its scene's, seen through the frame's camera (the scene's with
 // the frame's overrides, as prepare_render() applies them, then the turntable's turn).
-std::shared_ptr<const RenderSnapshot> frame_snapshot(const SceneGroups& g, const FramePlan& f) {
-    const RenderSnapshot& base = *g.prepared[size_t(g.of(f.options))].snapshot;
+std::shared_ptr<const RenderSnapshot> frame_snapshot(const SceneGroups& g,
+                                                     const std::vector<FramePlan>& frames,
+                                                     size_t i) {
+    const FramePlan& f = frames[i];
+    const RenderSnapshot& base = *g.prepared[g.of_frame[i]].snapshot;
     const SceneOptions& o = f.options.scene;
     CameraDesc c = with_camera_overrides(base.camera_desc, o);
     if (f.turns > 0) c = turntable_camera(c, f.turn, f.turns);
@@ -332,7 +333,7 @@ void run_local_frames(const RenderOptions& base, const std::string& output, bool
     const SceneGroups scenes =
         load_scenes(frames, [&](const RenderOptions& o) { return prepare_render(o, log); });
     std::vector<std::shared_ptr<const RenderSnapshot>> snaps;
-    for (const FramePlan& f : frames) snaps.push_back(frame_snapshot(scenes, f));
+    for (size_t i = 0; i < frames.size(); ++i) snaps.push_back(frame_snapshot(scenes, frames, i));
     Timer timer;
     for (size_t i = 0; i < frames.size(); ++i) {
         const FramePlan& f = frames[i];
@@ -470,7 +471,8 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
     });
     std::vector<dist::FrameJob> jobs;
     dist::check_every_rank(ctx, "could not set up the frames", [&]() -> uint64_t {
-        for (const FramePlan& f : frames) jobs.push_back({frame_snapshot(scenes, f), f.options});
+        for (size_t i = 0; i < frames.size(); ++i)
+            jobs.push_back({frame_snapshot(scenes, frames, i), frames[i].options});
         return 0;
     });
     const bool tty = root && !quiet && isatty(fileno(stderr));
