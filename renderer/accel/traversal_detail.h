@@ -190,6 +190,76 @@ inline int solve4(const Edges4& e, __m256d za, __m256d zb, __m256d zc, __m128& t
 }
 #endif
 
+#if KDT_SIMD_TRAVERSAL
+#ifndef KDT_WIDE_LEAF_MIN
+#define KDT_WIDE_LEAF_MIN 2
+#endif
+
+// Leaves with at least this many triangles are tested four at a time by the single-ray and
+// the stream queries (from two up is fastest on the dragon; the macro lets a build measure
+// other thresholds).
+constexpr uint32_t kWideLeafMin = KDT_WIDE_LEAF_MIN;
+
+// A vertex as (x, y, z, w) in the watertight test's order (kx, ky, kz): the masked load
+// never reads past the vertex's 12 bytes.
+inline __m128 load_vertex(const Vec3f& p, __m128i perm) {
+    return _mm_permutevar_ps(_mm_maskload_ps(&p.x, _mm_setr_epi32(-1, -1, -1, 0)), perm);
+}
+
+// One vertex of four triangles, sheared as in intersect_triangle(): x, y, z per lane.
+struct Vertex4 {
+    __m128 x, y, z;
+};
+
+inline Vertex4 shear4(__m128 l0, __m128 l1, __m128 l2, __m128 l3, const WatertightRay& r) {
+    const __m128 t0 = _mm_unpacklo_ps(l0, l1);  // x0 x1 y0 y1
+    const __m128 t1 = _mm_unpacklo_ps(l2, l3);  // x2 x3 y2 y3
+    const __m128 t2 = _mm_unpackhi_ps(l0, l1);  // z0 z1 w0 w1
+    const __m128 t3 = _mm_unpackhi_ps(l2, l3);  // z2 z3 w2 w3
+    Vertex4 v;
+    v.z = _mm_sub_ps(_mm_movelh_ps(t2, t3), _mm_set1_ps(r.oz));
+    // exact_fmsub(x - o, s, z) = fma(-s, z, x - o)
+    v.x =
+        _mm_fnmadd_ps(_mm_set1_ps(r.sx), v.z, _mm_sub_ps(_mm_movelh_ps(t0, t1), _mm_set1_ps(r.ox)));
+    v.y =
+        _mm_fnmadd_ps(_mm_set1_ps(r.sy), v.z, _mm_sub_ps(_mm_movehl_ps(t1, t0), _mm_set1_ps(r.oy)));
+    return v;
+}
+
+// intersect_triangle() on four triangles at once, operation by operation (the same float
+// shear, the same exact double edge functions, the same FMAs), so every lane's result is
+// bit for bit the scalar test's. Returns the mask of lanes in `valid` that hit within
+// [tmin, tmax], with their t, u, v.
+inline int intersect4(const Vec3f* positions, const Vec3u* tri, int valid, const RayState& rs,
+                      float tmax, float* t_out, float* u_out, float* v_out) {
+    const WatertightRay& r = rs.wr;
+    Vertex4 v[3];
+    for (int k = 0; k < 3; ++k)
+        v[k] = shear4(load_vertex(positions[tri[0][k]], rs.perm),
+                      load_vertex(positions[tri[1][k]], rs.perm),
+                      load_vertex(positions[tri[2][k]], rs.perm),
+                      load_vertex(positions[tri[3][k]], rs.perm), r);
+    Edges4 e;
+    const int pass =
+        edges4(_mm256_cvtps_pd(v[0].x), _mm256_cvtps_pd(v[0].y), _mm256_cvtps_pd(v[1].x),
+               _mm256_cvtps_pd(v[1].y), _mm256_cvtps_pd(v[2].x), _mm256_cvtps_pd(v[2].y), e) &
+        valid;
+    if (!pass) return 0;
+    const __m128 sz = _mm_set1_ps(r.sz);
+    __m128 t, u, vb;
+    const int ok =
+        solve4(e, _mm256_cvtps_pd(_mm_mul_ps(sz, v[0].z)), _mm256_cvtps_pd(_mm_mul_ps(sz, v[1].z)),
+               _mm256_cvtps_pd(_mm_mul_ps(sz, v[2].z)), t, u, vb);
+    _mm_storeu_ps(t_out, t);
+    _mm_storeu_ps(u_out, u);
+    _mm_storeu_ps(v_out, vb);
+    const __m128 in_range = _mm_and_ps(_mm_cmp_ps(t, _mm_set1_ps(rs.tmin), _CMP_GE_OQ),
+                                       _mm_cmp_ps(t, _mm_set1_ps(tmax), _CMP_LE_OQ));
+    return pass & ok & _mm_movemask_ps(in_range);
+}
+
+#endif
+
 /// Rays per packet.
 inline constexpr int kPacketSize = 8;
 
