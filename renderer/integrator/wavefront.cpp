@@ -43,6 +43,14 @@ void trace_camera_hits(const TraceScene& scene, const TraceParams& params, const
     // w.hits is indexed by path for the camera hits, then by position in w.active.
     bool camera = true;
     while (!w.active.empty()) {
+        // The hit triangles' records first, all of them: path_step reads each one at once,
+        // and most are cache misses (the traversal read the tree's copies of the vertex
+        // indices, not the mesh's); a prefetch only a few paths ahead comes too late.
+        const Vec3u* triangles = scene.mesh->triangles.data();
+        for (size_t a = 0; a < w.active.size(); ++a) {
+            const Hit& h = w.hits[camera ? w.active[a] : a];
+            if (h.valid()) __builtin_prefetch(triangles + h.prim);
+        }
         size_t shadows = 0;
         for (size_t a = 0; a < w.active.size(); ++a) {
             const uint32_t i = w.active[a];
