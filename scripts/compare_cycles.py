@@ -289,6 +289,12 @@ def parse_args():
         ap.error("--depth must be at least 1 (Cycles has no depth-0 setting)")
     if not args.model.is_file():
         ap.error(f"{args.model}: no such file (bash scripts/fetch_assets.sh fetches the dragon)")
+    if args.env and not args.env.is_file():
+        ap.error(f"{args.env}: no such file")
+    # The scene file goes to --out, and a scene's relative paths are read from its folder.
+    args.model = args.model.resolve()
+    if args.env:
+        args.env = args.env.resolve()
     return args
 
 
