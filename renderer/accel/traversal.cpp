@@ -115,46 +115,8 @@ struct BestHit {
 };
 
 #if KDT_SIMD_TRAVERSAL
-
-using detail::intersect4;
 using detail::kWideLeafMin;
-
-// test_leaf() four triangles at a time. The hits of a group, taken in order and each kept
-// only if it is still the closest, are exactly the scalar loop's: a later triangle at the
-// same t wins, as it does there.
-template <bool kAnyHit, bool kDirect>
-inline bool test_leaf4(const KdNode node, const TreeView& tv, const RayState& rs, BestHit& best,
-                       uint64_t& tested) {
-    const uint32_t count = node.count();
-    const uint32_t* ids = tv.indices + node.first;
-    for (uint32_t i = 0; i < count; i += 4) {
-        const uint32_t n = std::min(count - i, 4u);
-        Vec3u tri[4];
-        for (uint32_t j = 0; j < 4; ++j) {
-            const uint32_t k = i + (j < n ? j : 0u);  // idle lanes repeat the first
-            tri[j] = kDirect ? tv.reference_triangles[node.first + k] : tv.triangles[ids[k]];
-        }
-        alignas(16) float t[4], u[4], v[4];
-        int hits = intersect4(tv.positions, tri, (1 << n) - 1, rs, best.t, t, u, v);
-        if (!hits) continue;
-        if (kAnyHit) {
-            tested += i + uint32_t(__builtin_ctz(unsigned(hits))) + 1;
-            return true;
-        }
-        do {
-            const int j = __builtin_ctz(unsigned(hits));
-            hits &= hits - 1;
-            if (t[j] <= best.t) {
-                best.t = t[j];
-                best.u = u[j];
-                best.v = v[j];
-                best.prim = ids[i + j];
-            }
-        } while (hits);
-    }
-    tested += count;
-    return false;
-}
+using detail::test_leaf4;
 #endif
 
 // Tests the triangles of a leaf; true when kAnyHit and one is hit. `tested` counts tests.
@@ -164,7 +126,9 @@ inline bool test_leaf(const KdNode node, const TreeView& tv, const RayState& rs,
                       uint64_t& tested) {
     const uint32_t count = node.count();
 #if KDT_SIMD_TRAVERSAL
-    if (count >= kWideLeafMin) return test_leaf4<kAnyHit, kDirect>(node, tv, rs, best, tested);
+    if (count >= kWideLeafMin)
+        return test_leaf4<kAnyHit, kDirect>(node, tv, rs, best.t, best.u, best.v, best.prim,
+                                            tested);
 #endif
     const uint32_t* ids = tv.indices + node.first;
     const Vec3u* refs = kDirect ? tv.reference_triangles + node.first : nullptr;

@@ -3,6 +3,7 @@
 // Depends on accel/kdtree.h and geometry/intersect.h.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 
@@ -256,6 +257,45 @@ inline int intersect4(const Vec3f* positions, const Vec3u* tri, int valid, const
     const __m128 in_range = _mm_and_ps(_mm_cmp_ps(t, _mm_set1_ps(rs.tmin), _CMP_GE_OQ),
                                        _mm_cmp_ps(t, _mm_set1_ps(tmax), _CMP_LE_OQ));
     return pass & ok & _mm_movemask_ps(in_range);
+}
+
+/// test_leaf() of the single-ray and stream queries four triangles at a time, on the closest
+/// hit so far (best_*). The hits of a group, taken in order and each kept only if it is still
+/// the closest, are exactly the scalar loop's: a later triangle at the same t wins, as it does
+/// there. Adds the triangles tested (up to the hit for kAnyHit) to `tested`; true when
+/// kAnyHit and one is hit. kDirect: the tree has reference triangles.
+template <bool kAnyHit, bool kDirect>
+inline bool test_leaf4(const KdNode node, const TreeView& tv, const RayState& rs, float& best_t,
+                       float& best_u, float& best_v, uint32_t& best_prim, uint64_t& tested) {
+    const uint32_t count = node.count();
+    const uint32_t* ids = tv.indices + node.first;
+    for (uint32_t i = 0; i < count; i += 4) {
+        const uint32_t n = std::min(count - i, 4u);
+        Vec3u tri[4];
+        for (uint32_t j = 0; j < 4; ++j) {
+            const uint32_t k = i + (j < n ? j : 0u);  // idle lanes repeat the first
+            tri[j] = kDirect ? tv.reference_triangles[node.first + k] : tv.triangles[ids[k]];
+        }
+        alignas(16) float t[4], u[4], v[4];
+        int hits = intersect4(tv.positions, tri, (1 << n) - 1, rs, best_t, t, u, v);
+        if (!hits) continue;
+        if (kAnyHit) {
+            tested += i + uint32_t(__builtin_ctz(unsigned(hits))) + 1;
+            return true;
+        }
+        do {
+            const int j = __builtin_ctz(unsigned(hits));
+            hits &= hits - 1;
+            if (t[j] <= best_t) {
+                best_t = t[j];
+                best_u = u[j];
+                best_v = v[j];
+                best_prim = ids[i + j];
+            }
+        } while (hits);
+    }
+    tested += count;
+    return false;
 }
 
 #endif

@@ -209,50 +209,15 @@ inline const Vec3u& reference(const TreeView& tv, const KdNode leaf, uint32_t k)
                    : tv.triangles[tv.indices[leaf.first + k]];
 }
 
-#if KDT_SIMD_TRAVERSAL
-// test_leaf4() of traversal.cpp on the lane's leaf: four triangles at a time, each lane's
-// result bit for bit the scalar test's, hits of a group taken in order (a later triangle at
-// the same t wins, as in the scalar loop).
-template <bool kAnyHit, bool kDirect>
-inline bool test_leaf4(const TreeView& tv, Lane& l, StreamCounts& counts) {
-    const KdNode leaf = l.leaf;
-    const uint32_t count = leaf.count();
-    const uint32_t* ids = tv.indices + leaf.first;
-    for (uint32_t i = 0; i < count; i += 4) {
-        const uint32_t n = std::min(count - i, 4u);
-        Vec3u tri[4];
-        for (uint32_t j = 0; j < 4; ++j)
-            tri[j] = reference<kDirect>(tv, leaf, i + (j < n ? j : 0u));  // idle lanes repeat
-        alignas(16) float t[4], u[4], v[4];
-        int hits = detail::intersect4(tv.positions, tri, (1 << n) - 1, l.rs, l.best_t, t, u, v);
-        if (!hits) continue;
-        if (kAnyHit) {
-            counts.triangles += i + uint32_t(__builtin_ctz(unsigned(hits))) + 1;
-            return true;
-        }
-        do {
-            const int j = __builtin_ctz(unsigned(hits));
-            hits &= hits - 1;
-            if (t[j] <= l.best_t) {
-                l.best_t = t[j];
-                l.best_u = u[j];
-                l.best_v = v[j];
-                l.best_prim = ids[i + j];
-            }
-        } while (hits);
-    }
-    counts.triangles += count;
-    return false;
-}
-#endif
-
 // test_leaf() of traversal.cpp on the lane's leaf; true when kAnyHit and one is hit.
 template <bool kAnyHit, bool kDirect>
 inline bool test_leaf(const TreeView& tv, Lane& l, StreamCounts& counts) {
     const KdNode leaf = l.leaf;
     const uint32_t count = leaf.count();
 #if KDT_SIMD_TRAVERSAL
-    if (count >= detail::kWideLeafMin) return test_leaf4<kAnyHit, kDirect>(tv, l, counts);
+    if (count >= detail::kWideLeafMin)
+        return detail::test_leaf4<kAnyHit, kDirect>(leaf, tv, l.rs, l.best_t, l.best_u, l.best_v,
+                                                    l.best_prim, counts.triangles);
 #endif
     const Vec3f* p = tv.positions;
     for (uint32_t k = 0; k < count; ++k) {
