@@ -1,5 +1,6 @@
-// Internal to the kd-tree queries (traversal.cpp, traversal_packet.cpp): per-ray setup
-// shared by the single-ray and the packet traversal, so both take exactly the same steps.
+// Internal to the kd-tree queries (traversal.cpp, traversal_packet.cpp, traversal_stream.cpp):
+// the per-ray setup and the four-wide triangle and leaf tests they share, so all of them take
+// exactly the same steps.
 // Depends on accel/kdtree.h and geometry/intersect.h.
 #pragma once
 
