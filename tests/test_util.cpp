@@ -21,6 +21,13 @@ std::filesystem::path shared_data_dir() {
                                             : std::filesystem::path();
 }
 
+std::filesystem::path grace_probe() {
+    const std::filesystem::path data = shared_data_dir();
+    if (data.empty()) return {};
+    auto p = data / "probes" / "grace.hdr";
+    return std::filesystem::exists(p) ? p : std::filesystem::path();
+}
+
 std::filesystem::path dragon_dir() {
     std::filesystem::path cache;
     if (const char* env = std::getenv("KDT_CACHE_DIR")) {

@@ -16,6 +16,11 @@ std::filesystem::path source_dir();
 /// ../shared/data next to the repository, or empty when absent (tests then GTEST_SKIP
 /// with a message saying so).
 std::filesystem::path shared_data_dir();
+/// shared_data_dir() / "probes" / "grace.hdr" when that file exists, else empty; tests skip
+/// with kNoGraceProbe.
+std::filesystem::path grace_probe();
+inline constexpr const char* kNoGraceProbe =
+    "../shared/data/probes/grace.hdr not found (set KDT_SHARED_DATA)";
 /// Directory holding the fetched Stanford dragon (scripts/fetch_assets.sh), or empty.
 std::filesystem::path dragon_dir();
 /// A fresh temporary directory for one test.

@@ -374,12 +374,10 @@ TEST(PathTracer, MirrorReflectsTheEnvironmentExactly) {
 // The same with the Grace probe: a mirror sphere shows the probe, smooth-shaded, exactly
 // (reflection about the interpolated normal), through the real environment light.
 TEST(PathTracer, MirrorSphereReflectsTheProbe) {
-    const auto data = test::shared_data_dir();
-    if (data.empty() || !std::filesystem::exists(data / "probes" / "grace.hdr")) {
-        GTEST_SKIP() << "shared data (probes/grace.hdr) not found; set KDT_SHARED_DATA";
-    }
+    const auto grace = test::grace_probe();
+    if (grace.empty()) GTEST_SKIP() << test::kNoGraceProbe;
     EnvironmentDesc desc;
-    desc.file = (data / "probes" / "grace.hdr").string();
+    desc.file = grace.string();
     desc.rotation_degrees = 30.0f;
     auto env = make_environment_light(desc);
     const TraceScene scene = make_scene(

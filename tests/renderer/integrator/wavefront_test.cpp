@@ -126,12 +126,10 @@ TEST(Wavefront, MatchesOnePathWithShadowRaysEmittersAndGlass) {
 }
 
 TEST(Wavefront, MatchesOnePathUnderTheGraceProbe) {
-    const auto data = test::shared_data_dir();
-    if (data.empty() || !std::filesystem::exists(data / "probes" / "grace.hdr")) {
-        GTEST_SKIP() << "shared data (probes/grace.hdr) not found; set KDT_SHARED_DATA";
-    }
+    const auto grace = test::grace_probe();
+    if (grace.empty()) GTEST_SKIP() << test::kNoGraceProbe;
     EnvironmentDesc desc;
-    desc.file = (data / "probes" / "grace.hdr").string();
+    desc.file = grace.string();
     const TraceScene scene = test::make_mixed_scene(make_environment_light(desc));
     for (const TraceParams& tp : strategies())
         expect_wavefront_equals_one_path(scene, tp, describe(tp) + ", grace", 1000);

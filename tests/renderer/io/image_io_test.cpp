@@ -231,11 +231,9 @@ TEST_F(ImageIoTest, HdrRoundTripWithinRgbePrecision) {
 }
 
 TEST_F(ImageIoTest, LoadsTheSharedProbes) {
-    auto data = test::shared_data_dir();
-    if (data.empty() || !std::filesystem::exists(data / "probes" / "grace.hdr")) {
-        GTEST_SKIP() << "../shared/data/probes not found (set KDT_SHARED_DATA)";
-    }
-    ImageRGB grace = load_image((data / "probes" / "grace.hdr").string());
+    const auto grace_file = test::grace_probe();
+    if (grace_file.empty()) GTEST_SKIP() << test::kNoGraceProbe;
+    ImageRGB grace = load_image(grace_file.string());
     EXPECT_EQ(grace.width, 256);
     EXPECT_EQ(grace.height, 128);
     float max = 0.0f;

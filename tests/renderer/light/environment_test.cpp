@@ -270,12 +270,10 @@ void compare_on_probe(const ImageEnvironment& env, const std::string& label, dou
 }
 
 TEST(Environment, ImportanceAndUniformSamplingAgreeOnGrace) {
-    auto data = test::shared_data_dir();
-    if (data.empty() || !std::filesystem::exists(data / "probes" / "grace.hdr")) {
-        GTEST_SKIP() << "../shared/data/probes/grace.hdr not found (set KDT_SHARED_DATA)";
-    }
+    const auto grace = test::grace_probe();
+    if (grace.empty()) GTEST_SKIP() << test::kNoGraceProbe;
     EnvironmentDesc desc;
-    desc.file = (data / "probes" / "grace.hdr").string();
+    desc.file = grace.string();
     desc.rotation_degrees = 123.0f;
     auto light = make_environment_light(desc);
     auto* env = dynamic_cast<const ImageEnvironment*>(light.get());
@@ -348,11 +346,9 @@ TEST_P(MapTest, ProbeLitDiffusePlaneIsUnchangedByBilinearLookup) {
         is.add(luminance(s.radiance) * std::max(0.0f, s.dir.y) / s.pdf_solid_angle);
     }
     EXPECT_NEAR(is.mean(), M_PI * 1.4, 4.0 * is.std_error() + 1e-4) << "pi L";
-    auto data = test::shared_data_dir();
-    if (GetParam() == EnvMapping::latlong && !data.empty() &&
-        std::filesystem::exists(data / "probes" / "grace.hdr")) {
-        ImageEnvironment grace(load_image((data / "probes" / "grace.hdr").string()),
-                               EnvMapping::latlong, 0.0f, 1.0f);
+    const auto grace_file = test::grace_probe();
+    if (GetParam() == EnvMapping::latlong && !grace_file.empty()) {
+        ImageEnvironment grace(load_image(grace_file.string()), EnvMapping::latlong, 0.0f, 1.0f);
         expect_plane_irradiance_unchanged(grace, "grace");
     }
 }
