@@ -114,42 +114,12 @@ struct BestHit {
     uint32_t prim = Hit::kNoHit;
 };
 
-#if KDT_SIMD_TRAVERSAL
-using detail::kWideLeafMin;
-using detail::test_leaf4;
-#endif
-
-// Tests the triangles of a leaf; true when kAnyHit and one is hit. `tested` counts tests.
-// kDirect: the tree has reference triangles (a run-time test here costs the gain they bring).
+// detail::test_leaf() on the query's closest hit.
 template <bool kAnyHit, bool kDirect>
 inline bool test_leaf(const KdNode node, const TreeView& tv, const RayState& rs, BestHit& best,
                       uint64_t& tested) {
-    const uint32_t count = node.count();
-#if KDT_SIMD_TRAVERSAL
-    if (count >= kWideLeafMin)
-        return test_leaf4<kAnyHit, kDirect>(node, tv, rs, best.t, best.u, best.v, best.prim,
-                                            tested);
-#endif
-    const uint32_t* ids = tv.indices + node.first;
-    const Vec3u* refs = kDirect ? tv.reference_triangles + node.first : nullptr;
-    const Vec3f* positions = tv.positions;
-    for (uint32_t i = 0; i < count; ++i) {
-        const Vec3u tri = kDirect ? refs[i] : tv.triangles[ids[i]];
-        float t, u, v;
-        if (intersect_triangle(rs.wr, positions[tri.x], positions[tri.y], positions[tri.z], rs.tmin,
-                               best.t, t, u, v)) {
-            if (kAnyHit) {
-                tested += i + 1;
-                return true;
-            }
-            best.t = t;
-            best.u = u;
-            best.v = v;
-            best.prim = ids[i];
-        }
-    }
-    tested += count;
-    return false;
+    return detail::test_leaf<kAnyHit, kDirect>(node, tv, rs, best.t, best.u, best.v, best.prim,
+                                               tested);
 }
 
 // Next node front to back, skipping those that start beyond the closest hit. A hit beyond

@@ -301,6 +301,42 @@ inline bool test_leaf4(const KdNode node, const TreeView& tv, const RayState& rs
 
 #endif
 
+/// Tests the triangles of a leaf on the closest hit so far (best_*), as the single-ray and
+/// the stream queries both do: four at a time from kWideLeafMin triangles up, one by one
+/// below. Adds the triangles tested (up to the hit for kAnyHit) to `tested`; true when
+/// kAnyHit and one is hit. kDirect: the tree has reference triangles (a run-time test here
+/// costs the gain they bring).
+template <bool kAnyHit, bool kDirect>
+inline bool test_leaf(const KdNode node, const TreeView& tv, const RayState& rs, float& best_t,
+                      float& best_u, float& best_v, uint32_t& best_prim, uint64_t& tested) {
+    const uint32_t count = node.count();
+#if KDT_SIMD_TRAVERSAL
+    if (count >= kWideLeafMin)
+        return test_leaf4<kAnyHit, kDirect>(node, tv, rs, best_t, best_u, best_v, best_prim,
+                                            tested);
+#endif
+    const uint32_t* ids = tv.indices + node.first;
+    const Vec3u* refs = kDirect ? tv.reference_triangles + node.first : nullptr;
+    const Vec3f* positions = tv.positions;
+    for (uint32_t i = 0; i < count; ++i) {
+        const Vec3u tri = kDirect ? refs[i] : tv.triangles[ids[i]];
+        float t, u, v;
+        if (intersect_triangle(rs.wr, positions[tri.x], positions[tri.y], positions[tri.z], rs.tmin,
+                               best_t, t, u, v)) {
+            if (kAnyHit) {
+                tested += i + 1;
+                return true;
+            }
+            best_t = t;
+            best_u = u;
+            best_v = v;
+            best_prim = ids[i];
+        }
+    }
+    tested += count;
+    return false;
+}
+
 /// Rays per packet.
 inline constexpr int kPacketSize = 8;
 

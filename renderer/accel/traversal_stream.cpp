@@ -13,9 +13,9 @@
 //
 // Exactness: every decision and every float operation is the single-ray traversal's
 // (traversal.cpp: descend(), test_leaf(), pop()), in the same order per ray: the same
-// slack, the same min/max on NaN, the same triangle tests (test_leaf4() from two triangles
-// up, the scalar watertight test below), the same search end (a hit beyond the
-// current leaf does not end it; every remaining node must start beyond the closest hit).
+// slack, the same min/max on NaN, the same leaf test (detail::test_leaf()), the same search
+// end (a hit beyond the current leaf does not end it; every remaining node must start beyond
+// the closest hit).
 // Only the interleaving of different rays differs, and rays share nothing.
 #include "renderer/accel/traversal_stream.h"
 
@@ -202,38 +202,11 @@ inline bool descend(const TreeView& tv, Lane& l, StreamCounts& counts) {
     }
 }
 
-// The vertex indices of the leaf's reference k.
-template <bool kDirect>
-inline const Vec3u& reference(const TreeView& tv, const KdNode leaf, uint32_t k) {
-    return kDirect ? tv.reference_triangles[leaf.first + k]
-                   : tv.triangles[tv.indices[leaf.first + k]];
-}
-
-// test_leaf() of traversal.cpp on the lane's leaf; true when kAnyHit and one is hit.
+// detail::test_leaf() on the lane's leaf and closest hit.
 template <bool kAnyHit, bool kDirect>
 inline bool test_leaf(const TreeView& tv, Lane& l, StreamCounts& counts) {
-    const KdNode leaf = l.leaf;
-    const uint32_t count = leaf.count();
-#if KDT_SIMD_TRAVERSAL
-    if (count >= detail::kWideLeafMin)
-        return detail::test_leaf4<kAnyHit, kDirect>(leaf, tv, l.rs, l.best_t, l.best_u, l.best_v,
-                                                    l.best_prim, counts.triangles);
-#endif
-    const Vec3f* p = tv.positions;
-    for (uint32_t k = 0; k < count; ++k) {
-        const Vec3u tri = reference<kDirect>(tv, leaf, k);
-        ++counts.triangles;
-        float t, u, v;
-        if (intersect_triangle(l.rs.wr, p[tri.x], p[tri.y], p[tri.z], l.rs.tmin, l.best_t, t, u,
-                               v)) {
-            if (kAnyHit) return true;
-            l.best_t = t;
-            l.best_u = u;
-            l.best_v = v;
-            l.best_prim = tv.indices[leaf.first + k];
-        }
-    }
-    return false;
+    return detail::test_leaf<kAnyHit, kDirect>(l.leaf, tv, l.rs, l.best_t, l.best_u, l.best_v,
+                                               l.best_prim, counts.triangles);
 }
 
 // One visit of a lane; false when its ray is done (for kAnyHit: done with a hit when
