@@ -138,7 +138,9 @@ public:
         Context& ctx = ctx_;
         const TriangleMesh& mesh = *ctx.mesh;
         const size_t n = job->size();
-        if (n <= ctx.tuning.sweep_threshold || job->depth >= ctx.max_depth) {
+        // (A split's N_L + N_R is at least N: none fits a budget below N.)
+        if (n <= ctx.tuning.sweep_threshold || job->depth >= ctx.max_depth ||
+            !fits_budget(n, 0, job->budget)) {
             sweep_task(std::move(job));
             return;
         }
@@ -226,6 +228,23 @@ public:
             }
         }
         const size_t straddlers = whole_count[kBoth] + clipped_count[kBoth];
+        // The split's N_L and N_R, exact (clipping below only drops references). Over the
+        // budget the node is the sweep's to decide after all (sah_internal.h).
+        const size_t n_left = whole_count[kLeft] + clipped_count[kLeft] + straddlers;
+        const size_t n_right = whole_count[kRight] + clipped_count[kRight] + straddlers;
+        if (!fits_budget(n_left, n_right, job->budget)) {
+            release(side);
+            child[0].reset();  // before the nodes they refer to
+            child[1].reset();
+            node.axis = -1;
+            node.child[0].reset();
+            node.child[1].reset();
+            sweep_task(std::move(job));
+            return;
+        }
+        for (int c = 0; c < 2; ++c)
+            child[c]->budget =
+                child_budget(job->budget, c == 0 ? n_left : n_right, n_left, n_right);
         child[0]->whole.reserve(whole_count[kLeft]);
         child[1]->whole.reserve(whole_count[kRight]);
         child[0]->clipped.reserve(clipped_count[kLeft] + straddlers);
@@ -287,7 +306,7 @@ private:
             refs.insert(refs.end(), own->clipped.begin(), own->clipped.end());
             release(own->whole);
             release(own->clipped);
-            sweep_subtree(ctx, *ws, refs, own->box, own->depth, own->node.sub);
+            sweep_subtree(ctx, *ws, refs, own->box, own->depth, own->budget, own->node.sub);
         }
     }
 

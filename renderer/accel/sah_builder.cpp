@@ -300,6 +300,7 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
     root_box.extend(valid_bounds);
 
     root->box = root_box;
+    root->budget = tuning.ref_budget_per_triangle * double(valid_count);
     build_top(ctx, std::move(root), threads);
 
     size_t node_count = 1, index_count = 0;

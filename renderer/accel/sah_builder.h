@@ -15,6 +15,11 @@ struct SahTuning {
     uint32_t sweep_threshold = 2048;  ///< nodes with more references are split by binned SAH
     int bins = 64;                    ///< bins per axis in the binned phase (>= 2)
     uint32_t task_threshold = 8192;   ///< binned nodes with more references spawn a task
+    /// Leaf references the whole tree may hold per triangle (the reference budget,
+    /// sah_internal.h). No scanned mesh comes near it at any depth the automatic limit
+    /// allows; it stops meshes of large overlapping triangles from doubling their
+    /// references at every level.
+    double ref_budget_per_triangle = 256.0;
 };
 
 /// build_sah_tree() with explicit tuning (tests use tiny thresholds to exercise both phases).

@@ -179,7 +179,7 @@ public:
     SweepBuilder(const Context& ctx, Workspace& ws, Subtree& out) : ctx_(ctx), ws_(ws), out_(out) {}
 
     /// Sweeps the subtree over `refs` (taken over: the vector is left empty).
-    void build(MeteredVector<Ref>& refs, const Bounds3f& box, int depth) {
+    void build(MeteredVector<Ref>& refs, const Bounds3f& box, int depth, double budget) {
         SweepNode& root = ws_.slot(0, 0);
         root.clear();
         root.refs.swap(refs);
@@ -212,7 +212,7 @@ public:
             }
         }
         out_.nodes.push_back(KdNode{});
-        recurse(root, box, depth, 0, 0);
+        recurse(root, box, depth, budget, 0, 0);
     }
 
 private:
@@ -286,15 +286,19 @@ private:
         for (const Ref& r : node.refs) out_.indices.push_back(r.tri);
     }
 
-    void recurse(SweepNode& node, const Bounds3f& box, int depth, int level, uint32_t slot) {
+    void recurse(SweepNode& node, const Bounds3f& box, int depth, double budget, int level,
+                 uint32_t slot) {
         const size_t n = node.refs.size();
         SweepSplit best;
         // Every split costs at least traversal_cost, so a node whose leaf is no dearer
         // stays a leaf without a sweep (the sweep could not find a cheaper split).
-        if (n > 0 && depth < ctx_.max_depth && ctx_.leaf_cost(n) > ctx_.params.traversal_cost) {
+        // A split's N_L + N_R is at least N: none fits a budget below N.
+        if (n > 0 && depth < ctx_.max_depth && ctx_.leaf_cost(n) > ctx_.params.traversal_cost &&
+            fits_budget(n, 0, budget)) {
             best = find_split(node, box);
         }
-        if (best.axis < 0 || !(best.cost < ctx_.leaf_cost(n))) {
+        if (best.axis < 0 || !(best.cost < ctx_.leaf_cost(n)) ||
+            !fits_budget(best.n_left, best.n_right, budget)) {
             make_leaf(node, slot);
             node.clear();
             return;
@@ -315,18 +319,23 @@ private:
             // An empty-space cut-off: the full child goes on with this level's lists (no
             // copy, and the workspace does not grow a level per cut-off); the other child is
             // an empty leaf, made in the same depth-first order as any leaf.
+            // (N_L + N_R = N: the budget goes on whole.)
             if (full == 0) {
-                recurse(node, left_box, depth + 1, level, first_child);
+                recurse(node, left_box, depth + 1, budget, level, first_child);
                 make_empty_leaf(first_child + 1);
             } else {
                 make_empty_leaf(first_child);
-                recurse(node, right_box, depth + 1, level, first_child + 1);
+                recurse(node, right_box, depth + 1, budget, level, first_child + 1);
             }
             return;
         }
         node.clear();
-        recurse(left, left_box, depth + 1, level + 1, first_child);
-        recurse(right, right_box, depth + 1, level + 1, first_child + 1);
+        recurse(left, left_box, depth + 1,
+                child_budget(budget, best.n_left, best.n_left, best.n_right), level + 1,
+                first_child);
+        recurse(right, right_box, depth + 1,
+                child_budget(budget, best.n_right, best.n_left, best.n_right), level + 1,
+                first_child + 1);
     }
 
     void make_empty_leaf(uint32_t slot) {
@@ -467,9 +476,9 @@ void WorkspaceDeleter::operator()(Workspace* ws) const { delete ws; }
 WorkspacePtr make_workspace(ScratchMeter* meter) { return WorkspacePtr(new Workspace(meter)); }
 
 void sweep_subtree(const Context& ctx, Workspace& ws, MeteredVector<Ref>& refs, const Bounds3f& box,
-                   int depth, Subtree& out) {
+                   int depth, double budget, Subtree& out) {
     SweepBuilder sweep(ctx, ws, out);
-    sweep.build(refs, box, depth);  // takes the references over
+    sweep.build(refs, box, depth, budget);  // takes the references over
     // Drop the growth slack: the subtrees together are as large as the final tree.
     out.nodes.shrink_to_fit();
     out.indices.shrink_to_fit();

@@ -102,6 +102,21 @@ TriangleMesh cube_lattice(int n) {
     return m;
 }
 
+/// Large triangles overlapping in the plane z = 0, their vertices anywhere in the unit
+/// square: every split plane cuts most of them, the input that made the SAH builder double
+/// its references at every level before the reference budget.
+TriangleMesh overlapping_soup(size_t count, uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    TriangleMesh m;
+    for (size_t i = 0; i < 3 * count; ++i) m.positions.emplace_back(u(rng), u(rng), 0.0f);
+    for (size_t i = 0; i < count; ++i) {
+        const auto base = uint32_t(3 * i);
+        m.triangles.emplace_back(base, base + 1, base + 2);
+    }
+    return m;
+}
+
 bool triangle_valid(const TriangleMesh& m, size_t i) {
     const Vec3u& t = m.triangles[i];
     return is_finite(m.positions[t.x]) && is_finite(m.positions[t.y]) &&
@@ -480,6 +495,56 @@ TEST(SahBuilder, DeepTreeOnClusteredInput) {
     EXPECT_GT(rep.max_depth, 20);
 }
 
+TEST(SahBuilder, OverlappingTrianglesStayWithinTheReferenceBudget) {
+    const TriangleMesh mesh = overlapping_soup(1500, 5);
+    const auto n = double(mesh.triangle_count());
+    // The default budget is a bound worth having: at most a few hundred per triangle.
+    EXPECT_LE(SahTuning{}.ref_budget_per_triangle, 1024.0);
+    for (const double budget : {SahTuning{}.ref_budget_per_triangle, 64.0, 8.0}) {
+        for (SahTuning tuning : {SahTuning{}, binned_tuning()}) {
+            tuning.ref_budget_per_triangle = budget;
+            KdTreeParams params;
+            params.threads = 2;
+            const KdBuildOutput out = build_sah_tree(mesh, params, tuning);
+            check_tree(mesh, out, auto_depth(mesh.triangle_count()));
+            EXPECT_LE(double(out.indices.size()), budget * n) << "budget " << budget;
+            EXPECT_GT(out.stats.sah_splits, 4u) << "budget " << budget;
+            // Still a tree for any thread count.
+            params.threads = 1;
+            const KdBuildOutput one = build_sah_tree(mesh, params, tuning);
+            EXPECT_EQ(one.indices, out.indices) << "budget " << budget;
+            ASSERT_EQ(one.nodes.size(), out.nodes.size()) << "budget " << budget;
+            for (size_t i = 0; i < one.nodes.size(); ++i) {
+                ASSERT_EQ(one.nodes[i].word, out.nodes[i].word);
+                ASSERT_EQ(one.nodes[i].first, out.nodes[i].first);
+            }
+        }
+    }
+}
+
+// The default budget binds only where references multiply level after level: ordinary
+// meshes get the trees an unlimited budget gives (the dragon's coarser version needs more
+// than 16 references per triangle along some paths, a budget of 32 leaves it alone).
+TEST(SahBuilder, ReferenceBudgetLeavesOrdinaryTreesAlone) {
+    std::vector<TriangleMesh> meshes;
+    meshes.push_back(uv_sphere(30, 60));
+    meshes.push_back(random_soup(3000, 9, 0.2f));
+    meshes.push_back(cube_lattice(5));
+    if (const auto dragon = test::load_dragon_res2()) meshes.push_back(*dragon);
+    for (size_t mi = 0; mi < meshes.size(); ++mi) {
+        SahTuning unlimited;
+        unlimited.ref_budget_per_triangle = std::numeric_limits<double>::infinity();
+        const KdBuildOutput a = build_sah_tree(meshes[mi], KdTreeParams{});
+        const KdBuildOutput b = build_sah_tree(meshes[mi], KdTreeParams{}, unlimited);
+        ASSERT_EQ(a.nodes.size(), b.nodes.size()) << "mesh " << mi;
+        EXPECT_EQ(a.indices, b.indices) << "mesh " << mi;
+        for (size_t i = 0; i < a.nodes.size(); ++i) {
+            ASSERT_EQ(a.nodes[i].word, b.nodes[i].word) << "mesh " << mi;
+            ASSERT_EQ(a.nodes[i].first, b.nodes[i].first) << "mesh " << mi;
+        }
+    }
+}
+
 TEST(SahBuilder, SameTreeForAnyThreadCount) {
     const TriangleMesh mesh = random_soup(4000, 8, 0.05f);
     KdTreeParams one, two;
@@ -656,8 +721,10 @@ TEST(SahBuilderQueries, ClosestHitsMatchBruteForce) {
     with_degenerates.triangles.emplace_back(p, p, p);
     with_degenerates.positions[with_degenerates.triangles[5].x] =
         Vec3f(std::numeric_limits<float>::quiet_NaN());
-    const TriangleMesh meshes[] = {random_soup(300, 30, 0.3f), uv_sphere(10, 20), cube_lattice(3),
-                                   flat_grid(12), with_degenerates};
+    // The overlapping soup's tree is cut short by the reference budget.
+    const TriangleMesh meshes[] = {
+        random_soup(300, 30, 0.3f), uv_sphere(10, 20),       cube_lattice(3), flat_grid(12),
+        with_degenerates,           overlapping_soup(400, 6)};
     size_t rays_checked = 0;
     for (size_t mi = 0; mi < std::size(meshes); ++mi) {
         const TriangleMesh& mesh = meshes[mi];
