@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <new>
 
 #include "renderer/core/color.h"
 #include "renderer/core/error.h"
@@ -72,7 +73,26 @@ int sampling_subdivision(int w, int h) {
     return 1;
 }
 
+// Pixels per sampling cell along each axis for maps too large for a cell per pixel: the
+// smallest power of two that keeps the grid within 2^25 cells (1 up to 8192 x 4096
+// pixels, 2 for 16k x 8k). The tables cost about 24 bytes per cell and their construction
+// 40 more, against 12 per pixel for the map itself: a 16k map with a cell per pixel
+// needed 9 GB.
+int sampling_coarsening(int w, int h) {
+    constexpr uint64_t kMaxCoarseCells = uint64_t(1) << 25;
+    auto cells = [&](uint64_t t) {
+        return ((uint64_t(std::max(w, 1)) + t - 1) / t) * ((uint64_t(std::max(h, 1)) + t - 1) / t);
+    };
+    int t = 1;
+    while (cells(uint64_t(t)) > kMaxCoarseCells) t *= 2;
+    return t;
+}
+
 }  // namespace
+
+int automatic_sampling_pixels_per_cell(int width, int height) {
+    return sampling_coarsening(width, height);
+}
 
 void check_environment_texels(const ImageRGB& image, float intensity, const std::string& path) {
     uint64_t nonfinite = 0, negative = 0;
@@ -141,9 +161,11 @@ ImageEnvironment::ImageEnvironment(ImageRGB image, EnvMapping mapping, float rot
         throw Error(ErrorLocation{where(name)}, "intensity must be finite and >= 0");
     }
     if (cells_per_pixel != 0 && cells_per_pixel != 1 &&
-        !(cells_per_pixel % 2 == 0 && cells_per_pixel >= 2 && cells_per_pixel <= 16)) {
+        !(cells_per_pixel % 2 == 0 && cells_per_pixel >= 2 && cells_per_pixel <= 16) &&
+        !(cells_per_pixel >= -64 && cells_per_pixel <= -2)) {
         throw Error(ErrorLocation{where(name)},
-                    "sampling cells per pixel must be 0 (automatic), 1 or even in [2, 16]");
+                    "sampling cells per pixel must be 0 (automatic), 1, even in [2, 16], or -T "
+                    "for T x T pixels per cell, T in [2, 64]");
     }
     float radians = rotation_degrees * (kPi / 180.0f);
     cos_rot_ = std::cos(radians);
@@ -151,13 +173,26 @@ ImageEnvironment::ImageEnvironment(ImageRGB image, EnvMapping mapping, float rot
 
     check_environment_texels(image_, intensity, where(name));
 
-    // Sampling weights on the grid of sampling cells (sub_ x sub_ per pixel): the mean
-    // luminance of the bilinear reconstruction over the cell times the cell's solid angle per
-    // unit uv area, so that the solid-angle pdf is close to proportional to what eval()
-    // returns, and positive wherever eval() is.
+    // Sampling weights on the grid of sampling cells (sub_ x sub_ per pixel, or a cell per
+    // pixels_ x pixels_): the mean luminance of the bilinear reconstruction over the cell
+    // times the cell's solid angle per unit uv area, so that the solid-angle pdf is close to
+    // proportional to what eval() returns, and positive wherever eval() is.
     // In double: luminance times a Jacobian of up to 4 pi^2 overflows float for huge cells.
-    sub_ = cells_per_pixel != 0 ? cells_per_pixel : sampling_subdivision(w, h);
-    const int gw = w * sub_, gh = h * sub_;
+    if (cells_per_pixel < 0) {
+        pixels_ = -cells_per_pixel;
+    } else if (cells_per_pixel == 0) {
+        pixels_ = sampling_coarsening(w, h);
+    }
+    if (pixels_ > 1) {
+        sub_ = 1;
+        grid_w_ = (w + pixels_ - 1) / pixels_;
+        grid_h_ = (h + pixels_ - 1) / pixels_;
+    } else {
+        sub_ = cells_per_pixel != 0 ? cells_per_pixel : sampling_subdivision(w, h);
+        grid_w_ = w * sub_;
+        grid_h_ = h * sub_;
+    }
+    const int gw = grid_w_, gh = grid_h_;
     const size_t cells = size_t(gw) * size_t(gh);
     const std::vector<double> lum = cell_mean_luminance();
     // jac: each cell's solid angle per unit uv area (its mean Jacobian), zero outside the
@@ -199,7 +234,7 @@ ImageEnvironment::ImageEnvironment(ImageRGB image, EnvMapping mapping, float rot
 
 ImageEnvironment::CellSampling ImageEnvironment::make_cell_sampling(
     const std::vector<double>& weights, const std::vector<float>& cover) const {
-    const int gw = image_.width * sub_, gh = image_.height * sub_;
+    const int gw = grid_w_, gh = grid_h_;
     // Normalised to a maximum of 1 so that the float distribution can neither overflow nor
     // lose the scale; cells below 1e-38 of the brightest one round to weight 0.
     double max_weight = *std::max_element(weights.begin(), weights.end());
@@ -225,7 +260,7 @@ double ImageEnvironment::angular_mean_jacobian(int x, int y) const {
     // Zero outside the disk: the centre value for cells inside the disk, a kSub^2 grid for
     // cells cut by the rim. It only shapes the weights; the density stays exact.
     constexpr int kSub = 4;
-    const float gw = float(image_.width * sub_), gh = float(image_.height * sub_);
+    const auto gw = float(grid_w_), gh = float(grid_h_);
     if (coverage(x, y) >= 1.0f) {
         if (auto d = angular_dir_from_uv({(float(x) + 0.5f) / gw, (float(y) + 0.5f) / gh}))
             return angular_jacobian(*d);
@@ -249,6 +284,38 @@ int ImageEnvironment::column(int x) const {
 
 std::vector<double> ImageEnvironment::cell_mean_luminance() const {
     const int w = image_.width, h = image_.height;
+    if (pixels_ > 1) {
+        // Cells of several pixels, uniform in uv (their edges need not fall on pixel edges):
+        // the mean luminance of the pixels the reconstruction reads anywhere in the cell,
+        // those whose centres lie within a pixel of it. Not the exact mean, but positive
+        // wherever the reconstruction is, which is all unbiasedness needs; read from the map
+        // itself, with no per-pixel arrays.
+        const int gw = grid_w_, gh = grid_h_;
+        std::vector<double> out(size_t(gw) * size_t(gh));
+        // Pixel range [lo, hi] of the reconstruction over cell c of n along an axis of m.
+        auto range = [](int c, int n, int m, int& lo, int& hi) {
+            lo = int(std::floor(double(c) * m / n - 0.5));
+            hi = int(std::floor(double(c + 1) * m / n - 0.5)) + 1;
+        };
+        for (int gy = 0; gy < gh; ++gy) {
+            int y0, y1;
+            range(gy, gh, h, y0, y1);
+            y0 = std::clamp(y0, 0, h - 1);
+            y1 = std::clamp(y1, 0, h - 1);
+            for (int gx = 0; gx < gw; ++gx) {
+                int x0, x1;
+                range(gx, gw, w, x0, x1);
+                double sum = 0.0;
+                for (int y = y0; y <= y1; ++y) {
+                    for (int x = x0; x <= x1; ++x)
+                        sum += double(luminance(image_.at(column(std::clamp(x, -1, w)), y)));
+                }
+                out[size_t(gy) * size_t(gw) + size_t(gx)] =
+                    sum / (double(y1 - y0 + 1) * double(x1 - x0 + 1));
+            }
+        }
+        return out;
+    }
     std::vector<double> texel(image_.pixel_count());
     for (size_t i = 0; i < texel.size(); ++i) {
         texel[i] = double(luminance(image_.at(int(i % size_t(w)), int(i / size_t(w)))));
@@ -316,7 +383,7 @@ Vec3f ImageEnvironment::lookup(const Vec2f& uv) const {
 
 float ImageEnvironment::coverage(int x, int y) const {
     if (mapping_ == EnvMapping::latlong) return 1.0f;
-    const int w = image_.width * sub_, h = image_.height * sub_;
+    const int w = grid_w_, h = grid_h_;
     double a0 = 2.0 * x / w - 1.0, a1 = 2.0 * (x + 1) / w - 1.0;
     double b0 = 1.0 - 2.0 * (y + 1) / h, b1 = 1.0 - 2.0 * y / h;
     double far_a = std::max(std::abs(a0), std::abs(a1));
@@ -333,7 +400,7 @@ Vec3f ImageEnvironment::to_map(const Vec3f& world_dir) const {
 }
 
 size_t ImageEnvironment::cell_index(const Vec2f& uv) const {
-    const int gw = image_.width * sub_, gh = image_.height * sub_;
+    const int gw = grid_w_, gh = grid_h_;
     int x = std::clamp(int(uv.x * float(gw)), 0, gw - 1);
     int y = std::clamp(int(uv.y * float(gh)), 0, gh - 1);
     return size_t(y) * size_t(gw) + size_t(x);
@@ -391,7 +458,7 @@ EnvSample ImageEnvironment::sample_from(const CellSampling& cs, const Vec2f& u) 
         // pdf(cell) / coverage; failing 256 times has negligible probability and yields
         // a zero-pdf sample the integrator skips.
         uint64_t state = (uint64_t(float_bits(u.x)) << 32) | float_bits(u.y);
-        const float w = float(image_.width * sub_), h = float(image_.height * sub_);
+        const auto w = float(grid_w_), h = float(grid_h_);
         for (int attempt = 0; attempt < 256 && !map_dir; ++attempt) {
             uint64_t r = splitmix64(state);
             Vec2f p((float(cell.x) + unit_float(r)) / w, (float(cell.y) + unit_float(r << 24)) / h);
@@ -413,9 +480,28 @@ EnvSample ImageEnvironment::sample_from(const CellSampling& cs, const Vec2f& u) 
 
 std::shared_ptr<const EnvironmentLight> make_environment_light(const EnvironmentDesc& desc,
                                                                ImageRGB image) {
-    return std::make_shared<ImageEnvironment>(std::move(image), desc.mapping, desc.rotation_degrees,
-                                              desc.intensity, desc.file);
+    const std::string size = std::to_string(image.width) + "x" + std::to_string(image.height);
+    try {
+        return std::make_shared<ImageEnvironment>(std::move(image), desc.mapping,
+                                                  desc.rotation_degrees, desc.intensity, desc.file);
+    } catch (const std::bad_alloc&) {
+        throw Error(ErrorLocation{where(desc.file)},
+                    "out of memory for the sampling tables of the " + size + " map");
+    }
 }
+
+namespace {
+
+// load_image() with running out of memory (a huge map) reported as an error naming the file.
+ImageRGB load_environment_image(const std::string& path) {
+    try {
+        return load_image(path);
+    } catch (const std::bad_alloc&) {
+        throw Error(ErrorLocation{path}, "out of memory decoding the map");
+    }
+}
+
+}  // namespace
 
 std::string environment_mapping_warning(EnvMapping mapping, int width, int height) {
     const std::string size = std::to_string(width) + "x" + std::to_string(height);
@@ -433,7 +519,7 @@ std::string environment_mapping_warning(EnvMapping mapping, int width, int heigh
 std::shared_ptr<const EnvironmentLight> make_environment_light(const EnvironmentDesc& desc,
                                                                const EnvLog& log) {
     if (desc.file.empty()) return make_environment_light(desc);
-    ImageRGB image = load_image(desc.file);
+    ImageRGB image = load_environment_image(desc.file);
     const std::string warning =
         environment_mapping_warning(desc.mapping, image.width, image.height);
     if (log && !warning.empty()) log(desc.file + ": " + warning);
@@ -453,7 +539,7 @@ std::shared_ptr<const EnvironmentLight> make_environment_light(const Environment
                              "", "environment colour channel");
         return std::make_shared<ConstantEnvironment>(desc.color * desc.intensity);
     }
-    return make_environment_light(desc, load_image(desc.file));
+    return make_environment_light(desc, load_environment_image(desc.file));
 }
 
 }  // namespace kdt

@@ -83,12 +83,14 @@ TEST(Environment, ConstantColour) {
 
 class MapTest : public ::testing::TestWithParam<EnvMapping> {
 protected:
-    ImageEnvironment make(bool with_zeros, float rotation = 30.0f) const {
+    /// cells: as ImageEnvironment's cells_per_pixel (negative: a cell per -cells pixels).
+    ImageEnvironment make(bool with_zeros, float rotation = 30.0f, int cells = 0) const {
         ImageRGB ll = test_latlong(128, 64, with_zeros);
         if (GetParam() == EnvMapping::latlong) {
-            return ImageEnvironment(ll, EnvMapping::latlong, rotation, 1.5f);
+            return ImageEnvironment(ll, EnvMapping::latlong, rotation, 1.5f, "", cells);
         }
-        return ImageEnvironment(latlong_to_angular(ll, 96, 2), EnvMapping::angular, rotation, 1.5f);
+        return ImageEnvironment(latlong_to_angular(ll, 96, 2), EnvMapping::angular, rotation, 1.5f,
+                                "", cells);
     }
 };
 
@@ -149,6 +151,51 @@ TEST_P(MapTest, SamplesFollowThePdf) {
     for (int k = 0; k < 8; ++k) {
         EXPECT_NEAR(octant[k].mean(), M_PI / 2, 4.0 * octant[k].std_error() + 2e-3)
             << "octant " << k << " se " << octant[k].std_error();
+    }
+}
+
+// The grid of maps above 8192 x 4096 pixels, a cell per T x T pixels (T = 3: cell edges off
+// pixel edges), on the small test map: sample() agrees with pdf() and eval(), the density
+// table integrates to one, every direction where the map is positive has a positive pdf,
+// and E[1_R / pdf] is the solid angle of each octant.
+TEST_P(MapTest, CellsOfSeveralPixelsSampleExactly) {
+    for (const int t : {2, 3}) {
+        const ImageEnvironment env = make(true, 30.0f, -t);
+        ASSERT_EQ(env.sampling_pixels_per_cell(), t);
+        double sum = 0.0;
+        const int gw = env.sampling_grid_width(), gh = env.sampling_grid_height();
+        for (int y = 0; y < gh; ++y) {
+            for (int x = 0; x < gw; ++x) sum += env.density_uv(x, y) * env.coverage(x, y);
+        }
+        EXPECT_NEAR(sum / (double(gw) * gh), 1.0, 1e-5) << t;
+        HashRng rng(uint32_t(20 + t));
+        for (int i = 0; i < 20000; ++i) {
+            const EnvSample s = env.sample(rng.next2());
+            if (s.pdf_solid_angle == 0.0f) continue;
+            ASSERT_FLOAT_EQ(env.pdf(s.dir), s.pdf_solid_angle) << t;
+            ASSERT_EQ(env.eval(s.dir), s.radiance) << t;
+        }
+        int uncovered = 0, positive = 0;
+        for (int i = 0; i < 200000; ++i) {
+            const Vec3f d = sample_uniform_sphere(rng.next2());
+            if (!(luminance(env.eval(d)) > 0.0f)) continue;
+            ++positive;
+            uncovered += env.pdf(d) > 0.0f ? 0 : 1;
+        }
+        EXPECT_GT(positive, 100000) << t;
+        EXPECT_EQ(uncovered, 0) << t;
+        const ImageEnvironment full = make(false, -71.0f, -t);
+        Stat octant[8];
+        for (int i = 0; i < 200000; ++i) {
+            const EnvSample s = full.sample(rng.next2());
+            ASSERT_GT(s.pdf_solid_angle, 0.0f);
+            const int o = (s.dir.x > 0) + 2 * (s.dir.y > 0) + 4 * (s.dir.z > 0);
+            for (int k = 0; k < 8; ++k) octant[k].add(k == o ? 1.0 / s.pdf_solid_angle : 0.0);
+        }
+        for (int k = 0; k < 8; ++k) {
+            EXPECT_NEAR(octant[k].mean(), M_PI / 2, 4.0 * octant[k].std_error() + 2e-3)
+                << "T " << t << " octant " << k;
+        }
     }
 }
 
