@@ -495,6 +495,19 @@ TEST(SahBuilder, DeepTreeOnClusteredInput) {
     EXPECT_GT(rep.max_depth, 20);
 }
 
+/// Whether two builds made the same tree: nodes bit for bit and the same leaf indices.
+::testing::AssertionResult same_tree(const KdBuildOutput& a, const KdBuildOutput& b) {
+    if (a.nodes.size() != b.nodes.size())
+        return ::testing::AssertionFailure()
+               << a.nodes.size() << " nodes against " << b.nodes.size();
+    for (size_t i = 0; i < a.nodes.size(); ++i) {
+        if (a.nodes[i].word != b.nodes[i].word || a.nodes[i].first != b.nodes[i].first)
+            return ::testing::AssertionFailure() << "node " << i << " differs";
+    }
+    if (a.indices != b.indices) return ::testing::AssertionFailure() << "leaf indices differ";
+    return ::testing::AssertionSuccess();
+}
+
 TEST(SahBuilder, OverlappingTrianglesStayWithinTheReferenceBudget) {
     const TriangleMesh mesh = overlapping_soup(1500, 5);
     const auto n = double(mesh.triangle_count());
@@ -511,13 +524,8 @@ TEST(SahBuilder, OverlappingTrianglesStayWithinTheReferenceBudget) {
             EXPECT_GT(out.stats.sah_splits, 4u) << "budget " << budget;
             // Still a tree for any thread count.
             params.threads = 1;
-            const KdBuildOutput one = build_sah_tree(mesh, params, tuning);
-            EXPECT_EQ(one.indices, out.indices) << "budget " << budget;
-            ASSERT_EQ(one.nodes.size(), out.nodes.size()) << "budget " << budget;
-            for (size_t i = 0; i < one.nodes.size(); ++i) {
-                ASSERT_EQ(one.nodes[i].word, out.nodes[i].word);
-                ASSERT_EQ(one.nodes[i].first, out.nodes[i].first);
-            }
+            EXPECT_TRUE(same_tree(build_sah_tree(mesh, params, tuning), out))
+                << "budget " << budget;
         }
     }
 }
@@ -534,14 +542,9 @@ TEST(SahBuilder, ReferenceBudgetLeavesOrdinaryTreesAlone) {
     for (size_t mi = 0; mi < meshes.size(); ++mi) {
         SahTuning unlimited;
         unlimited.ref_budget_per_triangle = std::numeric_limits<double>::infinity();
-        const KdBuildOutput a = build_sah_tree(meshes[mi], KdTreeParams{});
-        const KdBuildOutput b = build_sah_tree(meshes[mi], KdTreeParams{}, unlimited);
-        ASSERT_EQ(a.nodes.size(), b.nodes.size()) << "mesh " << mi;
-        EXPECT_EQ(a.indices, b.indices) << "mesh " << mi;
-        for (size_t i = 0; i < a.nodes.size(); ++i) {
-            ASSERT_EQ(a.nodes[i].word, b.nodes[i].word) << "mesh " << mi;
-            ASSERT_EQ(a.nodes[i].first, b.nodes[i].first) << "mesh " << mi;
-        }
+        EXPECT_TRUE(same_tree(build_sah_tree(meshes[mi], KdTreeParams{}),
+                              build_sah_tree(meshes[mi], KdTreeParams{}, unlimited)))
+            << "mesh " << mi;
     }
 }
 
@@ -550,14 +553,8 @@ TEST(SahBuilder, SameTreeForAnyThreadCount) {
     KdTreeParams one, two;
     one.threads = 1;
     two.threads = 2;
-    const KdBuildOutput a = build_sah_tree(mesh, one, binned_tuning());
-    const KdBuildOutput b = build_sah_tree(mesh, two, binned_tuning());
-    ASSERT_EQ(a.nodes.size(), b.nodes.size());
-    ASSERT_EQ(a.indices, b.indices);
-    for (size_t i = 0; i < a.nodes.size(); ++i) {
-        ASSERT_EQ(a.nodes[i].word, b.nodes[i].word);
-        ASSERT_EQ(a.nodes[i].first, b.nodes[i].first);
-    }
+    EXPECT_TRUE(same_tree(build_sah_tree(mesh, one, binned_tuning()),
+                          build_sah_tree(mesh, two, binned_tuning())));
 }
 
 TEST(SahBuilder, CostParametersChangeTheTree) {
