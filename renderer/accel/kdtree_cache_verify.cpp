@@ -100,14 +100,17 @@ void check_kdtree_complete(const KdTree& tree, const std::string& name) {
             {magnitude, std::fabs(double(bounds.lower[a])), std::fabs(double(bounds.upper[a]))});
     const double tol = std::ldexp(magnitude, -20);
     const int64_t count = int64_t(mesh.triangle_count());
-    std::atomic<int64_t> first_bad{std::numeric_limits<int64_t>::max()};
-    std::atomic<int64_t> bad_node{-1};
+    // The lowest failing triangle and its leaf, packed (triangle << 32 | node) so that one
+    // atomic minimum keeps the pair whatever the threads (triangle indices fit 32 bits, as
+    // in the tree's index array).
+    constexpr uint64_t kNoBad = std::numeric_limits<uint64_t>::max();
+    std::atomic<uint64_t> first_bad{kNoBad};
 #pragma omp parallel
     {
         std::vector<Work> stack;
 #pragma omp for schedule(dynamic, 4096)
         for (int64_t t = 0; t < count; ++t) {
-            if (t > first_bad.load(std::memory_order_relaxed)) continue;
+            if (uint64_t(t) > first_bad.load(std::memory_order_relaxed) >> 32) continue;
             if (!mesh.triangle_hittable(size_t(t))) continue;
             const Vec3u& tri = mesh.triangles[size_t(t)];
             Work w{0, {}};
@@ -152,19 +155,18 @@ void check_kdtree_complete(const KdTree& tree, const std::string& name) {
                 const uint32_t* begin = sorted.data() + leaf.first;
                 if (!std::binary_search(begin, begin + leaf.count(), uint32_t(t))) {
                     // The lowest failing triangle is reported, whatever the threads.
-#pragma omp critical(kdt_check_kdtree_complete)
-                    if (t < first_bad.load()) {
-                        first_bad.store(t);
-                        bad_node.store(cur.node);
+                    const uint64_t bad = uint64_t(t) << 32 | cur.node;
+                    uint64_t seen = first_bad.load();
+                    while (bad < seen && !first_bad.compare_exchange_weak(seen, bad)) {
                     }
                     break;
                 }
             }
         }
     }
-    if (const int64_t t = first_bad.load(); t != std::numeric_limits<int64_t>::max()) {
-        fail(bad_node.load(), "triangle " + std::to_string(t) +
-                                  " reaches into this leaf but is not referenced by it");
+    if (const uint64_t bad = first_bad.load(); bad != kNoBad) {
+        fail(int64_t(bad & 0xffffffffu), "triangle " + std::to_string(bad >> 32) +
+                                             " reaches into this leaf but is not referenced by it");
     }
 }
 
