@@ -271,7 +271,7 @@ void trace_stream(const TreeView& tv, const Ray* rays, size_t count, Hit* hits, 
 
 #if KDT_SIMD_TRAVERSAL
 // Eight lanes whose descent steps run side by side in AVX2 registers (one lane per
-// element): each step gathers the eight current nodes and decides every lane's next node
+// element): each step loads the eight current nodes and decides every lane's next node
 // with the same float operations, in the same order, as descend() does for one ray. Lanes
 // at a leaf, or whose subtree is done, leave the vector step for the leaf test and
 // pop, and rejoin it at their next node.

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <limits>
 #include <memory>
+#include <new>
 #include <utility>
 
 #include <unistd.h>
@@ -490,9 +491,10 @@ ImageRGB load_image(const std::string& path, ImageMetadata* metadata) {
     return load_image_memory(read_file(path), path, metadata);
 }
 
-ImageRGB load_image_memory(const std::vector<uint8_t>& data, const std::string& path,
-                           ImageMetadata* metadata) {
-    if (metadata) metadata->clear();
+namespace {
+
+ImageRGB decode_image(const std::vector<uint8_t>& data, const std::string& path,
+                      ImageMetadata* metadata) {
     ImageRGB image;
     auto starts = [&](const char* magic, size_t n) {
         return data.size() >= n && std::memcmp(data.data(), magic, n) == 0;
@@ -511,6 +513,22 @@ ImageRGB load_image_memory(const std::vector<uint8_t>& data, const std::string& 
         fail(path, "empty file");
     } else {
         fail(path, "unrecognised image format (expected .hdr, .exr, .pfm or .png content)", 0);
+    }
+    return image;
+}
+
+}  // namespace
+
+ImageRGB load_image_memory(const std::vector<uint8_t>& data, const std::string& path,
+                           ImageMetadata* metadata) {
+    if (metadata) metadata->clear();
+    ImageRGB image;
+    // A huge image (a 16k map decodes to 1.6 GB, twice while decoding) may not fit: an
+    // error naming the file, as for any other bad input.
+    try {
+        image = decode_image(data, path, metadata);
+    } catch (const std::bad_alloc&) {
+        fail(path, "out of memory decoding the image");
     }
     check_finite(path, image);
     return image;

@@ -73,25 +73,21 @@ int sampling_subdivision(int w, int h) {
     return 1;
 }
 
-// Pixels per sampling cell along each axis for maps too large for a cell per pixel: the
-// smallest power of two that keeps the grid within 2^25 cells (1 up to 8192 x 4096
+}  // namespace
+
+// The smallest power of two that keeps the grid within 2^25 cells (1 up to 8192 x 4096
 // pixels, 2 for 16k x 8k). The tables cost about 24 bytes per cell and their construction
 // 40 more, against 12 per pixel for the map itself: a 16k map with a cell per pixel
 // needed 9 GB.
-int sampling_coarsening(int w, int h) {
+int automatic_sampling_pixels_per_cell(int width, int height) {
     constexpr uint64_t kMaxCoarseCells = uint64_t(1) << 25;
     auto cells = [&](uint64_t t) {
-        return ((uint64_t(std::max(w, 1)) + t - 1) / t) * ((uint64_t(std::max(h, 1)) + t - 1) / t);
+        return ((uint64_t(std::max(width, 1)) + t - 1) / t) *
+               ((uint64_t(std::max(height, 1)) + t - 1) / t);
     };
     int t = 1;
     while (cells(uint64_t(t)) > kMaxCoarseCells) t *= 2;
     return t;
-}
-
-}  // namespace
-
-int automatic_sampling_pixels_per_cell(int width, int height) {
-    return sampling_coarsening(width, height);
 }
 
 void check_environment_texels(const ImageRGB& image, float intensity, const std::string& path) {
@@ -181,7 +177,7 @@ ImageEnvironment::ImageEnvironment(ImageRGB image, EnvMapping mapping, float rot
     if (cells_per_pixel < 0) {
         pixels_ = -cells_per_pixel;
     } else if (cells_per_pixel == 0) {
-        pixels_ = sampling_coarsening(w, h);
+        pixels_ = automatic_sampling_pixels_per_cell(w, h);
     }
     if (pixels_ > 1) {
         sub_ = 1;
@@ -490,19 +486,6 @@ std::shared_ptr<const EnvironmentLight> make_environment_light(const Environment
     }
 }
 
-namespace {
-
-// load_image() with running out of memory (a huge map) reported as an error naming the file.
-ImageRGB load_environment_image(const std::string& path) {
-    try {
-        return load_image(path);
-    } catch (const std::bad_alloc&) {
-        throw Error(ErrorLocation{path}, "out of memory decoding the map");
-    }
-}
-
-}  // namespace
-
 std::string environment_mapping_warning(EnvMapping mapping, int width, int height) {
     const std::string size = std::to_string(width) + "x" + std::to_string(height);
     if (mapping == EnvMapping::angular && width == 2 * height) {
@@ -519,7 +502,7 @@ std::string environment_mapping_warning(EnvMapping mapping, int width, int heigh
 std::shared_ptr<const EnvironmentLight> make_environment_light(const EnvironmentDesc& desc,
                                                                const EnvLog& log) {
     if (desc.file.empty()) return make_environment_light(desc);
-    ImageRGB image = load_environment_image(desc.file);
+    ImageRGB image = load_image(desc.file);
     const std::string warning =
         environment_mapping_warning(desc.mapping, image.width, image.height);
     if (log && !warning.empty()) log(desc.file + ": " + warning);
@@ -539,7 +522,7 @@ std::shared_ptr<const EnvironmentLight> make_environment_light(const Environment
                              "", "environment colour channel");
         return std::make_shared<ConstantEnvironment>(desc.color * desc.intensity);
     }
-    return make_environment_light(desc, load_environment_image(desc.file));
+    return make_environment_light(desc, load_image(desc.file));
 }
 
 }  // namespace kdt
