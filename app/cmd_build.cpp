@@ -20,11 +20,22 @@ namespace {
 void print_stats(const KdTree& tree) {
     const KdTreeStats& s = tree.stats();
     const KdTreeParams& p = tree.params();
-    std::printf("builder %s: q %.2f, n0 %d, max depth %d%s%s%s\n",
-                kKdBuilderNames[size_t(p.builder)], double(p.q), p.n0, p.max_depth,
-                p.use_median_split ? "" : ", no median split",
-                p.use_center_split ? "" : ", no center split",
-                p.use_cutoff_split ? "" : ", no cut-off split");
+    std::printf("builder %s: q %.2f, n0 %d, max depth ", kKdBuilderNames[size_t(p.builder)],
+                double(p.q), p.n0);
+    if (p.max_depth > 0) {
+        std::printf("%d", p.max_depth);
+    } else {
+        std::printf("automatic");
+    }
+    if (p.builder == KdBuilder::thesis) {
+        std::printf("%s%s%s%s\n", p.use_median_split ? "" : ", no median split",
+                    p.use_center_split ? "" : ", no center split",
+                    p.use_cutoff_split ? "" : ", no cut-off split",
+                    p.thesis_all_axes ? ", all axes" : "");
+    } else {
+        std::printf(", traversal cost %g, intersect cost %g, empty bonus %g\n",
+                    double(p.traversal_cost), double(p.intersect_cost), double(p.empty_bonus));
+    }
     std::printf(
         "nodes %llu, leaves %llu (%llu empty), depth %u, refs/triangle %.3f, "
         "mean leaf %.2f, max leaf %u\n",
@@ -56,9 +67,10 @@ void add_build_command(CLI::App& parent) {
     cmd->add_option("--cache-dir", cache_dir,
                     "Cache directory (default: next to the model, else $KDT_CACHE_DIR/trees, "
                     "$XDG_CACHE_HOME/kdtrace/trees or ~/.cache/kdtrace/trees)");
-    cmd->callback([] {
+    cmd->callback([cmd] {
         interrupt::install();
         validate(params);
+        warn_unused_tree_flags(*cmd, params, false);
         // Fail before a long build, not after it.
         if (!output.empty()) check_output(output, {model}, "the tree");
         MeshLoadInfo info;

@@ -193,8 +193,9 @@ void add_render_command(CLI::App& parent) {
         ->capture_default_str();
     sub->add_flag("--quiet", cmd.quiet, "No progress bar or cache messages");
     add_dist_options(*sub, cmd.dist, cmd.options);
-    sub->callback([] {
+    sub->callback([sub] {
         interrupt::install();
+        warn_unused_tree_flags(*sub, cmd.options.tree, !cmd.options.scene.tree_file.empty());
         try {
             run(cmd);
         } catch (const Error& e) {

@@ -25,7 +25,8 @@ void add_view_command(CLI::App& parent) {
     sub->add_option("--preview-divisor", vo.preview_divisor,
                     "Resolution divisor of the preview pass after a change (1 = none)")
         ->check(CLI::Range(1, 64));
-    sub->callback([] {
+    sub->callback([sub] {
+        warn_unused_tree_flags(*sub, vo.options.tree, !vo.options.scene.tree_file.empty());
         try {
             ui::run_viewer(vo);
         } catch (const Error& e) {

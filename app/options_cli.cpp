@@ -93,6 +93,21 @@ void add_stop_options(CLI::App& app, StopConditions& stop, SkipFlags skip) {
     add_fields(app, stop, stop_fields(), skip);
 }
 
+void warn_unused_tree_flags(const CLI::App& app, const KdTreeParams& tree, bool tree_file) {
+    for (const Field<KdTreeParams>& f : kd_tree_fields()) {
+        if (!f.flag || std::strcmp(f.flag, "--threads") == 0 || app.count(f.flag) == 0) continue;
+        if (tree_file) {
+            std::fprintf(stderr,
+                         "kdtrace: warning: %s has no effect with --tree (the file's tree "
+                         "is used as it was built)\n",
+                         f.flag);
+        } else if (!kd_tree_field_applies(tree, f.name)) {
+            std::fprintf(stderr, "kdtrace: warning: %s has no effect with the %s builder\n", f.flag,
+                         kKdBuilderNames[size_t(tree.builder)]);
+        }
+    }
+}
+
 void add_scene_options(CLI::App& app, SceneOptions& scene) {
     app.add_option("SCENE", scene.scene_path,
                    "Scene (.json) or model (.ply, .ply.gz, .obj); omitted = built-in scene");

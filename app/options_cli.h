@@ -27,6 +27,11 @@ void add_scene_options(CLI::App& app, SceneOptions& scene);
 /// tree the same).
 void add_render_options(CLI::App& app, RenderOptions& options);
 
+/// Warns on stderr about kd-tree flags given on `app`'s command line that cannot change the
+/// tree: those of the builder not chosen (kd_tree_field_applies()), and with `tree_file` (a
+/// --tree, whose parameters are the file's) all of them but --threads.
+void warn_unused_tree_flags(const CLI::App& app, const KdTreeParams& tree, bool tree_file);
+
 /// A renderer message with every field name it mentions ("trace.max_depth") followed by the
 /// flag that sets it ("trace.max_depth (--path-depth)"), so a CLI user knows what to change.
 std::string with_flags(const std::string& message);

@@ -23,10 +23,21 @@ void begin_panel(const char* name, float x, float& y, float height) {
     y += height + 4.0f;
 }
 
+// The kd-tree widgets; those the chosen builder does not read are shown but disabled.
+bool tree_widgets(const char* group, KdTreeParams& p, std::string* error) {
+    bool changed = false;
+    for (const Field<KdTreeParams>& f : kd_tree_fields()) {
+        const bool applies = kd_tree_field_applies(p, f.name);
+        ImGui::BeginDisabled(!applies);
+        changed |= field_widget(group, p, f, error);
+        ImGui::EndDisabled();
+    }
+    return changed;
+}
+
 void tree_panel(Viewer& v) {
     std::string error;
-    if (field_widgets("tree", v.tree_edit_, kd_tree_fields(), &error) && v.auto_rebuild_)
-        v.request_rebuild();
+    if (tree_widgets("tree", v.tree_edit_, &error) && v.auto_rebuild_) v.request_rebuild();
     if (!error.empty()) v.message_ = error;
     ImGui::Checkbox("auto-rebuild", &v.auto_rebuild_);
     ImGui::SameLine();
@@ -35,14 +46,6 @@ void tree_panel(Viewer& v) {
         ImGui::SameLine();
         ImGui::TextUnformatted("building...");
     }
-}
-
-template <class S>
-bool same_fields(const S& a, const S& b, std::span<const Field<S>> fields) {
-    for (const Field<S>& f : fields) {
-        if (field_text(f, a) != field_text(f, b)) return false;
-    }
-    return true;
 }
 
 void render_panel(Viewer& v) {
@@ -54,7 +57,7 @@ void render_panel(Viewer& v) {
         FilmParams f = film_before;
         f.exposure = v.opts_.film.exposure;
         v.tone_.exposure = v.opts_.film.exposure;
-        changed |= !same_fields(f, v.opts_.film, film_fields());
+        changed |= !same_fields(film_fields(), f, v.opts_.film);
     }
     changed |= field_widgets("stop", v.stop_, stop_fields(), &error);
     if (!error.empty()) v.message_ = error;
@@ -156,7 +159,7 @@ void split_panel(Viewer& v) {
     SplitView& sv = *v.split_;
     std::string error;
     if (ImGui::TreeNode("tree B parameters")) {
-        if (field_widgets("treeB", sv.tree_edit(), kd_tree_fields(), &error)) sv.request_rebuild();
+        if (tree_widgets("treeB", sv.tree_edit(), &error)) sv.request_rebuild();
         ImGui::TreePop();
     }
     if (!error.empty()) v.message_ = error;
@@ -256,31 +259,32 @@ void view_panel(Viewer& v) {
 void stats_panel(Viewer& v) {
     const WorkerStats s = v.worker_->stats();
     const KdTreeStats& t = v.tree_->stats();
-    ImGui::Text("tree: %.3f s build, %llu nodes, %llu leaves (%llu empty)", t.build_seconds,
-                (unsigned long long)t.nodes, (unsigned long long)t.leaves,
-                (unsigned long long)t.empty_leaves);
-    ImGui::Text("depth %u, %.2f refs/tri, %.1f bytes/tri, leaf mean %.2f max %u",
-                t.max_depth_reached, t.refs_per_triangle, t.bytes_per_triangle, t.mean_leaf_size,
-                t.max_leaf_size);
+    ImGui::Text("tree: %llu nodes, %llu leaves (%llu empty)", (unsigned long long)t.nodes,
+                (unsigned long long)t.leaves, (unsigned long long)t.empty_leaves);
+    ImGui::Text("built in %.3f s", t.build_seconds);
+    ImGui::Text("depth %u, %.2f refs/tri, %.1f bytes/tri", t.max_depth_reached, t.refs_per_triangle,
+                t.bytes_per_triangle);
+    ImGui::Text("leaf size: mean %.2f, max %u", t.mean_leaf_size, t.max_leaf_size);
     ImGui::Text("splits: median %llu, centre %llu, cut-off %llu, SAH %llu",
                 (unsigned long long)t.median_splits, (unsigned long long)t.center_splits,
                 (unsigned long long)t.cutoff_splits, (unsigned long long)t.sah_splits);
     std::vector<float> hist(t.depth_histogram.begin(), t.depth_histogram.end());
     if (!hist.empty()) {
-        ImGui::PlotHistogram("leaves/depth", hist.data(), int(hist.size()), 0, nullptr, 0.0f,
-                             FLT_MAX, ImVec2(0, 50));
+        ImGui::TextUnformatted("leaves by depth, 0 to the deepest:");
+        ImGui::PlotHistogram("##leaves by depth", hist.data(), int(hist.size()), 0, nullptr, 0.0f,
+                             FLT_MAX, ImVec2(ImGui::GetContentRegionAvail().x, 50));
     }
     ImGui::Separator();
     ImGui::Text("%.2f Mrays/s, %.1f spp, %d passes%s%s", s.mrays_per_second, s.spp, s.full_passes,
                 s.done ? " (done)" : "", s.paused ? " (paused)" : "");
-    ImGui::Text("%.1f nodes, %.1f triangles per ray; est. rel. error %.4f", s.nodes_per_ray,
-                s.triangles_per_ray, s.mean_error);
+    ImGui::Text("%.1f nodes, %.1f triangles per ray", s.nodes_per_ray, s.triangles_per_ray);
+    ImGui::Text("estimated relative error %.4f", s.mean_error);
     if (!s.error_curve.empty()) {
         std::vector<float> e;
         for (const auto& [sec, err] : s.error_curve) e.push_back(float(err));
-        char label[64];
-        std::snprintf(label, sizeof label, "error, 0-%.1f s", s.error_curve.back().first);
-        ImGui::PlotLines(label, e.data(), int(e.size()), 0, nullptr, 0.0f, FLT_MAX, ImVec2(0, 60));
+        ImGui::Text("error over the first %.1f s:", s.error_curve.back().first);
+        ImGui::PlotLines("##error curve", e.data(), int(e.size()), 0, nullptr, 0.0f, FLT_MAX,
+                         ImVec2(ImGui::GetContentRegionAvail().x, 60));
     }
     if (!v.lat_.frame_ms.empty()) ImGui::Text("UI frame %.2f ms", v.lat_.frame_ms.back());
 }
@@ -342,10 +346,10 @@ void Viewer::draw_panels() {
     begin_panel("kd-tree", x, y, 250.0f);
     tree_panel(*this);
     ImGui::End();
-    begin_panel("Stats", x, y, 230.0f);
+    begin_panel("Stats", x, y, 330.0f);
     stats_panel(*this);
     ImGui::End();
-    begin_panel("View", x, y, 150.0f);
+    begin_panel("View", x, y, 130.0f);
     view_panel(*this);
     inspector(*this);
     ImGui::End();

@@ -3,11 +3,14 @@
 // traversal in traversal.*, cache files in kdtree_cache.*.
 #pragma once
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "renderer/core/fields.h"
@@ -223,9 +226,22 @@ std::shared_ptr<const KdTree> build_kdtree(std::shared_ptr<const TriangleMesh> m
 /// Deepest tree the traversal's stack holds (one entry per level).
 inline constexpr int kMaxTreeDepth = 64;
 
+/// The depth limit of KdTreeParams::max_depth = 0 for a tree over `triangles` triangles:
+/// 8 + 1.3 log2 N, at most kMaxTreeDepth.
+inline int automatic_max_depth(size_t triangles) {
+    const double n = double(triangles > 0 ? triangles : 1);
+    return std::min(kMaxTreeDepth, int(8.0 + 1.3 * std::log2(n)));
+}
+
 /// KdTreeParams as data (renderer/core/fields.h): name, flag, help and range of every field;
 /// the defaults are KdTreeParams's initialisers.
 std::span<const Field<KdTreeParams>> kd_tree_fields();
+
+/// Whether `params.builder` reads the field of kd_tree_fields() named `name`: the
+/// split-candidate switches and --all-axes are the thesis builder's, the SAH costs the SAH
+/// builder's; the other fields both builders'. A field a builder does not read cannot change
+/// its tree.
+bool kd_tree_field_applies(const KdTreeParams& params, std::string_view name);
 
 /// Checks parameters against kd_tree_fields(); throws kdt::Error naming the bad one
 /// ("tree.q must be in (0, 1] (got 1.5)").

@@ -37,4 +37,14 @@ const Field<P> kTreeFields[] = {
 
 std::span<const Field<KdTreeParams>> kd_tree_fields() { return kTreeFields; }
 
+bool kd_tree_field_applies(const KdTreeParams& params, std::string_view name) {
+    const bool thesis_only = name == "use_median_split" || name == "use_center_split" ||
+                             name == "use_cutoff_split" || name == "thesis_all_axes";
+    const bool sah_only =
+        name == "traversal_cost" || name == "intersect_cost" || name == "empty_bonus";
+    if (thesis_only) return params.builder == KdBuilder::thesis;
+    if (sah_only) return params.builder == KdBuilder::sah;
+    return true;
+}
+
 }  // namespace kdt

@@ -219,12 +219,8 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
     ctx.mesh = &mesh;
     ctx.params = params;
     ctx.tuning = tuning;
-    if (params.max_depth > 0) {
-        ctx.max_depth = std::min(params.max_depth, 64);
-    } else {
-        const double auto_depth = 8.0 + 1.3 * std::log2(double(std::max<size_t>(tri_count, 1)));
-        ctx.max_depth = std::min(64, int(auto_depth));
-    }
+    ctx.max_depth = params.max_depth > 0 ? std::min(params.max_depth, kMaxTreeDepth)
+                                         : automatic_max_depth(tri_count);
     const int threads = params.threads > 0 ? params.threads : omp_get_max_threads();
     ctx.workspace_budget = std::min(kWorkspaceBudget, kWorkspaceBytesPerTriangle * tri_count);
     // f(n) tabulated for the node sizes that dominate the build (pow() is slow).

@@ -466,9 +466,7 @@ KdBuildOutput build_thesis_tree(const TriangleMesh& mesh, const KdTreeParams& pa
             root.tris.push_back(uint32_t(i));
         }
     }
-    const double n = double(std::max<size_t>(root.tris.size(), 1));
-    ctx.max_depth =
-        params.max_depth > 0 ? params.max_depth : std::min(64, int(8.0 + 1.3 * std::log2(n)));
+    ctx.max_depth = params.max_depth > 0 ? params.max_depth : automatic_max_depth(root.tris.size());
     root.budget = kMaxReferencesPerTriangle * root.tris.size();
     ctx.max_stored = std::min(kMaxStoredExtents, root.tris.size() / 16);
     out.bounds = root.box;

@@ -205,3 +205,15 @@ set_tests_properties(smoke.transparent_pfm PROPERTIES
   PASS_REGULAR_EXPRESSION "t.pfm: film.transparent \\(--transparent\\) needs an alpha channel: write .png or .exr")
 add_test(NAME smoke.transparent_png COMMAND ${_kdt} render --transparent --spp 1 --width 16
          --height 12 --quiet -o ${_tmp}/t.png)
+
+# A kd-tree flag the chosen builder does not read is named in a warning, and `build` prints
+# the parameters its builder uses.
+add_test(NAME smoke.build_warns_foreign_flag COMMAND ${_kdt} build
+         /usr/share/assimp/models/PLY/cube.ply --builder thesis --sah-traversal-cost 2
+         -o ${_tmp}/cube_thesis_foreign.kdt)
+set_tests_properties(smoke.build_warns_foreign_flag PROPERTIES
+  PASS_REGULAR_EXPRESSION "warning: --sah-traversal-cost has no effect with the thesis builder")
+add_test(NAME smoke.build_sah_prints_costs COMMAND ${_kdt} build
+         /usr/share/assimp/models/PLY/cube.ply --sah-empty-bonus 0.5 -o ${_tmp}/cube_sah.kdt)
+set_tests_properties(smoke.build_sah_prints_costs PROPERTIES
+  PASS_REGULAR_EXPRESSION "builder sah: q 0.98, n0 5, max depth automatic, traversal cost 4, intersect cost 1, empty bonus 0.5")

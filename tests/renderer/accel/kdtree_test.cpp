@@ -4,6 +4,7 @@
 
 #include <bit>
 #include <cmath>
+#include <cstring>
 #include <random>
 #include <string>
 
@@ -184,6 +185,64 @@ TEST(KdTreeParams, ValidateNamesTheBadParameter) {
     KdTreeParams bad;
     bad.q = 2.0f;
     EXPECT_THROW(build_kdtree(std::make_shared<TriangleMesh>(), bad), Error);
+}
+
+// kd_tree_field_applies() is what the CLI warns by and the viewer greys out by: a field it
+// calls foreign to a builder must not change that builder's tree, and one it calls the
+// builder's own must be able to.
+TEST(KdTreeParams, FieldsForeignToABuilderDoNotChangeItsTree) {
+    auto mesh = std::make_shared<const TriangleMesh>(test::make_blob(4, 1.0f, 7));
+    // A value other than the default for every field that takes part in the build.
+    auto change = [](KdTreeParams& p, const std::string& name) {
+        if (name == "use_median_split")
+            p.use_median_split = false;
+        else if (name == "use_center_split")
+            p.use_center_split = false;
+        else if (name == "use_cutoff_split")
+            p.use_cutoff_split = false;
+        else if (name == "thesis_all_axes")
+            p.thesis_all_axes = true;
+        else if (name == "traversal_cost")
+            p.traversal_cost = 1.5f;
+        else if (name == "intersect_cost")
+            p.intersect_cost = 3.0f;
+        else if (name == "empty_bonus")
+            p.empty_bonus = 0.9f;
+        else if (name == "q")
+            p.q = 0.8f;
+        else if (name == "n0")
+            p.n0 = 1;
+        else if (name == "max_depth")
+            p.max_depth = 6;
+        else
+            return false;
+        return true;
+    };
+    auto same = [](const KdTree& a, const KdTree& b) {
+        return a.nodes().size() == b.nodes().size() && a.indices() == b.indices() &&
+               std::memcmp(a.nodes().data(), b.nodes().data(), a.nodes().size() * sizeof(KdNode)) ==
+                   0;
+    };
+    for (KdBuilder builder : {KdBuilder::thesis, KdBuilder::sah}) {
+        KdTreeParams base;
+        base.builder = builder;
+        base.threads = 1;
+        const auto reference = build_kdtree(mesh, base);
+        int foreign = 0;
+        for (const Field<KdTreeParams>& f : kd_tree_fields()) {
+            KdTreeParams p = base;
+            if (!change(p, f.name)) continue;  // builder, threads
+            SCOPED_TRACE(std::string(kKdBuilderNames[size_t(builder)]) + " " + f.name);
+            const auto tree = build_kdtree(mesh, p);
+            if (kd_tree_field_applies(base, f.name)) {
+                EXPECT_FALSE(same(*tree, *reference));
+            } else {
+                ++foreign;
+                EXPECT_TRUE(same(*tree, *reference));
+            }
+        }
+        EXPECT_GE(foreign, 3);
+    }
 }
 
 TEST(ThesisF, MatchesTheFormula) {
