@@ -379,7 +379,7 @@ void glfw_error(int code, const char* text) {
 
 // Letterboxes the image into the area left of the panels (top-left origin).
 void layout(Viewer& v, int fb_w, int fb_h) {
-    const int panel = v.panels_ ? int(380.0f * v.content_scale_) : 0;
+    const int panel = v.panels_ ? int((kSidebarWidth + 10.0f) * v.content_scale_) : 0;
     const int area_w = std::max(fb_w - panel, 1);
     const double aspect = double(v.opts_.scene.width) / double(v.opts_.scene.height);
     int w = area_w, h = int(double(area_w) / aspect + 0.5);
@@ -438,7 +438,8 @@ void run_viewer(const ViewerOptions& options) {
     glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 3);
     glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
     glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
-    const int win_w = v.opts_.scene.width + 380, win_h = std::max(v.opts_.scene.height, 720);
+    const int win_w = v.opts_.scene.width + int(kSidebarWidth) + 10,
+              win_h = std::max(v.opts_.scene.height, 720);
     GLFWwindow* window = glfwCreateWindow(win_w, win_h, "kdtrace view", nullptr, nullptr);
     if (!window) throw Error("view: cannot create an OpenGL 3.3 core window");
     glfwMakeContextCurrent(window);
@@ -497,7 +498,7 @@ void run_viewer(const ViewerOptions& options) {
             throw;
         }
         v.update_image();
-        if (v.panels_) v.draw_panels();
+        if (v.panels_ || !v.worker_) v.draw_panels();
         v.draw_file_panel();
         ImGui::Render();
 

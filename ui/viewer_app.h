@@ -24,6 +24,11 @@ struct GLFWwindow;
 
 namespace kdt::ui {
 
+/// The sidebar window (Viewer::draw_panels()) and its width in ImGui units; the image is
+/// letterboxed into the area left of it, 10 units apart.
+inline constexpr const char* kSidebarName = "kdtrace##sidebar";
+inline constexpr float kSidebarWidth = 370.0f;
+
 enum class ViewMode : int { radiance, heat_nodes, heat_triangles, normals, depth };
 
 /// The debug layer a view mode shows; nullopt for radiance.
@@ -67,6 +72,8 @@ public:
     void upload(const FilmImage& image);
     /// Draws the image in its rectangle of a framebuffer fb_height pixels high.
     void draw_image(int fb_height);
+    /// The sidebar at the window's right edge, its full height: File, kd-tree, Stats, View
+    /// and Render sections (File only before a scene is loaded); it scrolls when taller.
     void draw_panels();
     /// Throws kdt::Error naming the first command of the script that does not exist.
     void check_script() const;
@@ -99,8 +106,10 @@ public:
     void finish_loading();
     /// A scene or probe request is not yet swapped in (or failed).
     bool loading() const { return scene_pending_ || probe_pending_; }
-    /// The File panel (path field, Open, what is loaded) and, while loading, the progress bar.
+    /// While a file loads, its progress bar over the image.
     void draw_file_panel();
+    /// The sidebar's File section: path field, Open, what is loaded, the last error.
+    void file_section();
     /// Applies materials_ to the scene rendering now (restarts the image).
     void apply_materials();
     /// material.NAME for the script: instance N (which one the others edit), type NAME,

@@ -270,13 +270,11 @@ void Viewer::draw_file_panel() {
         ImGui::PopStyleColor();
         ImGui::End();
     }
-    if (!panels_ && worker_) return;
+}
+
+void Viewer::file_section() {
     static char path[1024] = "";
-    const ImVec2 size(std::max(std::min(float(image_w_) / content_scale_, 370.0f), 250.0f), 160.0f);
-    ImGui::SetNextWindowPos(ImVec2(6.0f, ImGui::GetIO().DisplaySize.y - size.y - 6.0f),
-                            ImGuiCond_FirstUseEver);
-    ImGui::SetNextWindowSize(size, ImGuiCond_FirstUseEver);
-    ImGui::Begin("File");
+    ImGui::SetNextItemWidth(ImGui::GetContentRegionAvail().x - 60.0f);
     const bool enter =
         ImGui::InputText("##path", path, sizeof path, ImGuiInputTextFlags_EnterReturnsTrue);
     ImGui::SameLine();
@@ -288,7 +286,6 @@ void Viewer::draw_file_panel() {
         ImGui::TextWrapped("%s", message_.c_str());
         ImGui::PopStyleColor();
     }
-    ImGui::End();
 }
 
 void Viewer::install_drop_callback(GLFWwindow* window) {

@@ -14,13 +14,8 @@ namespace kdt::ui {
 
 namespace {
 
-constexpr float kPanelWidth = 370.0f;
-
-void begin_panel(const char* name, float x, float& y, float height) {
-    ImGui::SetNextWindowPos(ImVec2(x, y), ImGuiCond_FirstUseEver);
-    ImGui::SetNextWindowSize(ImVec2(kPanelWidth, height), ImGuiCond_FirstUseEver);
-    ImGui::Begin(name);
-    y += height + 4.0f;
+bool section(const char* name) {
+    return ImGui::CollapsingHeader(name, ImGuiTreeNodeFlags_DefaultOpen);
 }
 
 // The kd-tree widgets; those the chosen builder does not read are shown but disabled.
@@ -340,34 +335,36 @@ void files_panel(Viewer& v) {
 }  // namespace
 
 void Viewer::draw_panels() {
-    if (!worker_) return;  // no scene yet: the File panel and the progress bar only
-    const float x = ImGui::GetIO().DisplaySize.x - kPanelWidth - 6.0f;
-    float y = 6.0f;
-    begin_panel("kd-tree", x, y, 250.0f);
-    tree_panel(*this);
-    ImGui::End();
-    begin_panel("Stats", x, y, 330.0f);
-    stats_panel(*this);
-    ImGui::End();
-    begin_panel("View", x, y, 130.0f);
-    view_panel(*this);
-    inspector(*this);
+    const ImVec2 display = ImGui::GetIO().DisplaySize;
+    ImGui::SetNextWindowPos(ImVec2(display.x - kSidebarWidth - 6.0f, 6.0f), ImGuiCond_Always);
+    ImGui::SetNextWindowSize(ImVec2(kSidebarWidth, std::max(display.y - 12.0f, 100.0f)),
+                             ImGuiCond_Always);
+    ImGui::Begin(kSidebarName, nullptr,
+                 ImGuiWindowFlags_NoTitleBar | ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize |
+                     ImGuiWindowFlags_NoCollapse);
+    if (section("File")) file_section();
+    if (worker_) {  // no scene yet: the File section only
+        if (section("kd-tree")) tree_panel(*this);
+        if (section("Stats")) stats_panel(*this);
+        if (section("View")) {
+            view_panel(*this);
+            inspector(*this);
+        }
+        if (section("Render")) {
+            render_panel(*this);
+            environment_panel(*this);
+            material_panel(*this);
+            files_panel(*this);
+        }
+    }
     ImGui::End();
     if (split_) {
-        // In the top-left corner (the File panel has the bottom-left), as small as its
-        // contents; the user may drag it elsewhere.
+        // In the top-left corner, as small as its contents; the user may drag it elsewhere.
         ImGui::SetNextWindowPos(ImVec2(6.0f, 6.0f), ImGuiCond_FirstUseEver);
         ImGui::Begin("Split view: A left, B right", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
         split_panel(*this);
         ImGui::End();
     }
-    begin_panel("Render", x, y, 330.0f);
-    render_panel(*this);
-    environment_panel(*this);
-    material_panel(*this);
-    files_panel(*this);
-    if (!message_.empty()) ImGui::TextColored(ImVec4(1, 0.4f, 0.3f, 1), "%s", message_.c_str());
-    ImGui::End();
 }
 
 }  // namespace kdt::ui
