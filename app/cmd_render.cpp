@@ -5,8 +5,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <functional>
+#include <initializer_list>
 #include <string>
 
 #include "app/commands.h"
@@ -59,12 +61,17 @@ void draw_progress(const RenderProgress& p, double pixels) {
 
 // A command line that renders the same image again: every option that differs from its
 // default spelled out by its own flag, and the sample count that was reached (exact for
-// non-adaptive renders, whatever stopped them).
+// non-adaptive renders, whatever stopped them). `skip` names flags not to write (a flag
+// shared by two groups is written once, from the first).
 template <class S>
-void append_flags(std::string& c, const S& s, std::span<const Field<S>> fields) {
+void append_flags(std::string& c, const S& s, std::span<const Field<S>> fields,
+                  std::initializer_list<const char*> skip = {}) {
     const S defaults{};
     for (const Field<S>& f : fields) {
         if (!f.flag) continue;
+        if (std::any_of(skip.begin(), skip.end(),
+                        [&](const char* k) { return std::strcmp(k, f.flag) == 0; }))
+            continue;
         const std::string value = field_text(f, s);
         if (value == field_text(f, defaults)) continue;
         const FieldRef r = f.at(s);
@@ -76,17 +83,40 @@ void append_flags(std::string& c, const S& s, std::span<const Field<S>> fields) 
     }
 }
 
-std::string quoted(const std::string& s) { return "'" + s + "'"; }
+// One shell word: single quotes, each quote inside written as '\''.
+std::string quoted(const std::string& s) {
+    std::string q = "'";
+    for (char ch : s) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
+    return q + "'";
+}
 
-std::string rerender_command(const RenderOptions& o, double spp) {
+std::string vec3_text(const Vec3f& v) {
+    return detail::number_text(v.x) + "," + detail::number_text(v.y) + "," +
+           detail::number_text(v.z);
+}
+
+// `camera` is the camera the image was rendered with: spelled out whenever the options
+// replace any part of the scene's (--view, --eye, ..., a session's camera), since a views
+// file may change and --view is resolved when the options are parsed.
+std::string rerender_command(const RenderOptions& o, const CameraDesc& camera, double spp) {
     std::string c = "kdtrace render";
     const SceneOptions& sc = o.scene;
     if (!sc.scene_path.empty()) c += " " + quoted(sc.scene_path);
     if (!sc.env_file.empty()) c += " --env " + quoted(sc.env_file);
     if (!sc.env_mapping.empty()) c += " --env-mapping " + sc.env_mapping;
     if (sc.env_intensity) c += " --env-intensity " + detail::number_text(*sc.env_intensity);
+    if (sc.camera || sc.eye || sc.target || sc.up || sc.vfov_degrees) {
+        c += " --eye " + vec3_text(camera.eye) + " --target " + vec3_text(camera.target) +
+             " --up " + vec3_text(camera.up) + " --fov " + detail::number_text(camera.vfov_degrees);
+    }
     append_flags(c, sc, scene_fields());
-    append_flags(c, o.tree, kd_tree_fields());
+    // --threads sets both the trace's and the tree's threads (resolve()): written once, from
+    // the trace. A --tree file's parameters are the file's: the tree flags would be ignored.
+    if (!sc.tree_file.empty()) {
+        c += " --tree " + quoted(sc.tree_file);
+    } else {
+        append_flags(c, o.tree, kd_tree_fields(), {"--threads"});
+    }
     append_flags(c, o.trace, trace_fields());
     StopConditions stop;
     FilmParams film = o.film;
@@ -151,11 +181,14 @@ void run(const RenderCommand& cmd) {
     meta.emplace_back("kdtrace:scene", scene.empty() ? std::string("builtin:default") : scene);
     meta.emplace_back("kdtrace:scene_json", scene_to_json(prep.scene));
     meta.emplace_back("kdtrace:camera", camera_to_json(snap.camera));
-    meta.emplace_back("kdtrace:params", options_to_json(o));
+    // The tree's parameters are those of the tree used: a --tree file's, not the flags'.
+    RenderOptions used = o;
+    used.tree = snap.tree_params;
+    meta.emplace_back("kdtrace:params", options_to_json(used));
     meta.emplace_back("kdtrace:seed", std::to_string(o.trace.seed));
     meta.emplace_back("kdtrace:spp", std::to_string(spp));
     meta.emplace_back("kdtrace:passes", std::to_string(p.passes));
-    meta.emplace_back("kdtrace:command", rerender_command(o, spp));
+    meta.emplace_back("kdtrace:command", rerender_command(o, snap.camera_desc, spp));
     if (interrupt::requested())
         meta.emplace_back("kdtrace:interrupted", std::string(interrupt::signal_name()) + " at " +
                                                      std::to_string(spp) + " spp");

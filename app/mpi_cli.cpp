@@ -299,9 +299,11 @@ std::shared_ptr<const RenderSnapshot> frame_snapshot(const SceneGroups& g,
     return s;
 }
 
-void write_film(const FramePlan& f, const Film& film, const Camera& camera,
+void write_film(const FramePlan& f, const Film& film, const RenderSnapshot& snap,
                 const std::string& how) {
-    const RenderOptions& o = f.options;
+    // The tree's parameters are those of the tree used: a --tree file's, not the flags'.
+    RenderOptions o = f.options;
+    o.tree = snap.tree_params;
     ImageRGB image(film.width(), film.height());
     image.rgb = film.linear_rgb();
     image.alpha = film.coverage();
@@ -309,7 +311,7 @@ void write_film(const FramePlan& f, const Film& film, const Camera& camera,
     meta.emplace_back("Software", "kdtrace 0.1.0");
     const std::string& scene = o.scene.scene_path;
     meta.emplace_back("kdtrace:scene", scene.empty() ? std::string("builtin:default") : scene);
-    meta.emplace_back("kdtrace:camera", camera_to_json(camera));
+    meta.emplace_back("kdtrace:camera", camera_to_json(snap.camera));
     meta.emplace_back("kdtrace:params", options_to_json(o));
     meta.emplace_back("kdtrace:seed", std::to_string(o.trace.seed));
     // Measured: a farmed frame may be adaptive or stop on an error target.
@@ -340,7 +342,7 @@ void run_local_frames(const RenderOptions& base, const std::string& output, bool
         RenderSession session(snaps[i], f.options.trace, f.options.film);
         session.set_publishing(false);
         run_render(session, f.options.stop);
-        write_film(f, session.film(), snaps[i]->camera, "local");
+        write_film(f, session.film(), *snaps[i], "local");
         if (!quiet)
             std::fprintf(stderr, "kdtrace: frame %zu/%zu -> %s\n", i + 1, frames.size(),
                          f.output.c_str());
@@ -491,13 +493,13 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
         result = dist::render_frame_farm(
             ctx, jobs, params,
             [&](int f, const Film& film) {
-                write_film(frames[size_t(f)], film, jobs[size_t(f)].snapshot->camera, how);
+                write_film(frames[size_t(f)], film, *jobs[size_t(f)].snapshot, how);
             },
             progress);
     } else {
         Film film;
         result = dist::render_tile_farm(ctx, jobs[0].snapshot, o, params, &film, progress);
-        if (root) write_film(frames[0], film, jobs[0].snapshot->camera, how);
+        if (root) write_film(frames[0], film, *jobs[0].snapshot, how);
         items = (film.width() + RenderSession::kTileSize - 1) / RenderSession::kTileSize *
                 ((film.height() + RenderSession::kTileSize - 1) / RenderSession::kTileSize);
     }

@@ -217,3 +217,10 @@ add_test(NAME smoke.build_sah_prints_costs COMMAND ${_kdt} build
          /usr/share/assimp/models/PLY/cube.ply --sah-empty-bonus 0.5 -o ${_tmp}/cube_sah.kdt)
 set_tests_properties(smoke.build_sah_prints_costs PROPERTIES
   PASS_REGULAR_EXPRESSION "builder sah: q 0.98, n0 5, max depth automatic, traversal cost 4, intersect cost 1, empty bonus 0.5")
+
+# The command stored in an image renders it again bit for bit (camera flags, --view, --threads,
+# --tree), and the stored tree parameters are the tree file's (tests/app/rerender_test.sh).
+add_test(NAME smoke.rerender_command COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/rerender_test.sh
+         ${_kdt} ${_tmp}/rerender ${CMAKE_SOURCE_DIR}/assets/views/dragon.json)
+set_tests_properties(smoke.rerender_command PROPERTIES PASS_REGULAR_EXPRESSION "PASS: rerender"
+                     FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)
