@@ -10,6 +10,7 @@
 #include <functional>
 #include <initializer_list>
 #include <string>
+#include <vector>
 
 #include "app/commands.h"
 #include "app/mpi_cli.h"
@@ -32,6 +33,8 @@ struct RenderCommand {
     std::string output = "out.png";
     bool quiet = false;
     DistArgs dist;  // --mpi, --frames (app/mpi_cli.h)
+    /// Files the options were read from (--session, --views): inputs the output must not be.
+    std::vector<std::string> option_files;
 };
 
 std::string human_seconds(double s) {
@@ -138,8 +141,9 @@ void run(const RenderCommand& cmd) {
     validate(o);
     if (dist_requested(cmd.dist)) return run_dist_render(o, cmd.output, cmd.quiet, cmd.dist);
     check_image_output(cmd.output, o.film.transparent);
-    check_output(cmd.output, {o.scene.scene_path, o.scene.env_file, o.scene.tree_file},
-                 "the image");
+    std::vector<std::string> inputs = {o.scene.scene_path, o.scene.env_file, o.scene.tree_file};
+    inputs.insert(inputs.end(), cmd.option_files.begin(), cmd.option_files.end());
+    check_output(cmd.output, inputs, "the image");
 
     const Prepared prep = prepare_render(o, [&](const std::string& line) {
         if (!cmd.quiet) std::fprintf(stderr, "kdtrace: %s\n", line.c_str());
@@ -229,6 +233,11 @@ void add_render_command(CLI::App& parent) {
     sub->callback([sub] {
         interrupt::install();
         warn_unused_tree_flags(*sub, cmd.options.tree, !cmd.options.scene.tree_file.empty());
+        cmd.option_files.clear();
+        for (const char* flag : {"--session", "--views"}) {
+            for (const std::string& file : sub->get_option(flag)->results())
+                cmd.option_files.push_back(file);
+        }
         try {
             run(cmd);
         } catch (const Error& e) {

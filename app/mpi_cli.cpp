@@ -227,6 +227,8 @@ std::vector<FramePlan> plan_frames(const RenderOptions& base, const std::string&
     std::vector<FramePlan> frames = list_frames(base, a);
     std::map<std::string, size_t> seen;
     const std::string views = views_file(a);
+    const std::string session =
+        given(a, "--session") ? a.command->get_option("--session")->as<std::string>() : "";
     for (size_t i = 0; i < frames.size(); ++i) {
         FramePlan& f = frames[i];
         f.output = a.frames.empty() ? output : frame_output(output, int(i), f.name);
@@ -238,7 +240,8 @@ std::vector<FramePlan> plan_frames(const RenderOptions& base, const std::string&
         if (!check_outputs) continue;
         check_image_output(f.output, f.options.film.transparent);
         const SceneOptions& sc = f.options.scene;
-        check_output(f.output, {sc.scene_path, sc.env_file, sc.tree_file, f.session, views},
+        check_output(f.output,
+                     {sc.scene_path, sc.env_file, sc.tree_file, f.session, views, session},
                      "the image");
     }
     return frames;

@@ -85,19 +85,36 @@ void run_bench_load(const BenchLoadArgs& args) {
     if (!args.csv.empty()) check_output(args.csv, args.files, "the CSV table");
     std::vector<std::string> files = args.files;
     if (!args.make_binary.empty()) {
-        std::filesystem::create_directories(args.make_binary);
+        // Every copy's name first, checked before anything is loaded or written: a copy must
+        // not replace an input (DIR holding the inputs) nor another copy.
+        std::vector<std::string> copies;
         for (const std::string& f : args.files) {
-            TriangleMesh mesh = load_mesh(f);
             std::string stem = std::filesystem::path(f).filename().string();
             for (const char* ext : {".gz", ".ply"})
                 if (stem.size() > std::strlen(ext) && stem.ends_with(ext))
                     stem.resize(stem.size() - std::strlen(ext));
+            for (const char* suffix : {"_le.ply", "_be.ply"})
+                copies.push_back(
+                    (std::filesystem::path(args.make_binary) / (stem + suffix)).string());
+        }
+        const bool dir_exists = std::filesystem::is_directory(args.make_binary);
+        for (size_t i = 0; i < copies.size(); ++i) {
+            for (size_t j = 0; j < i; ++j) {
+                if (copies[j] == copies[i])
+                    throw Error(ErrorLocation{copies[i]},
+                                "cannot write the binary copy of " + args.files[i / 2] +
+                                    ": it is also the copy of " + args.files[j / 2] +
+                                    " (two inputs with the same name)");
+            }
+            if (dir_exists) check_output(copies[i], args.files, "the binary copy");
+        }
+        std::filesystem::create_directories(args.make_binary);
+        for (size_t i = 0; i < args.files.size(); ++i) {
+            TriangleMesh mesh = load_mesh(args.files[i]);
             for (PlyEncoding enc :
                  {PlyEncoding::binary_little_endian, PlyEncoding::binary_big_endian}) {
-                std::string out =
-                    (std::filesystem::path(args.make_binary) /
-                     (stem + (enc == PlyEncoding::binary_little_endian ? "_le.ply" : "_be.ply")))
-                        .string();
+                const std::string& out =
+                    copies[2 * i + (enc == PlyEncoding::binary_little_endian ? 0 : 1)];
                 write_ply(out, mesh, enc);
                 std::printf("wrote %s\n", out.c_str());
                 files.push_back(out);

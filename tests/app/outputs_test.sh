@@ -38,7 +38,27 @@ refused "cannot write the image: it is the input" render s.json -o e_link.pfm --
 refused "cannot write the image: is a FIFO" render m.ply -o fifo.png --spp 1 --quiet
 refused "cannot write the scene: is a character device" scene m.ply -o /dev/null
 refused "cannot write the CSV table: it is the input" bench load m.ply --csv link.ply --repeat 1
-[ "$(md5sum m.ply e.pfm s.json)" = "$sum_before" ] || fail "an input changed"
+# Files the options come from: --session, --views (with or without --view, with --mpi).
+printf '{"trace":{"seed":3}}\n' >session.png
+printf '{"views":[{"name":"A","eye":[0,2,3],"target":[0,0,0],"up":[0,1,0],"vfov_degrees":40}]}\n' >views.png
+refused "cannot write the image: it is the input" render m.ply --session session.png \
+    -o session.png --spp 1 --quiet
+refused "cannot write the image: it is the input" render m.ply --session session.png --mpi \
+    -o ./session.png --spp 1 --quiet
+refused "cannot write the image: it is the input" render m.ply --views views.png --view A \
+    -o views.png --spp 1 --quiet
+refused "cannot write the image: it is the input" render m.ply --views views.png \
+    -o sub/../views.png --spp 1 --quiet
+# bench load --make-binary DIR: a copy DIR/STEM_le.ply must not replace an input.
+mkdir mb && cp m.ply mb/a.ply && cp m.ply mb/a_le.ply && printf 'comment\n' >>mb/a_le.ply
+sum_before="$sum_before $(md5sum session.png views.png mb/a.ply mb/a_le.ply)"
+refused "cannot write the binary copy: it is the input mb/a_le.ply" bench load mb/a_le.ply \
+    mb/a.ply --make-binary mb --no-assimp --repeat 1
+refused "it is also the copy of mb/a.ply" bench load mb/a.ply m.ply sub/../mb/a.ply \
+    --make-binary sub --no-assimp --repeat 1
+[ -e sub/a_le.ply ] && fail "bench load wrote a copy before refusing"
+[ "$(md5sum m.ply e.pfm s.json) $(md5sum session.png views.png mb/a.ply mb/a_le.ply)" = \
+    "$sum_before" ] || fail "an input changed"
 [ -p fifo.png ] || fail "the FIFO was replaced"
 [ -L link.ply ] || fail "the symlink was replaced"
 
