@@ -1,6 +1,8 @@
 #include "renderer/core/output_path.h"
 
+#include <fcntl.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <cerrno>
 #include <cstring>
@@ -51,6 +53,25 @@ void check_output(const std::string& output, const std::vector<std::string>& inp
                  (output == input ? "" : " (the same file by another path or link)") +
                  "; writing it would destroy the input");
         }
+    }
+    // An existing file is replaced by a rename into place, which its own mode does not stop:
+    // honour a write-protected file as `cp` and the shell's `>` do (root may, as with cp). A
+    // symlink is replaced, not written through, so only its directory entry counts.
+    if (!is_link && ::faccessat(AT_FDCWD, output.c_str(), W_OK, AT_EACCESS) != 0) {
+        fail(std::string("the existing file is not writable (") + std::strerror(errno) +
+             "); refusing to replace it");
+    }
+    // In a sticky directory (like /tmp) only the file's owner, the directory's owner or root
+    // may replace it; the rename would fail only after the work.
+    const uid_t me = ::geteuid();
+    fs::path dir = fs::path(output).parent_path();
+    if (dir.empty()) dir = ".";
+    struct stat d {};
+    if (me != 0 && link.st_uid != me && ::stat(dir.c_str(), &d) == 0 && (d.st_mode & S_ISVTX) &&
+        d.st_uid != me) {
+        fail("it belongs to another user (uid " + std::to_string(link.st_uid) +
+             ") in the sticky directory " + dir.string() +
+             ", where only its owner may replace it; choose another name");
     }
 }
 

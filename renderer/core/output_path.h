@@ -14,10 +14,13 @@ namespace kdt {
 ///    message names the input;
 ///  - `output` is (or is a symlink to) a directory, FIFO, socket or device: it would be
 ///    replaced by a regular file, or (written through) never end or hang;
-///  - the directory that would hold it does not exist.
-/// A missing output, or an existing regular file that is no input, is fine. Inputs that do
-/// not exist (yet) are skipped; empty strings in `inputs` are ignored. `what` names the
-/// output in messages ("the image", "the tree").
+///  - the directory that would hold it does not exist;
+///  - it exists and the user may not replace it: a regular file not writable by the
+///    effective user (root may, as with `cp`), or another user's file in a sticky directory
+///    such as /tmp (unless the user owns the directory or is root).
+/// A missing output, or an existing regular file that is no input and may be replaced, is fine.
+/// Inputs that do not exist (yet) are skipped; empty strings in `inputs` are ignored. `what` names
+/// the output in messages ("the image", "the tree").
 void check_output(const std::string& output, const std::vector<std::string>& inputs,
                   const char* what);
 

@@ -224,3 +224,7 @@ add_test(NAME smoke.rerender_command COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/rere
          ${_kdt} ${_tmp}/rerender ${CMAKE_SOURCE_DIR}/assets/views/dragon.json)
 set_tests_properties(smoke.rerender_command PROPERTIES PASS_REGULAR_EXPRESSION "PASS: rerender"
                      FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)
+add_test(NAME smoke.output_owner COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/output_owner_test.sh
+         ${_kdt} ${_tmp}/output_owner)
+set_tests_properties(smoke.output_owner PROPERTIES PASS_REGULAR_EXPRESSION "PASS: output owner"
+                     FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)

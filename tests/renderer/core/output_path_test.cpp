@@ -102,5 +102,23 @@ TEST_F(OutputPathTest, NewFilesAndOtherRegularFilesAreAccepted) {
     EXPECT_EQ(refusal("kdt_output_path_test_new_file.png", {input_}), "");
 }
 
+TEST_F(OutputPathTest, AWriteProtectedFileIsRefusedButRootMayReplaceIt) {
+    std::ofstream(path("ro.png")) << "keep";
+    fs::permissions(path("ro.png"),
+                    fs::perms::owner_read | fs::perms::group_read | fs::perms::others_read);
+    fs::create_symlink(path("ro.png"), path("ro_link.png"));
+    const std::string msg = refusal(path("ro.png"), {input_});
+    if (::geteuid() == 0) {
+        EXPECT_EQ(msg, "");  // as `cp` does (the sticky case runs as nobody in a smoke test)
+    } else {
+        EXPECT_NE(msg.find(path("ro.png") + ": cannot write the result: the existing file is "
+                                            "not writable (Permission denied)"),
+                  std::string::npos)
+            << msg;
+    }
+    // A symlink is replaced, not written through: its target's mode does not matter.
+    EXPECT_EQ(refusal(path("ro_link.png"), {input_}), "");
+}
+
 }  // namespace
 }  // namespace kdt
