@@ -1,7 +1,12 @@
 // kdtrace: command-line entry point. Parses, dispatches, and reports errors in one place.
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <exception>
 #include <string>
 #include <vector>
@@ -49,9 +54,42 @@ std::string unknown_subcommand(const CLI::App& app, const std::string& word) {
     return message;
 }
 
+// A standard descriptor closed by the caller (`>&-`) would be reused by the next open(), and
+// stdout's lines would go into that file: each closed one gets /dev/null opened read-only, so
+// the descriptor stays taken and writes to it fail (and are reported by finish_stdout()).
+void reserve_standard_descriptors() {
+    for (int fd = 0; fd <= 2; ++fd) {
+        if (::fcntl(fd, F_GETFD) != -1 || errno != EBADF) continue;
+        const int got = ::open("/dev/null", O_RDONLY);
+        if (got != fd && got >= 0) ::close(got);  // not the lowest free one: leave it be
+    }
+}
+
+// What a command printed is its product (tables, info): a full disk or a closed stdout must
+// not end in status 0. Returns the exit status, 1 when stdout could not be written.
+int finish_stdout(int status) {
+    const int earlier = errno;  // the failed write's reason, when the error came before
+    const bool flushed = std::fflush(stdout) == 0;
+    if (flushed && !std::ferror(stdout)) return status;
+    const int reason = !flushed ? errno : earlier;
+    std::fprintf(stderr, "kdtrace: error: cannot write to standard output: %s\n",
+                 reason ? std::strerror(reason) : "write error");
+    return status ? status : 1;
+}
+
+int run(int argc, char** argv);
+
 }  // namespace
 
 int main(int argc, char** argv) {
+    reserve_standard_descriptors();
+    const int status = run(argc, argv);
+    return finish_stdout(status);
+}
+
+namespace {
+
+int run(int argc, char** argv) {
     CLI::App app{"kdtrace: a kd-tree path tracer for big scanned meshes"};
     app.set_version_flag("--version", "kdtrace 0.1.0");
     app.require_subcommand(1);
@@ -98,3 +136,5 @@ int main(int argc, char** argv) {
     }
     return 0;
 }
+
+}  // namespace

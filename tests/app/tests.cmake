@@ -228,3 +228,23 @@ add_test(NAME smoke.output_owner COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/output_o
          ${_kdt} ${_tmp}/output_owner)
 set_tests_properties(smoke.output_owner PROPERTIES PASS_REGULAR_EXPRESSION "PASS: output owner"
                      FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)
+
+# What a command prints is its product: a full disk (/dev/full) or a closed stdout is an error
+# naming the reason, with a non-zero status, not a silent success.
+if(EXISTS /dev/full)
+  set(_cube /usr/share/assimp/models/PLY/cube.ply)
+  foreach(_case "info;${_cube}" "scene;${_cube}" "bench;load;${_cube};--no-assimp;--repeat;1")
+    string(REPLACE ";" "_" _name "${_case}")
+    string(REGEX REPLACE "_/.*" "" _name "${_name}")
+    string(REPLACE ";" " " _args "${_case}")
+    add_test(NAME smoke.stdout_full_${_name} COMMAND sh -c
+             "\"$0\" ${_args} 2>&1 >/dev/full; echo \"status $?\"" ${_kdt})
+    set_tests_properties(smoke.stdout_full_${_name} PROPERTIES PASS_REGULAR_EXPRESSION
+      "^kdtrace: error: cannot write to standard output: No space left on device\nstatus 1\n$")
+  endforeach()
+endif()
+add_test(NAME smoke.stdout_closed COMMAND sh -c
+         "\"$0\" info /usr/share/assimp/models/PLY/cube.ply 2>&1 >&-; echo \"status $?\""
+         ${_kdt})
+set_tests_properties(smoke.stdout_closed PROPERTIES PASS_REGULAR_EXPRESSION
+  "^kdtrace: error: cannot write to standard output: Bad file descriptor\nstatus 1\n$")
