@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <functional>
@@ -135,6 +136,30 @@ std::string rerender_command(const RenderOptions& o, const CameraDesc& camera, d
     return c;
 }
 
+// A render whose image cannot be written at the end (a full disk, the directory gone) is not
+// thrown away: it is written to "kdtrace-rescued-<pid>-<output's name>" in $TMPDIR (or
+// /tmp) instead, and the error names that file.
+void write_or_rescue(const std::string& output, const ImageRGB& image, const ToneParams& tone,
+                     const ImageMetadata& meta) {
+    try {
+        write_image(output, image, tone, meta);
+        return;
+    } catch (const Error& e) {
+        const char* tmp = std::getenv("TMPDIR");
+        const std::filesystem::path dir = tmp && *tmp ? tmp : "/tmp";
+        const std::string rescue = (dir / ("kdtrace-rescued-" + std::to_string(::getpid()) + "-" +
+                                           std::filesystem::path(output).filename().string()))
+                                       .string();
+        try {
+            write_image(rescue, image, tone, meta);
+        } catch (const Error& again) {
+            throw Error(std::string(e.what()) + "; the image could not be saved to " + rescue +
+                        " either: " + again.what());
+        }
+        throw Error(std::string(e.what()) + "; the image was saved to " + rescue + " instead");
+    }
+}
+
 void run(const RenderCommand& cmd) {
     const RenderOptions o = resolve(cmd.options);
     // Fail before loading and rendering, not after.
@@ -199,7 +224,7 @@ void run(const RenderCommand& cmd) {
     ToneParams tone;
     tone.exposure = o.film.exposure;
     tone.curve = o.film.tonemap;
-    write_image(cmd.output, image, tone, meta);
+    write_or_rescue(cmd.output, image, tone, meta);
 
     const double mrays = p.seconds > 0.0 ? double(c.rays()) / p.seconds * 1e-6 : 0.0;
     char error_buf[32];

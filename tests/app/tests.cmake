@@ -248,3 +248,7 @@ add_test(NAME smoke.stdout_closed COMMAND sh -c
          ${_kdt})
 set_tests_properties(smoke.stdout_closed PROPERTIES PASS_REGULAR_EXPRESSION
   "^kdtrace: error: cannot write to standard output: Bad file descriptor\nstatus 1\n$")
+add_test(NAME smoke.render_rescue COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/rescue_test.sh ${_kdt}
+         ${_tmp}/rescue)
+set_tests_properties(smoke.render_rescue PROPERTIES PASS_REGULAR_EXPRESSION "PASS: rescue"
+                     FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)
