@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstring>
 #include <unordered_map>
+#include <utility>
 
 namespace kdt {
 
@@ -163,14 +164,21 @@ void append_mesh(TriangleMesh& dst, const TriangleMesh& src) {
 
 void transform_mesh(TriangleMesh& mesh, const Mat4f& world_from_object) {
     for (Vec3f& p : mesh.positions) p = Vec3f(world_from_object * Vec4f(p, 1.0f));
+    const glm::dmat3 m{Mat3f{world_from_object}};
+    const bool mirrors = glm::determinant(m) < 0.0;
+    // A transform that swaps handedness turns counter-clockwise windings clockwise: without
+    // the swap the geometric normals would point inwards, which the dielectric (one-sided,
+    // entering or leaving by that normal) would read as an inside-out object (pbrt's
+    // SwapsHandedness()).
+    if (mirrors)
+        for (Vec3u& t : mesh.triangles) std::swap(t.y, t.z);
     if (!mesh.normals.empty()) {
         // Normals go by the inverse transpose; they are normalised, so any positive multiple
         // of it serves: the cofactor matrix (det times the inverse transpose) needs no
         // division, and double keeps its products of tiny or huge scales finite (a float
         // inverse of a scale of 1e-15 divides by a determinant that underflows to 0).
-        const glm::dmat3 m{Mat3f{world_from_object}};
         glm::dmat3 cof(glm::cross(m[1], m[2]), glm::cross(m[2], m[0]), glm::cross(m[0], m[1]));
-        if (glm::determinant(m) < 0.0) cof = -cof;
+        if (mirrors) cof = -cof;
         for (Vec3f& v : mesh.normals) {
             const Vec3d w = cof * Vec3d(v);
             const double len = glm::length(w);

@@ -51,7 +51,9 @@ struct TriangleMesh {
 /// dropped from the result.
 void append_mesh(TriangleMesh& dst, const TriangleMesh& src);
 
-/// Applies an affine transform to positions (and the inverse transpose to normals).
+/// Applies an affine transform to positions (and the inverse transpose to normals). A
+/// transform with a negative determinant (a mirror) also reverses every triangle's winding,
+/// so that faces seen from the front before are seen from the front after.
 void transform_mesh(TriangleMesh& mesh, const Mat4f& world_from_object);
 
 /// Angle-weighted vertex normals (Thürmer & Wüthrich 1998); degenerate triangles add nothing.

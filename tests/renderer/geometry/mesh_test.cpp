@@ -148,5 +148,48 @@ TEST(TransformMesh, NormalsAtAnyScaleAndUnderMirrors) {
     }
 }
 
+// Under a transform with a negative determinant (a mirror, alone or with a rotation and a
+// non-uniform scale) a closed mesh stays outward-facing: every triangle's geometric normal,
+// file normal and computed vertex normal points away from the centroid, as without one.
+// The mesh is irregular, so that no mirror maps it onto itself.
+TEST(TransformMesh, MirrorsReverseTheWindingSoClosedMeshesStayOutward) {
+    TriangleMesh base;  // a tetrahedron, counter-clockwise seen from outside
+    base.positions = {Vec3f(0.1f, -0.2f, 0.3f), Vec3f(2.0f, 0.1f, 0.0f), Vec3f(0.2f, 3.0f, 0.4f),
+                      Vec3f(0.3f, 0.5f, 1.5f)};
+    base.triangles = {Vec3u(0, 2, 1), Vec3u(0, 1, 3), Vec3u(0, 3, 2), Vec3u(1, 2, 3)};
+    const Vec3f centre =
+        0.25f * (base.positions[0] + base.positions[1] + base.positions[2] + base.positions[3]);
+    for (const Vec3f& p : base.positions) base.normals.push_back(glm::normalize(p - centre));
+    const Mat4f rotation = glm::rotate(Mat4f(1.0f), 0.9f, glm::normalize(Vec3f(1, 2, 3)));
+    const struct {
+        const char* name;
+        Mat4f m;
+    } cases[] = {
+        {"identity", Mat4f(1.0f)},
+        {"scale (2, 3, 4) rotated", glm::scale(rotation, Vec3f(2, 3, 4))},
+        {"scale (-1, 1, 1)", glm::scale(Mat4f(1.0f), Vec3f(-1, 1, 1))},
+        {"scale (-2, 3, 4)", glm::scale(Mat4f(1.0f), Vec3f(-2, 3, 4))},
+        {"scale (-1, -1, -1)", glm::scale(Mat4f(1.0f), Vec3f(-1, -1, -1))},
+        {"rotation times a mirror, translated",
+         glm::translate(Mat4f(1.0f), Vec3f(5, -1, 2)) * glm::scale(rotation, Vec3f(1, -1, 1))},
+    };
+    for (const auto& c : cases) {
+        TriangleMesh t = base;
+        transform_mesh(t, c.m);
+        const Vec3f world_centre = Vec3f(c.m * Vec4f(centre, 1.0f));
+        for (const Vec3u& f : t.triangles) {
+            const Vec3f a = t.positions[f.x], b = t.positions[f.y], d = t.positions[f.z];
+            const Vec3f outward = (a + b + d) / 3.0f - world_centre;
+            EXPECT_GT(glm::dot(triangle_normal(a, b, d), outward), 0.0f) << c.name;
+        }
+        const std::vector<Vec3f> computed = compute_vertex_normals(t);
+        for (size_t v = 0; v < t.positions.size(); ++v) {
+            const Vec3f outward = t.positions[v] - world_centre;
+            EXPECT_GT(glm::dot(t.normals[v], outward), 0.0f) << c.name << ", vertex " << v;
+            EXPECT_GT(glm::dot(computed[v], outward), 0.0f) << c.name << ", vertex " << v;
+        }
+    }
+}
+
 }  // namespace
 }  // namespace kdt

@@ -12,6 +12,7 @@
 #include <thread>
 
 #include <gtest/gtest.h>
+#include <glm/gtc/matrix_transform.hpp>
 
 #include "renderer/core/error.h"
 #include "renderer/render/prepare.h"
@@ -562,6 +563,39 @@ TEST(RenderSnapshot, BadCameraFailsBeforeTheTreeIsBuilt) {
     o.scene.width = 8;
     EXPECT_TRUE(prepare_render(o, [](const std::string&) {}).snapshot);
     EXPECT_EQ(trees(), 1);
+}
+
+// A mirrored glass sphere is the same sphere: the sphere is symmetric under each axis flip,
+// so scale (-1, 1, 1) and (-1, -1, -1) must render it as without the transform, flat and
+// smooth. Without reversing the winding, the dielectric saw the inside as the outside
+// (an air bubble in glass: a mean several times higher).
+TEST(RenderSnapshot, MirroredDielectricRendersAsUnmirrored) {
+    for (bool smooth : {false, true}) {
+        auto render_mean = [&](Vec3f scale) {
+            Scene scene;
+            MeshInstance glass;
+            glass.mesh = std::make_shared<TriangleMesh>(test::make_icosphere({0, 0, 0}, 1.0f, 3));
+            glass.world_from_object = glm::scale(Mat4f(1.0f), scale);
+            glass.material.type = MaterialType::dielectric;
+            glass.smooth = smooth;
+            scene.meshes = {glass};
+            scene.camera.eye = {0, 0, 4};
+            SnapshotOptions opt;
+            opt.width = 24;
+            opt.height = 16;
+            opt.env = std::make_shared<test::GradientEnv>();
+            TraceParams tp;
+            tp.samples_per_pass = 16;
+            RenderSession s(compile_snapshot(scene, opt), tp, FilmParams{});
+            s.render_pass();
+            double sum = 0.0;
+            for (float v : s.film().linear_rgb()) sum += v;
+            return sum / double(s.film().linear_rgb().size());
+        };
+        const double plain = render_mean(Vec3f(1, 1, 1));
+        EXPECT_NEAR(render_mean(Vec3f(-1, 1, 1)), plain, 1e-4 * plain) << "smooth " << smooth;
+        EXPECT_NEAR(render_mean(Vec3f(-1, -1, -1)), plain, 1e-4 * plain) << "smooth " << smooth;
+    }
 }
 
 }  // namespace
