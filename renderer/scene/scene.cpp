@@ -216,6 +216,14 @@ MaterialDesc read_material(const Reader& r) {
     if (!(m.ior > 0.0f)) r.fail_key("ior", "ior must be positive");
     if (glm::any(glm::lessThan(m.emission, Vec3f(0.0f))))
         r.fail_key("emission", "emission must be non-negative");
+    // Only the emissive type emits; elsewhere a non-zero emission would be dropped unseen.
+    // Zero is accepted on any type: the scene and session writers of earlier versions wrote it.
+    if (m.type != MaterialType::emissive && m.emission != Vec3f(0.0f)) {
+        r.fail_key("emission", std::string("a ") + kMaterialTypeNames[size_t(m.type)] +
+                                   " material does not emit" +
+                                   (r.has("type") ? "" : " (type defaults to diffuse)") +
+                                   "; emission needs type emissive");
+    }
     if (!(m.roughness > 0.0f && m.roughness <= 1.0f))
         r.fail_key("roughness", "roughness must lie in (0, 1]");
     return m;
@@ -225,7 +233,9 @@ json material_json(const MaterialDesc& m) {
     return {{"type", kMaterialTypeNames[size_t(m.type)]},
             {"albedo", vec3_json(m.albedo)},
             {"ior", float_for_text(m.ior)},
-            {"emission", vec3_json(m.emission)},
+            // What the type emits: the viewer keeps an emissive material's emission when
+            // its type changes, which the reader would refuse on another type.
+            {"emission", vec3_json(m.type == MaterialType::emissive ? m.emission : Vec3f(0.0f))},
             {"roughness", float_for_text(m.roughness)}};
 }
 
@@ -261,6 +271,19 @@ EnvironmentDesc read_environment(const Reader& r, const fs::path& base,
                                  const SceneLoadOptions& options) {
     // rotation_degrees as in the docs; "rotation" is read for files written before.
     r.allow({"color", "file", "mapping", "rotation_degrees", "rotation", "intensity"});
+    // A constant colour or a map, never both (the map would win unseen); mapping and rotation
+    // orient a map, so on a constant colour they are mistakes, as --env-mapping is without one.
+    if (r.has("color") && r.has("file")) r.fail("give color or file, not both");
+    if (!r.has("file")) {
+        for (const char* key : {"mapping", "rotation_degrees", "rotation"}) {
+            if (r.has(key)) {
+                r.fail_key(key, std::string(key) +
+                                    " orients an environment map, and this environment has no "
+                                    "file; give file or drop " +
+                                    key);
+            }
+        }
+    }
     EnvironmentDesc e;
     e.color = r.vec3("color", e.color, true);
     if (glm::any(glm::lessThan(e.color, Vec3f(0.0f))))

@@ -135,6 +135,25 @@ TEST(Scene, ErrorsNameFileAndKey) {
          "meshes/0/transform/matrix: the matrix is singular"},
         {R"({"meshes": [{"file": "cube.ply"}], "environment": {"intensity": -1}})",
          "environment/intensity"},
+        // Keys that would be ignored: a map with a colour, a map's orientation on a constant
+        // colour, emission on a type that does not emit.
+        {R"({"meshes": [{"file": "cube.ply"}], "environment": {"color": 1, "file": "cube.ply"}})",
+         "environment: give color or file, not both"},
+        {R"({"meshes": [{"file": "cube.ply"}], "environment": {"color": 1, "mapping": "latlong"}})",
+         "environment/mapping: mapping orients an environment map"},
+        {R"({"meshes": [{"file": "cube.ply"}], "environment": {"rotation_degrees": 0}})",
+         "environment/rotation_degrees: rotation_degrees orients an environment map"},
+        {R"({"meshes": [{"file": "cube.ply"}], "environment": {"rotation": 90}})",
+         "environment/rotation: rotation orients"},
+        {R"({"meshes": [{"file": "cube.ply", "material": {"type": "diffuse", "emission": 5}}]})",
+         "meshes/0/material/emission: a diffuse material does not emit"},
+        {R"({"meshes": [{"file": "cube.ply", "material": {"type": "dielectric",
+            "emission": [0, 0, 1]}}]})",
+         "meshes/0/material/emission: a dielectric material does not emit"},
+        {R"({"meshes": [{"file": "cube.ply", "material": {"emission": 1}}]})",
+         "does not emit (type defaults to diffuse)"},
+        {R"({"meshes": [{"file": "cube.ply", "material": {"albdo": 0.5}}]})",
+         "meshes/0/material/albdo: unknown key \"albdo\" (expected one of: albedo,"},
         {R"({"meshes": [{"file": "cube.ply"}] )", "invalid JSON"},
         {R"([1, 2])", "expected an object"},
     };
@@ -467,6 +486,35 @@ TEST(SceneJson, WritesShortestFloatsAndTheDocumentedKeys) {
     EXPECT_NE(text.find("2.6"), std::string::npos);
     EXPECT_EQ(text.find("2.5999"), std::string::npos);
     EXPECT_EQ(text.find("\"vfov\""), std::string::npos);
+}
+
+// Zero emission on a type that does not emit is what earlier writers wrote for every
+// material; it still loads. An emission the viewer kept when an emissive material changed
+// type is written as zero, so what is written reads back.
+TEST(SceneJson, ZeroEmissionLoadsOnAnyTypeAndStaleEmissionIsNotWritten) {
+    const auto dir = test::temp_dir("scene_emission");
+    SceneLoadOptions o;
+    o.check_files = false;
+    for (const char* type : kMaterialTypeNames) {
+        const std::string path =
+            write_file(dir, "s.json",
+                       std::string(R"({"meshes": [{"file": "builtin:icosphere", "material": )") +
+                           R"({"type": ")" + type + R"(", "emission": [0, 0, 0]}}]})");
+        EXPECT_EQ(load_scene(path, o).meshes[0].material.emission, Vec3f(0.0f)) << type;
+    }
+    Scene scene = load_scene(write_file(dir, "lamp.json",
+                                        R"({"meshes": [{"file": "builtin:icosphere", "material": )"
+                                        R"({"type": "emissive", "emission": [1, 2, 3]}}]})"),
+                             o);
+    EXPECT_EQ(scene.meshes[0].material.emission, Vec3f(1, 2, 3));
+    scene.meshes[0].material.type = MaterialType::diffuse;  // as the viewer leaves it
+    const Scene back = load_scene(write_file(dir, "back.json", scene_to_json(scene)), o);
+    EXPECT_EQ(back.meshes[0].material.type, MaterialType::diffuse);
+    EXPECT_EQ(back.meshes[0].material.emission, Vec3f(0.0f));
+    MaterialDesc lamp;
+    lamp.type = MaterialType::emissive;
+    lamp.emission = Vec3f(4.0f);
+    EXPECT_TRUE(material_from_json(material_to_json(lamp), "m.json", "m") == lamp);
 }
 
 TEST(SceneJson, ReadsTheDocumentedKeysAndTheFormerOnes) {
