@@ -357,6 +357,24 @@ TEST(Scene, EnvironmentFileIsCheckedNamingSceneAndKey) {
     }
 }
 
+// Relative mesh and environment paths resolve against the directory of the scene path as
+// given: through a symlink, the link's directory, not its target's (as the shell would).
+TEST(Scene, RelativePathsResolveAgainstTheSceneFileAsGivenNotASymlinksTarget) {
+    const auto dir = test::temp_dir("scene_symlink");
+    std::filesystem::create_directories(dir / "real");
+    std::filesystem::create_directories(dir / "link");
+    write_file(dir, "real/s.json",
+               R"({"meshes": [{"file": "cube.ply"}], "environment": {"file": "sky.hdr"}})");
+    std::filesystem::create_symlink("../real/s.json", dir / "link" / "s.json");
+    write_file(dir, "link/cube.ply", kCubePly);
+    write_file(dir, "link/sky.hdr", "opened, not decoded, by the scene reader");
+    const Scene s = load_scene((dir / "link" / "s.json").string());
+    EXPECT_EQ(std::filesystem::path(s.meshes[0].file),
+              (dir / "link" / "cube.ply").lexically_normal());
+    EXPECT_EQ(std::filesystem::path(s.environment.file),
+              (dir / "link" / "sky.hdr").lexically_normal());
+}
+
 // Instances of one file or builtin share one mesh: a scene of many copies loads one.
 TEST(Scene, InstancesShareOneMesh) {
     auto dir = test::temp_dir("scene_share");
