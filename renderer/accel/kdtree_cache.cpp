@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <memory>
 #include <type_traits>
 #include <vector>
 
@@ -16,6 +17,7 @@
 #include <unistd.h>
 
 #include "renderer/core/error.h"
+#include "renderer/core/map_guard.h"
 #include "renderer/core/open_file.h"
 #include "renderer/core/temp_file.h"
 #include "renderer/core/timer.h"
@@ -148,7 +150,8 @@ bool contains(const Bounds3f& outer, const Bounds3f& inner) {
            outer.upper.y >= inner.upper.y && outer.upper.z >= inner.upper.z;
 }
 
-// A read-only mapping of a whole file, unmapped on destruction.
+// A read-only mapping of a whole file, unmapped on destruction. Its reads are guarded: a
+// file truncated meanwhile reads as zeros, and check_unchanged() throws an Error for it.
 class MappedFile {
 public:
     explicit MappedFile(const std::string& path) : path_(path) {
@@ -160,8 +163,17 @@ public:
         void* p = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, fd_, 0);
         if (p == MAP_FAILED) fail(std::string("cannot map: ") + std::strerror(errno));
         data_ = static_cast<const unsigned char*>(p);
+        try {
+            guard_ = std::make_unique<MapGuard>(data_, size_, fd_, path_);
+        } catch (...) {
+            ::munmap(p, size_);
+            data_ = nullptr;
+            ::close(fd_);
+            throw;
+        }
     }
     ~MappedFile() {
+        guard_.reset();
         if (data_) ::munmap(const_cast<unsigned char*>(data_), size_);
         if (fd_ >= 0) ::close(fd_);
     }
@@ -171,6 +183,10 @@ public:
     const unsigned char* data() const { return data_; }
     size_t size() const { return size_; }
     const struct stat& stat() const { return stat_; }
+    /// Throws an Error naming the file when it changed or shrank while it was read.
+    void check_unchanged() const {
+        if (guard_) guard_->check();
+    }
 
 private:
     [[noreturn]] void fail(const std::string& message) {
@@ -184,6 +200,7 @@ private:
     const unsigned char* data_ = nullptr;
     size_t size_ = 0;
     struct stat stat_ {};
+    std::unique_ptr<MapGuard> guard_;
 };
 
 // Verified-stamps. check_kdtree_complete() costs a sizeable fraction of a build, so a file
@@ -479,8 +496,15 @@ std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
         mesh ? stamp_key(file.stat(), header_checksum, mesh->content_hash()) : std::string();
     const bool verified = !key.empty() && stamped(file.stat(), key);
     double seconds = 0.0;
-    auto tree = load_kdtree_image(file.data(), file.size(), path, std::move(mesh), params,
-                                  !verified, &seconds);
+    std::shared_ptr<const KdTree> tree;
+    try {
+        tree = load_kdtree_image(file.data(), file.size(), path, std::move(mesh), params, !verified,
+                                 &seconds);
+        file.check_unchanged();
+    } catch (const Error&) {
+        file.check_unchanged();  // a file that shrank meanwhile is the problem to report
+        throw;
+    }
     if (!verified) write_stamp(file.stat(), key);
     if (verify_seconds) *verify_seconds = seconds;
     return tree;
@@ -488,7 +512,14 @@ std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
 
 KdTreeParams kdtree_file_params(const std::string& path) {
     MappedFile file(path);
-    const FileHeader h = checked_header(file.data(), file.size(), path);
+    FileHeader h;
+    try {
+        h = checked_header(file.data(), file.size(), path);
+        file.check_unchanged();
+    } catch (const Error&) {
+        file.check_unchanged();
+        throw;
+    }
     KdTreeParams p;
     if (h.builder >= kKdBuilderNames.size())
         fail_at(path, "header", -1, offsetof(FileHeader, builder), "unknown builder");

@@ -4,6 +4,8 @@
 #include <unistd.h>
 #include <algorithm>
 
+#include "renderer/core/error.h"
+
 namespace kdt::ply {
 namespace {
 
@@ -32,6 +34,7 @@ Input::Input(FileReader& reader) : reader_(reader) {
 }
 
 Input::~Input() {
+    guard_.reset();
     if (map_) ::munmap(map_, map_bytes_);
 }
 
@@ -62,8 +65,8 @@ bool Input::refill(size_t n) {
 
 // Maps the whole file read-only over a reservation one padding page longer, so loads past
 // the end read zeros; the parser then sees the file through a window of kBlockBytes that
-// slide() moves on. (A file truncated by another process while it is read would fault, as
-// with any mapped file.)
+// slide() moves on. A file truncated by another process while it is read would fault; the
+// guard turns the missing pages into zeros and check_unchanged() into an Error.
 bool Input::map_file() {
     const int fd = reader_.plain_fd();
     const uint64_t size = reader_.file_bytes();
@@ -74,6 +77,12 @@ bool Input::map_file() {
     if (base == MAP_FAILED) return false;
     if (::mmap(base, size_t(size), PROT_READ, MAP_PRIVATE | MAP_FIXED, fd, 0) == MAP_FAILED) {
         ::munmap(base, bytes);
+        return false;
+    }
+    try {
+        guard_ = std::make_unique<MapGuard>(base, bytes, fd, reader_.path());
+    } catch (const Error&) {
+        ::munmap(base, bytes);  // too many mapped files at once: read this one
         return false;
     }
     ::madvise(base, size_t(size), MADV_SEQUENTIAL);
@@ -89,6 +98,8 @@ bool Input::map_file() {
 // Moves the window of a mapped file to [pos, pos + max(n, kBlockBytes)) and unmaps the pages
 // before it, so resident memory stays about one window whatever the file size.
 bool Input::slide(size_t n) {
+    // The pages past a truncation read as zeros: stop at the next window, not at the end.
+    if (guard_->faulted()) guard_->check();
     char* done = map_ + size_t(pos_ - map_) / page_ * page_;
     if (size_t(done - released_) >= kReleaseBytes) {
         ::madvise(released_, size_t(done - released_), MADV_DONTNEED);

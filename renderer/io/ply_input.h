@@ -7,8 +7,10 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <memory>
 #include <vector>
 
+#include "renderer/core/map_guard.h"
 #include "renderer/io/file_reader.h"
 #include "renderer/io/ply_format.h"
 
@@ -40,6 +42,13 @@ public:
     /// Stream offset of pos().
     uint64_t offset() const {
         return map_ ? uint64_t(pos_ - map_) : base_ + uint64_t(pos_ - buf_.data());
+    }
+
+    /// Throws an Error naming the file when a mapped file changed or was truncated while it
+    /// was read (the reads then saw zeros); nothing for buffered input, whose reads end
+    /// early instead. Callers check this before trusting, or reporting on, what they read.
+    void check_unchanged() const {
+        if (guard_) guard_->check();
     }
 
     /// Makes at least n bytes available at pos(); false when the data ends first.
@@ -105,6 +114,7 @@ private:
     const char* map_end_ = nullptr;
     char* released_ = nullptr;  // pages before it are unmapped again
     size_t map_bytes_ = 0, page_ = 4096;
+    std::unique_ptr<MapGuard> guard_;  // set while map_ is
 };
 
 }  // namespace kdt::ply

@@ -213,8 +213,11 @@ TriangleMesh PlyParser::parse(MeshLoadInfo* info) {
         plan_elements();
         check_counts();
         read_elements();
+        in_.check_unchanged();
     } catch (const Error& e) {
         report(info, timer);
+        // Data read from a file that shrank meanwhile: what went wrong is the file.
+        in_.check_unchanged();
         // An absurd inflation ratio is the likelier cause of whatever went wrong.
         if (!reader_.gzip() || reader_.over_inflation_limit() ||
             reader_.bytes_read() < kInflationNoteBytes ||
@@ -227,12 +230,14 @@ TriangleMesh PlyParser::parse(MeshLoadInfo* info) {
     } catch (const std::bad_alloc&) {
         // Elements name themselves (read_elements); this is the header or the input buffer.
         report(info, timer);
+        in_.check_unchanged();
         ErrorLocation w;
         w.path = reader_.path();
         w.element = "header";
         throw Error(w, "out of memory while reading the header");
     } catch (...) {
         report(info, timer);
+        in_.check_unchanged();
         throw;
     }
     report(info, timer);

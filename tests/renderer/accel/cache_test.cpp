@@ -4,6 +4,7 @@
 #include "renderer/accel/kdtree_cache.h"
 
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <cstdlib>
 #include <cstring>
@@ -15,6 +16,7 @@
 #include <gtest/gtest.h>
 
 #include "renderer/core/error.h"
+#include "renderer/core/map_guard.h"
 #include "renderer/scene/scene.h"
 #include "tests/test_util.h"
 
@@ -176,6 +178,27 @@ TEST_F(CacheTest, TruncatedFileIsRebuilt) {
     write_bytes(file_, bytes);
     EXPECT_NE(load_error(file_, mesh_, params_).find("truncated"), std::string::npos);
     expect_rebuilt("truncated");
+}
+
+std::string g_victim;  // the cache file the MapGuard test hook truncates to one page
+
+void truncate_victim(const std::string& path) {
+    if (path == g_victim) {
+        ASSERT_EQ(::truncate(path.c_str(), ::sysconf(_SC_PAGESIZE)), 0);
+    }
+}
+
+// Cut by another process after it was mapped: an error naming the file, not SIGBUS.
+TEST_F(CacheTest, FileTruncatedWhileReadIsAnError) {
+    mesh_ = sphere_mesh(5);
+    file_ = dir_ / kdtree_cache_file_name(model_.string(), params_);
+    prime();
+    ASSERT_GT(fs::file_size(file_), uintmax_t(4 * ::sysconf(_SC_PAGESIZE)));
+    g_victim = file_.string();
+    set_map_guard_test_hook(truncate_victim);
+    const std::string msg = load_error(file_, mesh_, params_);
+    set_map_guard_test_hook(nullptr);
+    EXPECT_EQ(msg, file_.string() + ": the file changed or was truncated while it was read");
 }
 
 TEST_F(CacheTest, FileCutInsideTheHeaderIsRebuilt) {
