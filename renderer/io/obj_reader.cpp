@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <new>
 #include <string_view>
 #include <unordered_map>
 #include <vector>
@@ -107,6 +108,7 @@ private:
     }
 
     bool next_line(const char*& b, const char*& e);
+    void long_line();
     void refill();
     void statement(const char* b, const char* e);
     void vertex(const char* b, const char* e);
@@ -126,6 +128,7 @@ private:
     std::vector<char> buf_;
     size_t pos_ = 0, scan_ = 0, end_ = 0;
     bool eof_ = false;
+    bool skipping_ = false;  // inside a long comment whose read part was dropped
     std::string joined_;     // a line continued with '\', joined
     int64_t line_ = 0;       // the line the current statement starts on (1-based)
     int64_t next_line_ = 1;  // the line the next statement starts on
@@ -152,6 +155,12 @@ bool ObjParser::next_line(const char*& b, const char*& e) {
         if (nl) {
             const size_t at = size_t(static_cast<const char*>(nl) - base);
             ++next_line_;
+            if (skipping_) {  // the end of a long comment: an empty statement
+                skipping_ = false;
+                b = e = base + at;
+                pos_ = scan_ = at + 1;
+                break;
+            }
             size_t q = at;
             if (q > pos_ && base[q - 1] == '\r') --q;
             if (q > pos_ && base[q - 1] == '\\') {
@@ -177,6 +186,7 @@ bool ObjParser::next_line(const char*& b, const char*& e) {
             pos_ = scan_ = end_;
             break;
         }
+        if (skipping_ || end_ - pos_ >= kBlockBytes) long_line();
         refill();
     }
     if (continued) {
@@ -198,6 +208,33 @@ bool ObjParser::next_line(const char*& b, const char*& e) {
         e = b + joined_.size();
     }
     return true;
+}
+
+// A statement not ended within a block: before the buffer grows for it, its start gets the
+// checks statement() would make first, so binary data fails at its first line after one
+// block rather than after the whole line is held (the message is the same: tokens are
+// quoted up to 40 bytes). A comment (never continued) is dropped as it is read.
+void ObjParser::long_line() {
+    const char* b = buf_.data() + pos_;
+    const char* e = buf_.data() + end_;
+    const char* s = b;
+    while (s < e && is_blank(*s)) ++s;
+    if (skipping_ || (s < e && *s == '#')) {  // the rule next_line() applies to comments
+        skipping_ = true;
+        pos_ = scan_ = end_ = 0;
+        return;
+    }
+    if (line_ == 1 && e - b >= 3 && std::memcmp(b, "\xef\xbb\xbf", 3) == 0) b += 3;  // BOM
+    while (b < e && is_blank(*b)) ++b;
+    const char* k = b;
+    while (k < e && !is_blank(*k)) ++k;
+    // A continuation inside the first token would change the token; leave that to
+    // statement(), as a comment after a BOM.
+    if (e - b <= 40 || *b == '#' || std::memchr(b, '\n', size_t(k - b))) return;
+    if (!is_letter(b[0]))
+        fail("", -1, "not an OBJ statement: " + quoted(b, k) + " (binary data or UTF-16 text?)");
+    if (std::memchr(b, '\0', size_t(e - b)))
+        fail("", -1, "NUL byte in a statement (binary data or UTF-16 text?)");
 }
 
 void ObjParser::refill() {
@@ -498,9 +535,15 @@ TriangleMesh read_obj(FileReader& reader, const MeshLoadOptions& options, MeshLo
         w.path = reader.path();
         throw Error(w, "gzip-compressed OBJ files are not supported");
     }
-    TriangleMesh mesh = ObjParser(reader, options).run(info);
-    if (info) info->seconds = timer.seconds();
-    return mesh;
+    try {
+        TriangleMesh mesh = ObjParser(reader, options).run(info);
+        if (info) info->seconds = timer.seconds();
+        return mesh;
+    } catch (const std::bad_alloc&) {
+        ErrorLocation w;
+        w.path = reader.path();
+        throw Error(w, "out of memory reading the mesh");
+    }
 }
 
 TriangleMesh read_obj(const std::string& path, const MeshLoadOptions& options, MeshLoadInfo* info) {

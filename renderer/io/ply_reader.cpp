@@ -298,8 +298,15 @@ void PlyParser::report(MeshLoadInfo* info, const Timer& timer) const {
 }  // namespace ply
 
 TriangleMesh read_ply(FileReader& reader, const MeshLoadOptions& options, MeshLoadInfo* info) {
-    ply::PlyParser parser(reader, options);
-    return parser.parse(info);
+    // The parser names what ran out where it can; this covers the rest (its input buffer).
+    try {
+        ply::PlyParser parser(reader, options);
+        return parser.parse(info);
+    } catch (const std::bad_alloc&) {
+        ErrorLocation w;
+        w.path = reader.path();
+        throw Error(w, "out of memory reading the mesh");
+    }
 }
 
 TriangleMesh read_ply(const std::string& path, const MeshLoadOptions& options, MeshLoadInfo* info) {
