@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <string_view>
 
 #include "renderer/core/error.h"
 #include "renderer/core/open_file.h"
@@ -29,6 +30,17 @@ std::string mib(uint64_t bytes) {
     ErrorLocation where;
     where.path = path;
     throw Error(where, message);
+}
+
+// zlib's message without the name it gives a stream opened by descriptor ("<fd:5>: "): the
+// error already names the file.
+std::string gzip_message(const char* msg) {
+    std::string_view m = msg ? msg : "unknown error";
+    if (m.substr(0, 4) == "<fd:") {
+        const size_t end = m.find(">: ");
+        if (end != std::string_view::npos) m.remove_prefix(end + 3);
+    }
+    return "corrupt gzip data: " + std::string(m);
 }
 
 }  // namespace
@@ -134,14 +146,13 @@ size_t FileReader::read_gzip(char* dst, size_t n) {
         if (got < 0) {
             int code = 0;
             const char* msg = ::gzerror(gz, &code);
-            fail(path_, std::string("corrupt gzip data: ") + (msg ? msg : "unknown error"));
+            fail(path_, gzip_message(msg));
         }
         if (got == 0) {
             // gzread reports a stream cut short only through gzerror.
             int code = 0;
             const char* msg = ::gzerror(gz, &code);
-            if (code != Z_OK && code != Z_STREAM_END)
-                fail(path_, std::string("corrupt gzip data: ") + (msg ? msg : "unknown error"));
+            if (code != Z_OK && code != Z_STREAM_END) fail(path_, gzip_message(msg));
             break;
         }
         total += static_cast<size_t>(got);

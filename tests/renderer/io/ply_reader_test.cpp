@@ -408,7 +408,15 @@ TEST(PlyReader, GzipFileReadTransparently) {
     } catch (const Error& e) {
         std::string msg = e.what();
         EXPECT_NE(msg.find("cut.ply.gz"), std::string::npos) << msg;
+        EXPECT_EQ(msg.find("<fd:"), std::string::npos) << msg;
     }
+    // A bad CRC names the file, not zlib's name for the descriptor ("<fd:5>").
+    std::string crc = (dir / "crc.ply.gz").string();
+    std::string bad = bytes;
+    bad[bad.size() - 8] ^= 0x55;
+    std::ofstream(crc, std::ios::binary).write(bad.data(), std::streamsize(bad.size()));
+    EXPECT_EQ(test::error_of_call([&] { read_ply(crc); }),
+              crc + ": corrupt gzip data: incorrect data check");
     std::filesystem::remove_all(dir);
 }
 
