@@ -93,13 +93,15 @@ public:
     }
 
 private:
+    // `index` is 0-based (-1: none); messages count from 1, as OBJ indices do, so that
+    // "vertex 1" is the vertex that "f 1 2 3" names.
     [[noreturn]] void fail_at(int64_t line, const std::string& element, int64_t index,
                               const std::string& message) const {
         ErrorLocation w;
         w.path = in_.path();
         w.line = line;
         w.element = element;
-        w.index = index;
+        w.index = index < 0 ? -1 : index + 1;
         throw Error(w, message);
     }
     [[noreturn]] void fail(const std::string& element, int64_t index,

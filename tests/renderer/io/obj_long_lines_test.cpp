@@ -56,7 +56,7 @@ TEST(ObjLongLines, LongCommentsAreSkippedAndLinesCounted) {
     const std::string comment = "# " + std::string(5 * kMiB, 'x');
     // A comment ending in '\' does not continue: the next line is a statement.
     const std::string text = comment + "\n" + comment + "\\\n" + kTri + "f 1 2 x\n";
-    EXPECT_EQ(error_of(text), "t.obj: line 7: face 1: invalid vertex index 'x'");
+    EXPECT_EQ(error_of(text), "t.obj: line 7: face 2: invalid vertex index 'x'");
     const std::string good = "   " + comment + "\n" + kTri + comment;  // and one at the end
     TriangleMesh mesh = read_obj_memory(good.data(), good.size(), "t.obj");
     EXPECT_EQ(mesh.positions.size(), 3u);

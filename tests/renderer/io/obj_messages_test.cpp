@@ -46,9 +46,9 @@ TEST(ObjMessages, HostileTokensAreEscaped) {
 
 TEST(ObjMessages, FacesOfFewerThanThreeIndicesSaySo) {
     const std::string tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
-    EXPECT_NE(error_of(tri + "f 1 2\n").find("line 5: face 1: 2 indices, a face needs at least 3"),
+    EXPECT_NE(error_of(tri + "f 1 2\n").find("line 5: face 2: 2 indices, a face needs at least 3"),
               std::string::npos);
-    EXPECT_NE(error_of(tri + "f 3\n").find("face 1: 1 index, a face needs at least 3"),
+    EXPECT_NE(error_of(tri + "f 3\n").find("face 2: 1 index, a face needs at least 3"),
               std::string::npos);
 }
 

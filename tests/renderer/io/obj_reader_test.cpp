@@ -175,7 +175,7 @@ TEST_F(ObjReader, TextConventions) {
     EXPECT_EQ(load(std::string("# C:\\models\\\n") + kTriangle + "f 1 2 3\n").triangle_count(), 1u);
     // Line numbers count physical lines, continued ones included.
     EXPECT_NE(
-        error_of("v 0 \\\n0 0\n\nv x 0 0\n").find("t.obj: line 4: vertex 1: invalid number 'x'"),
+        error_of("v 0 \\\n0 0\n\nv x 0 0\n").find("t.obj: line 4: vertex 2: invalid number 'x'"),
         std::string::npos)
         << error_of("v 0 \\\n0 0\n\nv x 0 0\n");
     // Everything not needed for rendering is skipped.
@@ -187,7 +187,7 @@ TEST_F(ObjReader, TextConventions) {
     // A point cloud (no faces) keeps its vertices.
     EXPECT_EQ(load("v 0 0 0\nvn 0 0 1\nv 1 1 1\n").vertex_count(), 2u);
     // Out of float's range: overflow is infinite (an error), underflow is zero.
-    EXPECT_NE(error_of("v 1e39 0 0\n").find("t.obj: line 1: vertex 0: non-finite coordinate"),
+    EXPECT_NE(error_of("v 1e39 0 0\n").find("t.obj: line 1: vertex 1: non-finite coordinate"),
               std::string::npos);
     EXPECT_EQ(load("v 1e-50 -1e-999 0.000000000000000000000000000000000000000000000000001\n")
                   .positions[0],
@@ -199,7 +199,7 @@ TEST_F(ObjReader, LongLines) {
     std::string text = "#" + std::string(3u << 20, 'c') + "\n" + kTriangle + "f";
     for (int k = 0; k < 400000; ++k) text += k % 2 ? " 1 2" : " 3 2";
     text += "\nv x\n";
-    EXPECT_NE(error_of(text).find("t.obj: line 6: vertex 3: invalid number 'x'"), std::string::npos)
+    EXPECT_NE(error_of(text).find("t.obj: line 6: vertex 4: invalid number 'x'"), std::string::npos)
         << error_of(text);
     text.resize(text.size() - 4);
     MeshLoadInfo info;
@@ -221,18 +221,18 @@ TEST_F(ObjReader, Errors) {
     EXPECT_NE(file_error_of((dir_ / "missing.obj").string()).find("missing.obj: cannot open file"),
               std::string::npos);
     std::string oor = write("oor.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 9\n");
-    EXPECT_NE(file_error_of(oor).find("oor.obj: line 5: face 1: vertex index 9 out of range (3 "
+    EXPECT_NE(file_error_of(oor).find("oor.obj: line 5: face 2: vertex index 9 out of range (3 "
                                       "vertices)"),
               std::string::npos)
         << file_error_of(oor);
     std::string rel = write("rel.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -9\n");
-    EXPECT_NE(file_error_of(rel).find("rel.obj: line 4: face 0: relative vertex index -9 points "
+    EXPECT_NE(file_error_of(rel).find("rel.obj: line 4: face 1: relative vertex index -9 points "
                                       "before the first vertex (3 vertices so far)"),
               std::string::npos)
         << file_error_of(rel);
     std::string inf =
         write("inf.obj", "v 0 0 0\nv 1e999 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 1 3 4\n");
-    EXPECT_NE(file_error_of(inf).find("inf.obj: line 2: vertex 1: non-finite coordinate (inf, "
+    EXPECT_NE(file_error_of(inf).find("inf.obj: line 2: vertex 2: non-finite coordinate (inf, "
                                       "0.000000, 0.000000); --drop-invalid drops"),
               std::string::npos)
         << file_error_of(inf);
@@ -268,7 +268,7 @@ TEST_F(ObjReader, NonFiniteVerticesMirrorPly) {
     const std::string text =
         "v 0 0 0\nv nan 0 0\nv 1 0 0\nv 0 -inf 0\nv 0 1 0\nvn 0 0 1\n"
         "f 1//1 3//1 5//1\nf 1//1 2//1 3//1\nf 3//1 4//1 5//1\n";
-    EXPECT_NE(error_of(text).find("t.obj: line 2: vertex 1: non-finite coordinate (nan"),
+    EXPECT_NE(error_of(text).find("t.obj: line 2: vertex 2: non-finite coordinate (nan"),
               std::string::npos)
         << error_of(text);
     MeshLoadOptions o;
@@ -298,48 +298,48 @@ TEST_F(ObjReader, HostileInputsGiveClearErrors) {
         {"", "t.obj: no vertices (an empty file, or not an OBJ file)"},
         {"# only a comment\n\n", "t.obj: no vertices"},
         {"g nothing\nusemtl x\n", "t.obj: no vertices"},
-        {tri + "f 0 1 2\n", "t.obj: line 4: face 0: vertex index 0 (OBJ indices start at 1)"},
+        {tri + "f 0 1 2\n", "t.obj: line 4: face 1: vertex index 0 (OBJ indices start at 1)"},
         {tri + "f 1 2 3\nf 1 2 99999999999\n",
-         "t.obj: line 5: face 1: vertex index 99999999999 out of range (a mesh holds at most "
+         "t.obj: line 5: face 2: vertex index 99999999999 out of range (a mesh holds at most "
          "2^32-1 vertices)"},
         // tinyobjloader read this with atoi, which wrapped it to 3: a valid face.
-        {tri + "f 1 2 4294967299\n", "t.obj: line 4: face 0: vertex index 4294967299 out of range"},
+        {tri + "f 1 2 4294967299\n", "t.obj: line 4: face 1: vertex index 4294967299 out of range"},
         {tri + "f 1 2 4294967295\n",
-         "t.obj: line 4: face 0: vertex index 4294967295 out of range (3 vertices)"},
-        {tri + "f 1 2 " + std::string(60, '9') + "\n", "t.obj: line 4: face 0: vertex index 999"},
+         "t.obj: line 4: face 1: vertex index 4294967295 out of range (3 vertices)"},
+        {tri + "f 1 2 " + std::string(60, '9') + "\n", "t.obj: line 4: face 1: vertex index 999"},
         {tri + "f 1 2 -99999999999\n",
-         "t.obj: line 4: face 0: relative vertex index -99999999999 points before the first "
+         "t.obj: line 4: face 1: relative vertex index -99999999999 points before the first "
          "vertex (3 vertices so far)"},
         // tinyobjloader dropped a quad with an index out of range without a word.
         {tri + "v 1 1 0\nf 1 2 3 99\n",
-         "t.obj: line 5: face 0: vertex index 99 out of range (4 vertices)"},
-        {tri + "f 1 2 3 4 5 6 7 8 9 10\n", "t.obj: line 4: face 0: vertex index 10 out of range"},
-        {tri + "f\n", "t.obj: line 4: face 0: 0 indices, a face needs at least 3"},
-        {tri + "f 1\n", "t.obj: line 4: face 0: 1 index, a face needs at least 3"},
-        {tri + "f 1 2 3\nf 1 2\n", "t.obj: line 5: face 1: 2 indices, a face needs at least 3"},
+         "t.obj: line 5: face 1: vertex index 99 out of range (4 vertices)"},
+        {tri + "f 1 2 3 4 5 6 7 8 9 10\n", "t.obj: line 4: face 1: vertex index 10 out of range"},
+        {tri + "f\n", "t.obj: line 4: face 1: 0 indices, a face needs at least 3"},
+        {tri + "f 1\n", "t.obj: line 4: face 1: 1 index, a face needs at least 3"},
+        {tri + "f 1 2 3\nf 1 2\n", "t.obj: line 5: face 2: 2 indices, a face needs at least 3"},
         {tri + "vn 0 0 1\nf 1//1 2//1 3//2\n",
-         "t.obj: line 5: face 0: normal index 2 out of range (1 normals)"},
+         "t.obj: line 5: face 1: normal index 2 out of range (1 normals)"},
         {tri + "f 1//-1 2//1 3//1\n",
-         "t.obj: line 4: face 0: relative normal index -1 points before the first normal (0 "
+         "t.obj: line 4: face 1: relative normal index -1 points before the first normal (0 "
          "normals so far)"},
-        {tri + "f 1/0 2 3\n", "t.obj: line 4: face 0: texture coordinate index 0"},
-        {tri + "f 1/1/1/1 2 3\n", "t.obj: line 4: face 0: invalid corner '1/1/1/1'"},
-        {tri + "f 1 2 3x\n", "t.obj: line 4: face 0: invalid vertex index '3x'"},
-        {tri + "f 1 2 /3\n", "t.obj: line 4: face 0: corner '/3' has no vertex index"},
-        {tri + "f 1 2 -\n", "t.obj: line 4: face 0: invalid vertex index '-'"},
-        {tri + "f 1 2 3/-\n", "t.obj: line 4: face 0: invalid texture coordinate index '-'"},
-        {tri + "f 1 2 \\ 3\n", "t.obj: line 4: face 0: invalid vertex index '\\'"},
-        {"v 1 2\n", "t.obj: line 1: vertex 0: has 2 coordinates (x y z needed)"},
-        {"v 1 2 3 4 5 6 7 8\n", "t.obj: line 1: vertex 0: more than 7 values"},
-        {"v 1,5 2 3\n", "t.obj: line 1: vertex 0: invalid number '1,5'"},
-        {"v 1 2 0x10\n", "t.obj: line 1: vertex 0: invalid number '0x10'"},
-        {"v 1 2 3.1+e2\n", "t.obj: line 1: vertex 0: invalid number '3.1+e2'"},
-        {"v 1 2 1e\n", "t.obj: line 1: vertex 0: invalid number '1e'"},
-        {"v 1 2 ++1\n", "t.obj: line 1: vertex 0: invalid number '++1'"},
-        {tri + "vn 0 0\n", "t.obj: line 4: normal 0: has 2 values (x y z needed)"},
-        {tri + "vn 0 0 1 0\n", "t.obj: line 4: normal 0: more than 3 values (x y z)"},
+        {tri + "f 1/0 2 3\n", "t.obj: line 4: face 1: texture coordinate index 0"},
+        {tri + "f 1/1/1/1 2 3\n", "t.obj: line 4: face 1: invalid corner '1/1/1/1'"},
+        {tri + "f 1 2 3x\n", "t.obj: line 4: face 1: invalid vertex index '3x'"},
+        {tri + "f 1 2 /3\n", "t.obj: line 4: face 1: corner '/3' has no vertex index"},
+        {tri + "f 1 2 -\n", "t.obj: line 4: face 1: invalid vertex index '-'"},
+        {tri + "f 1 2 3/-\n", "t.obj: line 4: face 1: invalid texture coordinate index '-'"},
+        {tri + "f 1 2 \\ 3\n", "t.obj: line 4: face 1: invalid vertex index '\\'"},
+        {"v 1 2\n", "t.obj: line 1: vertex 1: has 2 coordinates (x y z needed)"},
+        {"v 1 2 3 4 5 6 7 8\n", "t.obj: line 1: vertex 1: more than 7 values"},
+        {"v 1,5 2 3\n", "t.obj: line 1: vertex 1: invalid number '1,5'"},
+        {"v 1 2 0x10\n", "t.obj: line 1: vertex 1: invalid number '0x10'"},
+        {"v 1 2 3.1+e2\n", "t.obj: line 1: vertex 1: invalid number '3.1+e2'"},
+        {"v 1 2 1e\n", "t.obj: line 1: vertex 1: invalid number '1e'"},
+        {"v 1 2 ++1\n", "t.obj: line 1: vertex 1: invalid number '++1'"},
+        {tri + "vn 0 0\n", "t.obj: line 4: normal 1: has 2 values (x y z needed)"},
+        {tri + "vn 0 0 1 0\n", "t.obj: line 4: normal 1: more than 3 values (x y z)"},
         // tinyobjloader overflowed an int on this exponent (undefined behaviour).
-        {"v 1e2147483648 0 0\n", "t.obj: line 1: vertex 0: non-finite coordinate (inf"},
+        {"v 1e2147483648 0 0\n", "t.obj: line 1: vertex 1: non-finite coordinate (inf"},
         {"v 0 0 0\rv 1 0 0\rv 0 1 0\rf 1 2 3\r",
          "t.obj: line 1: carriage return inside a line (CR-only line endings are not supported"},
         {std::string("\x89PNG\r\n\x1a\n\0\0\0\rIHDR", 16),
@@ -425,7 +425,7 @@ const Expectation kCorpus[] = {
     {"OBJ/cube_with_vertexcolors_uni.obj", nullptr},
     {"OBJ/empty_mat.obj", nullptr},
     {"OBJ/multiple_spaces.obj", nullptr},
-    {"OBJ/number_formats.obj", "number_formats.obj: line 11: vertex 7: invalid number '3.1+e2'"},
+    {"OBJ/number_formats.obj", "number_formats.obj: line 11: vertex 8: invalid number '3.1+e2'"},
     {"OBJ/point_cloud.obj", nullptr},
     {"OBJ/regr01.obj", nullptr},
     {"OBJ/regr_3429812.obj", nullptr},
@@ -436,9 +436,9 @@ const Expectation kCorpus[] = {
     {"OBJ/testpoints.obj", nullptr},
     {"invalid/empty.obj", "empty.obj: no vertices (an empty file, or not an OBJ file)"},
     {"invalid/malformed.obj",
-     "malformed.obj: line 28: face 5: vertex index 0 (OBJ indices start at 1)"},
+     "malformed.obj: line 28: face 6: vertex index 0 (OBJ indices start at 1)"},
     {"invalid/malformed2.obj",
-     "malformed2.obj: line 23: face 0: 0 indices, a face needs at least 3"},
+     "malformed2.obj: line 23: face 1: 0 indices, a face needs at least 3"},
 };
 
 using Tri = std::array<Vec3f, 3>;
