@@ -123,8 +123,11 @@ fail_missing)
     grep -q "kdtrace: error: every rank could not load the scene: .*no_such_model.ply" <<< "$out" ||
         fail "message" ;;
 timeout)
-    # Rank 2 sleeps 100000x its render time: the run is stuck until --timeout ends it.
-    out=$(mpi 3 "${common[@]}" --mpi --throttle 2:100000 --timeout 6 -o x.pfm 2>&1); rc=$?
+    # Rank 2 sleeps 100000x its render time: the run is stuck until --timeout ends it. Its
+    # tiles are dealt out in advance (interleaved): under the dynamic queue, a rank 2 that
+    # starts late on a loaded machine may find every tile taken, sleep never, and the run end.
+    out=$(mpi 3 "${common[@]}" --mpi --distribution interleaved --throttle 2:100000 --timeout 6 \
+        -o x.pfm 2>&1); rc=$?
     echo "$out"
     [ $rc -ne 0 ] || fail "a timed-out run gave exit status 0"
     grep -q "kdtrace: error: --timeout 6 s reached; every rank stopped" <<< "$out" ||
