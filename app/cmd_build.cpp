@@ -58,15 +58,19 @@ void add_build_command(CLI::App& parent) {
     static std::string model, output, cache_dir;
     static KdTreeParams params;
     static int subdivide = 0;
-    cmd->add_option("MODEL", model, "Model file (.ply, .ply.gz, .obj)")->required();
+    non_empty_file_name(cmd->add_option("MODEL", model, "Model file (.ply, .ply.gz, .obj)"),
+                        "MODEL")
+        ->required();
     add_tree_options(*cmd, params);
     cmd->add_option("--subdivide", subdivide, "Split every triangle into 4^K first")
         ->check(CLI::Range(0, 4));
     cmd->add_option("-o,--output", output,
                     "Write the tree to this file (always rebuilt) instead of the automatic cache");
-    cmd->add_option("--cache-dir", cache_dir,
-                    "Cache directory (default: next to the model, else $KDT_CACHE_DIR/trees, "
-                    "$XDG_CACHE_HOME/kdtrace/trees or ~/.cache/kdtrace/trees)");
+    non_empty_file_name(
+        cmd->add_option("--cache-dir", cache_dir,
+                        "Cache directory (default: next to the model, else $KDT_CACHE_DIR/trees, "
+                        "$XDG_CACHE_HOME/kdtrace/trees or ~/.cache/kdtrace/trees)"),
+        "--cache-dir");
     cmd->callback([cmd] {
         interrupt::install();
         validate(params);

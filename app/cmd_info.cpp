@@ -7,6 +7,7 @@
 #include <string>
 
 #include "app/commands.h"
+#include "app/options_cli.h"
 #include "renderer/core/timer.h"
 #include "renderer/io/image_io.h"
 #include "renderer/io/mesh_io.h"
@@ -135,7 +136,8 @@ void add_info_command(CLI::App& parent) {
         "info",
         "Print a mesh's statistics (PLY, PLY.gz, OBJ), or an image's size, format and the render "
         "settings and command stored in it (PNG, EXR, PFM, HDR)");
-    cmd->add_option("file", args->file, "Mesh or image file")->required();
+    non_empty_file_name(cmd->add_option("file", args->file, "Mesh or image file"), "info")
+        ->required();
     cmd->add_flag("--all", args->all, "Images: print the stored scene JSON in full");
     cmd->add_flag(
         "--drop-invalid", args->drop_invalid,

@@ -3,6 +3,7 @@
 #include <cstdio>
 
 #include "app/commands.h"
+#include "app/options_cli.h"
 #include "renderer/core/error.h"
 #include "renderer/core/interrupt.h"
 #include "renderer/core/output_path.h"
@@ -17,8 +18,10 @@ void add_scene_command(CLI::App& parent) {
         parent.add_subcommand("scene", "Check a scene file, or export the built-in default scene");
     static std::string input, output;
     static bool drop_invalid = false;
-    cmd->add_option("SCENE", input,
-                    "Scene (.json) or model file; omitted = the built-in default scene");
+    non_empty_file_name(cmd->add_option("SCENE", input,
+                                        "Scene (.json) or model file; omitted = the built-in "
+                                        "default scene"),
+                        "SCENE", " (omit SCENE for the built-in scene)");
     cmd->add_option("-o,--output", output, "Write the scene as JSON to this file");
     cmd->add_flag("--drop-invalid", drop_invalid, "Drop faces with non-finite vertices");
     static uint64_t max_triangles = kDefaultMaxSceneTriangles;

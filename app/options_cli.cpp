@@ -80,6 +80,14 @@ void add_fields(CLI::App& app, S& s, std::span<const Field<S>> fields, SkipFlags
 
 }  // namespace
 
+CLI::Option* non_empty_file_name(CLI::Option* opt, const std::string& name,
+                                 const std::string& hint) {
+    // A kdt::Error, not a CLI11 validation message: one line in kdtrace's own format.
+    return opt->each([name, hint](const std::string& text) {
+        if (text.empty()) throw Error(name + ": empty file name" + hint);
+    });
+}
+
 void add_tree_options(CLI::App& app, KdTreeParams& tree, SkipFlags skip) {
     add_fields(app, tree, kd_tree_fields(), skip);
 }
@@ -109,20 +117,27 @@ void warn_unused_tree_flags(const CLI::App& app, const KdTreeParams& tree, bool 
 }
 
 void add_scene_options(CLI::App& app, SceneOptions& scene) {
-    app.add_option("SCENE", scene.scene_path,
-                   "Scene (.json) or model (.ply, .ply.gz, .obj); omitted = built-in scene");
-    app.add_option("--env", scene.env_file,
-                   "Environment map (.hdr, .exr, .pfm) replacing the scene's");
+    non_empty_file_name(
+        app.add_option("SCENE", scene.scene_path,
+                       "Scene (.json) or model (.ply, .ply.gz, .obj); omitted = built-in scene"),
+        "SCENE", " (omit SCENE for the built-in scene)");
+    non_empty_file_name(app.add_option("--env", scene.env_file,
+                                       "Environment map (.hdr, .exr, .pfm) replacing the scene's"),
+                        "--env");
     app.add_option("--env-mapping", scene.env_mapping, "Mapping of --env: latlong or angular");
     app.add_option_function<float>(
         "--env-intensity", [&scene](const float& v) { scene.env_intensity = v; },
         "Scale of the environment radiance, replacing the scene's [0, 3e38]");
-    app.add_option("--cache-dir", scene.cache_dir,
-                   "Directory of kd-tree cache files (default: the user's cache directory; "
-                   "'.' puts them next to the model)");
-    app.add_option("--tree", scene.tree_file,
-                   "kd-tree file written by `kdtrace build -o`, used instead of the cache "
-                   "(checked against the model; its parameters are the file's)")
+    non_empty_file_name(
+        app.add_option("--cache-dir", scene.cache_dir,
+                       "Directory of kd-tree cache files (default: the user's cache directory; "
+                       "'.' puts them next to the model)"),
+        "--cache-dir");
+    non_empty_file_name(app.add_option("--tree", scene.tree_file,
+                                       "kd-tree file written by `kdtrace build -o`, used instead "
+                                       "of the cache (checked against the model; its "
+                                       "parameters are the file's)"),
+                        "--tree")
         ->type_name("FILE");
     add_fields(app, scene, scene_fields(), {});
     // Camera parts, each overriding the scene's (and --view's).
@@ -149,7 +164,9 @@ void add_scene_options(CLI::App& app, SceneOptions& scene) {
         ->type_name("DEG");
     // --view NAME picks a camera of a views file (--views, default: the dragon's views).
     auto views = std::make_shared<std::string>();
-    app.add_option("--views", *views, "Views file for --view (default: the dragon's views)");
+    non_empty_file_name(
+        app.add_option("--views", *views, "Views file for --view (default: the dragon's views)"),
+        "--views");
     app.add_option_function<std::string>(
            "--view",
            [&scene, views](const std::string& name) { scene.camera = find_view(*views, name); },
@@ -159,9 +176,11 @@ void add_scene_options(CLI::App& app, SceneOptions& scene) {
 
 void add_render_options(CLI::App& app, RenderOptions& o) {
     // First, so that the flags given with it (their callbacks run after its) override it.
-    app.add_option_function<std::string>(
-           "--session", [&o](const std::string& path) { options_from_session_file(path, o); },
-           "Session file (the viewer's, or any options JSON): all its options, then the flags")
+    non_empty_file_name(
+        app.add_option_function<std::string>(
+            "--session", [&o](const std::string& path) { options_from_session_file(path, o); },
+            "Session file (the viewer's, or any options JSON): all its options, then the flags"),
+        "--session")
         ->type_name("FILE");
     add_scene_options(app, o.scene);
     add_stop_options(app, o.stop);

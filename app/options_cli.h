@@ -16,6 +16,12 @@ namespace kdt::app {
 /// between two groups, such as --threads).
 using SkipFlags = std::initializer_list<const char*>;
 
+/// Makes `opt`, a file or directory name called `name` in messages, refuse an empty value
+/// ("--env: empty file name"): on the command line "" is a mistake (`render "$MODEL"` with
+/// MODEL unset), never a way to say "not given". Returns `opt`.
+CLI::Option* non_empty_file_name(CLI::Option* opt, const std::string& name,
+                                 const std::string& hint = "");
+
 void add_tree_options(CLI::App& app, KdTreeParams& tree, SkipFlags skip = {});
 void add_trace_options(CLI::App& app, TraceParams& trace, SkipFlags skip = {});
 void add_film_options(CLI::App& app, FilmParams& film, SkipFlags skip = {});

@@ -21,6 +21,21 @@ set_tests_properties(smoke.info_missing_file PROPERTIES WILL_FAIL FALSE
 add_test(NAME smoke.bad_flag COMMAND ${_kdt} scene --no-such-flag)
 set_tests_properties(smoke.bad_flag PROPERTIES WILL_FAIL TRUE)
 
+# An empty file name on the command line is an error naming the option, never "not given".
+foreach(_flag --env --tree --views --session --cache-dir)
+  add_test(NAME smoke.empty_name_${_flag} COMMAND ${_kdt} render ${_flag} "" --spp 1 --width 8
+           --height 6 --quiet -o ${_tmp}/empty_name.png)
+  set_tests_properties(smoke.empty_name_${_flag} PROPERTIES
+    PASS_REGULAR_EXPRESSION "error: ${_flag}: empty file name")
+endforeach()
+add_test(NAME smoke.empty_name_scene COMMAND ${_kdt} render "" --spp 1 --width 8 --height 6
+         --quiet -o ${_tmp}/empty_name.png)
+set_tests_properties(smoke.empty_name_scene PROPERTIES
+  PASS_REGULAR_EXPRESSION "error: SCENE: empty file name \\(omit SCENE for the built-in scene\\)")
+add_test(NAME smoke.empty_name_info COMMAND ${_kdt} info "")
+set_tests_properties(smoke.empty_name_info PROPERTIES
+  PASS_REGULAR_EXPRESSION "error: info: empty file name")
+
 add_test(NAME smoke.build_thesis COMMAND ${_kdt} build /usr/share/assimp/models/PLY/cube.ply
          --builder thesis --q 0.9 --n0 2 --depth 8 -o ${_tmp}/cube_thesis.kdt)
 set_tests_properties(smoke.build_thesis PROPERTIES
