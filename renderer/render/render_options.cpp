@@ -1,6 +1,7 @@
 #include "renderer/render/render_options.h"
 
 #include <cmath>
+#include <cstdio>
 #include <string>
 #include <utility>
 
@@ -95,6 +96,23 @@ constexpr SceneMember<std::string> kSceneStrings[] = {{"scene_path", &SO::scene_
                                                       {"tree_file", &SO::tree_file}};
 constexpr SceneMember<std::optional<Vec3f>> kSceneVectors[] = {
     {"eye", &SO::eye}, {"target", &SO::target}, {"up", &SO::up}};
+
+// A file name of the options JSON: no control characters, as in scene files (a NUL would cut
+// the name short at the system call, "tri.ply\u0000.obj" opening tri.ply). Empty is allowed:
+// it means "not given" (no scene_path: the built-in scene), as options_to_json() writes it.
+void check_file_name(const std::string& name, const std::string& where,
+                     const std::string& pointer) {
+    for (size_t i = 0; i < name.size(); ++i) {
+        const unsigned char c = static_cast<unsigned char>(name[i]);
+        if (c < 0x20 || c == 0x7f) {
+            char buf[96];
+            std::snprintf(buf, sizeof(buf),
+                          "file name contains a control character (byte 0x%02x at offset %zu)",
+                          unsigned(c), i);
+            throw Error(ErrorLocation{where, pointer}, buf);
+        }
+    }
+}
 
 // The member named key, or nullptr.
 template <class T, size_t N>
@@ -203,6 +221,7 @@ void scene_from_json(const json& v, SceneOptions& scene, const std::string& wher
         };
         if (auto text = find_member(kSceneStrings, key)) {
             if (!x.is_string()) throw Error(ErrorLocation{where, pointer}, "expected a string");
+            if (key != "env_mapping") check_file_name(x.get<std::string>(), where, pointer);
             scene.*text = x.get<std::string>();
         } else if (auto part = find_member(kSceneVectors, key)) {
             scene.*part = vec_from_json(x, where, pointer);
@@ -254,8 +273,8 @@ void validate(const SceneOptions& s) {
         for (const char* name : kEnvMappingNames) known |= s.env_mapping == name;
         if (!known)
             detail::throw_field_error("scene", "env_mapping",
-                                      "must be " + detail::choices_text(kEnvMappingNames) +
-                                          " (got '" + s.env_mapping + "')");
+                                      "must be " + detail::choices_text(kEnvMappingNames) + " " +
+                                          detail::got(s.env_mapping));
     }
 }
 

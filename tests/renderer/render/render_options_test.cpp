@@ -245,3 +245,33 @@ TEST(RenderOptions, JsonVectorsMustBeFiniteFloats) {
 
 }  // namespace
 }  // namespace kdt
+
+namespace kdt {
+namespace {
+
+// A file name of a session with a control character is refused where it is read: a NUL would
+// cut it short at open() and load another file ("tri.ply\u0000.ply" opening tri.ply). An
+// empty scene_path stays "the built-in scene".
+TEST(RenderOptions, JsonFileNamesRefuseControlCharacters) {
+    for (const char* key : {"scene_path", "env_file", "cache_dir", "tree_file"}) {
+        for (const char* bad : {"a.ply\\u0000.ply", "a\\u001b[31m.ply", "a\\n.ply"}) {
+            RenderOptions o;
+            const std::string json = std::string("{\"scene\": {\"") + key + "\": \"" + bad + "\"}}";
+            const std::string e =
+                test::error_of_call([&] { options_from_json(json, o, "s.json"); });
+            EXPECT_NE(e.find(std::string("s.json: /scene/") + key +
+                             ": file name contains a control character"),
+                      std::string::npos)
+                << json << " -> " << e;
+        }
+    }
+    RenderOptions o;
+    o.scene.scene_path = "x.ply";
+    options_from_json("{\"scene\": {\"scene_path\": \"\", \"tree_file\": \"t \\u00fc.kdt\"}}", o,
+                      "s.json");
+    EXPECT_EQ(o.scene.scene_path, "");
+    EXPECT_EQ(o.scene.tree_file, "t \xc3\xbc.kdt");
+}
+
+}  // namespace
+}  // namespace kdt
