@@ -164,9 +164,17 @@ void add_scene_options(CLI::App& app, SceneOptions& scene) {
         ->type_name("DEG");
     // --view NAME picks a camera of a views file (--views, default: the dragon's views).
     auto views = std::make_shared<std::string>();
+    // Read when given, with --view or not: a missing or broken file is an error, not ignored.
     non_empty_file_name(
-        app.add_option("--views", *views, "Views file for --view (default: the dragon's views)"),
-        "--views");
+        app.add_option_function<std::string>(
+            "--views",
+            [views](const std::string& path) {
+                load_views(path);
+                *views = path;
+            },
+            "Views file for --view and --frames views: (default: the dragon's views)"),
+        "--views")
+        ->type_name("FILE");
     app.add_option_function<std::string>(
            "--view",
            [&scene, views](const std::string& name) { scene.camera = find_view(*views, name); },

@@ -35,6 +35,15 @@ set_tests_properties(smoke.empty_name_scene PROPERTIES
 add_test(NAME smoke.empty_name_info COMMAND ${_kdt} info "")
 set_tests_properties(smoke.empty_name_info PROPERTIES
   PASS_REGULAR_EXPRESSION "error: info: empty file name")
+# --views FILE is read when given, with --view or without.
+add_test(NAME smoke.views_missing_without_view COMMAND ${_kdt} render --views
+         ${_tmp}/no_such_views.json --spp 1 --width 8 --height 6 --quiet -o ${_tmp}/views.png)
+set_tests_properties(smoke.views_missing_without_view PROPERTIES
+  PASS_REGULAR_EXPRESSION "error: [^\n]*no_such_views.json: cannot open file")
+add_test(NAME smoke.views_device_without_view COMMAND ${_kdt} render --views /dev/zero --spp 1
+         --width 8 --height 6 --quiet -o ${_tmp}/views.png)
+set_tests_properties(smoke.views_device_without_view PROPERTIES
+  PASS_REGULAR_EXPRESSION "error: /dev/zero: is a character device, not a views file")
 
 add_test(NAME smoke.build_thesis COMMAND ${_kdt} build /usr/share/assimp/models/PLY/cube.ply
          --builder thesis --q 0.9 --n0 2 --depth 8 -o ${_tmp}/cube_thesis.kdt)
