@@ -43,11 +43,22 @@ void add_dist_options(CLI::App& app, DistArgs& a, RenderOptions& options) {
                    "(every n-th tile to rank n) or strips (one band of tile rows per rank)")
         ->check(CLI::IsMember({"dynamic", "interleaved", "strips"}))
         ->capture_default_str();
-    app.add_option("--tile-batch", a.batch, "Tiles per --mpi work message (0 = threads per rank)")
-        ->check(CLI::Range(0, 1 << 16));
-    app.add_option("--timeout", a.timeout_seconds,
-                   "With --mpi: abort every rank after this many seconds (0 = never)")
-        ->check(CLI::Range(0.0, 1e9));
+    app.add_option_function<std::string>(
+           "--tile-batch",
+           [&a](const std::string& text) {
+               a.batch = int(parse_flag_number("--tile-batch", text, 0, 1 << 16, true));
+           },
+           "Tiles per --mpi work message (0 = threads per rank)" +
+               flag_range_help(0, 1 << 16, true))
+        ->type_name("INT");
+    app.add_option_function<std::string>(
+           "--timeout",
+           [&a](const std::string& text) {
+               a.timeout_seconds = parse_flag_number("--timeout", text, 0.0, 1e9, false);
+           },
+           "With --mpi: abort every rank after this many seconds (0 = never)" +
+               flag_range_help(0.0, 1e9, false))
+        ->type_name("SECONDS");
     app.add_option("--frames", a.frames,
                    "Render a sequence: N (with --turntable), views:A,B,... or views:all (cameras "
                    "of the --views file), sessions:a.json,b.json,... (each as --session FILE "

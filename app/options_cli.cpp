@@ -88,6 +88,20 @@ CLI::Option* non_empty_file_name(CLI::Option* opt, const std::string& name,
     });
 }
 
+double parse_flag_number(const std::string& flag, const std::string& text, double min, double max,
+                         bool integral) {
+    double v = 0.0;
+    if (!detail::parse_number(text, v))
+        throw Error(flag + " must be a number " + detail::got(text));
+    if (std::string why = detail::check_number(v, min, max, false, integral); !why.empty())
+        throw Error(flag + " " + why);
+    return v;
+}
+
+std::string flag_range_help(double min, double max, bool integral) {
+    return " " + detail::range_text(min, max, false, integral);
+}
+
 void add_tree_options(CLI::App& app, KdTreeParams& tree, SkipFlags skip) {
     add_fields(app, tree, kd_tree_fields(), skip);
 }
@@ -125,9 +139,15 @@ void add_scene_options(CLI::App& app, SceneOptions& scene) {
                                        "Environment map (.hdr, .exr, .pfm) replacing the scene's"),
                         "--env");
     app.add_option("--env-mapping", scene.env_mapping, "Mapping of --env: latlong or angular");
-    app.add_option_function<float>(
-        "--env-intensity", [&scene](const float& v) { scene.env_intensity = v; },
-        "Scale of the environment radiance, replacing the scene's [0, 3e38]");
+    app.add_option_function<std::string>(
+           "--env-intensity",
+           [&scene](const std::string& text) {
+               scene.env_intensity =
+                   float(parse_flag_number("--env-intensity", text, 0.0, 3.0e38, false));
+           },
+           "Scale of the environment radiance, replacing the scene's" +
+               flag_range_help(0.0, 3.0e38, false))
+        ->type_name("FLOAT");
     non_empty_file_name(
         app.add_option("--cache-dir", scene.cache_dir,
                        "Directory of kd-tree cache files (default: the user's cache directory; "

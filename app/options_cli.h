@@ -22,6 +22,14 @@ using SkipFlags = std::initializer_list<const char*>;
 CLI::Option* non_empty_file_name(CLI::Option* opt, const std::string& name,
                                  const std::string& hint = "");
 
+/// `text` as a number in [min, max] (a whole one when `integral`) for flags outside the
+/// option structs' tables, refused in the tables' words: "--timeout must be a number (got
+/// 'x')", "--timeout must be in [0, 1000000000] (got -1)".
+double parse_flag_number(const std::string& flag, const std::string& text, double min, double max,
+                         bool integral);
+/// " [min, max]", for the help of such a flag.
+std::string flag_range_help(double min, double max, bool integral);
+
 void add_tree_options(CLI::App& app, KdTreeParams& tree, SkipFlags skip = {});
 void add_trace_options(CLI::App& app, TraceParams& trace, SkipFlags skip = {});
 void add_film_options(CLI::App& app, FilmParams& film, SkipFlags skip = {});

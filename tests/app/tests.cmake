@@ -44,6 +44,23 @@ add_test(NAME smoke.views_device_without_view COMMAND ${_kdt} render --views /de
          --width 8 --height 6 --quiet -o ${_tmp}/views.png)
 set_tests_properties(smoke.views_device_without_view PROPERTIES
   PASS_REGULAR_EXPRESSION "error: /dev/zero: is a character device, not a views file")
+# --env-intensity, --tile-batch and --timeout read numbers like every tabled flag: no empty
+# text read as 0, no hex, no NaN.
+foreach(_case "env-intensity;;must be a number \\(got ''\\)"
+              "env-intensity;0x10;must be a number \\(got '0x10'\\)"
+              "tile-batch; 5;must be a number \\(got ' 5'\\)"
+              "tile-batch;1.5;must be a whole number in \\[0, 65536\\] \\(got 1.5\\)"
+              "timeout;nan;must be a finite number in \\[0, 1e\\+09\\] \\(got nan\\)"
+              "timeout;-1;must be in \\[0, 1e\\+09\\] \\(got -1\\)")
+  list(GET _case 0 _flag)
+  list(GET _case 1 _value)
+  list(GET _case 2 _why)
+  string(MAKE_C_IDENTIFIER "${_flag}_${_value}" _id)
+  add_test(NAME smoke.number_flag_${_id} COMMAND ${_kdt} render --${_flag} "${_value}" --spp 1
+           --width 8 --height 6 --quiet -o ${_tmp}/number_flag.pfm)
+  set_tests_properties(smoke.number_flag_${_id} PROPERTIES
+    PASS_REGULAR_EXPRESSION "error: --${_flag} ${_why}")
+endforeach()
 
 add_test(NAME smoke.build_thesis COMMAND ${_kdt} build /usr/share/assimp/models/PLY/cube.ply
          --builder thesis --q 0.9 --n0 2 --depth 8 -o ${_tmp}/cube_thesis.kdt)
