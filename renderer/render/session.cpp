@@ -413,7 +413,7 @@ RenderProgress run_render(RenderSession& session, const StopConditions& stop,
     if (stop.spp > 0 && !adaptive) cap = std::min(cap, stop.spp);
     Timer timer;
     RenderProgress p;
-    int per_pass = first_samples_per_pass(session);
+    int per_pass = first_samples_per_pass(session, stop);
     for (;;) {
         const PassStats ps = session.render_pass(cap, per_pass);
         const Film& film = session.film();

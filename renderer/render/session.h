@@ -194,9 +194,15 @@ struct RenderProgress {
 inline constexpr int kMaxAutoSamplesPerPass = 16;
 
 /// The samples per pixel of a render's first pass, as RenderSession::render_pass()'s
-/// per_pass: 1 when samples_per_pass is 0 (automatic), else 0 (the session's own).
-inline int first_samples_per_pass(const RenderSession& session) {
-    return session.trace_params().samples_per_pass == 0 ? 1 : 0;
+/// per_pass: 1 when samples_per_pass is 0 (automatic), else 0 (the session's own), except
+/// that with adaptive sampling a samples_per_pass above stop.spp is cut to stop.spp: the
+/// first pass samples every pixel, so a larger one would spend the spp budget many times
+/// over before any pixel could stop (--spp 1 --spp-per-pass 65536 drawing 65536 spp).
+inline int first_samples_per_pass(const RenderSession& session, const StopConditions& stop = {}) {
+    const int per_pass = session.trace_params().samples_per_pass;
+    if (per_pass == 0) return 1;
+    if (session.film_params().adaptive && stop.spp > 0 && per_pass > stop.spp) return stop.spp;
+    return 0;
 }
 
 /// The per_pass of the next pass after one of `last` samples per pixel that took `seconds`,

@@ -2,6 +2,7 @@
 // error estimate before there is a variance to estimate it from. Automatic pass sizes change
 // the passes, not the image.
 #include <cstring>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -51,6 +52,23 @@ TEST(RunRender, AdaptiveErrorTargetReachesFullOnlyWhenDone) {
     const auto seen = run(tp, fp, stop);
     expect_full_only_at_the_end(seen);
     EXPECT_EQ(seen.back().active_pixels, 0u);
+}
+
+// The first adaptive pass samples every pixel: a pass size above the spp budget is cut to it,
+// not drawn in full (--adaptive --spp 1 --spp-per-pass 65536 drew 65536 spp).
+TEST(RunRender, AdaptiveFirstPassKeepsToTheSppBudget) {
+    for (const auto& [spp, per_pass] : {std::pair{1, 4096}, std::pair{4, 8}, std::pair{3, 1024}}) {
+        TraceParams tp;
+        tp.samples_per_pass = per_pass;
+        FilmParams fp;
+        fp.adaptive = true;
+        StopConditions stop;
+        stop.spp = spp;
+        const auto seen = run(tp, fp, stop);
+        ASSERT_FALSE(seen.empty());
+        EXPECT_EQ(seen.back().samples, uint64_t(spp) * 24u * 16u)
+            << "--spp " << spp << " --spp-per-pass " << per_pass;
+    }
 }
 
 TEST(RunRender, ErrorTargetWithoutAdaptivityReachesFullOnlyWhenDone) {
