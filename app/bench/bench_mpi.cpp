@@ -207,7 +207,12 @@ void add_bench_mpi_command(CLI::App& parent) {
     static BenchMpiArgs args;
     auto* sub = parent.add_subcommand("mpi", "MPI farm: per-rank busy/idle, efficiency, speedup");
     sub->add_option("--model", args.model, "Scene or model (default: the built-in scene)");
-    sub->add_option("--ranks", args.ranks, "Rank counts")->delimiter(',')->capture_default_str();
+    // Each count is passed to the launcher as -np (with --oversubscribe): bounded, so that a
+    // typo cannot start thousands of processes.
+    sub->add_option("--ranks", args.ranks, "Rank counts")
+        ->delimiter(',')
+        ->check(CLI::Range(1, 4096))
+        ->capture_default_str();
     sub->add_option("--distributions", args.distributions, "dynamic, strips, interleaved")
         ->delimiter(',')
         ->check(CLI::IsMember({"dynamic", "interleaved", "strips"}));

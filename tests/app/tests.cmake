@@ -61,6 +61,11 @@ foreach(_case "env-intensity;;must be a number \\(got ''\\)"
   set_tests_properties(smoke.number_flag_${_id} PROPERTIES
     PASS_REGULAR_EXPRESSION "error: --${_flag} ${_why}")
 endforeach()
+# bench mpi --ranks is bounded before anything is launched (/bin/false would launch nothing).
+add_test(NAME smoke.bench_mpi_ranks_range COMMAND ${_kdt} bench mpi --mpiexec /bin/false
+         --repeat 1 --work-dir ${_tmp}/bench_mpi_ranks --ranks 2,100000)
+set_tests_properties(smoke.bench_mpi_ranks_range PROPERTIES
+  PASS_REGULAR_EXPRESSION "--ranks: Value 100000 not in range 1 to 4096")
 
 add_test(NAME smoke.build_thesis COMMAND ${_kdt} build /usr/share/assimp/models/PLY/cube.ply
          --builder thesis --q 0.9 --n0 2 --depth 8 -o ${_tmp}/cube_thesis.kdt)
