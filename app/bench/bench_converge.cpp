@@ -11,11 +11,13 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "app/bench/bench_rays.h"
 #include "app/bench/bench_table.h"
 #include "app/commands.h"
+#include "app/options_cli.h"
 #include "renderer/core/error.h"
 #include "renderer/core/timer.h"
 #include "renderer/io/image_io.h"
@@ -73,6 +75,30 @@ Config make_config(const std::string& name, const ConvergeArgs& a) {
                     "' (uniform, bsdf, nee, mis-uniform-env, mis, mis+adaptive)");
     }
     return c;
+}
+
+// The configurations of --configs, each made and checked before anything renders (the
+// reference alone takes minutes at the defaults).
+std::vector<Config> parse_configs(const ConvergeArgs& a) {
+    std::vector<Config> out;
+    const std::string list = a.configs + ",";
+    for (size_t start = 0, comma; (comma = list.find(',', start)) != std::string::npos;
+         start = comma + 1) {
+        if (comma == start) continue;
+        Config c = make_config(list.substr(start, comma - start), a);
+        try {
+            validate(c.trace);
+            validate(c.film);
+        } catch (const Error& e) {
+            throw Error("--configs " + c.name + ": " + with_flags(e.what()));
+        }
+        out.push_back(std::move(c));
+    }
+    if (out.empty())
+        throw Error(
+            "--configs: no configuration given (uniform, bsdf, nee, mis-uniform-env, mis, "
+            "mis+adaptive)");
+    return out;
 }
 
 struct Point {
@@ -238,6 +264,7 @@ void run(const ConvergeArgs& a) {
     namespace fs = std::filesystem;
     if (a.max_spp < 1 || a.reference_spp < 1)
         throw Error("--max-spp and --reference-spp must be >= 1");
+    const std::vector<Config> configs = parse_configs(a);
     fs::create_directories(a.out_dir);
     RenderOptions ro;
     ro.scene.scene_path = a.scene;
@@ -289,11 +316,7 @@ void run(const ConvergeArgs& a) {
 
     std::vector<Point> points;
     std::vector<std::vector<Point>> curves;
-    std::string list = a.configs + ",";
-    for (size_t start = 0, comma; (comma = list.find(',', start)) != std::string::npos;
-         start = comma + 1) {
-        if (comma == start) continue;
-        const Config cfg = make_config(list.substr(start, comma - start), a);
+    for (const Config& cfg : configs) {
         RenderSession s(prep.snapshot, cfg.trace, cfg.film);
         const double pixels = double(s.film().pixel_count());
         std::vector<Point> curve;

@@ -66,6 +66,13 @@ add_test(NAME smoke.bench_mpi_ranks_range COMMAND ${_kdt} bench mpi --mpiexec /b
          --repeat 1 --work-dir ${_tmp}/bench_mpi_ranks --ranks 2,100000)
 set_tests_properties(smoke.bench_mpi_ranks_range PROPERTIES
   PASS_REGULAR_EXPRESSION "--ranks: Value 100000 not in range 1 to 4096")
+# bench converge checks --configs before it renders or writes anything (the reference).
+add_test(NAME smoke.bench_converge_configs_first COMMAND sh -c "rm -rf \"$1\"; \"$0\" bench \
+converge --configs mis,bogus --width 8 --height 6 --reference-spp 1 --max-spp 1 --no-plot \
+-o \"$1\"; test -e \"$1\" && echo WROTE" ${_kdt} ${_tmp}/converge_bogus)
+set_tests_properties(smoke.bench_converge_configs_first PROPERTIES
+  PASS_REGULAR_EXPRESSION "error: --configs: unknown configuration 'bogus'"
+  FAIL_REGULAR_EXPRESSION "WROTE|reference:")
 
 add_test(NAME smoke.build_thesis COMMAND ${_kdt} build /usr/share/assimp/models/PLY/cube.ply
          --builder thesis --q 0.9 --n0 2 --depth 8 -o ${_tmp}/cube_thesis.kdt)
