@@ -258,6 +258,8 @@ void add_render_command(CLI::App& parent) {
     sub->callback([sub] {
         interrupt::install();
         warn_unused_tree_flags(*sub, cmd.options.tree, !cmd.options.scene.tree_file.empty());
+        warn_unused_render_flags(*sub, cmd.options);
+        check_dist_flags(*sub, cmd.dist);
         cmd.option_files.clear();
         for (const char* flag : {"--session", "--views"}) {
             for (const std::string& file : sub->get_option(flag)->results())

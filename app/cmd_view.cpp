@@ -27,6 +27,7 @@ void add_view_command(CLI::App& parent) {
         ->check(CLI::Range(1, 64));
     sub->callback([sub] {
         warn_unused_tree_flags(*sub, vo.options.tree, !vo.options.scene.tree_file.empty());
+        warn_unused_render_flags(*sub, vo.options);
         try {
             ui::run_viewer(vo);
         } catch (const Error& e) {

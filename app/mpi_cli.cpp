@@ -75,6 +75,17 @@ void add_dist_options(CLI::App& app, DistArgs& a, RenderOptions& options) {
                    "rank reports a different tree)");
 }
 
+void check_dist_flags(const CLI::App& app, const DistArgs& a) {
+    if (a.mpi) return;
+    for (const char* flag : {"--mpi-stats", "--throttle", "--mpi-inject"}) {
+        if (app.count(flag) > 0) throw Error(std::string(flag) + " needs --mpi");
+    }
+    for (const char* flag : {"--distribution", "--tile-batch", "--timeout"}) {
+        if (app.count(flag) > 0)
+            std::fprintf(stderr, "kdtrace: warning: %s has no effect without --mpi\n", flag);
+    }
+}
+
 CameraDesc turntable_camera(const CameraDesc& c, int frame, int frames) {
     const double angle = 2.0 * 3.14159265358979323846 * double(frame) / double(frames);
     const glm::dvec3 k = glm::normalize(glm::dvec3(c.up));

@@ -34,6 +34,13 @@ struct DistArgs {
 /// into `options`: --frames sessions: renders each session file with the command's flags.
 void add_dist_options(CLI::App& app, DistArgs& args, RenderOptions& options);
 
+/// The --mpi flags given on `app`'s command line without --mpi: a warning on stderr for
+/// those that tune the farm (--distribution, --tile-batch, --timeout: the image is the same
+/// without them), an error for those that ask for something only a farm does (--mpi-stats
+/// would not be written; --throttle and --mpi-inject are test faults a test must not see
+/// silently dropped).
+void check_dist_flags(const CLI::App& app, const DistArgs& args);
+
 /// True when `render` runs through run_dist_render().
 inline bool dist_requested(const DistArgs& args) {
     return args.mpi || !args.frames.empty() || args.turntable;

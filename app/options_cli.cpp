@@ -130,6 +130,29 @@ void warn_unused_tree_flags(const CLI::App& app, const KdTreeParams& tree, bool 
     }
 }
 
+void warn_unused_render_flags(const CLI::App& app, const RenderOptions& given) {
+    const RenderOptions o = resolve(given);
+    for (const Field<FilmParams>& f : film_fields()) {
+        if (!f.flag || std::strncmp(f.flag, "--adaptive-", 11) != 0 || app.count(f.flag) == 0)
+            continue;
+        if (!o.film.adaptive) {
+            std::fprintf(stderr,
+                         "kdtrace: warning: %s has no effect without --adaptive or --error\n",
+                         f.flag);
+        } else if (o.stop.error > 0.0f && std::strcmp(f.flag, "--adaptive-threshold") == 0) {
+            std::fprintf(stderr,
+                         "kdtrace: warning: --adaptive-threshold has no effect with --error (the "
+                         "error target is the threshold)\n");
+        }
+    }
+    if (given.stop.spp > o.stop.max_spp) {
+        std::fprintf(stderr,
+                     "kdtrace: warning: --spp %d is above --max-spp %d: the render stops at %d "
+                     "samples per pixel\n",
+                     o.stop.spp, o.stop.max_spp, o.stop.max_spp);
+    }
+}
+
 void add_scene_options(CLI::App& app, SceneOptions& scene) {
     non_empty_file_name(
         app.add_option("SCENE", scene.scene_path,

@@ -46,6 +46,13 @@ void add_render_options(CLI::App& app, RenderOptions& options);
 /// --tree, whose parameters are the file's) all of them but --threads.
 void warn_unused_tree_flags(const CLI::App& app, const KdTreeParams& tree, bool tree_file);
 
+/// Warns on stderr about render flags given on `app`'s command line that `options` (as
+/// given, before resolve()) cannot honour: the adaptive sampling flags without adaptive
+/// sampling (--adaptive or --error), --adaptive-threshold with --error (the target is the
+/// threshold), and an --spp above --max-spp (the render stops at the cap; the default spp
+/// of a render without a stop condition is not the user's, and not warned about).
+void warn_unused_render_flags(const CLI::App& app, const RenderOptions& options);
+
 /// A renderer message with every field name it mentions ("trace.max_depth") followed by the
 /// flag that sets it ("trace.max_depth (--path-depth)"), so a CLI user knows what to change.
 std::string with_flags(const std::string& message);

@@ -73,6 +73,26 @@ converge --configs mis,bogus --width 8 --height 6 --reference-spp 1 --max-spp 1 
 set_tests_properties(smoke.bench_converge_configs_first PROPERTIES
   PASS_REGULAR_EXPRESSION "error: --configs: unknown configuration 'bogus'"
   FAIL_REGULAR_EXPRESSION "WROTE|reference:")
+# Render flags that cannot act are named: a warning when the image is what it would be
+# without them, an error when they ask for something that would not happen.
+foreach(_case "--timeout;5;warning: --timeout has no effect without --mpi"
+              "--distribution;strips;warning: --distribution has no effect without --mpi"
+              "--mpi-stats;${_tmp}/stats.json;error: --mpi-stats needs --mpi"
+              "--mpi-inject;0:load;error: --mpi-inject needs --mpi"
+              "--adaptive-min-spp;4;warning: --adaptive-min-spp has no effect without --adaptive or --error"
+              "--max-spp;1;warning: --spp 2 is above --max-spp 1: the render stops at 1 samples per pixel")
+  list(GET _case 0 _flag)
+  list(GET _case 1 _value)
+  list(GET _case 2 _expect)
+  string(MAKE_C_IDENTIFIER "${_flag}" _id)
+  add_test(NAME smoke.unused_flag${_id} COMMAND ${_kdt} render ${_flag} ${_value} --spp 2
+           --width 8 --height 6 --quiet -o ${_tmp}/unused_flag.pfm)
+  set_tests_properties(smoke.unused_flag${_id} PROPERTIES PASS_REGULAR_EXPRESSION "${_expect}")
+endforeach()
+add_test(NAME smoke.unused_flag_threshold_with_error COMMAND ${_kdt} render --error 0.5
+         --adaptive-threshold 0.1 --width 8 --height 6 --quiet -o ${_tmp}/unused_flag.pfm)
+set_tests_properties(smoke.unused_flag_threshold_with_error PROPERTIES PASS_REGULAR_EXPRESSION
+  "warning: --adaptive-threshold has no effect with --error \\(the error target is the threshold\\)")
 
 add_test(NAME smoke.build_thesis COMMAND ${_kdt} build /usr/share/assimp/models/PLY/cube.ply
          --builder thesis --q 0.9 --n0 2 --depth 8 -o ${_tmp}/cube_thesis.kdt)
