@@ -260,6 +260,8 @@ void add_render_command(CLI::App& parent) {
         warn_unused_tree_flags(*sub, cmd.options.tree, !cmd.options.scene.tree_file.empty());
         warn_unused_render_flags(*sub, cmd.options);
         check_dist_flags(*sub, cmd.dist);
+        // With --mpi or --frames, plan_frames() reads it (with --mpi, in step on every rank).
+        if (!dist_requested(cmd.dist)) check_views_file(*sub);
         cmd.option_files.clear();
         for (const char* flag : {"--session", "--views"}) {
             for (const std::string& file : sub->get_option(flag)->results())

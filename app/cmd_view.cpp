@@ -28,6 +28,7 @@ void add_view_command(CLI::App& parent) {
     sub->callback([sub] {
         warn_unused_tree_flags(*sub, vo.options.tree, !vo.options.scene.tree_file.empty());
         warn_unused_render_flags(*sub, vo.options);
+        check_views_file(*sub);
         try {
             ui::run_viewer(vo);
         } catch (const Error& e) {

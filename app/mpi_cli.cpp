@@ -249,6 +249,7 @@ std::vector<FramePlan> plan_frames(const RenderOptions& base, const std::string&
     std::vector<FramePlan> frames = list_frames(base, a);
     std::map<std::string, size_t> seen;
     const std::string views = views_file(a);
+    if (!views.empty()) load_views(views);  // read even when no frame takes a view from it
     const std::string session =
         given(a, "--session") ? a.command->get_option("--session")->as<std::string>() : "";
     for (size_t i = 0; i < frames.size(); ++i) {

@@ -130,6 +130,11 @@ void warn_unused_tree_flags(const CLI::App& app, const KdTreeParams& tree, bool 
     }
 }
 
+void check_views_file(const CLI::App& app) {
+    const CLI::Option* views = app.get_option_no_throw("--views");
+    if (views && views->count() > 0) load_views(views->as<std::string>());
+}
+
 void warn_unused_render_flags(const CLI::App& app, const RenderOptions& given) {
     const RenderOptions o = resolve(given);
     for (const Field<FilmParams>& f : film_fields()) {
@@ -207,15 +212,11 @@ void add_scene_options(CLI::App& app, SceneOptions& scene) {
         ->type_name("DEG");
     // --view NAME picks a camera of a views file (--views, default: the dragon's views).
     auto views = std::make_shared<std::string>();
-    // Read when given, with --view or not: a missing or broken file is an error, not ignored.
+    // Read when given, with --view or not (check_views_file()): a missing or broken file is
+    // an error, not ignored.
     non_empty_file_name(
-        app.add_option_function<std::string>(
-            "--views",
-            [views](const std::string& path) {
-                load_views(path);
-                *views = path;
-            },
-            "Views file for --view and --frames views: (default: the dragon's views)"),
+        app.add_option("--views", *views,
+                       "Views file for --view and --frames views: (default: the dragon's views)"),
         "--views")
         ->type_name("FILE");
     app.add_option_function<std::string>(

@@ -46,6 +46,10 @@ void add_render_options(CLI::App& app, RenderOptions& options);
 /// --tree, whose parameters are the file's) all of them but --threads.
 void warn_unused_tree_flags(const CLI::App& app, const KdTreeParams& tree, bool tree_file);
 
+/// Reads the --views file given on `app`'s command line, if any, so that a missing or broken
+/// one is an error even when no --view reads it (throws kdt::Error naming the file).
+void check_views_file(const CLI::App& app);
+
 /// Warns on stderr about render flags given on `app`'s command line that `options` (as
 /// given, before resolve()) cannot honour: the adaptive sampling flags without adaptive
 /// sampling (--adaptive or --error), --adaptive-threshold with --error (the target is the
