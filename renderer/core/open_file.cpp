@@ -5,11 +5,26 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 
 #include "renderer/core/error.h"
 
 namespace kdt {
+
+std::string file_name_problem(const std::string& name) {
+    for (size_t i = 0; i < name.size(); ++i) {
+        const unsigned char c = static_cast<unsigned char>(name[i]);
+        if (c < 0x20 || c == 0x7f) {
+            char buf[96];
+            std::snprintf(buf, sizeof(buf),
+                          "file name contains a control character (byte 0x%02x at offset %zu)",
+                          unsigned(c), i);
+            return buf;
+        }
+    }
+    return {};
+}
 namespace {
 
 [[noreturn]] void fail(const std::string& path, const std::string& message) {

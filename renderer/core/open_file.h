@@ -12,6 +12,11 @@ namespace kdt {
 /// (pipe)", "a socket", "a character device", "a block device"); nullptr for a regular file.
 const char* special_file_kind(uint32_t st_mode);
 
+/// Why `name` cannot be a file name read from a JSON file: "file name contains a control
+/// character (byte 0x00 at offset 7)" (a NUL would cut the name short at the system call,
+/// "tri.ply\u0000.obj" opening tri.ply); empty when it has none.
+std::string file_name_problem(const std::string& name);
+
 /// Opens path read-only (close-on-exec) and returns the descriptor. The file is opened
 /// non-blocking, so a FIFO without a writer cannot hang the caller, and then checked: a
 /// directory, FIFO, socket or device (/dev/zero would never end) is refused with an Error

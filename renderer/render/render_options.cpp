@@ -97,21 +97,13 @@ constexpr SceneMember<std::string> kSceneStrings[] = {{"scene_path", &SO::scene_
 constexpr SceneMember<std::optional<Vec3f>> kSceneVectors[] = {
     {"eye", &SO::eye}, {"target", &SO::target}, {"up", &SO::up}};
 
-// A file name of the options JSON: no control characters, as in scene files (a NUL would cut
-// the name short at the system call, "tri.ply\u0000.obj" opening tri.ply). Empty is allowed:
-// it means "not given" (no scene_path: the built-in scene), as options_to_json() writes it.
+// A file name of the options JSON: no control characters, as in scene files. Empty is
+// allowed: it means "not given" (no scene_path: the built-in scene), as options_to_json()
+// writes it.
 void check_file_name(const std::string& name, const std::string& where,
                      const std::string& pointer) {
-    for (size_t i = 0; i < name.size(); ++i) {
-        const unsigned char c = static_cast<unsigned char>(name[i]);
-        if (c < 0x20 || c == 0x7f) {
-            char buf[96];
-            std::snprintf(buf, sizeof(buf),
-                          "file name contains a control character (byte 0x%02x at offset %zu)",
-                          unsigned(c), i);
-            throw Error(ErrorLocation{where, pointer}, buf);
-        }
-    }
+    if (std::string why = file_name_problem(name); !why.empty())
+        throw Error(ErrorLocation{where, pointer}, why);
 }
 
 // The member named key, or nullptr.

@@ -129,21 +129,11 @@ std::string format_row(float a, float b, float c, float d) {
     return buf;
 }
 
-// A file name as the scene file gives it: no control characters (a NUL would cut the name
-// short at the system call, "tri.ply\u0000.obj" opening tri.ply).
+// A file name as the scene file gives it: not empty, no control characters.
 std::string file_name(const Reader& r, const char* key) {
     const std::string name = r.string(key, "");
     if (name.empty()) r.fail_key(key, "empty file name");
-    for (size_t i = 0; i < name.size(); ++i) {
-        const unsigned char c = static_cast<unsigned char>(name[i]);
-        if (c < 0x20 || c == 0x7f) {
-            char buf[96];
-            std::snprintf(buf, sizeof(buf),
-                          "file name contains a control character (byte 0x%02x at offset %zu)",
-                          unsigned(c), i);
-            r.fail_key(key, buf);
-        }
-    }
+    if (std::string why = file_name_problem(name); !why.empty()) r.fail_key(key, why);
     return name;
 }
 
