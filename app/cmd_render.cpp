@@ -36,6 +36,7 @@ struct RenderCommand {
     DistArgs dist;  // --mpi, --frames (app/mpi_cli.h)
     /// Files the options were read from (--session, --views): inputs the output must not be.
     std::vector<std::string> option_files;
+    bool env_rotation_given = false;  // --env-rotation on the command line
 };
 
 std::string human_seconds(double s) {
@@ -174,6 +175,11 @@ void run(const RenderCommand& cmd) {
         if (!cmd.quiet) std::fprintf(stderr, "kdtrace: %s\n", line.c_str());
     });
     const RenderSnapshot& snap = *prep.snapshot;
+    if (cmd.env_rotation_given && prep.scene.environment.file.empty()) {
+        std::fprintf(stderr,
+                     "kdtrace: warning: --env-rotation has no effect: the environment is "
+                     "a constant colour, not a map\n");
+    }
     check_output(cmd.output, scene_input_files(prep.scene), "the image");
 
     RenderSession session(prep.snapshot, o.trace, o.film);
@@ -262,6 +268,7 @@ void add_render_command(CLI::App& parent) {
         check_dist_flags(*sub, cmd.dist);
         // With --mpi or --frames, plan_frames() reads it (with --mpi, in step on every rank).
         if (!dist_requested(cmd.dist)) check_views_file(*sub);
+        cmd.env_rotation_given = sub->count("--env-rotation") > 0;
         cmd.option_files.clear();
         for (const char* flag : {"--session", "--views"}) {
             for (const std::string& file : sub->get_option(flag)->results())

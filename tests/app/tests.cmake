@@ -325,3 +325,10 @@ add_test(NAME smoke.render_rescue COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/rescue_
          ${_tmp}/rescue)
 set_tests_properties(smoke.render_rescue PROPERTIES PASS_REGULAR_EXPRESSION "PASS: rescue"
                      FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)
+
+# --env-rotation turns a map: on a constant-colour environment it is named in a warning.
+add_test(NAME smoke.env_rotation_without_map COMMAND ${_kdt} render
+         /usr/share/assimp/models/PLY/cube.ply --no-cache --width 8 --height 8 --spp 1
+         --env-rotation 30 -o ${_tmp}/env_rotation.pfm)
+set_tests_properties(smoke.env_rotation_without_map PROPERTIES
+  PASS_REGULAR_EXPRESSION "warning: --env-rotation has no effect: the environment is a constant colour")
