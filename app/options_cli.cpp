@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "renderer/core/error.h"
+#include "renderer/scene/scene.h"
 #include "renderer/scene/views.h"
 
 namespace kdt::app {
@@ -156,6 +157,16 @@ void warn_unused_render_flags(const CLI::App& app, const RenderOptions& given) {
                      "samples per pixel\n",
                      o.stop.spp, o.stop.max_spp, o.stop.max_spp);
     }
+}
+
+void check_subdivide(uint64_t triangles, int levels) {
+    const uint64_t result = subdivided_triangle_count(triangles, levels);
+    const uint64_t budget = scene_triangle_budget(kMaxSubdividedTriangles - 1);
+    if (result <= budget) return;
+    throw Error("--subdivide " + std::to_string(levels) + ": " + std::to_string(triangles) +
+                " triangles become " + std::to_string(result) + ", more than the " +
+                std::to_string(budget) + " that fit the kd-tree and the memory available (about " +
+                std::to_string(kRenderBytesPerTriangle) + " bytes each)");
 }
 
 void add_scene_options(CLI::App& app, SceneOptions& scene) {

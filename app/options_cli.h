@@ -57,6 +57,10 @@ void check_views_file(const CLI::App& app);
 /// of a render without a stop condition is not the user's, and not warned about).
 void warn_unused_render_flags(const CLI::App& app, const RenderOptions& options);
 
+/// Refuses --subdivide LEVELS of a mesh of `triangles` when the result would not fit in the
+/// memory available (scene_triangle_budget()) or the kd-tree, before the minutes of work.
+void check_subdivide(uint64_t triangles, int levels);
+
 /// A renderer message with every field name it mentions ("trace.max_depth") followed by the
 /// flag that sets it ("trace.max_depth (--path-depth)"), so a CLI user knows what to change.
 std::string with_flags(const std::string& message);

@@ -18,6 +18,7 @@
 #include "app/bench/bench_kdtree.h"
 #include "app/bench/bench_rays.h"
 #include "app/commands.h"
+#include "app/options_cli.h"
 #include "renderer/core/error.h"
 #include "renderer/io/mesh_io.h"
 
@@ -59,6 +60,7 @@ Context load_context(const Options& opt) {
     mesh->colors.clear();
     ctx.model_key = ctx.model;
     if (opt.subdivide > 0) {
+        check_subdivide(mesh->triangle_count(), opt.subdivide);
         *mesh = subdivide_mesh(*mesh, opt.subdivide);
         ctx.model_key += ".sub" + std::to_string(opt.subdivide);
     }

@@ -5,6 +5,8 @@
 #include <unordered_map>
 #include <utility>
 
+#include "renderer/core/error.h"
+
 namespace kdt {
 
 size_t TriangleMesh::memory_bytes() const {
@@ -210,7 +212,20 @@ std::vector<Vec3f> compute_vertex_normals(const TriangleMesh& mesh) {
     return n;
 }
 
+uint64_t subdivided_triangle_count(uint64_t triangles, int levels) {
+    uint64_t n = triangles;
+    for (int i = 0; i < levels && n > 0; ++i)
+        n = n >= (uint64_t(1) << 61) ? uint64_t(1) << 63 : n * 4;
+    return n;
+}
+
 TriangleMesh subdivide_mesh(const TriangleMesh& mesh, int levels) {
+    const uint64_t result = subdivided_triangle_count(mesh.triangle_count(), levels);
+    if (result >= kMaxSubdividedTriangles) {
+        throw Error("subdividing " + std::to_string(mesh.triangle_count()) + " triangles " +
+                    std::to_string(levels) + " times would make " + std::to_string(result) +
+                    " triangles; the kd-tree takes fewer than 2^30");
+    }
     TriangleMesh cur = mesh;
     for (int level = 0; level < levels; ++level) {
         TriangleMesh next;

@@ -98,7 +98,14 @@ std::vector<T> permuted(const std::vector<T>& v, const std::vector<uint32_t>& or
 void apply_order(TriangleMesh& mesh, const MeshOrder& order);
 
 /// Splits every triangle into 4 by its edge midpoints, `levels` times (4^levels triangles
-/// each). Shared edges get one shared midpoint so the result stays watertight.
+/// each). Shared edges get one shared midpoint so the result stays watertight. A result of
+/// kMaxSubdividedTriangles or more is refused (kdt::Error) before anything is allocated.
 TriangleMesh subdivide_mesh(const TriangleMesh& mesh, int levels);
+
+/// The kd-tree builders take fewer than 2^30 triangles; 32-bit vertex indices stay valid.
+inline constexpr uint64_t kMaxSubdividedTriangles = uint64_t(1) << 30;
+
+/// Triangles of subdivide_mesh(mesh of `triangles`, levels), saturating at 2^63.
+uint64_t subdivided_triangle_count(uint64_t triangles, int levels);
 
 }  // namespace kdt

@@ -3,11 +3,13 @@
 #include <algorithm>
 #include <array>
 #include <random>
+#include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
 #include <glm/gtc/matrix_transform.hpp>
 
+#include "renderer/core/error.h"
 #include "renderer/geometry/mesh.h"
 
 namespace kdt {
@@ -188,6 +190,26 @@ TEST(TransformMesh, MirrorsReverseTheWindingSoClosedMeshesStayOutward) {
             EXPECT_GT(glm::dot(t.normals[v], outward), 0.0f) << c.name << ", vertex " << v;
             EXPECT_GT(glm::dot(computed[v], outward), 0.0f) << c.name << ", vertex " << v;
         }
+    }
+}
+
+// A subdivision the kd-tree could not take is refused before anything is allocated (2^32
+// triangles would also overflow the 32-bit vertex indices).
+TEST(SubdivideMesh, CountsAndRefusesResultsBeyondTheTreeLimit) {
+    EXPECT_EQ(subdivided_triangle_count(12, 0), 12u);
+    EXPECT_EQ(subdivided_triangle_count(12, 3), 12u * 64u);
+    EXPECT_EQ(subdivided_triangle_count(0, 40), 0u);
+    EXPECT_EQ(subdivided_triangle_count(3, 40), uint64_t(1) << 63);  // saturates
+    TriangleMesh one;
+    one.positions = {Vec3f(0.0f), Vec3f(1.0f, 0.0f, 0.0f), Vec3f(0.0f, 1.0f, 0.0f)};
+    one.triangles = {Vec3u(0, 1, 2)};
+    EXPECT_EQ(subdivide_mesh(one, 2).triangle_count(), 16u);
+    try {
+        subdivide_mesh(one, 15);  // 2^30 triangles
+        ADD_FAILURE() << "no error";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("1073741824 triangles"), std::string::npos)
+            << e.what();
     }
 }
 
