@@ -9,11 +9,12 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <fstream>
 #include <sstream>
 #include <thread>
 
 #include "renderer/core/error.h"
+#include "renderer/core/output_path.h"
+#include "renderer/core/temp_file.h"
 #include "renderer/io/image_io.h"
 #include "renderer/scene/views.h"
 #include "ui/camera_control.h"
@@ -51,6 +52,7 @@ Viewer::Viewer(const ViewerOptions& options) : vo_(options) {
         if (a != std::string::npos) script_.push_back(cmd.substr(a, b - a + 1));
     }
     check_script();  // a typo fails before any window opens
+    if (!vo_.screenshot.empty()) check_viewer_output(vo_.screenshot, "the screenshot");
     // The scene loads while the window opens; poll_load() starts the render thread with it
     // and then loads the session (which needs the scene's worker).
     scene_loader_ = std::make_unique<SceneLoader>();
@@ -245,7 +247,30 @@ void Viewer::handle_input(GLFWwindow* window, double dt) {
     if (std::memcmp(&c, &camera_, sizeof c) != 0) set_camera(c);
 }
 
+std::vector<std::string> Viewer::input_files() const {
+    const SceneOptions& cli = vo_.options.scene;
+    std::vector<std::string> files = {opts_.scene.scene_path,
+                                      opts_.scene.env_file,
+                                      opts_.scene.tree_file,
+                                      cli.scene_path,
+                                      cli.env_file,
+                                      cli.tree_file,
+                                      scene_requested_,
+                                      probe_requested_,
+                                      vo_.session,
+                                      vo_.views};
+    const std::vector<std::string> scene = scene_input_files(prep_.scene);
+    files.insert(files.end(), scene.begin(), scene.end());
+    files.insert(files.end(), sessions_read_.begin(), sessions_read_.end());
+    return files;
+}
+
+void Viewer::check_viewer_output(const std::string& path, const char* what) const {
+    check_output(path, input_files(), what);
+}
+
 void Viewer::screenshot(const std::string& path, int fb_width, int fb_height) const {
+    check_viewer_output(path, "the screenshot");
     std::vector<uint8_t> px(size_t(fb_width) * size_t(fb_height) * 3);
     glPixelStorei(GL_PACK_ALIGNMENT, 1);
     glReadBuffer(GL_BACK);
@@ -282,9 +307,13 @@ void Viewer::save_image(const std::string& base) const {
         return base.size() > 4 && base.compare(base.size() - 4, 4, ext) == 0;
     };
     if (ends(".png") || ends(".exr") || ends(".pfm")) {
+        check_viewer_output(base, "the image");
         write_image(base, out, tone_, meta);
         return;
     }
+    // Both checked before either is written.
+    check_viewer_output(base + ".png", "the image");
+    check_viewer_output(base + ".exr", "the image");
     write_image(base + ".png", out, tone_, meta);
     write_image(base + ".exr", out, tone_, meta);
 }
@@ -296,15 +325,17 @@ void Viewer::save_session(const std::string& path) const {
     o.scene.env_intensity = env_intensity_;
     o.stop = stop_;
     o.scene.materials = materials_;  // as on screen, edited or not
-    std::ofstream f(path);
-    f << options_to_json(o) << "\n";
-    if (!f) throw Error(ErrorLocation{path, "", -1}, "cannot write the session file");
+    check_viewer_output(path, "the session file");
+    const std::string text = options_to_json(o) + "\n";
+    write_file_atomically(path, text.data(), text.size());
 }
 
 void Viewer::load_session(const std::string& path) {
     RenderOptions o = opts_;
     o.stop = stop_;
     options_from_session_file(path, o);  // validates
+    if (std::find(sessions_read_.begin(), sessions_read_.end(), path) == sessions_read_.end())
+        sessions_read_.push_back(path);
     if (o.scene.scene_path != opts_.scene.scene_path || o.scene.width != opts_.scene.width ||
         o.scene.height != opts_.scene.height) {
         throw Error(ErrorLocation{path, "scene", -1},

@@ -87,8 +87,16 @@ public:
     /// The image on screen: base + ".png" (tone-mapped) and base + ".exr" (linear), with the
     /// render metadata; a base ending in .png, .exr or .pfm writes that one file.
     void save_image(const std::string& base) const;
+    /// The session (options_to_json of what is on screen) through a temporary file.
     void save_session(const std::string& path) const;
     void load_session(const std::string& path);
+    /// The files the viewer reads or is loading: the model or scene file and its meshes, the
+    /// probe, a --tree file, the views file and the session files it was started from or loaded.
+    std::vector<std::string> input_files() const;
+    /// check_output() of a viewer output against input_files(): throws kdt::Error naming
+    /// `path` when writing it would replace an input, or it is a FIFO, device or directory
+    /// (checked without opening it), or it may not be replaced.
+    void check_viewer_output(const std::string& path, const char* what) const;
 
     // ---- opening files in the background (viewer_files.cpp); errors go to message_
     /// A model or scene (.ply, .ply.gz, .obj, .json: replaces the scene once loaded, the old
@@ -137,6 +145,8 @@ public:
     // Loading (viewer_files.cpp). worker_ and tree_ are null until the first scene loaded.
     std::unique_ptr<SceneLoader> scene_loader_, probe_loader_;
     bool scene_pending_ = false, probe_pending_ = false;
+    std::string scene_requested_, probe_requested_;  ///< the last requests' files
+    std::vector<std::string> sessions_read_;         ///< session files loaded
     bool env_overridden_ = false;  ///< apply_environment() was called: the worker keeps its light
     std::string status_;           ///< what is loaded, shown in the File panel
     std::vector<MaterialDesc> materials_;  ///< per instance, as edited

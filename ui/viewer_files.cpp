@@ -71,6 +71,7 @@ void Viewer::request_scene(const std::string& path) {
     s.vfov_degrees = cli_scene ? cli.vfov_degrees : std::nullopt;
     s.tree_file = cli_scene ? cli.tree_file : std::string();
     s.materials = cli_scene ? cli.materials : std::vector<MaterialDesc>();
+    scene_requested_ = path;
     scene_loader_->request(std::move(r));
     scene_pending_ = true;
 }
@@ -101,6 +102,7 @@ void Viewer::open_probe(const std::string& path) {
     r.environment.mapping = mapping;
     r.environment.rotation_degrees += opts_.scene.env_rotation_degrees - env_rotation0_;
     r.environment.intensity = env_intensity_;
+    probe_requested_ = path;
     probe_loader_->request(std::move(r));
     probe_pending_ = true;
 }

@@ -212,7 +212,9 @@ bool Viewer::script_step() {
             } else if (op == "panels") {
                 panels_ = word("on or off") == "on";
             } else if (op == "screenshot") {
-                screenshot_requests_.push_back(word("file"));
+                const std::string file = word("file");
+                check_viewer_output(file, "the screenshot");  // a script error, not the exit's
+                screenshot_requests_.push_back(file);
                 return true;  // taken at the end of this frame, before any later command
             } else if (op == "save") {
                 save_image(word("file"));

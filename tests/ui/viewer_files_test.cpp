@@ -1,8 +1,11 @@
 // The viewer's files without a window: opening models, probes and broken files through the
 // same calls as the File panel, the drop callback and the script, the swap of the loaded scene
 // into the render thread, and the material edits (ui/viewer_files.cpp).
+#include <sys/stat.h>
+
 #include <chrono>
 #include <fstream>
+#include <sstream>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -138,6 +141,65 @@ TEST(ViewerFiles, ProbeAndMaterialEdits) {
     w.finish_loading();
     EXPECT_EQ(w.message_, "");
     EXPECT_EQ(w.prep_.scene.environment.file, probe);
+}
+
+std::string file_text(const std::string& path) {
+    std::ifstream f(path, std::ios::binary);
+    std::stringstream ss;
+    ss << f.rdbuf();
+    return ss.str();
+}
+
+TEST(ViewerFiles, OutputsNeverReplaceTheFilesViewedAndRefuseFifos) {
+    const auto dir = test::temp_dir("ui_outputs");
+    ViewerOptions vo = tiny_options();
+    vo.options.scene.scene_path = write_tetra_ply(dir, "model.ply");
+    ImageRGB sky(8, 4);
+    for (float& c : sky.rgb) c = 0.5f;
+    const std::string probe = (dir / "sky.pfm").string();
+    write_image(probe, sky);
+    vo.options.scene.env_file = probe;
+    Viewer v(vo);
+    v.finish_loading();
+    ASSERT_TRUE(v.worker_) << v.message_;
+    const std::string session = (dir / "s.json").string();
+    v.save_session(session);
+    v.load_session(session);
+    const std::string model = vo.options.scene.scene_path, model_text = file_text(model),
+                      probe_text = file_text(probe), session_text = file_text(session);
+    auto refused = [&](auto write, const std::string& input) {
+        const std::string e = test::error_of_call(write);
+        EXPECT_NE(e.find("it is the input " + input), std::string::npos) << e;
+    };
+    refused([&] { v.save_session(model); }, model);
+    refused([&] { v.save_session(probe); }, probe);
+    refused([&] { v.save_session(dir.string() + "/../" + dir.filename().string() + "/s.json"); },
+            session);
+    refused([&] { v.save_image(probe); }, probe);
+    refused([&] { v.screenshot(model, 4, 4); }, model);
+    EXPECT_EQ(file_text(model), model_text);
+    EXPECT_EQ(file_text(probe), probe_text);
+    EXPECT_EQ(file_text(session), session_text);
+    // A base name writes .png and .exr: neither when one of them is an input.
+    const std::string base = (dir / "sky").string();
+    write_image(base + ".exr", sky);
+    v.open_file(base + ".exr");
+    v.finish_loading();
+    refused([&] { v.save_image(base); }, base + ".exr");
+    EXPECT_FALSE(std::filesystem::exists(base + ".png"));
+
+    // A FIFO is refused at once (opening it to write would block until a reader comes).
+    const std::string fifo = (dir / "fifo.json").string();
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    const std::string e = test::error_of_call([&] { v.save_session(fifo); });
+    EXPECT_NE(e.find("FIFO"), std::string::npos) << e;
+    // A script's output error fails the script, naming the command.
+    v.script_ = {"screenshot " + model};
+    v.script_next_ = 0;
+    const std::string s = test::error_of_call([&] { v.script_step(); });
+    EXPECT_NE(s.find("'screenshot " + model + "'"), std::string::npos) << s;
+    EXPECT_NE(s.find("it is the input"), std::string::npos) << s;
+    EXPECT_TRUE(v.screenshot_requests_.empty());
 }
 
 TEST(ViewerFiles, BadFirstSceneEndsAScriptedRunWithTheMessage) {
