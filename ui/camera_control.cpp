@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include "renderer/camera/camera.h"
+#include "renderer/core/error.h"
+
 namespace kdt::ui {
 
 namespace {
@@ -67,6 +70,22 @@ CameraDesc zoom(const CameraDesc& c, float factor) {
     return out;
 }
 
+CameraDesc zoom(const CameraDesc& c, float factor, const Bounds3f& scene) {
+    CameraDesc out = zoom(c, factor);
+    if (scene.empty() || out.eye == c.eye) return out;
+    const float size = glm::length(scene.extent());
+    if (!(size > 0.0f) || !std::isfinite(size)) return out;
+    const float d = glm::length(c.eye - c.target);
+    const float lo = std::min(d, kMinZoomDistance * size),
+                hi = std::max(d, kMaxZoomDistance * size);
+    const float wanted = d * factor;
+    if (wanted < lo || wanted > hi) {
+        const float to = std::clamp(wanted, lo, hi);
+        out.eye = c.target + (c.eye - c.target) * (to / d);
+    }
+    return out;
+}
+
 CameraDesc fly(const CameraDesc& c, float right, float up, float forward) {
     const Frame f = frame_of(c);
     const Vec3f move = (f.right * right + f.up * up + f.forward * forward) * f.distance;
@@ -85,6 +104,22 @@ CameraDesc frame(const CameraDesc& c, const Bounds3f& box) {
     out.target = box.center();
     out.eye = out.target - f.forward * distance;
     return out;
+}
+
+std::string camera_problem(const CameraDesc& c) {
+    if (!is_finite(c.eye) || !is_finite(c.target) || !is_finite(c.up) ||
+        !std::isfinite(c.vfov_degrees)) {
+        return "the camera is not finite";
+    }
+    const float scale = std::max({glm::length(c.eye), glm::length(c.target), 1e-30f});
+    if (!(glm::length(c.target - c.eye) > 1e-4f * scale))
+        return "eye and target (nearly) coincide at this distance from the origin";
+    try {
+        make_camera(c.eye, c.target, c.up, c.vfov_degrees, 1, 1);
+    } catch (const Error& e) {
+        return e.what();
+    }
+    return "";
 }
 
 }  // namespace kdt::ui

@@ -47,6 +47,7 @@ void RenderWorker::restart_locked(bool preview) {
     stats_.full_passes = 0;
     stats_.spp = stats_.seconds = stats_.mean_error = 0.0;
     stats_.error_curve.clear();
+    stats_.render_error.clear();
     session_->cancel();
     wake_.notify_all();
 }
@@ -168,6 +169,28 @@ void RenderWorker::run() {
     // the UI thread, so a frame never waits for a core behind a tile, and to the tree builder,
     // so a new tree is ready sooner while the old one keeps rendering on what is left.
     setpriority(PRIO_PROCESS, 0, kRenderNice);  // Linux: 0 is the calling thread
+    // Nothing may escape the thread (std::terminate): an error is reported, the thread idles
+    // as if done, and the next change starts it again from a restart.
+    for (;;) {
+        std::string error;
+        try {
+            render_loop();
+            return;
+        } catch (const std::exception& e) {
+            error = e.what();
+        } catch (...) {
+            error = "unknown error on the render thread";
+        }
+        std::lock_guard<std::mutex> lock(mutex_);
+        if (quit_) return;
+        stats_.render_error = error;
+        if (!restart_) stats_.done = true;  // a change meanwhile starts it again at once
+        ++failures_;
+        ++updates_;
+    }
+}
+
+void RenderWorker::render_loop() {
     bool preview = false;  // the pass in the session is the low-resolution preview
     uint64_t restart = 0;  // the restart (WorkerStats::restarts) the passes belong to
     PathCounters totals;

@@ -39,6 +39,9 @@ struct WorkerStats {
     bool done = false;  ///< a stop condition holds; the thread idles
     bool paused = false;
     std::string error;  ///< why the last environment change failed ("" = none)
+    /// Why rendering stopped since the last change ("" = it did not): an error on the render
+    /// thread (a camera it cannot build, memory); the thread idles until the next change.
+    std::string render_error;
     std::vector<std::pair<double, double>> error_curve;  ///< (seconds, mean error) per pass
 };
 
@@ -76,6 +79,9 @@ public:
     /// the worker's side: a preview, a completed pass, pause, an environment change. Not at a
     /// restart: the caller of the setter knows of that one.
     uint64_t updates() const { return updates_.load(); }
+    /// Errors the render thread caught (never reset; lock-free): when it grows, stats() has
+    /// the latest in render_error.
+    uint64_t failures() const { return failures_.load(); }
     /// Copies the image of the last finished preview pass into `out` when it is another one
     /// than out holds (compared by out.version; out.generation is the WorkerStats::restarts
     /// count of the change it shows); returns whether it copied. The session's own
@@ -89,6 +95,8 @@ public:
 
 private:
     void run();
+    /// run()'s loop until quit; throws what a pass or a restart throws.
+    void render_loop();
     /// `preview`: the restart begins with a preview pass (any restart asking for one since
     /// the thread last took a restart gets it).
     void restart_locked(bool preview = true);
@@ -117,7 +125,7 @@ private:
     EnvironmentDesc env_desc_;
     WorkerStats stats_;
     FilmImage preview_;  ///< version: a count of previews
-    std::atomic<uint64_t> completed_passes_{0}, updates_{0};
+    std::atomic<uint64_t> completed_passes_{0}, updates_{0}, failures_{0};
 };
 
 }  // namespace kdt::ui

@@ -69,6 +69,14 @@ void Viewer::set_camera(const CameraDesc& camera) {
     awaiting_preview_ = true;
 }
 
+void Viewer::move_camera(const CameraDesc& camera) {
+    if (const std::string problem = camera_problem(camera); !problem.empty()) {
+        message_ = "camera: move refused (" + problem + "); R resets the camera";
+        return;
+    }
+    set_camera(camera);
+}
+
 void Viewer::request_rebuild() {
     rebuilder_->request(worker_->snapshot(), tree_edit_);
     rebuild_requested_at_ = Clock::now();
@@ -151,6 +159,11 @@ void Viewer::upload(const FilmImage& img) {
 
 void Viewer::update_image() {
     if (!worker_) return;
+    if (const uint64_t failures = worker_->failures(); failures != render_failures_seen_) {
+        render_failures_seen_ = failures;
+        message_ = "render: " + worker_->stats().render_error;
+        std::fprintf(stderr, "kdtrace: view: %s\n", message_.c_str());
+    }
     if (split_) split_->update_image(debug_layer(view_), heat_scale_);
     // The preview of a change is shown until a full-resolution pass of the change is complete
     // (the session's image of the pass in flight still shows the previous state).
@@ -216,7 +229,7 @@ void Viewer::handle_input(GLFWwindow* window, double dt) {
             const float h = float(std::max(image_h_, 1)) / content_scale_;
             c = pan(c, -float(dx) / h, float(dy) / h);
         }
-        if (io.MouseWheel != 0.0f) c = zoom(c, std::pow(0.9f, io.MouseWheel));
+        if (io.MouseWheel != 0.0f) c = zoom(c, std::pow(0.9f, io.MouseWheel), tree_->bounds());
     }
     if (!io.WantCaptureKeyboard) {
         const float step = float(dt) * 0.5f;  // half the target distance per second
@@ -244,7 +257,7 @@ void Viewer::handle_input(GLFWwindow* window, double dt) {
             }
         }
     }
-    if (std::memcmp(&c, &camera_, sizeof c) != 0) set_camera(c);
+    if (std::memcmp(&c, &camera_, sizeof c) != 0) move_camera(c);
 }
 
 std::vector<std::string> Viewer::input_files() const {

@@ -53,6 +53,9 @@ public:
 
     // ---- changes (any thread-safe order; each restarts the image with a preview)
     void set_camera(const CameraDesc& camera);
+    /// set_camera() for a user's move (mouse, keys, script): a camera that camera_problem()
+    /// refuses is not taken (the message says why) and the old one stays.
+    void move_camera(const CameraDesc& camera);
     void request_rebuild();
     /// Applies opts_.trace / film / stop_ to the render thread; an error goes to message_.
     void apply_params();
@@ -176,7 +179,8 @@ public:
     Latencies lat_;
     Clock::time_point camera_changed_at_{};
     bool awaiting_preview_ = false;
-    uint64_t camera_restart_ = 0;  ///< the worker's restart count after the camera change
+    uint64_t camera_restart_ = 0;        ///< the worker's restart count after the camera change
+    uint64_t render_failures_seen_ = 0;  ///< RenderWorker::failures() shown in message_
     Clock::time_point rebuild_requested_at_{};
     uint64_t rebuild_restarts_ = 0;   ///< worker restarts when the new tree was swapped in
     Clock::time_point swapped_at_{};  ///< when the new tree was given to the worker

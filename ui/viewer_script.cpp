@@ -145,21 +145,21 @@ bool Viewer::script_step() {
         try {
             if (op == "orbit") {
                 const float yaw = number("yaw degrees");
-                set_camera(orbit(camera_, yaw, number("pitch degrees")));
+                move_camera(orbit(camera_, yaw, number("pitch degrees")));
             } else if (op == "pan") {
                 const float dx = number("dx");
-                set_camera(pan(camera_, dx, number("dy")));
+                move_camera(pan(camera_, dx, number("dy")));
             } else if (op == "zoom") {
-                set_camera(zoom(camera_, number("factor")));
+                move_camera(zoom(camera_, number("factor"), tree_->bounds()));
             } else if (op == "fly") {
                 const float r = number("right"), u = number("up");
-                set_camera(fly(camera_, r, u, number("forward")));
+                move_camera(fly(camera_, r, u, number("forward")));
             } else if (op == "frame") {
-                set_camera(frame(camera_, tree_->bounds()));
+                move_camera(frame(camera_, tree_->bounds()));
             } else if (op == "reset") {
                 set_camera(home_camera_);
             } else if (op == "view") {
-                set_camera(find_view(vo_.views, word("view name")));
+                move_camera(find_view(vo_.views, word("view name")));
             } else if (op == "set") {
                 const std::string key = word("group.name");
                 set_option(key, word("value"));

@@ -142,6 +142,31 @@ TEST(ViewerThreads, ATreeSwapAloneSkipsThePreviewACameraMoveDoesNot) {
     EXPECT_TRUE(worker.copy_preview(preview)) << "a tree swap under the heat map made no preview";
 }
 
+TEST(ViewerThreads, AnErrorOnTheRenderThreadIsReportedAndTheNextChangeRendersAgain) {
+    auto snap = stress_snapshot();
+    TraceParams tp;
+    tp.threads = 2;
+    RenderWorker worker(snap, tp, FilmParams{}, StopConditions{}, 4);
+    CameraDesc collapsed = snap->camera_desc;
+    collapsed.eye = collapsed.target;  // make_camera() throws on the render thread
+    worker.set_camera(collapsed);
+    ASSERT_TRUE(wait_for([&] { return worker.failures() == 1; }, 120.0));
+    const WorkerStats failed = worker.stats();
+    EXPECT_NE(failed.render_error.find("eye and target coincide"), std::string::npos)
+        << failed.render_error;
+    EXPECT_TRUE(failed.done);
+    worker.set_camera(snap->camera_desc);
+    const uint64_t restarts = worker.stats().restarts;
+    ASSERT_TRUE(wait_for(
+        [&] {
+            const WorkerStats s = worker.stats();
+            return s.restarts == restarts && s.full_passes >= 2;
+        },
+        120.0));
+    EXPECT_EQ(worker.stats().render_error, "");
+    EXPECT_EQ(worker.failures(), 1u);
+}
+
 TEST(ViewerThreads, ANewerRebuildRequestSupersedesAnOlderOne) {
     auto snap = stress_snapshot();
     TreeRebuilder rebuilder;

@@ -56,6 +56,36 @@ TEST(CameraControl, PanFlyAndZoom) {
     EXPECT_EQ(zoom(c, -1.0f).eye, c.eye);  // a bad factor changes nothing
 }
 
+TEST(CameraControl, MovesFarAwayOrIntoTheTargetAreRefusedOrClamped) {
+    const CameraDesc c = start();
+    EXPECT_EQ(camera_problem(c), "");
+    // Moves whose float result collapses eye onto target, or turns up along the view.
+    for (const CameraDesc& bad :
+         {fly(c, 1e10f, 0.0f, 0.0f), fly(c, 0.0f, 0.0f, -1e10f), fly(c, 0.0f, 1e30f, 0.0f),
+          pan(c, 1e10f, 1e10f), pan(c, 1e30f, 0.0f), zoom(c, 1e-12f), zoom(c, 1e-30f)}) {
+        EXPECT_NE(camera_problem(bad), "") << bad.eye.x << " " << bad.target.x;
+    }
+    CameraDesc nan = c;
+    nan.eye.x = std::nanf("");
+    EXPECT_NE(camera_problem(nan), "");
+
+    // Zoom keeps to [1e-4, 1e4] times the scene's diagonal (here 2 * sqrt(3)).
+    Bounds3f box;
+    box.extend(Vec3f(-1.0f, 0.0f, -1.0f));
+    box.extend(Vec3f(1.0f, 2.0f, 1.0f));
+    const float size = glm::length(box.extent());
+    CameraDesc z = c;
+    for (int i = 0; i < 100; ++i) z = zoom(z, 0.35f, box);
+    EXPECT_NEAR(glm::length(z.eye - z.target), kMinZoomDistance * size, 1e-6f);
+    EXPECT_EQ(camera_problem(z), "");
+    EXPECT_NEAR(glm::length(zoom(c, 1e30f, box).eye - c.target), kMaxZoomDistance * size, 1.0f);
+    EXPECT_EQ(zoom(c, 0.5f, box).eye, zoom(c, 0.5f).eye);  // within the range: the same
+    // A camera already beyond the range is not pulled in by a zoom out, and may zoom in.
+    const CameraDesc far = zoom(c, 1e5f);
+    EXPECT_EQ(zoom(far, 2.0f, box).eye, far.eye);
+    EXPECT_EQ(zoom(far, 0.5f, box).eye, zoom(far, 0.5f).eye);
+}
+
 TEST(CameraControl, FrameFitsTheBoxFromTheSameDirection) {
     const CameraDesc c = start();
     Bounds3f box;

@@ -14,6 +14,7 @@
 #include "renderer/io/image_io.h"
 #include "tests/test_util.h"
 #include "tests/ui/viewer_gui.h"
+#include "ui/camera_control.h"
 #include "ui/viewer_app.h"
 
 namespace kdt::ui {
@@ -200,6 +201,24 @@ TEST(ViewerFiles, OutputsNeverReplaceTheFilesViewedAndRefuseFifos) {
     EXPECT_NE(s.find("'screenshot " + model + "'"), std::string::npos) << s;
     EXPECT_NE(s.find("it is the input"), std::string::npos) << s;
     EXPECT_TRUE(v.screenshot_requests_.empty());
+}
+
+TEST(ViewerFiles, CameraMovesThatWouldCollapseTheCameraAreRefused) {
+    const auto dir = test::temp_dir("ui_camera");
+    ViewerOptions vo = tiny_options();
+    vo.options.scene.scene_path = write_tetra_ply(dir, "model.ply");
+    vo.script = "fly 1e10 0 0; pan 1e10 1e10";
+    for (int i = 0; i < 100; ++i) vo.script += "; zoom 0.35";
+    Viewer v(vo);
+    v.finish_loading();
+    ASSERT_TRUE(v.worker_) << v.message_;
+    const CameraDesc home = v.camera_;
+    EXPECT_FALSE(v.script_step());
+    EXPECT_NE(v.message_.find("camera: move refused"), std::string::npos) << v.message_;
+    EXPECT_EQ(v.worker_->camera().target, home.target);  // the pan and fly were not taken
+    EXPECT_EQ(camera_problem(v.worker_->camera()), "");
+    EXPECT_NEAR(glm::length(v.camera_.eye - v.camera_.target),
+                kMinZoomDistance * glm::length(v.tree_->bounds().extent()), 1e-6f);
 }
 
 TEST(ViewerFiles, BadFirstSceneEndsAScriptedRunWithTheMessage) {
