@@ -150,6 +150,12 @@ public:
     bool scene_pending_ = false, probe_pending_ = false;
     std::string scene_requested_, probe_requested_;  ///< the last requests' files
     std::vector<std::string> sessions_read_;         ///< session files loaded
+    /// The environment as the last scene request took it: edits made while that scene loads
+    /// (a probe, rotation, intensity) differ from it and are applied to the scene swapped in.
+    struct EnvAtRequest {
+        std::string file;
+        float rotation_degrees = 0.0f, intensity = 1.0f;
+    } env_at_request_;
     bool env_overridden_ = false;  ///< apply_environment() was called: the worker keeps its light
     std::string status_;           ///< what is loaded, shown in the File panel
     std::vector<MaterialDesc> materials_;  ///< per instance, as edited

@@ -72,6 +72,7 @@ void Viewer::request_scene(const std::string& path) {
     s.tree_file = cli_scene ? cli.tree_file : std::string();
     s.materials = cli_scene ? cli.materials : std::vector<MaterialDesc>();
     scene_requested_ = path;
+    env_at_request_ = {opts_.scene.env_file, opts_.scene.env_rotation_degrees, env_intensity_};
     scene_loader_->request(std::move(r));
     scene_pending_ = true;
 }
@@ -134,11 +135,30 @@ void Viewer::poll_load() {
         std::fprintf(stderr, "kdtrace: view: %s\n", message_.c_str());
         return;
     }
+    // The environment edited while the scene loaded (by the user or a probe swapped in).
+    const SceneOptions edited = opts_.scene;
+    const EnvironmentDesc edited_env = prep_.scene.environment;
+    const float edited_intensity = env_intensity_;
     prep_ = std::move(*r->prepared);
     opts_.scene = r->what.options.scene;
     opts_.tree = r->what.options.tree;
     env_rotation0_ = opts_.scene.env_rotation_degrees;
     env_intensity_ = prep_.scene.environment.intensity;
+    bool env_edited = false;
+    if (edited.env_file != env_at_request_.file) {
+        opts_.scene.env_file = edited.env_file;
+        prep_.scene.environment.file = edited_env.file;
+        prep_.scene.environment.mapping = edited_env.mapping;
+        env_edited = true;
+    }
+    if (edited.env_rotation_degrees != env_at_request_.rotation_degrees) {
+        opts_.scene.env_rotation_degrees = edited.env_rotation_degrees;  // added to the scene's
+        env_edited = true;
+    }
+    if (edited_intensity != env_at_request_.intensity) {
+        env_intensity_ = edited_intensity;
+        env_edited = true;
+    }
     home_camera_ = camera_ = prep_.snapshot->camera_desc;
     tree_ = prep_.snapshot->scene->tree;
     materials_.clear();
@@ -169,7 +189,7 @@ void Viewer::poll_load() {
     set_camera(camera_);
     // The render thread keeps a light set by apply_environment() across snapshots: give it
     // the new scene's (with the probe override, rotation and intensity in force).
-    if (env_overridden_) apply_environment();
+    if (env_overridden_ || env_edited) apply_environment();
     // Tree parameters edited while the scene loaded apply to it.
     if (auto_rebuild_ && !same_fields(kd_tree_fields(), tree_edit_, opts_.tree)) request_rebuild();
 }

@@ -221,6 +221,44 @@ TEST(ViewerFiles, CameraMovesThatWouldCollapseTheCameraAreRefused) {
                 kMinZoomDistance * glm::length(v.tree_->bounds().extent()), 1e-6f);
 }
 
+TEST(ViewerFiles, EnvironmentEditsWhileAModelLoadsApplyToIt) {
+    const auto dir = test::temp_dir("ui_env_edits");
+    ViewerOptions vo = tiny_options();
+    vo.options.scene.scene_path = write_tetra_ply(dir, "first.ply");
+    Viewer v(vo);
+    v.finish_loading();
+    ASSERT_TRUE(v.worker_) << v.message_;
+    ImageRGB sky(8, 4);
+    for (float& c : sky.rgb) c = 0.5f;
+    const std::string probe = (dir / "sky.pfm").string();
+    write_image(probe, sky);
+
+    // The model is requested first; the probe loads and swaps in before the model does (both
+    // results wait until one poll takes the probe's, then the model's), and the rotation and
+    // intensity are set meanwhile.
+    v.open_file(write_tetra_ply(dir, "second.ply"));
+    v.open_file(probe);
+    v.set_option("scene.env_intensity", "0.25");
+    v.set_option("scene.env_rotation_degrees", "45");
+    for (int i = 0; i < 60000 && (v.scene_loader_->busy() || v.probe_loader_->busy()); ++i)
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    v.poll_load();
+    ASSERT_FALSE(v.loading());
+    EXPECT_EQ(v.opts_.scene.scene_path, (dir / "second.ply").string());
+    EXPECT_EQ(v.message_, "");
+    EXPECT_EQ(v.opts_.scene.env_file, probe);
+    EXPECT_EQ(v.env_intensity_, 0.25f);
+    EXPECT_EQ(v.opts_.scene.env_rotation_degrees, 45.0f);
+    // The render thread has the new scene with the edited environment.
+    for (int i = 0; i < 60000 && v.worker_->snapshot()->environment.file != probe; ++i)
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    const EnvironmentDesc env = v.worker_->snapshot()->environment;
+    EXPECT_EQ(env.file, probe);
+    EXPECT_EQ(env.intensity, 0.25f);
+    EXPECT_EQ(env.rotation_degrees, 45.0f);
+    EXPECT_EQ(v.worker_->snapshot()->scene->mesh, v.prep_.snapshot->scene->mesh);
+}
+
 TEST(ViewerFiles, BadFirstSceneEndsAScriptedRunWithTheMessage) {
     ViewerOptions vo = tiny_options();
     vo.options.scene.scene_path = "/nonexistent/model.ply";
