@@ -4,6 +4,8 @@
 //   set GROUP.NAME VALUE | rebuild | heat nodes|triangles|off | exposure STOPS
 //   pause | resume | panels on|off | screenshot FILE | save BASE | save_session FILE
 //   load_session FILE | wait FRAMES | wait_passes N | wait_done | wait_rebuild
+//   (wait_passes also ends when the render is done; a wait for rendering fails the script
+//   while the render is paused or after it failed)
 //   stats LABEL (prints the frame times since the previous stats command, and with the split
 //   view on, both sides' rays/s and cost per ray)
 //   mode radiance|nodes|triangles|normals|depth (the view)
@@ -106,18 +108,32 @@ bool Viewer::script_step() {
         return false;
     }
     // A wait in force holds the script until its condition.
+    // Every wait ends: at its condition, at once when what it waits for cannot come (a render
+    // already done ends wait_passes; nothing pending ends wait_rebuild and wait_split), or
+    // with an error when rendering it needs is paused or failed.
     if (!waiting_.empty()) {
+        const std::string& cmd = script_[script_next_ - 1];  // the wait command
         const WorkerStats s = worker_->stats();
+        const bool shown_done = s.done && image_.complete_passes > 0;
+        // wait and wait_loaded end without the render; the others need it running.
+        const bool renders = waiting_ != "wait" && waiting_ != "wait_loaded";
         bool over = false;
         if (waiting_ == "wait") over = --wait_count_ <= 0;
-        if (waiting_ == "wait_passes") over = s.full_passes >= wait_count_ && have_image_;
-        if (waiting_ == "wait_done") over = s.done && image_.complete_passes > 0;
+        if (waiting_ == "wait_passes")
+            over = (s.full_passes >= wait_count_ && have_image_) || shown_done;
+        if (waiting_ == "wait_done") over = shown_done;
         if (waiting_ == "wait_rebuild") over = !rebuilder_->busy() && !awaiting_rebuild_image_;
+        std::string failed = s.render_error;
         if (waiting_ == "wait_split") {
             over = !split_ || (!split_->settling() && split_->worker().stats().full_passes >= 1 &&
                                split_->image().complete_passes > 0);
+            if (split_ && failed.empty()) failed = split_->worker().stats().render_error;
         }
         if (waiting_ == "wait_loaded") over = !loading();
+        if (!over && renders && !failed.empty())
+            throw script_error(cmd, "cannot end: the render failed: " + failed);
+        if (!over && renders && paused_)
+            throw script_error(cmd, "cannot end while the render is paused (resume first)");
         if (!over) return true;
         waiting_.clear();
     }
@@ -236,8 +252,10 @@ bool Viewer::script_step() {
                 }
                 std::fflush(stdout);
             } else if (op == "wait" || op == "wait_passes") {
+                const float n = number("count");
+                if (!(n >= 0.0f && n <= 1e9f)) throw script_error(cmd, "expected a count >= 0");
                 waiting_ = op;
-                wait_count_ = int(number("count"));
+                wait_count_ = int(n);
                 return true;
             } else if (op == "open") {
                 open_file(rest("a file"));

@@ -114,6 +114,47 @@ TEST(ViewerScript, BadCommandsAndOptionsNameTheProblem) {
               "");
 }
 
+TEST(ViewerScript, EveryWaitEndsOrFailsTheScript) {
+    test::GuiViewer g(small_options(), 900, 600);
+    ASSERT_TRUE(g.ok()) << "no OSMesa GL 3.3 core context or ImGui OpenGL3 backend";
+    Viewer& v = g.viewer();
+    // Runs `script` frame by frame to its end; "" or the script's error. A wait that never
+    // ended is reported as such after a minute.
+    auto run = [&](std::vector<std::string> script) -> std::string {
+        v.script_ = std::move(script);
+        v.script_next_ = 0;
+        v.waiting_.clear();
+        const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+        try {
+            while (g.gui().frame(false)) {
+                if (std::chrono::steady_clock::now() > deadline) return "never ended";
+                std::this_thread::sleep_for(std::chrono::milliseconds(2));
+            }
+        } catch (const Error& e) {
+            ImGui::EndFrame();  // the frame the error left open
+            return e.what();
+        }
+        return "";
+    };
+    // The render stops at 1 pass: wait_passes 5 ends with it.
+    EXPECT_EQ(run({"set stop.spp 1", "wait_passes 5"}), "");
+    EXPECT_TRUE(v.worker_->stats().done);
+    EXPECT_EQ(run({"set stop.spp 100000", "wait_rebuild", "wait_split"}), "");  // nothing pending
+    for (const char* wait : {"wait_passes 1000", "wait_done", "wait_rebuild"}) {
+        const std::vector<std::string> script = {"set tree.max_depth 12", "pause", wait};
+        const std::string e = run(script);
+        EXPECT_NE(e.find("'" + std::string(wait) + "': cannot end while the render is paused"),
+                  std::string::npos)
+            << e;
+        EXPECT_EQ(run({"resume", "wait_rebuild", "set tree.max_depth 0"}), "");
+    }
+    const std::string e = run({"split on", "pause", "wait_split"});
+    EXPECT_NE(e.find("'wait_split': cannot end while the render is paused"), std::string::npos)
+        << e;
+    EXPECT_EQ(run({"resume", "wait_split", "split off", "wait_passes 1"}), "");
+    EXPECT_NE(run({"wait_passes -1"}).find("expected a count >= 0"), std::string::npos);
+}
+
 TEST(ViewerFiles, SessionRoundTripAndSavedImageMetadata) {
     const auto dir = test::temp_dir("ui_session");
     const std::string session = (dir / "s.json").string(), base = (dir / "shot").string();
