@@ -215,25 +215,27 @@ void Viewer::apply_materials() {
 
 void Viewer::set_material(const std::string& name, const std::string& value) {
     if (materials_.empty()) throw Error("material: no scene is loaded");
-    const auto number = [&](double lo, double hi) {
+    // The scene file's limits (renderer/scene/scene.cpp), so that a saved session loads.
+    const auto number = [&](double lo, double hi, bool open_low = false) {
         double v = 0.0;
-        if (!detail::parse_number(value, v) || !(v >= lo && v <= hi)) {
-            throw Error("material." + name + " must be a number in [" + std::to_string(lo) + ", " +
-                        std::to_string(hi) + "] (got '" + value + "')");
+        if (!detail::parse_number(value, v) || !((open_low ? v > lo : v >= lo) && v <= hi)) {
+            throw Error("material." + name + " must be a number in " + (open_low ? "(" : "[") +
+                        detail::number_text(lo) + ", " + detail::number_text(hi) + "] (got '" +
+                        value + "')");
         }
         return v;
     };
-    const auto colour = [&] {
+    const auto colour = [&](double hi) {
         Vec3f c{0.0f};
         size_t at = 0;
         for (int i = 0; i < 3; ++i) {
             const size_t comma = i < 2 ? value.find(',', at) : value.size();
             double v = 0.0;
             if (comma == std::string::npos ||
-                !detail::parse_number(value.substr(at, comma - at), v) ||
-                !(v >= 0.0 && v <= 3e38) || (i == 2 && value.find(',', at) != value.npos)) {
-                throw Error("material." + name + " must be R,G,B with each >= 0 (got '" + value +
-                            "')");
+                !detail::parse_number(value.substr(at, comma - at), v) || !(v >= 0.0 && v <= hi) ||
+                (i == 2 && value.find(',', at) != value.npos)) {
+                throw Error("material." + name + " must be R,G,B with each in [0, " +
+                            detail::number_text(hi) + "] (got '" + value + "')");
             }
             c[i] = float(v);
             at = comma + 1;
@@ -248,13 +250,13 @@ void Viewer::set_material(const std::string& name, const std::string& value) {
     if (name == "type") {
         m.type = MaterialType(parse_name(kMaterialTypeNames, value, "material.type"));
     } else if (name == "albedo") {
-        m.albedo = colour();
+        m.albedo = colour(1.0);
     } else if (name == "emission") {
-        m.emission = colour();
+        m.emission = colour(3e38);
     } else if (name == "ior") {
         m.ior = float(number(1.0, 10.0));
     } else if (name == "roughness") {
-        m.roughness = float(number(0.0, 1.0));
+        m.roughness = float(number(0.0, 1.0, true));
     } else {
         throw Error("no option material." + name +
                     " (material has instance, type, albedo, emission, ior and roughness)");

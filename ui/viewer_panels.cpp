@@ -200,6 +200,9 @@ void split_panel(Viewer& v) {
     ImGui::EndTable();
 }
 
+// The roughness slider's lower end: scene files require roughness > 0.
+constexpr float kMinRoughness = 0.001f;
+
 // The material of one instance (the model's, for a model file), applied live.
 void material_panel(Viewer& v) {
     if (v.materials_.empty()) return;
@@ -219,13 +222,17 @@ void material_panel(Viewer& v) {
     if (m.type == MaterialType::dielectric)
         changed |= ImGui::DragFloat("ior", &m.ior, 0.005f, 1.0f, 10.0f, "%.3f");
     if (m.type == MaterialType::conductor)
-        changed |= ImGui::DragFloat("roughness", &m.roughness, 0.005f, 0.0f, 1.0f, "%.3f");
+        changed |= ImGui::DragFloat("roughness", &m.roughness, 0.005f, kMinRoughness, 1.0f, "%.3f",
+                                    ImGuiSliderFlags_AlwaysClamp);
     if (m.type == MaterialType::emissive) {
         changed |= ImGui::ColorEdit3("emission", &m.emission.x,
                                      ImGuiColorEditFlags_Float | ImGuiColorEditFlags_HDR);
     }
     if (changed) {
-        m.albedo = glm::max(m.albedo, Vec3f(0.0f));  // typed values may be negative
+        // The scene file's limits (typed values may be outside): albedo in [0, 1], roughness
+        // in (0, 1], emission >= 0.
+        m.albedo = glm::clamp(m.albedo, Vec3f(0.0f), Vec3f(1.0f));
+        if (!(m.roughness > 0.0f)) m.roughness = kMinRoughness;
         m.emission = glm::max(m.emission, Vec3f(0.0f));
         v.apply_materials();
     }

@@ -118,6 +118,20 @@ TEST(ViewerFiles, ProbeAndMaterialEdits) {
     EXPECT_NE(error("material.albedo", "1,2,3,4").find("material.albedo"), std::string::npos);
     EXPECT_NE(error("material.albedo", "-1,0,0").find("material.albedo"), std::string::npos);
     EXPECT_NE(error("material.type", "glass").find("material.type"), std::string::npos);
+    // The scene file's limits, so that a saved session loads: albedo in [0, 1], roughness > 0.
+    EXPECT_NE(error("material.albedo", "2,2,2")
+                  .find("material.albedo must be R,G,B with each in "
+                        "[0, 1] (got '2,2,2')"),
+              std::string::npos);
+    EXPECT_NE(error("material.albedo", "3e38,3e38,3e38").find("material.albedo"),
+              std::string::npos);
+    EXPECT_NE(error("material.roughness", "0")
+                  .find("material.roughness must be a number in (0, "
+                        "1] (got '0')"),
+              std::string::npos);
+    EXPECT_NE(error("material.ior", "0.5").find("material.ior must be a number in [1, 10]"),
+              std::string::npos);
+    EXPECT_EQ(error("material.emission", "5,5,5"), "");
     EXPECT_NE(error("material.instance", "7").find("material.instance"), std::string::npos);
     EXPECT_NE(error("material.shine", "1").find("no option material.shine"), std::string::npos);
 
