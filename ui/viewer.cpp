@@ -164,6 +164,18 @@ void Viewer::update_image() {
         message_ = "render: " + worker_->stats().render_error;
         std::fprintf(stderr, "kdtrace: view: %s\n", message_.c_str());
     }
+    // An environment the render thread refused (its light cannot be built: the old one stays)
+    // is the window's message too, not only a line in the Render section.
+    if (const uint64_t u = worker_->updates(); u != worker_updates_seen_) {
+        worker_updates_seen_ = u;
+        if (std::string e = worker_->stats().error; e != env_error_) {
+            env_error_ = std::move(e);
+            if (!env_error_.empty()) {
+                message_ = env_error_;
+                std::fprintf(stderr, "kdtrace: view: %s\n", message_.c_str());
+            }
+        }
+    }
     if (split_) split_->update_image(debug_layer(view_), heat_scale_);
     // The preview of a change is shown until a full-resolution pass of the change is complete
     // (the session's image of the pass in flight still shows the previous state).

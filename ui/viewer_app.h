@@ -187,6 +187,8 @@ public:
     bool awaiting_preview_ = false;
     uint64_t camera_restart_ = 0;        ///< the worker's restart count after the camera change
     uint64_t render_failures_seen_ = 0;  ///< RenderWorker::failures() shown in message_
+    uint64_t worker_updates_seen_ = 0;   ///< RenderWorker::updates() when env_error_ was read
+    std::string env_error_;              ///< the render thread's refusal of the environment
     Clock::time_point rebuild_requested_at_{};
     uint64_t rebuild_restarts_ = 0;   ///< worker restarts when the new tree was swapped in
     Clock::time_point swapped_at_{};  ///< when the new tree was given to the worker

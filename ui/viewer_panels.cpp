@@ -88,7 +88,11 @@ void environment_panel(Viewer& v) {
                                                ? "constant colour"
                                                : v.prep_.scene.environment.file.c_str());
     const std::string failed = v.worker_->stats().error;
-    if (!failed.empty()) ImGui::TextColored(ImVec4(1, 0.4f, 0.3f, 1), "%s", failed.c_str());
+    if (!failed.empty()) {  // wrapped: the whole reason, however long
+        ImGui::PushStyleColor(ImGuiCol_Text, ImVec4(1, 0.4f, 0.3f, 1));
+        ImGui::TextWrapped("%s", failed.c_str());
+        ImGui::PopStyleColor();
+    }
 }
 
 // A colour ramp as a bar the width of the panel, from ramp(0) on the left to ramp(1).

@@ -98,7 +98,10 @@ namespace detail {
 std::string number_text(double v);
 std::string range_text(double min, double max, bool min_open, bool integral);
 std::string choices_text(std::span<const char* const> names);
-std::string check_number(double v, double min, double max, bool min_open, bool integral);
+/// "" when v lies in the range, else why not. `as_float`: v is a float's value, compared with
+/// the bounds as a float holds them, so that the stated bounds themselves pass.
+std::string check_number(double v, double min, double max, bool min_open, bool integral,
+                         bool as_float = false);
 bool parse_number(const std::string& text, double& out);
 void throw_field_error(const char* group, const char* name, const std::string& reason);
 /// "(got 'text')" with the text made safe to print.
@@ -145,7 +148,8 @@ std::string check_field(const Field<S>& f, const S& s) {
         return "must be in " + field_range_text(f) + " (got " + std::to_string(**u) + ")";
     }
     if (f.zero_is_off && field_number(r) == 0.0) return {};
-    return detail::check_number(field_number(r), f.min, f.max, f.min_open, field_is_integral(r));
+    return detail::check_number(field_number(r), f.min, f.max, f.min_open, field_is_integral(r),
+                                std::holds_alternative<float*>(r));
 }
 
 template <class S>
@@ -176,7 +180,8 @@ std::string parse_field(const Field<S>& f, S& s, const std::string& text) {
     }
     double v = 0.0;
     if (!detail::parse_number(text, v)) return "must be a number " + detail::got(text);
-    std::string why = detail::check_number(v, f.min, f.max, f.min_open, field_is_integral(r));
+    std::string why = detail::check_number(v, f.min, f.max, f.min_open, field_is_integral(r),
+                                           std::holds_alternative<float*>(r));
     if (why.empty()) set_field_number(r, v);
     return why;
 }

@@ -257,7 +257,8 @@ RenderOptions resolve(RenderOptions o) {
 void validate(const SceneOptions& s) {
     validate_fields(s, scene_fields(), "scene");
     if (s.env_intensity) {
-        const std::string why = detail::check_number(*s.env_intensity, 0.0, 3.0e38, false, false);
+        const std::string why =
+            detail::check_number(*s.env_intensity, 0.0, 3.0e38, false, false, true);
         if (!why.empty()) detail::throw_field_error("scene", "env_intensity", why);
     }
     if (!s.env_mapping.empty()) {

@@ -154,6 +154,15 @@ add_test(NAME smoke.bench_kdtree_bad_sah_cost COMMAND ${_kdt} bench kdtree
 set_tests_properties(smoke.bench_kdtree_bad_sah_cost PROPERTIES
   PASS_REGULAR_EXPRESSION "--sah-traversal-cost: Value 0 not in range")
 
+# A float option's stated maximum is accepted (3e38 rounds up as a float).
+add_test(NAME smoke.build_sah_cost_max COMMAND ${_kdt} build /usr/share/assimp/models/PLY/cube.ply
+         --sah-traversal-cost 3e38 --sah-intersect-cost 3e38 -o ${_tmp}/cube_cost_max.kdt)
+set_tests_properties(smoke.build_sah_cost_max PROPERTIES
+  PASS_REGULAR_EXPRESSION "traversal cost 3e\\+38, intersect cost 3e\\+38")
+add_test(NAME smoke.env_intensity_max COMMAND ${_kdt} render --env-intensity 3e38 --spp 1
+         --width 8 --height 6 --quiet -o ${_tmp}/env_intensity_max.pfm)
+set_tests_properties(smoke.env_intensity_max PROPERTIES
+  PASS_REGULAR_EXPRESSION "intensity 3e\\+38 is radiance 3e\\+38, above the limit")
 add_test(NAME smoke.build_bad_builder COMMAND ${_kdt} build
          /usr/share/assimp/models/PLY/cube.ply --builder bvh -o ${_tmp}/cube_bad.kdt)
 set_tests_properties(smoke.build_bad_builder PROPERTIES

@@ -153,6 +153,12 @@ TEST(ViewerScript, EveryWaitEndsOrFailsTheScript) {
         << e;
     EXPECT_EQ(run({"resume", "wait_split", "split off", "wait_passes 1"}), "");
     EXPECT_NE(run({"wait_passes -1"}).find("expected a count >= 0"), std::string::npos);
+    // An intensity in the option's range that the render thread refuses (the radiance would
+    // overflow) is the window's message, not dropped out of sight.
+    v.message_.clear();
+    EXPECT_EQ(run({"set scene.env_intensity 1e38", "wait_passes 1", "wait 2"}), "");
+    EXPECT_NE(v.message_.find("above the limit 1e+30"), std::string::npos) << v.message_;
+    EXPECT_EQ(run({"set scene.env_intensity 3e38", "set tree.traversal_cost 3e38"}), "");
 }
 
 TEST(ViewerFiles, SessionRoundTripAndSavedImageMetadata) {

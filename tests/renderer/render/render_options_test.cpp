@@ -105,6 +105,26 @@ TEST(RenderOptions, ErrorsNameTheField) {
         std::string::npos);
 }
 
+TEST(RenderOptions, TheStatedMaximumOfAFloatFieldIsAccepted) {
+    // 3e38 as a float is 3.0000000055e38: still the range's maximum, as stated.
+    RenderOptions o;
+    o.scene.env_intensity = float(3e38);
+    o.tree.traversal_cost = float(3e38);
+    o.tree.intersect_cost = float(3e38);
+    EXPECT_NO_THROW(validate(o));
+    KdTreeParams p;
+    const Field<KdTreeParams>* cost = nullptr;
+    for (const Field<KdTreeParams>& f : kd_tree_fields())
+        if (std::string(f.name) == "traversal_cost") cost = &f;
+    ASSERT_TRUE(cost);
+    EXPECT_EQ(parse_field(*cost, p, "3e38"), "");
+    EXPECT_EQ(check_field(*cost, p), "");
+    // Beyond it is still refused.
+    o.scene.env_intensity = 3.1e38f;
+    EXPECT_THROW(validate(o), Error);
+    EXPECT_EQ(parse_field(*cost, p, "3.1e38"), "must be in (0, 3e+38] (got 3.1e+38)");
+}
+
 TEST(RenderOptions, ResolveHoldsTheRules) {
     RenderOptions o;
     RenderOptions r = resolve(o);
