@@ -16,6 +16,7 @@
 #include "renderer/core/output_path.h"
 #include "renderer/core/temp_file.h"
 #include "renderer/io/image_io.h"
+#include "renderer/render/settings.h"
 #include "renderer/scene/views.h"
 #include "ui/camera_control.h"
 #include "ui/frame_pacer.h"
@@ -313,17 +314,40 @@ void Viewer::screenshot(const std::string& path, int fb_width, int fb_height) co
     write_png(path, img);
 }
 
+RenderOptions Viewer::shown_options(bool tree_in_use) const {
+    RenderOptions o = opts_;
+    o.tree = tree_in_use ? worker_->snapshot()->tree_params : tree_edit_;
+    o.scene.camera = camera_;
+    o.scene.env_intensity = env_intensity_;
+    o.stop = stop_;
+    o.scene.materials = materials_;  // as on screen, edited or not
+    o.film.exposure = tone_.exposure;
+    o.film.tonemap = tone_.curve;
+    return o;
+}
+
 void Viewer::save_image(const std::string& base) const {
     FilmImage img;
     worker_->session().copy_image(img);
     ImageRGB out(img.width, img.height);
     out.rgb = img.rgb;
-    RenderOptions o = opts_;
-    o.scene.camera = camera_;
-    o.stop = stop_;
+    const RenderOptions o = shown_options(true);
+    const std::shared_ptr<const RenderSnapshot> snap = worker_->snapshot();
+    // The scene as rendered: its environment as the render thread has it, the materials as
+    // edited.
+    Scene scene = prep_.scene;
+    scene.environment = snap->environment;
+    for (size_t i = 0; i < scene.meshes.size() && i < materials_.size(); ++i)
+        scene.meshes[i].material = materials_[i];
     const WorkerStats s = worker_->stats();
+    // The keys of `kdtrace render`'s images (app/cmd_render.cpp), but for its command line.
     ImageMetadata meta;
     meta.emplace_back("Software", "kdtrace 0.1.0 view");
+    const std::string& path = o.scene.scene_path;
+    meta.emplace_back("kdtrace:scene", path.empty() ? std::string("builtin:default") : path);
+    meta.emplace_back("kdtrace:scene_json", scene_to_json(scene));
+    meta.emplace_back("kdtrace:camera",
+                      camera_to_json(make_camera(camera_, worker_->width(), worker_->height())));
     meta.emplace_back("kdtrace:params", options_to_json(o));
     meta.emplace_back("kdtrace:seed", std::to_string(o.trace.seed));
     meta.emplace_back("kdtrace:spp", std::to_string(s.spp));
@@ -344,12 +368,7 @@ void Viewer::save_image(const std::string& base) const {
 }
 
 void Viewer::save_session(const std::string& path) const {
-    RenderOptions o = opts_;
-    o.tree = tree_edit_;
-    o.scene.camera = camera_;
-    o.scene.env_intensity = env_intensity_;
-    o.stop = stop_;
-    o.scene.materials = materials_;  // as on screen, edited or not
+    const RenderOptions o = shown_options(false);
     check_viewer_output(path, "the session file");
     const std::string text = options_to_json(o) + "\n";
     write_file_atomically(path, text.data(), text.size());

@@ -90,7 +90,12 @@ public:
     /// The image on screen: base + ".png" (tone-mapped) and base + ".exr" (linear), with the
     /// render metadata; a base ending in .png, .exr or .pfm writes that one file.
     void save_image(const std::string& base) const;
-    /// The session (options_to_json of what is on screen) through a temporary file.
+    /// The options of what is on screen: opts_ with the camera, the stop conditions, the
+    /// environment's intensity, the materials as edited and the display's exposure and tone
+    /// curve; the tree parameters are tree_edit_ (the session's) or those of the tree
+    /// rendering now (`tree_in_use`, the image's).
+    RenderOptions shown_options(bool tree_in_use) const;
+    /// The session (shown_options(false) as JSON) through a temporary file.
     void save_session(const std::string& path) const;
     void load_session(const std::string& path);
     /// The files the viewer reads or is loading: the model or scene file and its meshes, the

@@ -220,7 +220,9 @@ bool Viewer::script_step() {
                 waiting_ = op;
                 return true;
             } else if (op == "exposure") {
-                tone_.exposure = number("stops");
+                FilmParams f = opts_.film;  // film.exposure's range
+                set_field(film_fields(), f, "film", "exposure", word("stops"));
+                tone_.exposure = f.exposure;
             } else if (op == "pause" || op == "resume") {
                 paused_ = op == "pause";
                 worker_->set_paused(paused_);

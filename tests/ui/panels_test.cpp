@@ -4,6 +4,7 @@
 #include <imgui.h>
 #include <imgui_internal.h>
 
+#include <algorithm>
 #include <chrono>
 #include <thread>
 
@@ -107,6 +108,8 @@ TEST(ViewerScript, BadCommandsAndOptionsNameTheProblem) {
     EXPECT_NE(error_of("set trace.nothing 1").find("no option trace.nothing"), std::string::npos);
     EXPECT_NE(error_of("heat hot").find("expected nodes, triangles or off"), std::string::npos);
     EXPECT_NE(error_of("view Z").find("Z"), std::string::npos);
+    EXPECT_NE(error_of("exposure 200").find("'exposure 200': film.exposure must be in [-64, 64]"),
+              std::string::npos);
     EXPECT_NE(error_of("set scene.env_intensity -1").find("scene.env_intensity"),
               std::string::npos);
     EXPECT_EQ(error_of("orbit 10 5; zoom 0.9; set trace.max_depth 4; set film.exposure 1; "
@@ -166,7 +169,8 @@ TEST(ViewerFiles, SessionRoundTripAndSavedImageMetadata) {
     const std::string session = (dir / "s.json").string(), base = (dir / "shot").string();
     ViewerOptions vo = small_options();
     vo.script = "orbit 20 5; set trace.max_depth 5; set film.exposure 1.5; save_session " +
-                session + "; wait_passes 1; save " + base;
+                session + "; exposure 2.5; set scene.env_intensity 0.5; " +
+                "set material.albedo 0.2,0.6,0.2; wait_passes 1; save " + base;
     CameraDesc saved;
     {
         Viewer v(vo);
@@ -191,6 +195,18 @@ TEST(ViewerFiles, SessionRoundTripAndSavedImageMetadata) {
         ASSERT_TRUE(o.scene.camera);
         EXPECT_EQ(o.scene.camera->eye, saved.eye);
         EXPECT_EQ(o.trace.max_depth, 5);
+        // What is on screen: the exposure command's, the intensity, the edited material.
+        EXPECT_EQ(o.film.exposure, 2.5f);
+        ASSERT_TRUE(o.scene.env_intensity);
+        EXPECT_EQ(*o.scene.env_intensity, 0.5f);
+        ASSERT_FALSE(o.scene.materials.empty());
+        EXPECT_EQ(o.scene.materials[0].albedo, Vec3f(0.2f, 0.6f, 0.2f));
+    }
+    std::vector<std::string> keys;
+    for (const auto& kv : meta) keys.push_back(kv.first);
+    for (const char* key : {"kdtrace:scene", "kdtrace:scene_json", "kdtrace:camera", "kdtrace:seed",
+                            "kdtrace:spp", "kdtrace:passes"}) {
+        EXPECT_NE(std::find(keys.begin(), keys.end(), key), keys.end()) << key;
     }
     EXPECT_TRUE(has_params);
     EXPECT_EQ(load_image(base + ".png").width, 64);
