@@ -32,7 +32,12 @@ void add_view_command(CLI::App& parent) {
         try {
             ui::run_viewer(vo);
         } catch (const Error& e) {
-            throw Error(with_flags(e.what()));
+            // A script error quotes the command as typed: flags are named in its reason only.
+            const std::string m = e.what(), script = "view --script: '";
+            const size_t quoted = m.rfind(script, 0) == 0 ? m.find("': ", script.size()) : m.npos;
+            if (quoted != m.npos)
+                throw Error(m.substr(0, quoted + 3) + with_flags(m.substr(quoted + 3)));
+            throw Error(with_flags(m));
         }
     });
 #else

@@ -288,6 +288,36 @@ TEST(ViewerE2E, FileErrorsShowInTheWindowAndTheViewerKeepsRunning) {
     EXPECT_GT(red, 50);
 }
 
+TEST(ViewerE2E, ScriptErrorsQuoteTheCommandAsTypedAndSavesNeverReplaceTheModel) {
+    const auto dir = test::temp_dir("view_script_errors");
+    std::string log;
+    int rc = run(xvfb() + KDT_EXE +
+                     " view --width 64 --height 48 --script 'set tree.max_depth 65' --frames 2",
+                 dir / "log.txt", &log);
+    EXPECT_NE(rc, 0) << log;
+    EXPECT_NE(log.find("view --script: 'set tree.max_depth 65': tree.max_depth (--depth) must "
+                       "be in [0, 64] (got 65)"),
+              std::string::npos)
+        << log;
+    // A session saved over the model being viewed is refused; the model stays.
+    const std::string model = (dir / "tri.ply").string();
+    std::ofstream(model) << "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
+                            "property float y\nproperty float z\nelement face 1\n"
+                            "property list uchar int vertex_indices\nend_header\n"
+                            "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    rc = run(xvfb() + KDT_EXE + " view " + model + " --width 64 --height 48 --no-cache " +
+                 "--script 'save_session " + model + "' --frames 2",
+             dir / "log2.txt", &log);
+    EXPECT_NE(rc, 0) << log;
+    EXPECT_NE(log.find("cannot write the session file: it is the input " + model),
+              std::string::npos)
+        << log;
+    std::ifstream f(model);
+    std::string first;
+    std::getline(f, first);
+    EXPECT_EQ(first, "ply");
+}
+
 TEST(ViewerE2E, MaterialChangeAndProbeSwapChangeTheImage) {
     const auto dir = test::temp_dir("view_probe_material");
     ImageRGB red_sky(16, 8);
