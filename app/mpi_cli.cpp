@@ -18,11 +18,13 @@
 
 #include "renderer/core/error.h"
 #include "renderer/core/output_path.h"
+#include "renderer/core/temp_file.h"
 #include "renderer/core/timer.h"
 #include "renderer/io/image_io.h"
 #include "renderer/render/prepare.h"
 #include "renderer/render/session.h"
 #include "renderer/render/settings.h"
+#include "renderer/scene/scene.h"
 #include "renderer/scene/views.h"
 #ifdef KDT_HAVE_MPI
 #include <mpi.h>
@@ -67,7 +69,9 @@ void add_dist_options(CLI::App& app, DistArgs& a, RenderOptions& options) {
         ->type_name("SPEC");
     app.add_flag("--turntable", a.turntable,
                  "The --frames N orbit the camera about its up axis through its target");
-    app.add_option("--mpi-stats", a.stats_file, "With --mpi: rank 0 writes per-rank stats (JSON)");
+    non_empty_file_name(app.add_option("--mpi-stats", a.stats_file,
+                                       "With --mpi: rank 0 writes per-rank stats (JSON)"),
+                        "--mpi-stats");
     app.add_option("--throttle", a.throttle,
                    "Test only: RANK:FACTOR makes that rank sleep (FACTOR - 1) x its render time");
     app.add_option("--mpi-inject", a.inject,
@@ -242,6 +246,31 @@ std::vector<FramePlan> list_frames(const RenderOptions& base, const DistArgs& a)
     return out;
 }
 
+// The same file, however spelt, whether or not it exists yet.
+bool same_file(const std::string& a, const std::string& b) {
+    std::error_code ec1, ec2;
+    const std::filesystem::path pa = std::filesystem::weakly_canonical(a, ec1);
+    const std::filesystem::path pb = std::filesystem::weakly_canonical(b, ec2);
+    return !ec1 && !ec2 && pa == pb;
+}
+
+// --mpi-stats is written after the render: it must be no input and no image of the run, and
+// writable, before anything is loaded.
+void check_stats_output(const std::vector<FramePlan>& frames, const DistArgs& a,
+                        const std::string& views, const std::string& session) {
+    std::vector<std::string> inputs = {views, session};
+    for (const FramePlan& f : frames) {
+        if (same_file(a.stats_file, f.output)) {
+            throw Error("--mpi-stats " + a.stats_file +
+                        ": is also the image output; give the stats another file");
+        }
+        const SceneOptions& sc = f.options.scene;
+        inputs.insert(inputs.end(),
+                      {sc.scene_path, sc.env_file, sc.tree_file, f.session, f.output});
+    }
+    check_output(a.stats_file, inputs, "the --mpi-stats file");
+}
+
 // The frames of the sequence the flags ask for (one frame without --frames), with their
 // outputs; with check_outputs the outputs are checked too (only the rank that writes).
 std::vector<FramePlan> plan_frames(const RenderOptions& base, const std::string& output,
@@ -267,6 +296,7 @@ std::vector<FramePlan> plan_frames(const RenderOptions& base, const std::string&
                      {sc.scene_path, sc.env_file, sc.tree_file, f.session, views, session},
                      "the image");
     }
+    if (check_outputs && !a.stats_file.empty()) check_stats_output(frames, a, views, session);
     return frames;
 }
 
@@ -438,7 +468,8 @@ void report(const std::vector<dist::RankStats>& ranks, const DistArgs& a, const 
                                  {"messages", r.messages},
                                  {"bytes", r.bytes}});
     }
-    std::ofstream(a.stats_file) << j.dump(1) << "\n";
+    const std::string text = j.dump(1) + "\n";
+    write_file_atomically(a.stats_file, text.data(), text.size());
 }
 
 void draw_farm_progress(int done, int total, double seconds, const char* unit) {
@@ -499,8 +530,15 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
     });
     std::vector<dist::FrameJob> jobs;
     dist::check_every_rank(ctx, "could not set up the frames", [&]() -> uint64_t {
-        for (size_t i = 0; i < frames.size(); ++i)
+        for (size_t i = 0; i < frames.size(); ++i) {
             jobs.push_back({frame_snapshot(scenes, frames, i), frames[i].options});
+            if (!root) continue;
+            // The files a scene file names are known once it is loaded.
+            const std::vector<std::string> inputs =
+                scene_input_files(scenes.prepared[scenes.of_frame[i]].scene);
+            check_output(frames[i].output, inputs, "the image");
+            if (!a.stats_file.empty()) check_output(a.stats_file, inputs, "the --mpi-stats file");
+        }
         return 0;
     });
     const bool tty = root && !quiet && isatty(fileno(stderr));
@@ -525,15 +563,27 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
     } else {
         Film film;
         result = dist::render_tile_farm(ctx, jobs[0].snapshot, o, params, &film, progress);
-        if (root) write_film(frames[0], film, *jobs[0].snapshot, how);
         items = (film.width() + RenderSession::kTileSize - 1) / RenderSession::kTileSize *
                 ((film.height() + RenderSession::kTileSize - 1) / RenderSession::kTileSize);
+        // Every rank is done with the farm: a failed write ends rank 0 alone, as an error,
+        // after write_or_rescue() has saved the image elsewhere.
+        if (root) {
+            try {
+                write_film(frames[0], film, *jobs[0].snapshot, how);
+            } catch (const Error& e) {
+                throw dist::FarmError(e.what(), true);
+            }
+        }
     }
     const double seconds = timer.seconds();
     if (tty) std::fprintf(stderr, "\n");
     if (!root) return;
     const PathCounters& c = result.counters;
-    report(result.ranks, a, unit, items, seconds);
+    try {
+        report(result.ranks, a, unit, items, seconds);
+    } catch (const Error& e) {
+        throw dist::FarmError(e.what(), true);
+    }
     std::printf(
         "render: %s: %dx%d, %.2f s, %d spp, %.2f Mrays/s over %d ranks (%llu rays, %llu "
         "non-finite dropped) -> %s\n",

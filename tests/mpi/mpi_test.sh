@@ -245,5 +245,26 @@ bad_list)
     out=$("$kdtrace" "${common[@]}" --frames sessions:near.json,sub/near.json -o o.pfm 2>&1)
     grep -q "would both be written to o_near.pfm" <<< "$out" || { echo "$out"; fail "same output"; }
     echo "ok: bad listed files stop every rank with one message" ;;
+stats_output)
+    # --mpi-stats is checked with the image before anything loads: never an input, the
+    # image, a directory, a device or a file in a missing directory; an empty name is an error.
+    cp "$model" model.ply
+    sum=$(md5sum < model.ply)
+    ln -sf model.ply link.json
+    for bad in model.ply link.json x.pfm "$work" /dev/full /nonexistent/s.json ""; do
+        rm -f x.pfm
+        out=$(mpi 2 render model.ply --no-cache --width 24 --height 16 --spp 1 --threads 1 --quiet \
+            --mpi --mpi-stats "$bad" -o x.pfm 2>&1); rc=$?
+        echo "$out"
+        [ $rc -ne 0 ] || fail "--mpi-stats '$bad': exit status 0"
+        grep -q "kdtrace: error: .*--mpi-stats" <<< "$out" || fail "--mpi-stats '$bad': no message"
+        [ -e x.pfm ] && fail "--mpi-stats '$bad': the image was written"
+    done
+    [ "$(md5sum < model.ply)" = "$sum" ] || fail "the model was overwritten"
+    mpi 2 render model.ply --no-cache --width 24 --height 16 --spp 1 --threads 1 --quiet --mpi \
+        --mpi-stats stats.json -o x.pfm > log.txt 2>&1 || { cat log.txt; fail "a good --mpi-stats"; }
+    grep -q '"per_rank"' stats.json || fail "stats.json has no per_rank"
+    ls stats.json.*tmp 2> /dev/null && fail "a temporary file was left"
+    echo "ok: bad --mpi-stats files refused before the render" ;;
 *) fail "unknown case $case_name" ;;
 esac
