@@ -16,6 +16,7 @@
 #include "app/commands.h"
 #include "app/mpi_cli.h"
 #include "app/options_cli.h"
+#include "app/rescue.h"
 #include "renderer/core/error.h"
 #include "renderer/core/interrupt.h"
 #include "renderer/core/output_path.h"
@@ -135,30 +136,6 @@ std::string rerender_command(const RenderOptions& o, const CameraDesc& camera, d
     append_flags(c, film, film_fields());
     append_flags(c, stop, stop_fields());
     return c;
-}
-
-// A render whose image cannot be written at the end (a full disk, the directory gone) is not
-// thrown away: it is written to "kdtrace-rescued-<pid>-<output's name>" in $TMPDIR (or
-// /tmp) instead, and the error names that file.
-void write_or_rescue(const std::string& output, const ImageRGB& image, const ToneParams& tone,
-                     const ImageMetadata& meta) {
-    try {
-        write_image(output, image, tone, meta);
-        return;
-    } catch (const Error& e) {
-        const char* tmp = std::getenv("TMPDIR");
-        const std::filesystem::path dir = tmp && *tmp ? tmp : "/tmp";
-        const std::string rescue = (dir / ("kdtrace-rescued-" + std::to_string(::getpid()) + "-" +
-                                           std::filesystem::path(output).filename().string()))
-                                       .string();
-        try {
-            write_image(rescue, image, tone, meta);
-        } catch (const Error& again) {
-            throw Error(std::string(e.what()) + "; the image could not be saved to " + rescue +
-                        " either: " + again.what());
-        }
-        throw Error(std::string(e.what()) + "; the image was saved to " + rescue + " instead");
-    }
 }
 
 void run(const RenderCommand& cmd) {

@@ -1,6 +1,7 @@
 #include "app/mpi_cli.h"
 
 #include "app/options_cli.h"
+#include "app/rescue.h"
 
 #include <unistd.h>
 
@@ -75,8 +76,10 @@ void add_dist_options(CLI::App& app, DistArgs& a, RenderOptions& options) {
     app.add_option("--throttle", a.throttle,
                    "Test only: RANK:FACTOR makes that rank sleep (FACTOR - 1) x its render time");
     app.add_option("--mpi-inject", a.inject,
-                   "Test only: RANK:load (the rank cannot open the scene) or RANK:hash (the "
-                   "rank reports a different tree)");
+                   "Test only: RANK:load (the rank cannot open the scene), RANK:hash (the "
+                   "rank reports a different tree), RANK:stall (its load never ends), RANK:stop "
+                   "(a worker stops itself, SIGSTOP, before its first item) or 0:write (rank 0 "
+                   "cannot write the images)");
 }
 
 void check_dist_flags(const CLI::App& app, const DistArgs& a) {
@@ -378,7 +381,7 @@ void write_film(const FramePlan& f, const Film& film, const RenderSnapshot& snap
     ToneParams tone;
     tone.exposure = o.film.exposure;
     tone.curve = o.film.tonemap;
-    write_image(f.output, image, tone, meta);
+    write_or_rescue(f.output, image, tone, meta);
 }
 
 // --frames without --mpi: every frame in this process, with any stop condition.
@@ -420,6 +423,24 @@ std::pair<int, std::string> rank_and(const std::string& spec, const char* flag) 
     } catch (const std::exception&) {
     }
     throw Error(std::string(flag) + " takes RANK:VALUE (got '" + spec + "')");
+}
+
+// --mpi-inject RANK:WHAT names a rank of the job and a fault the farm knows; a typo must not
+// make a fault test pass.
+void check_fault(const dist::InjectedFault& fault, const std::string& spec, int ranks) {
+    if (fault.rank < 0 || fault.rank >= ranks) {
+        throw Error("--mpi-inject " + spec + ": no rank " + std::to_string(fault.rank) + " among " +
+                    std::to_string(ranks));
+    }
+    if (fault.what != "load" && fault.what != "hash" && fault.what != "write" &&
+        fault.what != "stall" && fault.what != "stop") {
+        throw Error("--mpi-inject " + spec + ": unknown fault '" + printable(fault.what) +
+                    "' (faults: load, hash, stall, stop, write)");
+    }
+    if (fault.what == "write" && fault.rank != 0)
+        throw Error("--mpi-inject " + spec + ": only rank 0 writes images (use 0:write)");
+    if (fault.what == "stop" && fault.rank == 0)
+        throw Error("--mpi-inject " + spec + ": only a worker can stop (rank 1 or above)");
 }
 
 dist::FarmParams farm_params(const DistArgs& a, const RenderOptions& o) {
@@ -516,8 +537,17 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
                 }
             }
             params = farm_params(a, o);
-            if (!a.inject.empty())
+            if (!a.throttle.empty() &&
+                (params.throttle_rank < 0 || params.throttle_rank >= ctx.size())) {
+                throw Error("--throttle " + a.throttle + ": no rank " +
+                            std::to_string(params.throttle_rank) + " among " +
+                            std::to_string(ctx.size()));
+            }
+            if (!a.inject.empty()) {
                 std::tie(fault.rank, fault.what) = rank_and(a.inject, "--mpi-inject");
+                check_fault(fault, a.inject, ctx.size());
+                if (fault.what == "stop") params.stop_rank = fault.rank;
+            }
             return plan_hash(frames);
         },
         true);
@@ -541,6 +571,12 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
         }
         return 0;
     });
+    if (fault.what == "write" && root) {
+        // The outputs were checked above: the writes themselves fail.
+        for (FramePlan& f : frames)
+            f.output = "/nonexistent/kdtrace-injected-fault/" +
+                       std::filesystem::path(f.output).filename().string();
+    }
     const bool tty = root && !quiet && isatty(fileno(stderr));
     Timer timer;
     const char* unit = frames_unit(a);
@@ -605,6 +641,9 @@ void run_dist_render(const RenderOptions& options, const std::string& output, bo
         dist::MpiContext ctx;
         try {
             run_mpi(ctx, options, output, quiet, a);
+        } catch (const dist::FarmTimeout& e) {
+            // Never finalizes: see FarmTimeout.
+            ctx.end_after_timeout(with_flags(e.what()));
         } catch (const dist::FarmError& e) {
             // Printed before MPI_Finalize: mpirun ends the job once any rank has exited
             // non-zero, which could otherwise cut rank 0 off before its message.
@@ -614,10 +653,14 @@ void run_dist_render(const RenderOptions& options, const std::string& output, bo
             failed = true;
         } catch (const std::exception& e) {
             // A failure of this rank alone after the collective checks: the others may be
-            // waiting for it, so the whole job ends here.
+            // waiting for it, so the whole job ends here: mpirun ends every rank once one
+            // exits non-zero. Not MPI_Abort (Open MPI 4.1.4's mpirun hung in
+            // PMIx_server_finalize after it, 2 runs in 7), not MPI_Finalize (the others
+            // never reach it).
             std::fprintf(stderr, "kdtrace: error: rank %d: %s\n", ctx.rank(), e.what());
             std::fflush(stderr);
-            MPI_Abort(MPI_COMM_WORLD, 1);
+            std::fflush(stdout);
+            std::_Exit(1);
         }
     }
     if (failed) std::exit(1);

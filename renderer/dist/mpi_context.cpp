@@ -2,6 +2,7 @@
 
 #include <mpi.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -29,21 +30,44 @@ MpiContext::~MpiContext() {
 void MpiContext::start_watchdog(double seconds, double grace_seconds) {
     if (!(seconds > 0.0) || watchdog_.joinable()) return;
     timeout_ = seconds;
-    watchdog_ = std::thread([this, seconds, grace_seconds] {
+    // Rank 0 gives its main thread a moment to name the ranks it waits for; a worker waits
+    // for rank 0 to end the job, so that rank 0's message comes first.
+    const double grace = rank_ == 0 ? std::min(grace_seconds, 1.0) : grace_seconds;
+    watchdog_ = std::thread([this, seconds, grace] {
         std::unique_lock<std::mutex> lock(mutex_);
         if (cv_.wait_for(lock, std::chrono::duration<double>(seconds), [this] { return stop_; }))
             return;
         expired_.store(true);
-        if (cv_.wait_for(lock, std::chrono::duration<double>(grace_seconds),
-                         [this] { return stop_; }))
+        if (cv_.wait_for(lock, std::chrono::duration<double>(grace), [this] { return stop_; }))
             return;
+        if (rank_ == 0) {
+            if (!reported_.exchange(true)) {
+                std::fprintf(stderr,
+                             "kdtrace: error: --timeout %g s reached while rank 0 was busy "
+                             "outside the farm's waits; ending every rank\n",
+                             seconds);
+            }
+            std::fflush(stderr);
+            std::_Exit(1);
+        }
         std::fprintf(stderr,
-                     "kdtrace: error: rank %d: --timeout %g s reached and the rank is stuck; "
-                     "ending it\n",
+                     "kdtrace: error: rank %d: --timeout %g s reached and rank 0 did not end the "
+                     "job (stopped or stuck); ending this rank\n",
                      rank_, seconds);
         std::fflush(stderr);
         std::_Exit(3);
     });
+}
+
+void MpiContext::end_after_timeout(const std::string& message) {
+    if (rank_ == 0) {
+        if (!reported_.exchange(true))
+            std::fprintf(stderr, "kdtrace: error: %s\n", message.c_str());
+        std::fflush(stderr);
+        std::fflush(stdout);
+        std::_Exit(1);
+    }
+    for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));
 }
 
 void MpiContext::stop_watchdog() {
@@ -65,9 +89,14 @@ std::string MpiContext::broadcast(const std::string& text) const {
 
 void MpiContext::check_timeout() const {
     if (!expired()) return;
-    char buf[96];
-    std::snprintf(buf, sizeof buf, "--timeout %g s reached; every rank stopped", timeout_);
-    throw FarmError(buf, rank_ == 0);
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "--timeout %g s reached", timeout_);
+    std::string m = buf;
+    if (rank_ == 0 && pending_) {
+        const std::string pending = pending_();
+        if (!pending.empty()) m += ": " + pending;
+    }
+    throw FarmTimeout(m + "; ending every rank", rank_ == 0);
 }
 
 void MpiContext::poll_until(const std::function<bool()>& done) const {
@@ -101,7 +130,17 @@ uint64_t snapshot_hash(const RenderSnapshot& snap, const std::string& options_js
     return h;
 }
 
+std::string rank_list(const std::vector<int>& ranks, int size) {
+    std::string m = ranks.size() == 1 ? "rank " : "ranks ";
+    for (size_t i = 0; i < ranks.size(); ++i) m += (i ? ", " : "") + std::to_string(ranks[i]);
+    return m + " of " + std::to_string(size);
+}
+
 namespace {
+
+// A worker tells rank 0 that it finished a check's step, so that a timeout can name the
+// ranks that did not (the all-gather itself does not say who is missing).
+constexpr int kTagArrived = 7;
 
 // What every rank reports after loading, gathered on all ranks as bytes.
 struct LoadStatus {
@@ -122,11 +161,37 @@ void check_every_rank(const MpiContext& ctx, const std::string& what,
         std::snprintf(mine.message, sizeof mine.message, "%s", e.what());
     }
     std::vector<LoadStatus> all(size_t(ctx.size()));
+    int32_t arrived = 1;
+    MPI_Request sent = MPI_REQUEST_NULL;
+    if (ctx.rank() != 0) MPI_Isend(&arrived, 1, MPI_INT32_T, 0, kTagArrived, MPI_COMM_WORLD, &sent);
+    struct Pending {
+        const MpiContext& ctx;
+        ~Pending() { ctx.set_pending({}); }
+    } clear{ctx};
+    if (ctx.rank() == 0) {
+        const std::string stage = what.rfind("could not ", 0) == 0 ? what.substr(10) : what;
+        ctx.set_pending([&ctx, stage]() -> std::string {
+            std::vector<int> missing;
+            for (int r = 1; r < ctx.size(); ++r) {
+                int flag = 0;
+                MPI_Iprobe(r, kTagArrived, MPI_COMM_WORLD, &flag, MPI_STATUS_IGNORE);
+                if (!flag) missing.push_back(r);
+            }
+            if (missing.empty()) return "";
+            return rank_list(missing, ctx.size()) + " had not finished (" + stage + ")";
+        });
+    }
     // Ranks that finish first wait without spinning, leaving the cores to those still loading.
     MPI_Request request;
     MPI_Iallgather(&mine, int(sizeof mine), MPI_BYTE, all.data(), int(sizeof mine), MPI_BYTE,
                    MPI_COMM_WORLD, &request);
     ctx.wait(request);
+    if (ctx.rank() == 0) {
+        for (int r = 1; r < ctx.size(); ++r)
+            MPI_Recv(&arrived, 1, MPI_INT32_T, r, kTagArrived, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    } else {
+        ctx.wait(sent);
+    }
     const std::string of = " of " + std::to_string(ctx.size());
     int failed = 0, first = -1;
     for (int r = 0; r < ctx.size(); ++r) {
@@ -169,6 +234,9 @@ Prepared prepare_everywhere(const MpiContext& ctx, const RenderOptions& options,
                 o.scene.scene_path =
                     "/nonexistent/kdtrace-injected-fault/" +
                     (o.scene.scene_path.empty() ? "scene.json" : o.scene.scene_path);
+            }
+            if (fault.rank == ctx.rank() && fault.what == "stall") {
+                for (;;) std::this_thread::sleep_for(std::chrono::milliseconds(100));
             }
             prep = prepare_render(o, log);
             uint64_t hash = snapshot_hash(*prep.snapshot, json);

@@ -12,6 +12,7 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include <mpi.h>
 
@@ -31,6 +32,14 @@ private:
     bool report_;
 };
 
+/// The farm's --timeout expired (thrown by MpiContext::check_timeout on every rank). Such a
+/// rank must not finalize: an abandoned non-blocking operation may still write into freed
+/// buffers, and MPI_Finalize waits for ranks that may never come; end_after_timeout() ends it.
+class FarmTimeout : public FarmError {
+public:
+    using FarmError::FarmError;
+};
+
 /// MPI_Init_thread on construction,
 /// MPI_Finalize on destruction. One per process.
 class MpiContext {
@@ -44,14 +53,24 @@ public:
     int size() const { return size_; }
 
     /// After `seconds` (> 0) without stop_watchdog(), expired() turns true: the farm's waits
-    /// poll it, so every rank leaves its farm and finalizes cleanly (Open MPI 4.1's mpirun
-    /// can hang in PMIx_server_finalize after MPI_Abort or a rank ending without
-    /// MPI_Finalize). A rank that is still running `grace_seconds` later (stuck outside the
-    /// farm's waits) prints "rank R: --timeout S s reached" and ends with status 3.
-    void start_watchdog(double seconds, double grace_seconds = 10.0);
+    /// poll it and throw FarmTimeout, and end_after_timeout() ends the job: rank 0 prints the
+    /// message and exits with status 1 without MPI_Finalize, and mpirun then ends every other
+    /// rank (MPI_Abort is not used: Open MPI 4.1.4's mpirun can hang in PMIx_server_finalize
+    /// after it). When rank 0's main thread is stuck outside the waits (a blocking call, a
+    /// long load), its watchdog does the same 1 s later; a worker still running
+    /// `grace_seconds` after expiry (rank 0 stopped or stuck) prints "rank R: --timeout S s
+    /// reached ..." and ends with status 3.
+    void start_watchdog(double seconds, double grace_seconds = 5.0);
     bool expired() const { return expired_.load(std::memory_order_relaxed); }
-    /// Throws FarmError "--timeout S s reached; every rank stopped" once expired().
+    /// Throws FarmTimeout "--timeout S s reached: <pending>; ending every rank" once
+    /// expired(), with what set_pending() describes on rank 0.
     void check_timeout() const;
+    /// Rank 0: what the farm is waiting for, for the timeout message ("rank 2 of 3 had not
+    /// answered"); empty = not known. Cleared with an empty function.
+    void set_pending(std::function<std::string()> pending) const { pending_ = std::move(pending); }
+    /// After a FarmTimeout: rank 0 prints `message` (once) and exits with status 1; a worker
+    /// waits to be ended by mpirun (or by its watchdog). Never returns; never finalizes.
+    [[noreturn]] void end_after_timeout(const std::string& message);
     double timeout_seconds() const { return timeout_; }
     void stop_watchdog();
 
@@ -75,12 +94,19 @@ private:
     std::mutex mutex_;
     std::condition_variable cv_;
     bool stop_ = false;
+    mutable std::function<std::string()> pending_;
+    std::atomic<bool> reported_{false};  // rank 0 printed the timeout message
 };
+
+/// "rank 2 of 3" or "ranks 1, 2 of 3", for messages.
+std::string rank_list(const std::vector<int>& ranks, int size);
 
 /// Test-only faults injected on one rank (--mpi-inject RANK:WHAT).
 struct InjectedFault {
-    int rank = -1;     ///< -1 = none
-    std::string what;  ///< "load": the scene path cannot be opened; "hash": a different tree
+    int rank = -1;  ///< -1 = none
+    /// "load": the scene path cannot be opened; "hash": a different tree; "stall": the load
+    /// never ends (until the job is ended); the app handles "write" and "stop"
+    std::string what;
 };
 
 /// Collective: every rank runs `step`, then all ranks compare outcomes. When any rank's step

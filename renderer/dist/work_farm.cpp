@@ -2,6 +2,7 @@
 
 #include <mpi.h>
 
+#include <csignal>
 #include <cstdio>
 #include <ctime>
 
@@ -77,7 +78,8 @@ public:
           params_(params),
           consume_(consume),
           progress_(progress),
-          told_done_(size_t(ctx.size()), false) {
+          told_done_(size_t(ctx.size()), false),
+          outstanding_(size_t(ctx.size()), 0) {
         const auto lists = assign_items(params.distribution, items, params.columns, ctx.size());
         for (const auto& l : lists) sources_.emplace_back(l.begin(), l.end());
     }
@@ -120,9 +122,11 @@ public:
         const size_t off = sizeof h + items.size() * sizeof(int32_t);
         if (!items.empty()) done_items(items, buffer_.data() + off, buffer_.size() - off);
         const int w = st.MPI_SOURCE;
+        outstanding_[size_t(w)] -= int(items.size());
         if (!told_done_[size_t(w)]) {
             const std::vector<int> next = take(w, std::max(h.want, 1));
             MPI_Send(next.data(), int(next.size()), MPI_INT, w, kTagWork, MPI_COMM_WORLD);
+            outstanding_[size_t(w)] += int(next.size());
             stats.messages += 1;
             stats.bytes += next.size() * sizeof(int32_t);
             if (next.empty()) told_done_[size_t(w)] = true;
@@ -138,8 +142,23 @@ public:
         }
     }
 
+    // For a timeout's message: the workers holding items they have not returned.
+    std::string pending() const {
+        std::vector<int> late;
+        for (int w = 1; w < ctx_.size(); ++w)
+            if (outstanding_[size_t(w)] > 0) late.push_back(w);
+        if (late.empty()) return "";
+        return rank_list(late, ctx_.size()) + " had not returned " +
+               (late.size() == 1 ? "its" : "their") + " work";
+    }
+
     void run(const RenderItems& render) {
         Timer wall;
+        ctx_.set_pending([this] { return pending(); });
+        struct Clear {
+            const MpiContext& ctx;
+            ~Clear() { ctx.set_pending({}); }
+        } clear{ctx_};
         const std::function<void()> poll_fn = [this] { poll(); };
         while (done_ < total_) {
             poll();
@@ -174,6 +193,7 @@ private:
     const FarmProgress& progress_;
     std::vector<std::deque<int>> sources_;
     std::vector<bool> told_done_;
+    std::vector<int> outstanding_;  // per worker: items sent and not returned
     std::vector<char> buffer_;
 };
 
@@ -228,6 +248,7 @@ RankStats run_worker(const MpiContext& ctx, const FarmParams& params, const Rend
             mine.push_back(queue.front());
             queue.pop_front();
         }
+        if (ctx.rank() == params.stop_rank) std::raise(SIGSTOP);
         Timer t;
         const std::vector<char> bytes = render(mine, no_poll);
         throttle(ctx, params, t.seconds());

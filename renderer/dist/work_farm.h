@@ -34,6 +34,7 @@ struct FarmParams {
     int batches_in_flight = 2;
     int throttle_rank = -1;  ///< test-only: this rank sleeps (factor - 1) x its render time
     double throttle_factor = 1.0;
+    int stop_rank = -1;  ///< test-only: this rank stops itself (SIGSTOP) before its first item
 };
 
 /// What one rank did, gathered on rank 0. idle = wall - busy.

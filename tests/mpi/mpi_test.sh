@@ -130,8 +130,35 @@ timeout)
         -o x.pfm 2>&1); rc=$?
     echo "$out"
     [ $rc -ne 0 ] || fail "a timed-out run gave exit status 0"
-    grep -q "kdtrace: error: --timeout 6 s reached; every rank stopped" <<< "$out" ||
-        fail "no timeout message" ;;
+    grep -q "kdtrace: error: --timeout 6 s reached: rank 2 of 3 had not returned its work; ending every rank" <<< "$out" ||
+        fail "no timeout message naming rank 2" ;;
+timeout_stall)
+    # A rank whose load never ends (a test fault, not timing): the others time out in the
+    # load check and the job ends with rank 0's message and status 1, not a crash in
+    # MPI_Finalize (an abandoned all-gather); rank 0 stalled ends it through its watchdog.
+    for r in 2 0; do
+        out=$(mpi 3 "${common[@]}" --mpi --mpi-inject "$r:stall" --timeout 1 -o x.pfm 2>&1); rc=$?
+        echo "$out"
+        [ $rc -eq 1 ] || fail "rank $r stalled: exit status $rc, not 1"
+        grep -q "Segmentation" <<< "$out" && fail "rank $r stalled: a crash"
+        [ "$(grep -c 'kdtrace: error: --timeout 1 s reached' <<< "$out")" -eq 1 ] ||
+            fail "rank $r stalled: not exactly one timeout message"
+    done
+    grep -q "rank 2 of 3 had not finished (load the scene)" <<< "$(mpi 3 "${common[@]}" --mpi \
+        --mpi-inject 2:stall --timeout 1 -o x.pfm 2>&1)" || fail "the message does not name rank 2"
+    [ -e x.pfm ] && fail "an image was written"
+    echo "ok: a stalled load ends the job with status 1" ;;
+timeout_stop)
+    # A worker stopped (SIGSTOP) with work in hand: rank 0 names it and the job ends; the
+    # healthy ranks do not wait in MPI_Finalize for it.
+    start=$(date +%s)
+    out=$(mpi 3 "${common[@]}" --mpi --mpi-inject 1:stop --timeout 1 -o x.pfm 2>&1); rc=$?
+    echo "$out"
+    [ $rc -eq 1 ] || fail "exit status $rc, not 1"
+    grep -q "kdtrace: error: --timeout 1 s reached: rank 1 of 3 had not returned its work; ending every rank" \
+        <<< "$out" || fail "the message does not name rank 1"
+    [ $(($(date +%s) - start)) -lt 60 ] || fail "the job took a minute to end"
+    echo "ok: a stopped worker is named and the job ends" ;;
 refuse_adaptive)
     # A tile's adaptive decisions read its neighbours across tile borders: refused for tiles.
     for flags in "--error 0.1" "--adaptive"; do
@@ -266,5 +293,28 @@ stats_output)
     grep -q '"per_rank"' stats.json || fail "stats.json has no per_rank"
     ls stats.json.*tmp 2> /dev/null && fail "a temporary file was left"
     echo "ok: bad --mpi-stats files refused before the render" ;;
+rescue)
+    # Rank 0's final write fails (a test fault: the writes go to a missing directory after
+    # the checks): the image is saved as $TMPDIR/kdtrace-rescued-PID-NAME, as without --mpi.
+    "$kdtrace" "${common[@]}" -o ref.pfm > /dev/null || fail "single-process render"
+    rm -rf tmp && mkdir tmp
+    out=$(TMPDIR=$work/tmp mpi 2 "${common[@]}" --mpi --mpi-inject 0:write -o x.pfm 2>&1); rc=$?
+    echo "$out"
+    [ $rc -eq 1 ] || fail "exit status $rc, not 1"
+    grep -q "kdtrace: error: .*x.pfm.*; the image was saved to $work/tmp/kdtrace-rescued-[0-9]*-x.pfm instead" \
+        <<< "$out" || fail "no rescue message"
+    cmp ref.pfm tmp/kdtrace-rescued-*-x.pfm || fail "the rescued image differs"
+    echo "ok: the image of a failed write is rescued" ;;
+test_flags)
+    # The test-only flags name a rank of the job and a known fault, or are errors.
+    for flags in "--throttle 5:2" "--throttle -1:2" "--mpi-inject 7:load" "--mpi-inject 1:foo" \
+        "--mpi-inject 1:write" "--mpi-inject 0:stop"; do
+        out=$(mpi 3 "${common[@]}" --mpi $flags -o x.pfm 2>&1); rc=$?
+        echo "$out"
+        [ $rc -ne 0 ] || fail "$flags: exit status 0"
+        grep -q "kdtrace: error: every rank could not start: ${flags%% *} " <<< "$out" ||
+            fail "$flags: no message"
+    done
+    echo "ok: bad test flags refused" ;;
 *) fail "unknown case $case_name" ;;
 esac
