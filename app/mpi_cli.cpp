@@ -524,33 +524,31 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
     dist::FarmParams params;
     dist::InjectedFault fault;
     std::vector<FramePlan> frames;
-    dist::check_every_rank(
-        ctx, "could not start",
-        [&]() -> uint64_t {
-            options_from_json(json, o, "rank 0's options");
-            frames = plan_frames(o, output, a, root);  // only rank 0 writes
-            for (const FramePlan& f : frames) {
-                if (sequence) {
-                    dist::check_frame_farm_options(f.options);
-                } else {
-                    dist::check_tile_farm_options(f.options);
-                }
+    dist::check_every_rank(ctx, "could not start", [&]() -> dist::Fingerprint {
+        options_from_json(json, o, "rank 0's options");
+        frames = plan_frames(o, output, a, root);  // only rank 0 writes
+        for (const FramePlan& f : frames) {
+            if (sequence) {
+                dist::check_frame_farm_options(f.options);
+            } else {
+                dist::check_tile_farm_options(f.options);
             }
-            params = farm_params(a, o);
-            if (!a.throttle.empty() &&
-                (params.throttle_rank < 0 || params.throttle_rank >= ctx.size())) {
-                throw Error("--throttle " + a.throttle + ": no rank " +
-                            std::to_string(params.throttle_rank) + " among " +
-                            std::to_string(ctx.size()));
-            }
-            if (!a.inject.empty()) {
-                std::tie(fault.rank, fault.what) = rank_and(a.inject, "--mpi-inject");
-                check_fault(fault, a.inject, ctx.size());
-                if (fault.what == "stop") params.stop_rank = fault.rank;
-            }
-            return plan_hash(frames);
-        },
-        true);
+        }
+        params = farm_params(a, o);
+        if (!a.throttle.empty() &&
+            (params.throttle_rank < 0 || params.throttle_rank >= ctx.size())) {
+            throw Error("--throttle " + a.throttle + ": no rank " +
+                        std::to_string(params.throttle_rank) + " among " +
+                        std::to_string(ctx.size()));
+        }
+        if (!a.inject.empty()) {
+            std::tie(fault.rank, fault.what) = rank_and(a.inject, "--mpi-inject");
+            check_fault(fault, a.inject, ctx.size());
+            if (fault.what == "stop") params.stop_rank = fault.rank;
+        }
+        return dist::Fingerprint{
+            {"list of frames and their options (views and session files)", plan_hash(frames)}};
+    });
     const PrepareLog log = [&](const std::string& line) {
         if (root && !quiet) std::fprintf(stderr, "kdtrace: %s\n", line.c_str());
     };
@@ -559,7 +557,7 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
         return dist::prepare_everywhere(ctx, k, log, fault);
     });
     std::vector<dist::FrameJob> jobs;
-    dist::check_every_rank(ctx, "could not set up the frames", [&]() -> uint64_t {
+    dist::check_every_rank(ctx, "could not set up the frames", [&]() -> dist::Fingerprint {
         for (size_t i = 0; i < frames.size(); ++i) {
             jobs.push_back({frame_snapshot(scenes, frames, i), frames[i].options});
             if (!root) continue;
@@ -569,7 +567,7 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
             check_output(frames[i].output, inputs, "the image");
             if (!a.stats_file.empty()) check_output(a.stats_file, inputs, "the --mpi-stats file");
         }
-        return 0;
+        return {};
     });
     if (fault.what == "write" && root) {
         // The outputs were checked above: the writes themselves fail.

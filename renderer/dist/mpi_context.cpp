@@ -7,7 +7,10 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <functional>
+#include <map>
+#include <stdexcept>
 #include <vector>
 
 #include "renderer/core/error.h"
@@ -116,18 +119,41 @@ void MpiContext::wait(MPI_Request& request) const {
     });
 }
 
-uint64_t snapshot_hash(const RenderSnapshot& snap, const std::string& options_json) {
-    // FNV-1a style mixing of 64-bit words.
-    uint64_t h = 0xcbf29ce484222325ull;
-    auto mix = [&h](uint64_t v) {
-        h ^= v;
+namespace {
+
+// FNV-1a over bytes.
+uint64_t fnv1a(const char* data, size_t size, uint64_t h = 0xcbf29ce484222325ull) {
+    for (size_t i = 0; i < size; ++i) {
+        h ^= uint8_t(data[i]);
         h *= 0x100000001b3ull;
-        h ^= h >> 29;
-    };
-    mix(snap.scene->mesh ? snap.scene->mesh->content_hash() : 0);
-    mix(snap.scene->tree ? snap.scene->tree->nodes().size() : 0);
-    mix(std::hash<std::string>{}(options_json));
+    }
     return h;
+}
+
+// The content of a file (0 when it cannot be read: the load read it just before).
+uint64_t file_hash(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    uint64_t h = 0xcbf29ce484222325ull;
+    std::vector<char> buf(1 << 16);
+    while (in) {
+        in.read(buf.data(), std::streamsize(buf.size()));
+        h = fnv1a(buf.data(), size_t(in.gcount()), h);
+    }
+    return in.bad() ? 0 : h;
+}
+
+}  // namespace
+
+Fingerprint snapshot_fingerprint(const RenderSnapshot& snap, const std::string& options_json) {
+    const std::string& scene = snap.scene_name;
+    Fingerprint f;
+    f.emplace_back("mesh" + (scene.empty() ? std::string() : " of " + scene),
+                   snap.scene->mesh ? snap.scene->mesh->content_hash() : 0);
+    f.emplace_back("kd-tree", snap.scene->tree ? snap.scene->tree->nodes().size() : 0);
+    const std::string& env = snap.environment.file;
+    if (!env.empty()) f.emplace_back("environment map " + env, file_hash(env));
+    f.emplace_back("options", std::hash<std::string>{}(options_json));
+    return f;
 }
 
 std::string rank_list(const std::vector<int>& ranks, int size) {
@@ -145,17 +171,60 @@ constexpr int kTagArrived = 7;
 // What every rank reports after loading, gathered on all ranks as bytes.
 struct LoadStatus {
     int32_t ok = 0;
-    uint64_t hash = 0;
+    int32_t parts = 0;
+    uint64_t hash[kMaxFingerprintParts] = {};
     char message[480] = {};
 };
+
+// The message for ranks whose part `i` differs; "" when all agree.
+std::string mismatch(const std::vector<LoadStatus>& all, size_t i, const std::string& name) {
+    std::map<uint64_t, std::vector<int>> groups;
+    for (size_t r = 0; r < all.size(); ++r) groups[all[r].hash[i]].push_back(int(r));
+    if (groups.size() < 2) return "";
+    const int n = int(all.size());
+    auto tail = [&](int odd, int other) {
+        char hashes[64];
+        std::snprintf(hashes, sizeof hashes, "hash %016llx against %016llx",
+                      (unsigned long long)all[size_t(odd)].hash[i],
+                      (unsigned long long)all[size_t(other)].hash[i]);
+        return " (" + std::string(hashes) +
+               "): every rank must see the same files (shared filesystem)";
+    };
+    if (n == 2) return "ranks 0 and 1 of 2 see a different " + name + tail(0, 1);
+    const std::vector<int>* major = nullptr;
+    bool tie = false;
+    for (const auto& [hash, ranks] : groups) {
+        if (!major || ranks.size() > major->size()) {
+            major = &ranks;
+            tie = false;
+        } else if (ranks.size() == major->size()) {
+            tie = true;
+        }
+    }
+    if (tie) {
+        return "the ranks of " + std::to_string(n) + " disagree on the " + name +
+               tail(groups.begin()->second[0], std::next(groups.begin())->second[0]);
+    }
+    std::vector<int> odd;
+    for (const auto& [hash, ranks] : groups)
+        if (&ranks != major) odd.insert(odd.end(), ranks.begin(), ranks.end());
+    std::sort(odd.begin(), odd.end());
+    return rank_list(odd, n) + (odd.size() == 1 ? " sees" : " see") + " a different " + name +
+           " than the other ranks" + tail(odd[0], (*major)[0]);
+}
 
 }  // namespace
 
 void check_every_rank(const MpiContext& ctx, const std::string& what,
-                      const std::function<uint64_t()>& step, bool compare) {
+                      const std::function<Fingerprint()>& step) {
     LoadStatus mine;
+    Fingerprint parts;
     try {
-        mine.hash = step();
+        parts = step();
+        if (parts.size() > kMaxFingerprintParts)
+            throw std::logic_error("check_every_rank: too many fingerprint parts");
+        mine.parts = int32_t(parts.size());
+        for (size_t i = 0; i < parts.size(); ++i) mine.hash[i] = parts[i].second;
         mine.ok = 1;
     } catch (const std::exception& e) {
         std::snprintf(mine.message, sizeof mine.message, "%s", e.what());
@@ -209,16 +278,9 @@ void check_every_rank(const MpiContext& ctx, const std::string& what,
         if (failed > 1) m += " (and " + std::to_string(failed - 1) + " more ranks failed)";
         throw FarmError(m, ctx.rank() == 0);
     }
-    if (!compare) return;
-    for (int r = 1; r < ctx.size(); ++r) {
-        if (all[size_t(r)].hash == all[0].hash) continue;
-        char buf[64];
-        std::snprintf(buf, sizeof buf, "%016llx against %016llx",
-                      (unsigned long long)all[size_t(r)].hash, (unsigned long long)all[0].hash);
-        throw FarmError("rank " + std::to_string(r) + of +
-                            " renders a different scene or kd-tree than rank 0 (hash " + buf +
-                            "): every rank must see the same files (shared filesystem)",
-                        ctx.rank() == 0);
+    for (size_t i = 0; i < parts.size(); ++i) {
+        const std::string m = mismatch(all, i, parts[i].first);
+        if (!m.empty()) throw FarmError(m, ctx.rank() == 0);
     }
 }
 
@@ -226,24 +288,20 @@ Prepared prepare_everywhere(const MpiContext& ctx, const RenderOptions& options,
                             const PrepareLog& log, const InjectedFault& fault) {
     const std::string json = options_to_json(options);
     Prepared prep;
-    check_every_rank(
-        ctx, "could not load the scene",
-        [&] {
-            RenderOptions o = options;
-            if (fault.rank == ctx.rank() && fault.what == "load") {
-                o.scene.scene_path =
-                    "/nonexistent/kdtrace-injected-fault/" +
-                    (o.scene.scene_path.empty() ? "scene.json" : o.scene.scene_path);
-            }
-            if (fault.rank == ctx.rank() && fault.what == "stall") {
-                for (;;) std::this_thread::sleep_for(std::chrono::milliseconds(100));
-            }
-            prep = prepare_render(o, log);
-            uint64_t hash = snapshot_hash(*prep.snapshot, json);
-            if (fault.rank == ctx.rank() && fault.what == "hash") hash ^= 1;
-            return hash;
-        },
-        true);
+    check_every_rank(ctx, "could not load the scene", [&] {
+        RenderOptions o = options;
+        if (fault.rank == ctx.rank() && fault.what == "load") {
+            o.scene.scene_path = "/nonexistent/kdtrace-injected-fault/" +
+                                 (o.scene.scene_path.empty() ? "scene.json" : o.scene.scene_path);
+        }
+        if (fault.rank == ctx.rank() && fault.what == "stall") {
+            for (;;) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        }
+        prep = prepare_render(o, log);
+        Fingerprint f = snapshot_fingerprint(*prep.snapshot, json);
+        if (fault.rank == ctx.rank() && fault.what == "hash") f[1].second ^= 1;  // the tree
+        return f;
+    });
     return prep;
 }
 

@@ -12,6 +12,7 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include <mpi.h>
@@ -109,23 +110,31 @@ struct InjectedFault {
     std::string what;
 };
 
+/// What ranks must agree on: named parts ("the kd-tree", "the environment map probe.hdr")
+/// and their hashes, at most kMaxFingerprintParts; empty = nothing to compare.
+using Fingerprint = std::vector<std::pair<std::string, uint64_t>>;
+inline constexpr size_t kMaxFingerprintParts = 4;
+
 /// Collective: every rank runs `step`, then all ranks compare outcomes. When any rank's step
 /// threw, every rank throws FarmError "rank R of N <what>: <reason>" (the lowest failing
-/// rank, and how many others failed). The values `step` returns must all equal rank 0's
-/// unless `compare` is false; a rank that differs makes every rank throw FarmError naming it.
+/// rank, and how many others failed). The fingerprints `step` returns must agree part by
+/// part; for the first part that does not, every rank throws FarmError naming it (rank 0's
+/// name) and the odd ranks: with 2 ranks "ranks 0 and 1 of 2 see a different <part>", with
+/// more the ranks outside the largest group ("rank 0 of 3 sees a different <part> than the
+/// other ranks"), or "the ranks of N disagree on <part>" when no group is largest.
 void check_every_rank(const MpiContext& ctx, const std::string& what,
-                      const std::function<uint64_t()>& step, bool compare = false);
+                      const std::function<Fingerprint()>& step);
 
 /// Collective: every rank runs prepare_render(options) and then all ranks compare outcomes.
 /// When any rank failed, every rank throws FarmError "rank R of N could not load the scene:
-/// <reason>" (the lowest failing rank, and how many others failed); when a rank's scene and
-/// tree hash differs from rank 0's, "rank R renders a different scene or kd-tree than rank
-/// 0 ...". No rank renders before every rank has loaded.
+/// <reason>" (the lowest failing rank, and how many others failed); when ranks loaded a
+/// different mesh, tree, environment map or options (snapshot_fingerprint), the message
+/// names the part and the odd ranks. No rank renders before every rank has loaded.
 Prepared prepare_everywhere(const MpiContext& ctx, const RenderOptions& options,
                             const PrepareLog& log, const InjectedFault& fault = {});
 
-/// The hash that must agree across ranks: the merged mesh's content, the tree's size and
-/// the options.
-uint64_t snapshot_hash(const RenderSnapshot& snapshot, const std::string& options_json);
+/// What must agree across ranks: the merged mesh's content, the tree's size, the
+/// environment map file's content (when the environment is a map) and the options.
+Fingerprint snapshot_fingerprint(const RenderSnapshot& snapshot, const std::string& options_json);
 
 }  // namespace kdt::dist

@@ -114,8 +114,42 @@ fail_hash)
     out=$(mpi 3 "${common[@]}" --mpi --mpi-inject 2:hash -o x.pfm 2>&1); rc=$?
     echo "$out"
     [ $rc -ne 0 ] || fail "a rank with another tree gave exit status 0"
-    grep -q "kdtrace: error: rank 2 of 3 renders a different scene or kd-tree than rank 0" <<< "$out" ||
-        fail "message does not name rank 2" ;;
+    grep -q "kdtrace: error: rank 2 of 3 sees a different kd-tree than the other ranks" <<< "$out" ||
+        fail "message does not name rank 2"
+    # Rank 0 is the odd one: it is named, not rank 1.
+    out=$(mpi 3 "${common[@]}" --mpi --mpi-inject 0:hash -o x.pfm 2>&1)
+    grep -q "kdtrace: error: rank 0 of 3 sees a different kd-tree than the other ranks" <<< "$out" ||
+        { echo "$out"; fail "message does not name rank 0"; } ;;
+env_mismatch)
+    # Ranks that see another environment map under the same relative name stop with one
+    # message naming the file and the odd rank, instead of rendering a mixed image.
+    mkdir -p a b
+    small=(render "$model" --no-cache --width 16 --height 8 --spp 1 --threads 1 --quiet)
+    "$kdtrace" "${small[@]}" --seed 1 -o a/p.pfm > /dev/null &&
+        "$kdtrace" "${small[@]}" --seed 2 -o b/p.pfm > /dev/null &&
+        cp a/p.pfm p.pfm || fail "making the maps"
+    cmp -s a/p.pfm b/p.pfm && fail "the two maps are the same"
+    mpmd() {  # ranks in a/, then ranks in b/
+        timeout -k 5 100 "$mpiexec" --oversubscribe --allow-run-as-root \
+            -np "$1" -wdir "$work/a" "$kdtrace" "${common[@]}" --env p.pfm --mpi -o "$work/x.pfm" : \
+            -np "$2" -wdir "$work/b" "$kdtrace" "${common[@]}" --env p.pfm --mpi -o "$work/x.pfm"
+    }
+    for split in "1 1:ranks 0 and 1 of 2 see a different environment map p.pfm" \
+        "1 2:rank 0 of 3 sees a different environment map p.pfm than the other ranks" \
+        "2 1:rank 2 of 3 sees a different environment map p.pfm than the other ranks"; do
+        rm -f x.pfm
+        out=$(mpmd ${split%%:*} 2>&1); rc=$?
+        echo "$out"
+        [ $rc -ne 0 ] || fail "${split%%:*}: exit status 0"
+        grep -q "kdtrace: error: ${split#*:}" <<< "$out" || fail "${split%%:*}: message"
+        [ -e x.pfm ] && fail "${split%%:*}: an image was written"
+    done
+    # The same map everywhere renders as before.
+    cp a/p.pfm b/p.pfm
+    mpmd 1 1 > log.txt 2>&1 || { cat log.txt; fail "the same map on both ranks"; }
+    "$kdtrace" "${common[@]}" --env p.pfm -o ref.pfm > /dev/null && cmp ref.pfm x.pfm ||
+        fail "the image differs from the single-process render"
+    echo "ok: a different environment map is named with the odd rank" ;;
 fail_missing)
     out=$(mpi 2 render "$work/no_such_model.ply" --no-cache --spp 1 --mpi -o x.pfm 2>&1); rc=$?
     echo "$out"
