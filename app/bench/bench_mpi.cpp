@@ -5,9 +5,15 @@
 // (speedup / ranks), rank 0's serving time and bytes and messages per frame, and the
 // machine's load average. Runs take turns within each repeat; the medians of the repeats are
 // shown. A benchmark: it never fails on a time.
+#include <fcntl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -62,28 +68,72 @@ double median(std::vector<double> v) {
 
 std::string self_path() { return std::filesystem::read_symlink("/proc/self/exe").string(); }
 
+// One shell word, for messages: single quotes, each quote inside written as '\''.
+std::string shell_word(const std::string& s) {
+    std::string q = "'";
+    for (char ch : s) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
+    return q + "'";
+}
+
+// Runs argv (argv[0] looked up in PATH) with stdout and stderr to `log`, without a shell:
+// file names reach the program as they are, whatever characters they hold. Returns the
+// exit status, or 128 + the signal, or 127 when it could not be started.
+int run_logged(const std::vector<std::string>& argv, const std::string& log) {
+    std::vector<char*> args;
+    for (const std::string& s : argv) args.push_back(const_cast<char*>(s.c_str()));
+    args.push_back(nullptr);
+    const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+    if (fd < 0) throw Error(log + ": cannot write the launcher's log: " + std::strerror(errno));
+    std::fflush(stdout);
+    std::fflush(stderr);
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+        ::dup2(fd, 1);
+        ::dup2(fd, 2);
+        ::execvp(args[0], args.data());
+        std::fprintf(stderr, "%s: %s\n", args[0], std::strerror(errno));
+        ::_exit(127);
+    }
+    ::close(fd);
+    if (pid < 0) throw Error(std::string("bench mpi: cannot fork: ") + std::strerror(errno));
+    int status = 0;
+    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+    }
+    if (WIFEXITED(status)) return WEXITSTATUS(status);
+    return WIFSIGNALED(status) ? 128 + WTERMSIG(status) : 1;
+}
+
 nlohmann::json run_once(const BenchMpiArgs& a, const Run& r, int index) {
     const std::string stats = a.work_dir + "/stats_" + std::to_string(index) + ".json";
-    std::ostringstream cmd;
-    cmd << a.mpiexec << " --oversubscribe --allow-run-as-root " << a.launcher_flags << " -np "
-        << r.ranks << " '" << self_path() << "' render";
-    if (!a.model.empty()) cmd << " '" << a.model << "'";
+    std::vector<std::string> argv = {a.mpiexec, "--oversubscribe", "--allow-run-as-root"};
+    // --launcher-flags: words separated by blanks, passed on as they are.
+    std::istringstream flags(a.launcher_flags);
+    for (std::string word; flags >> word;) argv.push_back(word);
     const int w = r.frames && a.frame_width > 0 ? a.frame_width : a.width;
     const int h = r.frames && a.frame_height > 0 ? a.frame_height : a.height;
     const int spp = r.frames && a.frame_spp > 0 ? a.frame_spp : a.spp;
-    cmd << " --width " << w << " --height " << h << " --spp " << spp
-        << " --threads 1 --quiet --mpi --distribution " << r.distribution << " --mpi-stats '"
-        << stats << "'";
+    argv.insert(argv.end(), {"-np", std::to_string(r.ranks), self_path(), "render"});
+    if (!a.model.empty()) argv.push_back(a.model);
+    argv.insert(argv.end(), {"--width", std::to_string(w), "--height", std::to_string(h), "--spp",
+                             std::to_string(spp), "--threads", "1", "--quiet", "--mpi",
+                             "--distribution", r.distribution, "--mpi-stats", stats});
     if (r.frames) {
-        cmd << " --frames " << a.frames << " --turntable -o '" << a.work_dir << "/f_%03d.png'";
+        argv.insert(argv.end(), {"--frames", std::to_string(a.frames), "--turntable", "-o",
+                                 a.work_dir + "/f_%03d.png"});
     } else {
-        cmd << " -o '" << a.work_dir << "/image.png'";
+        argv.insert(argv.end(), {"-o", a.work_dir + "/image.png"});
     }
-    if (r.throttled) cmd << " --throttle 1:" << a.throttle;
-    cmd << " > '" << a.work_dir << "/log.txt' 2>&1";
+    if (r.throttled) {
+        std::ostringstream t;
+        t << "1:" << a.throttle;
+        argv.insert(argv.end(), {"--throttle", t.str()});
+    }
     std::filesystem::remove(stats);
-    if (std::system(cmd.str().c_str()) != 0) {
-        throw Error("bench mpi: '" + cmd.str() + "' failed; see " + a.work_dir + "/log.txt");
+    const std::string log = a.work_dir + "/log.txt";
+    if (run_logged(argv, log) != 0) {
+        std::string cmd;
+        for (const std::string& word : argv) cmd += (cmd.empty() ? "" : " ") + shell_word(word);
+        throw Error("bench mpi: " + cmd + " failed; see " + log);
     }
     std::ifstream in(stats);
     if (!in) throw Error(stats + ": no stats written");
@@ -230,8 +280,10 @@ void add_bench_mpi_command(CLI::App& parent) {
     sub->add_option("--frame-spp", args.frame_spp, "Turntable spp (0 = --spp)")
         ->check(CLI::Range(0, 1 << 20));
     sub->add_flag("--tiles,!--no-tiles", args.tiles, "The tile rows (default on)");
-    sub->add_option("--launcher-flags", args.launcher_flags,
-                    "Extra flags for the launcher, e.g. '--mca mpi_yield_when_idle 1'");
+    sub->add_option(
+        "--launcher-flags", args.launcher_flags,
+        "Extra flags for the launcher, words separated by blanks (no shell quoting), e.g. "
+        "'--mca mpi_yield_when_idle 1'");
     sub->add_option("--throttle", args.throttle, "Slowdown of rank 1 in throttled runs (1 = off)")
         ->check(CLI::Range(1.0, 1000.0))
         ->capture_default_str();

@@ -350,5 +350,21 @@ test_flags)
             fail "$flags: no message"
     done
     echo "ok: bad test flags refused" ;;
+bench_quote)
+    # bench mpi launches without a shell: a quote in a name works and a crafted name runs
+    # nothing.
+    rm -rf q && mkdir q && cp "$model" "q/it's.ply" && cp "$model" "q/x'; touch pwned; echo '.ply"
+    for m in "it's.ply" "x'; touch pwned; echo '.ply"; do
+        out=$(cd q && timeout -k 5 100 "$kdtrace" bench mpi --model "$work/q/$m" --mpiexec "$mpiexec" \
+            --ranks 1 --width 24 --height 16 --spp 1 --repeat 1 --work-dir "$work/q/w d'q" 2>&1)
+        rc=$?
+        echo "$out"
+        [ $rc -eq 0 ] || fail "bench mpi with the model '$m': exit status $rc"
+    done
+    [ -e q/pwned ] || [ -e pwned ] && fail "a file name ran a command"
+    out=$(timeout 100 "$kdtrace" bench mpi --model "$model" --mpiexec /bin/false --ranks 1 \
+        --width 24 --height 16 --spp 1 --repeat 1 --work-dir "$work/q/f" 2>&1)
+    grep -q "bench mpi: '/bin/false' .* failed; see" <<< "$out" || { echo "$out"; fail "/bin/false"; }
+    echo "ok: bench mpi passes file names as they are" ;;
 *) fail "unknown case $case_name" ;;
 esac
