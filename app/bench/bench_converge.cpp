@@ -5,11 +5,13 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <utility>
 #include <vector>
@@ -19,6 +21,8 @@
 #include "app/commands.h"
 #include "app/options_cli.h"
 #include "renderer/core/error.h"
+#include "renderer/core/output_path.h"
+#include "renderer/core/temp_file.h"
 #include "renderer/core/timer.h"
 #include "renderer/io/image_io.h"
 #include "renderer/render/prepare.h"
@@ -265,7 +269,32 @@ void run(const ConvergeArgs& a) {
     if (a.max_spp < 1 || a.reference_spp < 1)
         throw Error("--max-spp and --reference-spp must be >= 1");
     const std::vector<Config> configs = parse_configs(a);
+    // The reference and the outputs are checked before the reference render (minutes).
+    const std::vector<std::string> inputs = {a.scene, a.env, a.views};
+    ImageRGB given_ref;
+    if (!a.reference.empty()) {
+        std::string ext = fs::path(a.reference).extension().string();
+        std::transform(ext.begin(), ext.end(), ext.begin(),
+                       [](unsigned char c) { return char(std::tolower(c)); });
+        if (ext != ".exr" && ext != ".pfm") {
+            throw Error(
+                "--reference " + a.reference +
+                ": must be .exr or .pfm (a linear image; a PNG is tone-mapped and clipped)");
+        }
+        if (fs::exists(a.reference)) {
+            given_ref = load_image(a.reference);
+        } else {
+            check_output(a.reference, inputs, "the reference");
+            TempFile probe(a.reference);  // a directory that takes no files (/proc)
+        }
+    }
     fs::create_directories(a.out_dir);
+    for (const char* name : {"converge.csv", "reference.exr", "converge.png"}) {
+        if (std::string(name) == "reference.exr" && !a.reference.empty()) continue;
+        if (std::string(name) == "converge.png" && a.no_plot) continue;
+        check_output((fs::path(a.out_dir) / name).string(), inputs, "a bench converge output");
+        TempFile probe((fs::path(a.out_dir) / name).string());
+    }
     RenderOptions ro;
     ro.scene.scene_path = a.scene;
     ro.scene.env_file = a.env;
@@ -285,8 +314,8 @@ void run(const ConvergeArgs& a) {
 
     // Reference: given, or rendered with MIS at reference_spp under an independent seed.
     ImageRGB ref;
-    if (!a.reference.empty() && fs::exists(a.reference)) {
-        ref = load_image(a.reference);
+    if (given_ref.width > 0) {
+        ref = std::move(given_ref);
         if (ref.width != a.width || ref.height != a.height) {
             throw Error(ErrorLocation{a.reference}, "reference is " + std::to_string(ref.width) +
                                                         "x" + std::to_string(ref.height) +
@@ -350,13 +379,14 @@ void run(const ConvergeArgs& a) {
 
     const std::string csv = (fs::path(a.out_dir) / "converge.csv").string();
     {
-        std::ofstream out(csv);
-        if (!out) throw Error(ErrorLocation{csv}, "cannot open for writing");
+        std::ostringstream out;
         out << "config,spp,seconds,rays,rmse,relmse\n";
         for (const Point& p : points) {
             out << p.config << ',' << p.spp << ',' << p.seconds << ',' << p.rays << ',' << p.rmse
                 << ',' << p.relmse << '\n';
         }
+        const std::string text = out.str();
+        write_file_atomically(csv, text.data(), text.size());
     }
     std::printf("wrote %s\n", csv.c_str());
 
@@ -412,12 +442,15 @@ void add_bench_converge_command(CLI::App& parent) {
     auto* cmd =
         parent.add_subcommand("converge", "Error against time for several sampling strategies");
     cmd->add_option("SCENE", a.scene, "Scene or model; omitted = built-in default scene");
-    cmd->add_option("--env", a.env, "Environment map replacing the scene's");
+    non_empty_file_name(cmd->add_option("--env", a.env, "Environment map replacing the scene's"),
+                        "--env");
     cmd->add_option("--view", a.view,
                     "Camera of this view of the views file (the kd-tree bench's views A-D)");
     cmd->add_option("--views", a.views, "Views file for --view (default assets/views/dragon.json)");
-    cmd->add_option("--reference", a.reference,
-                    "Reference image (.exr/.pfm); rendered and written there when missing");
+    non_empty_file_name(
+        cmd->add_option("--reference", a.reference,
+                        "Reference image (.exr/.pfm); rendered and written there when missing"),
+        "--reference");
     cmd->add_option("--reference-spp", a.reference_spp, "Samples per pixel of a new reference")
         ->capture_default_str()
         ->check(CLI::Range(1, 1 << 20));

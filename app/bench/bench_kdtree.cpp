@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -20,6 +21,8 @@
 #include "app/commands.h"
 #include "app/options_cli.h"
 #include "renderer/core/error.h"
+#include "renderer/core/output_path.h"
+#include "renderer/core/temp_file.h"
 #include "renderer/io/mesh_io.h"
 
 namespace kdt::app {
@@ -52,6 +55,20 @@ Context load_context(const Options& opt) {
     ctx.views = load_views(ctx.views_path);
     if (opt.spp > 0) ctx.views.samples_per_pixel = opt.spp;
     ctx.configs = select_rows(opt.rows);
+    // The outputs are written after minutes of work: checked before any of it.
+    const std::vector<std::string> inputs = {ctx.model, ctx.views_path};
+    if (!opt.md.empty()) {
+        check_output(opt.md, inputs, "the Markdown tables");
+        TempFile probe(opt.md);  // a directory that takes no files (/proc)
+    }
+    if (!opt.csv.empty()) {
+        check_output(opt.csv, inputs, "the CSV tables");
+        TempFile probe(opt.csv);
+        std::error_code ec;
+        if (!opt.md.empty() &&
+            fs::weakly_canonical(opt.csv, ec) == fs::weakly_canonical(opt.md, ec))
+            throw Error("--csv " + opt.csv + " is also --md; give them different files");
+    }
 
     std::fprintf(stderr, "loading %s\n", ctx.model.c_str());
     MeshLoadInfo info;
@@ -89,15 +106,19 @@ void write_output(const Context& ctx, const std::vector<Table>& tables) {
     if (opt.md.empty()) {
         std::fputs(md.c_str(), stdout);
     } else {
-        std::ofstream out(opt.md);
-        out << md;
-        if (!out) throw Error(ErrorLocation{opt.md}, "cannot write Markdown");
+        try {
+            write_file_atomically(opt.md, md.data(), md.size());
+        } catch (const Error&) {
+            std::fputs(md.c_str(), stdout);  // the tables are not lost
+            throw;
+        }
         std::fprintf(stderr, "wrote %s\n", opt.md.c_str());
     }
     if (!opt.csv.empty()) {
-        std::ofstream out(opt.csv);
+        std::ostringstream out;
         for (const Table& t : tables) t.csv(out);
-        if (!out) throw Error(ErrorLocation{opt.csv}, "cannot write CSV");
+        const std::string csv = out.str();
+        write_file_atomically(opt.csv, csv.data(), csv.size());
         std::fprintf(stderr, "wrote %s\n", opt.csv.c_str());
     }
 }
@@ -176,8 +197,9 @@ void add_bench_kdtree_command(CLI::App& bench) {
         ->check(CLI::IsMember({"auto", "on", "off"}));
     cmd->add_option("--spp", opt.spp, "Primary rays per pixel (default: the views file's)")
         ->check(CLI::Range(1, 4096));
-    cmd->add_option("--csv", opt.csv, "Also write all tables as CSV");
-    cmd->add_option("--md", opt.md, "Write the Markdown here instead of stdout");
+    non_empty_file_name(cmd->add_option("--csv", opt.csv, "Also write all tables as CSV"), "--csv");
+    non_empty_file_name(
+        cmd->add_option("--md", opt.md, "Write the Markdown here instead of stdout"), "--md");
     cmd->add_flag("!--no-embree", opt.embree, "Skip the Embree comparison");
     cmd->add_flag("--embree-robust", opt.embree_robust,
                   "Add an Embree row with RTC_SCENE_FLAG_ROBUST");

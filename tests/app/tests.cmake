@@ -73,6 +73,25 @@ converge --configs mis,bogus --width 8 --height 6 --reference-spp 1 --max-spp 1 
 set_tests_properties(smoke.bench_converge_configs_first PROPERTIES
   PASS_REGULAR_EXPRESSION "error: --configs: unknown configuration 'bogus'"
   FAIL_REGULAR_EXPRESSION "WROTE|reference:")
+# bench kdtree and bench converge check their outputs and --reference before any work:
+# these fail before the default model loads or the reference renders (FAIL on "loading" or
+# "reference: N spp", the work having started).
+foreach(_case "kdtree_csv_dir;kdtree;--csv;/nonexistent/x.csv;directory /nonexistent does not exist"
+              "kdtree_md_device;kdtree;--md;/dev/full;/dev/full: cannot write the Markdown tables"
+              "kdtree_csv_proc;kdtree;--csv;/proc/x.csv;/proc/x.csv: cannot create temporary file"
+              "converge_ref_png;converge;--reference;${_tmp}/ref.png;--reference .*ref.png: must be .exr or .pfm"
+              "converge_ref_dir;converge;--reference;/nonexistent/r.pfm;directory /nonexistent does not exist")
+  list(GET _case 0 _id)
+  list(GET _case 1 _bench)
+  list(GET _case 2 _flag)
+  list(GET _case 3 _value)
+  list(GET _case 4 _why)
+  add_test(NAME smoke.bench_${_id}_first COMMAND ${_kdt} bench ${_bench} ${_flag} ${_value}
+           --threads 1)
+  set_tests_properties(smoke.bench_${_id}_first PROPERTIES
+    PASS_REGULAR_EXPRESSION "error: .*${_why}" FAIL_REGULAR_EXPRESSION "loading /|reference: [0-9]|bench converge: "
+    TIMEOUT 30)
+endforeach()
 # Render flags that cannot act are named: a warning when the image is what it would be
 # without them, an error when they ask for something that would not happen.
 foreach(_case "--timeout;5;warning: --timeout has no effect without --mpi"
