@@ -10,6 +10,7 @@
 
 #include "renderer/core/error.h"
 #include "renderer/core/open_file.h"
+#include "renderer/core/temp_file.h"
 
 namespace kdt {
 
@@ -29,6 +30,7 @@ void check_output(const std::string& output, const std::vector<std::string>& inp
         std::error_code ec;
         const fs::path dir = fs::absolute(output, ec).parent_path();
         if (!fs::is_directory(dir, ec)) fail("directory " + dir.string() + " does not exist");
+        TempFile probe(output);  // a directory that takes no new file (read-only, /proc)
         return;
     }
     struct stat target {};
@@ -73,6 +75,8 @@ void check_output(const std::string& output, const std::vector<std::string>& inp
              ") in the sticky directory " + dir.string() +
              ", where only its owner may replace it; choose another name");
     }
+    // The output is written as a temporary file renamed over it: one must be creatable.
+    TempFile probe(output);
 }
 
 }  // namespace kdt

@@ -360,3 +360,14 @@ add_test(NAME smoke.env_rotation_without_map COMMAND ${_kdt} render
          --env-rotation 30 -o ${_tmp}/env_rotation.pfm)
 set_tests_properties(smoke.env_rotation_without_map PROPERTIES
   PASS_REGULAR_EXPRESSION "warning: --env-rotation has no effect: the environment is a constant colour")
+
+# An output in a directory that takes no new file (/proc) is refused before the render, not
+# after it (when the image would have to be rescued).
+if(EXISTS /proc/self)
+  add_test(NAME smoke.output_in_proc_refused_first COMMAND ${_kdt} render
+           /usr/share/assimp/models/PLY/cube.ply --no-cache --width 8 --height 8 --spp 1
+           -o /proc/kdtrace_output.pfm)
+  set_tests_properties(smoke.output_in_proc_refused_first PROPERTIES
+    PASS_REGULAR_EXPRESSION "kdtrace_output.pfm: cannot create temporary file"
+    FAIL_REGULAR_EXPRESSION "saved to|render: ")
+endif()
