@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "renderer/core/error.h"
+#include "renderer/core/hash.h"
 
 namespace kdt::dist {
 
@@ -121,23 +122,14 @@ void MpiContext::wait(MPI_Request& request) const {
 
 namespace {
 
-// FNV-1a over bytes.
-uint64_t fnv1a(const char* data, size_t size, uint64_t h = 0xcbf29ce484222325ull) {
-    for (size_t i = 0; i < size; ++i) {
-        h ^= uint8_t(data[i]);
-        h *= 0x100000001b3ull;
-    }
-    return h;
-}
-
 // The content of a file (0 when it cannot be read: the load read it just before).
 uint64_t file_hash(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
-    uint64_t h = 0xcbf29ce484222325ull;
-    std::vector<char> buf(1 << 16);
+    uint64_t h = kFnvOffset;
+    std::vector<char> buf(1 << 16);  // whole words per piece: the same hash as in one piece
     while (in) {
         in.read(buf.data(), std::streamsize(buf.size()));
-        h = fnv1a(buf.data(), size_t(in.gcount()), h);
+        h = fnv1a(h, buf.data(), size_t(in.gcount()));
     }
     return in.bad() ? 0 : h;
 }

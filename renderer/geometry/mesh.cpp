@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "renderer/core/error.h"
+#include "renderer/core/hash.h"
 
 namespace kdt {
 
@@ -20,25 +21,8 @@ Bounds3f TriangleMesh::bounds() const {
     return b;
 }
 
-namespace {
-
-uint64_t fnv1a(uint64_t h, const void* data, size_t bytes) {
-    const auto* p = static_cast<const unsigned char*>(data);
-    // Hash 8 bytes at a time (FNV-1a over words) so multi-million-vertex meshes hash fast.
-    size_t i = 0;
-    for (; i + 8 <= bytes; i += 8) {
-        uint64_t w;
-        std::memcpy(&w, p + i, 8);
-        h = (h ^ w) * 0x100000001b3ull;
-    }
-    for (; i < bytes; ++i) h = (h ^ p[i]) * 0x100000001b3ull;
-    return h;
-}
-
-}  // namespace
-
 uint64_t TriangleMesh::content_hash() const {
-    uint64_t h = 0xcbf29ce484222325ull;
+    uint64_t h = kFnvOffset;
     uint64_t counts[2] = {positions.size(), triangles.size()};
     h = fnv1a(h, counts, sizeof(counts));
     h = fnv1a(h, positions.data(), positions.size() * sizeof(Vec3f));
