@@ -9,8 +9,11 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <sstream>
 #include <thread>
+
+#include <sys/stat.h>
 
 #include "renderer/core/error.h"
 #include "renderer/core/output_path.h"
@@ -28,6 +31,25 @@ namespace {
 
 double ms_since(Viewer::Clock::time_point t) {
     return std::chrono::duration<double, std::milli>(Viewer::Clock::now() - t).count();
+}
+
+// A session is read from anywhere (`kdtrace render --session`, another viewer), while the
+// viewer's file names are as typed, relative to its working directory: a session holds them
+// absolute.
+std::string absolute_file_name(const std::string& name) {
+    if (name.empty()) return name;
+    std::error_code ec;
+    const std::filesystem::path p = std::filesystem::absolute(name, ec);
+    return ec ? name : p.lexically_normal().string();
+}
+
+// Two names of one file: the same text, or the same inode.
+bool same_file(const std::string& a, const std::string& b) {
+    if (a == b) return true;
+    struct stat sa {
+    }, sb{};
+    return ::stat(a.c_str(), &sa) == 0 && ::stat(b.c_str(), &sb) == 0 && sa.st_dev == sb.st_dev &&
+           sa.st_ino == sb.st_ino;
 }
 
 double percentile(std::vector<double> v, double p) {
@@ -368,7 +390,10 @@ void Viewer::save_image(const std::string& base) const {
 }
 
 void Viewer::save_session(const std::string& path) const {
-    const RenderOptions o = shown_options(false);
+    RenderOptions o = shown_options(false);
+    for (std::string* name :
+         {&o.scene.scene_path, &o.scene.env_file, &o.scene.tree_file, &o.scene.cache_dir})
+        *name = absolute_file_name(*name);
     check_viewer_output(path, "the session file");
     const std::string text = options_to_json(o) + "\n";
     write_file_atomically(path, text.data(), text.size());
@@ -380,8 +405,8 @@ void Viewer::load_session(const std::string& path) {
     options_from_session_file(path, o);  // validates
     if (std::find(sessions_read_.begin(), sessions_read_.end(), path) == sessions_read_.end())
         sessions_read_.push_back(path);
-    if (o.scene.scene_path != opts_.scene.scene_path || o.scene.width != opts_.scene.width ||
-        o.scene.height != opts_.scene.height) {
+    if (!same_file(o.scene.scene_path, opts_.scene.scene_path) ||
+        o.scene.width != opts_.scene.width || o.scene.height != opts_.scene.height) {
         throw Error(ErrorLocation{path, "scene", -1},
                     "the session is of another scene or image size; open it with kdtrace view");
     }
@@ -393,7 +418,7 @@ void Viewer::load_session(const std::string& path) {
     opts_.trace = o.trace;
     opts_.film = o.film;
     // A probe opened in the session's viewer: loaded in the background like any other.
-    if (!o.scene.env_file.empty() && o.scene.env_file != opts_.scene.env_file)
+    if (!o.scene.env_file.empty() && !same_file(o.scene.env_file, opts_.scene.env_file))
         open_probe(o.scene.env_file);
     if (o.scene.env_rotation_degrees != opts_.scene.env_rotation_degrees ||
         (o.scene.env_intensity && *o.scene.env_intensity != env_intensity_)) {

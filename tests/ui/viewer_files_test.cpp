@@ -12,6 +12,7 @@
 
 #include "renderer/core/error.h"
 #include "renderer/io/image_io.h"
+#include "renderer/render/render_options.h"
 #include "tests/test_util.h"
 #include "tests/ui/viewer_gui.h"
 #include "ui/camera_control.h"
@@ -156,6 +157,49 @@ TEST(ViewerFiles, ProbeAndMaterialEdits) {
     w.finish_loading();
     EXPECT_EQ(w.message_, "");
     EXPECT_EQ(w.prep_.scene.environment.file, probe);
+}
+
+TEST(ViewerFiles, SessionsHoldAbsoluteFileNamesAndLoadFromAnywhere) {
+    const auto dir = test::temp_dir("ui_session_paths");
+    write_tetra_ply(dir, "model.ply");
+    ImageRGB sky(8, 4);
+    for (float& c : sky.rgb) c = 0.5f;
+    write_image((dir / "sky.pfm").string(), sky);
+    const std::filesystem::path cwd = std::filesystem::current_path();
+    std::filesystem::current_path(dir);
+    ViewerOptions vo = tiny_options();
+    vo.options.scene.scene_path = "model.ply";  // as typed, relative to the working directory
+    vo.options.scene.env_file = "sky.pfm";
+    Viewer v(vo);
+    v.finish_loading();
+    ASSERT_TRUE(v.worker_) << v.message_;
+    v.save_session("s.json");
+    const std::string text = [] {
+        std::ifstream f("s.json");
+        std::stringstream ss;
+        ss << f.rdbuf();
+        return ss.str();
+    }();
+    EXPECT_NE(text.find("\"scene_path\":\"" + (dir / "model.ply").string() + "\""),
+              std::string::npos)
+        << text;
+    EXPECT_NE(text.find("\"env_file\":\"" + (dir / "sky.pfm").string() + "\""), std::string::npos)
+        << text;
+    // The viewer that saved it (model named relatively) takes it back.
+    EXPECT_EQ(test::error_of_call([&] { v.load_session("s.json"); }), "");
+
+    // A viewer started elsewhere finds the model and the probe.
+    std::filesystem::current_path(dir.parent_path());
+    ViewerOptions again = tiny_options();
+    again.session = (dir / "s.json").string();
+    options_from_session_file(again.session, again.options);  // as `kdtrace view --session`
+    Viewer w(again);
+    w.finish_loading();
+    std::filesystem::current_path(cwd);
+    EXPECT_EQ(w.message_, "");
+    ASSERT_TRUE(w.worker_);
+    EXPECT_EQ(w.prep_.scene.environment.file, (dir / "sky.pfm").string());
+    EXPECT_EQ(w.worker_->snapshot()->scene->mesh->triangle_count(), 4u);
 }
 
 std::string file_text(const std::string& path) {
