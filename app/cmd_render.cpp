@@ -20,6 +20,7 @@
 #include "renderer/core/error.h"
 #include "renderer/core/interrupt.h"
 #include "renderer/core/output_path.h"
+#include "renderer/core/shell_word.h"
 #include "renderer/io/image_io.h"
 #include "renderer/render/prepare.h"
 #include "renderer/render/session.h"
@@ -89,13 +90,6 @@ void append_flags(std::string& c, const S& s, std::span<const Field<S>> fields,
     }
 }
 
-// One shell word: single quotes, each quote inside written as '\''.
-std::string quoted(const std::string& s) {
-    std::string q = "'";
-    for (char ch : s) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
-    return q + "'";
-}
-
 std::string vec3_text(const Vec3f& v) {
     return detail::number_text(v.x) + "," + detail::number_text(v.y) + "," +
            detail::number_text(v.z);
@@ -107,8 +101,8 @@ std::string vec3_text(const Vec3f& v) {
 std::string rerender_command(const RenderOptions& o, const CameraDesc& camera, double spp) {
     std::string c = "kdtrace render";
     const SceneOptions& sc = o.scene;
-    if (!sc.scene_path.empty()) c += " " + quoted(sc.scene_path);
-    if (!sc.env_file.empty()) c += " --env " + quoted(sc.env_file);
+    if (!sc.scene_path.empty()) c += " " + shell_word(sc.scene_path);
+    if (!sc.env_file.empty()) c += " --env " + shell_word(sc.env_file);
     if (!sc.env_mapping.empty()) c += " --env-mapping " + sc.env_mapping;
     if (sc.env_intensity) c += " --env-intensity " + detail::number_text(*sc.env_intensity);
     if (sc.camera || sc.eye || sc.target || sc.up || sc.vfov_degrees) {
@@ -119,7 +113,7 @@ std::string rerender_command(const RenderOptions& o, const CameraDesc& camera, d
     // --threads sets both the trace's and the tree's threads (resolve()): written once, from
     // the trace. A --tree file's parameters are the file's: the tree flags would be ignored.
     if (!sc.tree_file.empty()) {
-        c += " --tree " + quoted(sc.tree_file);
+        c += " --tree " + shell_word(sc.tree_file);
     } else {
         append_flags(c, o.tree, kd_tree_fields(), {"--threads"});
     }

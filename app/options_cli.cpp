@@ -242,7 +242,8 @@ void add_render_options(CLI::App& app, RenderOptions& o) {
     non_empty_file_name(
         app.add_option_function<std::string>(
             "--session", [&o](const std::string& path) { options_from_session_file(path, o); },
-            "Session file (the viewer's, or any options JSON): all its options, then the flags"),
+            "Session file (the viewer's, any options JSON, or a PNG/EXR kdtrace wrote): all its "
+            "options, then the flags"),
         "--session")
         ->type_name("FILE");
     add_scene_options(app, o.scene);

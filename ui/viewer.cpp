@@ -17,6 +17,7 @@
 
 #include "renderer/core/error.h"
 #include "renderer/core/output_path.h"
+#include "renderer/core/shell_word.h"
 #include "renderer/core/temp_file.h"
 #include "renderer/io/image_io.h"
 #include "renderer/render/settings.h"
@@ -348,12 +349,20 @@ RenderOptions Viewer::shown_options(bool tree_in_use) const {
     return o;
 }
 
+RenderOptions Viewer::session_options(bool tree_in_use) const {
+    RenderOptions o = shown_options(tree_in_use);
+    for (std::string* name :
+         {&o.scene.scene_path, &o.scene.env_file, &o.scene.tree_file, &o.scene.cache_dir})
+        *name = absolute_file_name(*name);
+    return o;
+}
+
 void Viewer::save_image(const std::string& base) const {
     FilmImage img;
     worker_->session().copy_image(img);
     ImageRGB out(img.width, img.height);
     out.rgb = img.rgb;
-    const RenderOptions o = shown_options(true);
+    const RenderOptions o = session_options(true);
     const std::shared_ptr<const RenderSnapshot> snap = worker_->snapshot();
     // The scene as rendered: its environment as the render thread has it, the materials as
     // edited.
@@ -374,26 +383,32 @@ void Viewer::save_image(const std::string& base) const {
     meta.emplace_back("kdtrace:seed", std::to_string(o.trace.seed));
     meta.emplace_back("kdtrace:spp", std::to_string(s.spp));
     meta.emplace_back("kdtrace:passes", std::to_string(s.full_passes));
+    // The command that renders the image again: the image is its own session (its
+    // kdtrace:params, with absolute file names), at the samples it has.
+    const auto write = [&](const std::string& file) {
+        ImageMetadata m = meta;
+        m.emplace_back("kdtrace:command", "kdtrace render --session " +
+                                              shell_word(absolute_file_name(file)) + " --spp " +
+                                              std::to_string(std::max(1L, std::lround(s.spp))));
+        write_image(file, out, tone_, m);
+    };
     const auto ends = [&](const char* ext) {
         return base.size() > 4 && base.compare(base.size() - 4, 4, ext) == 0;
     };
     if (ends(".png") || ends(".exr") || ends(".pfm")) {
         check_viewer_output(base, "the image");
-        write_image(base, out, tone_, meta);
+        write(base);
         return;
     }
     // Both checked before either is written.
     check_viewer_output(base + ".png", "the image");
     check_viewer_output(base + ".exr", "the image");
-    write_image(base + ".png", out, tone_, meta);
-    write_image(base + ".exr", out, tone_, meta);
+    write(base + ".png");
+    write(base + ".exr");
 }
 
 void Viewer::save_session(const std::string& path) const {
-    RenderOptions o = shown_options(false);
-    for (std::string* name :
-         {&o.scene.scene_path, &o.scene.env_file, &o.scene.tree_file, &o.scene.cache_dir})
-        *name = absolute_file_name(*name);
+    const RenderOptions o = session_options(false);
     check_viewer_output(path, "the session file");
     const std::string text = options_to_json(o) + "\n";
     write_file_atomically(path, text.data(), text.size());

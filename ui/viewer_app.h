@@ -95,7 +95,10 @@ public:
     /// curve; the tree parameters are tree_edit_ (the session's) or those of the tree
     /// rendering now (`tree_in_use`, the image's).
     RenderOptions shown_options(bool tree_in_use) const;
-    /// The session (shown_options(false) as JSON) through a temporary file.
+    /// shown_options() with absolute file names: what sessions and saved images hold, since
+    /// they are read from any directory.
+    RenderOptions session_options(bool tree_in_use) const;
+    /// The session (session_options(false) as JSON) through a temporary file.
     void save_session(const std::string& path) const;
     void load_session(const std::string& path);
     /// The files the viewer reads or is loading: the model or scene file and its meshes, the

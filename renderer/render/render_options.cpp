@@ -1,7 +1,10 @@
 #include "renderer/render/render_options.h"
 
+#include <unistd.h>
+
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <string>
 #include <utility>
 
@@ -9,6 +12,7 @@
 
 #include "renderer/core/error.h"
 #include "renderer/core/open_file.h"
+#include "renderer/io/image_io.h"
 #include "renderer/render/settings.h"
 #include "renderer/scene/json_vec.h"
 
@@ -363,7 +367,30 @@ void options_from_json(const std::string& text, RenderOptions& o, const std::str
     validate(o);
 }
 
+namespace {
+
+// A PNG or OpenEXR file by its first bytes (a short or unreadable file is not).
+bool is_png_or_exr(const std::string& path) {
+    const int fd = open_regular_file(path, "a session file");
+    unsigned char head[4] = {};
+    const ssize_t n = ::read(fd, head, sizeof head);
+    ::close(fd);
+    if (n != ssize_t(sizeof head)) return false;
+    static const unsigned char kPng[4] = {0x89, 'P', 'N', 'G'}, kExr[4] = {0x76, 0x2f, 0x31, 0x01};
+    return std::memcmp(head, kPng, 4) == 0 || std::memcmp(head, kExr, 4) == 0;
+}
+
+}  // namespace
+
 void options_from_session_file(const std::string& path, RenderOptions& o) {
+    if (is_png_or_exr(path)) {
+        const ImageInfo info = read_image_info(path);
+        for (const auto& [key, value] : info.metadata) {
+            if (key == "kdtrace:params") return options_from_json(value, o, path);
+        }
+        throw Error(path + ": a " + info.format +
+                    " image without kdtrace:params (not saved by kdtrace) is not a session");
+    }
     const std::vector<uint8_t> text = read_regular_file(path, uint64_t(1) << 20, "a session file");
     options_from_json(std::string(text.begin(), text.end()), o, path);
 }

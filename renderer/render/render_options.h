@@ -92,7 +92,8 @@ std::string options_to_json(const RenderOptions& options);
 void options_from_json(const std::string& json, RenderOptions& options,
                        const std::string& where = "options");
 /// options_from_json() of a session file: a regular file of at most 1 MiB (a FIFO or a
-/// device is refused, not read), errors naming `path`.
+/// device is refused, not read), errors naming `path`. A PNG or OpenEXR file saved by kdtrace
+/// (render or view) is a session too: its `kdtrace:params` metadata is read.
 void options_from_session_file(const std::string& path, RenderOptions& options);
 
 }  // namespace kdt

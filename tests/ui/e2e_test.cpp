@@ -144,6 +144,41 @@ TEST(ViewerE2E, EditedMaterialSessionRendersTheSameImage) {
     EXPECT_FALSE(v == p) << "the material edit did not change the image";
 }
 
+// An image saved in the viewer carries a command that renders it again from the image alone
+// (the image is its own session), material edits included, bit for bit, from any directory.
+TEST(ViewerE2E, SavedImageCommandRendersItAgain) {
+    const auto dir = test::temp_dir("view_image_command");
+    const std::string shot = (dir / "shot").string(), again = (dir / "again.exr").string();
+    std::string log;
+    ASSERT_EQ(run(xvfb() + KDT_EXE +
+                      " view --width 96 --height 64 --spp 4 --no-cache --seed 7"
+                      " --script 'set material.albedo 0.1,0.7,0.2; wait_done; save " +
+                      shot + "' --frames 1",
+                  dir / "view.txt", &log),
+              0)
+        << log;
+    ImageMetadata meta;
+    const ImageRGB saved = load_image(shot + ".exr", &meta);
+    std::string command;
+    for (const auto& [key, value] : meta)
+        if (key == "kdtrace:command") command = value;
+    const std::string prefix = "kdtrace render --session '" + shot + ".exr' --spp 4";
+    ASSERT_EQ(command, prefix);
+    ASSERT_EQ(run("cd / && " + std::string(KDT_EXE) + command.substr(7) + " --quiet -o " + again,
+                  dir / "render.txt", &log),
+              0)
+        << log;
+    const ImageRGB rendered = load_image(again);
+    EXPECT_TRUE(saved.rgb == rendered.rgb) << "the command's image differs from the viewer's";
+    // An image that kdtrace did not write is no session.
+    write_image((dir / "plain.png").string(), saved);
+    EXPECT_NE(run(std::string(KDT_EXE) + " render --session " + (dir / "plain.png").string() +
+                      " --quiet -o " + again,
+                  dir / "plain.txt", &log),
+              0);
+    EXPECT_NE(log.find("plain.png: a PNG image without kdtrace:params"), std::string::npos) << log;
+}
+
 // The split view end to end: side B with its own tree, the divider moved, the normals and
 // radiance views drawn with no GL error (check_gl fails the script, and the run, on one).
 TEST(ViewerE2E, SplitViewDrawsBothSidesWithNoGlError) {
