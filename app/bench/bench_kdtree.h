@@ -93,7 +93,7 @@ struct TreeSize {
 };
 TreeSize tree_size(const KdTree& tree);
 
-/// Mean traversal work of one ray set, from the compiled-in counters.
+/// Mean traversal work of one ray set, from the compiled-in counters; NaN for no rays.
 struct WorkPerRay {
     double nodes = 0.0, tests = 0.0;
 };
@@ -104,7 +104,7 @@ struct RowResult {
     double build_seconds = 0.0;
     double rss_build_mb = 0.0;
     std::vector<double> view_seconds;
-    double mrays = 0.0, diffuse_mrays = 0.0;
+    double mrays = 0.0, diffuse_mrays = 0.0;  ///< NaN for no rays (mega_rate)
     uint64_t disagreements = 0, diffuse_disagreements = 0;
     WorkPerRay primary_work, diffuse_work;
 };

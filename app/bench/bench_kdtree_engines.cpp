@@ -236,7 +236,7 @@ Table embree_table(const Context& ctx, const RowResult& best, const RaySets& ray
         }
     }
 #endif
-    auto mr = [](size_t n, double s) { return double(n) / s * 1e-6; };
+    auto mr = [](size_t n, double s) { return mega_rate(double(n), s); };
     for (const Engine& e : engines) {
         const double p = mr(primary.size(), median(e.primary_s));
         const double d = mr(diffuse.size(), median(e.diffuse_s));
@@ -249,9 +249,9 @@ Table embree_table(const Context& ctx, const RowResult& best, const RaySets& ray
                                         fmt("%.2f", d),
                                         fmt("%.2f", o)};
         if (ref) {
-            row.push_back(fmt("%.2f", p / mr(primary.size(), median(ref->primary_s))));
-            row.push_back(fmt("%.2f", d / mr(diffuse.size(), median(ref->diffuse_s))));
-            row.push_back(fmt("%.2f", o / mr(diffuse.size(), median(ref->shadow_s))));
+            row.push_back(fmt("%.2f", quotient(p, mr(primary.size(), median(ref->primary_s)))));
+            row.push_back(fmt("%.2f", quotient(d, mr(diffuse.size(), median(ref->diffuse_s)))));
+            row.push_back(fmt("%.2f", quotient(o, mr(diffuse.size(), median(ref->shadow_s)))));
             row.push_back(std::to_string(count_disagreements(e.primary_hits, ref->primary_hits)));
             row.push_back(std::to_string(count_disagreements(e.diffuse_hits, ref->diffuse_hits)));
         } else {
@@ -260,8 +260,8 @@ Table embree_table(const Context& ctx, const RowResult& best, const RaySets& ray
         // engines[0] is our single-ray engine: the streams' peer, whose results they must
         // reproduce bit for bit.
         const Engine& kd = engines[0];
-        row.push_back(fmt("%.2f", d / mr(diffuse.size(), median(kd.diffuse_s))));
-        row.push_back(fmt("%.2f", o / mr(diffuse.size(), median(kd.shadow_s))));
+        row.push_back(fmt("%.2f", quotient(d, mr(diffuse.size(), median(kd.diffuse_s)))));
+        row.push_back(fmt("%.2f", quotient(o, mr(diffuse.size(), median(kd.shadow_s)))));
         if (e.stream_lanes) {
             row.push_back(std::to_string(bitwise_differences(e.primary_hits, kd.primary_hits)) +
                           " / " +

@@ -231,16 +231,16 @@ std::vector<std::string> robustness_row(const Context& ctx, const Engine& e, Rob
         shared = std::to_string(vs) + " of " + std::to_string(vc) + " / " + std::to_string(es) +
                  " of " + std::to_string(ec);
     }
-    const double ns_normal = median(tn) * 1e9 * threads / double(normal.size());
-    const double ns_bad = median(tb) * 1e9 * threads / double(nonfinite.size());
+    const double ns_normal = quotient(median(tn) * 1e9 * threads, double(normal.size()));
+    const double ns_bad = quotient(median(tb) * 1e9 * threads, double(nonfinite.size()));
     return {e.name,
             std::to_string(ve),
-            fmt("%.3f", 100.0 * double(ve) / double(std::max<size_t>(1, aimed.vertex.size()))),
+            fmt("%.3f", quotient(100.0 * double(ve), double(aimed.vertex.size()))),
             std::to_string(ee),
-            fmt("%.3f", 100.0 * double(ee) / double(std::max<size_t>(1, aimed.edge.size()))),
+            fmt("%.3f", quotient(100.0 * double(ee), double(aimed.edge.size()))),
             nonfinite_ok ? fmt("%.1f", ns_normal) : "-",
             nonfinite_ok ? fmt("%.1f", ns_bad) : "n/a (asserts)",
-            nonfinite_ok ? fmt("%.2f", ns_bad / ns_normal) : "-",
+            nonfinite_ok ? fmt("%.2f", quotient(ns_bad, ns_normal)) : "-",
             nonfinite_ok ? std::to_string(nonfinite_hits) : "-",
             shared};
 }

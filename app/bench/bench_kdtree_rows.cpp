@@ -62,8 +62,7 @@ WorkPerRay count_work(const KdTree& tree, const std::vector<Ray>& rays, int thre
         nodes += c.nodes_visited;
         tests += c.triangles_tested;
     }
-    const double count = double(std::max<int64_t>(n, 1));
-    return {double(nodes) / count, double(tests) / count};
+    return {quotient(double(nodes), double(n)), quotient(double(tests), double(n))};
 }
 
 // A grey-scale picture of a view (first sample per pixel, |cos| between ray and geometric
@@ -301,16 +300,17 @@ void time_rows(const Context& ctx, const RaySets& rays, std::vector<RowResult>& 
             r.view_seconds.push_back(median(times));
             total += r.view_seconds.back();
         }
-        r.mrays = double(rays.primary.size()) / total * 1e-6;
-        r.diffuse_mrays = double(rays.diffuse.size()) / median(diffuse_times[ri]) * 1e-6;
+        r.mrays = mega_rate(double(rays.primary.size()), total);
+        r.diffuse_mrays = mega_rate(double(rays.diffuse.size()), median(diffuse_times[ri]));
         // The work per ray does not depend on the machine's load: one untimed counted pass.
         r.primary_work = count_work(*r.tree, rays.primary, threads);
         r.diffuse_work = count_work(*r.tree, rays.diffuse, threads);
-        std::fprintf(stderr,
-                     "row %s: %.2f primary / %.2f diffuse Mrays/s; per diffuse ray %.1f nodes, "
-                     "%.1f triangle tests\n",
-                     r.config.id.c_str(), r.mrays, r.diffuse_mrays, r.diffuse_work.nodes,
-                     r.diffuse_work.tests);
+        std::fprintf(
+            stderr,
+            "row %s: %s primary / %s diffuse Mrays/s; per diffuse ray %s nodes, %s "
+            "triangle tests\n",
+            r.config.id.c_str(), fmt("%.2f", r.mrays).c_str(), fmt("%.2f", r.diffuse_mrays).c_str(),
+            fmt("%.1f", r.diffuse_work.nodes).c_str(), fmt("%.1f", r.diffuse_work.tests).c_str());
     }
 }
 

@@ -134,16 +134,19 @@ Counted count_rays(const KdTree& tree, const std::vector<Ray>& rays, const LeafP
 }
 
 std::vector<std::string> work_row(const char* name, const Counted& w, double seconds, int threads) {
-    const double n = double(std::max<size_t>(w.rays, 1));
-    const double ns = seconds * double(threads) / n * 1e9;
-    const double nodes = double(w.c.nodes_visited) / n;
-    auto per_ray = [&](uint64_t v) { return w.anatomy ? fmt("%.1f", double(v) / n) : "-"; };
+    // Means over no rays, and the time per node of rays that visited none, are "-".
+    const double n = double(w.rays);
+    const double ns = quotient(seconds * double(threads) * 1e9, n);
+    const double nodes = quotient(double(w.c.nodes_visited), n);
+    auto per_ray = [&](uint64_t v) {
+        return w.anatomy ? fmt("%.1f", quotient(double(v), n)) : "-";
+    };
     return {name,
             fmt("%.1f", nodes),
-            fmt("%.1f", double(w.c.triangles_tested) / n),
-            fmt("%.1f", 100.0 * double(w.hits) / n),
+            fmt("%.1f", quotient(double(w.c.triangles_tested), n)),
+            fmt("%.1f", quotient(100.0 * double(w.hits), n)),
             fmt("%.0f", ns),
-            fmt("%.2f", nodes > 0.0 ? ns / nodes : 0.0),
+            fmt("%.2f", quotient(ns, nodes)),
             per_ray(w.a.first_descent),
             per_ray(w.a.first_leaf_tests),
             per_ray(w.a.leaves),

@@ -1,9 +1,10 @@
-// Reporting helpers the benchmarks share: the median of repeated timings, one number
-// formatted printf-style, and a table printed as Markdown and appended to a CSV file.
-// Standard library only.
+// Reporting helpers the benchmarks share: the median of repeated timings, quotients that
+// may have nothing to divide by, one number formatted printf-style (or "-"), and a table
+// printed as Markdown and appended to a CSV file. Standard library only.
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <ostream>
 #include <sstream>
@@ -20,8 +21,20 @@ inline double median(std::vector<double> v) {
     return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-/// `v` formatted by the printf format `f`, which takes one double (e.g. "%.2f").
+/// `num / den`, or NaN when `den` is zero: a mean, share or ratio of nothing, which fmt
+/// prints as "-".
+inline double quotient(double num, double den) { return den != 0.0 ? num / den : std::nan(""); }
+
+/// Millions of `items` per second; NaN (printed "-") when there are no items: a rate of no
+/// rays is no measurement.
+inline double mega_rate(double items, double seconds) {
+    return items > 0.0 ? quotient(items, seconds) * 1e-6 : std::nan("");
+}
+
+/// `v` formatted by the printf format `f`, which takes one double (e.g. "%.2f"); "-" when
+/// `v` is not finite (a quotient without a denominator), in the Markdown and the CSV alike.
 inline std::string fmt(const char* f, double v) {
+    if (!std::isfinite(v)) return "-";
     char buf[64];
     std::snprintf(buf, sizeof(buf), f, v);
     return buf;
