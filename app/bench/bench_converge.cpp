@@ -16,6 +16,7 @@
 #include <utility>
 #include <vector>
 
+#include "app/bench/bench_options.h"
 #include "app/bench/bench_rays.h"
 #include "app/bench/bench_table.h"
 #include "app/commands.h"
@@ -85,6 +86,7 @@ Config make_config(const std::string& name, const ConvergeArgs& a) {
 // reference alone takes minutes at the defaults).
 std::vector<Config> parse_configs(const ConvergeArgs& a) {
     std::vector<Config> out;
+    std::vector<std::string> names;
     const std::string list = a.configs + ",";
     for (size_t start = 0, comma; (comma = list.find(',', start)) != std::string::npos;
          start = comma + 1) {
@@ -96,12 +98,14 @@ std::vector<Config> parse_configs(const ConvergeArgs& a) {
         } catch (const Error& e) {
             throw Error("--configs " + c.name + ": " + with_flags(e.what()));
         }
+        names.push_back(c.name);
         out.push_back(std::move(c));
     }
     if (out.empty())
         throw Error(
             "--configs: no configuration given (uniform, bsdf, nee, mis-uniform-env, mis, "
             "mis+adaptive)");
+    refuse_repeated_entries("--configs", names);
     return out;
 }
 

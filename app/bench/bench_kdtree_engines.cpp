@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "app/bench/bench_kdtree.h"
+#include "app/bench/bench_options.h"
 #include "app/bench/bench_rays.h"
 #include "renderer/accel/traversal_stream.h"
 #include "renderer/core/error.h"
@@ -71,6 +72,7 @@ std::vector<int> stream_lane_counts(const std::string& list) {
         }
         counts.push_back(std::stoi(item));
     }
+    refuse_repeated_entries("--stream-lanes", counts);
     return counts;
 }
 

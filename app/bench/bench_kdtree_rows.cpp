@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "app/bench/bench_kdtree.h"
+#include "app/bench/bench_options.h"
 #include "app/bench/bench_rays.h"
 #include "renderer/accel/kdtree_cache.h"
 #include "renderer/core/error.h"
@@ -196,6 +197,7 @@ std::vector<std::string> row_cells(const Context& ctx, const RowResult& r, bool 
 std::vector<Config> select_rows(const std::string& rows) {
     std::vector<Config> configs;
     const std::vector<Config> all = table_configs();
+    std::vector<std::string> ids;
     std::stringstream ss(rows);
     std::string id;
     while (std::getline(ss, id, ',')) {
@@ -204,8 +206,10 @@ std::vector<Config> select_rows(const std::string& rows) {
             throw Error(ErrorLocation{"--rows"}, "unknown row '" + id + "' (1-7 or sah)");
         }
         configs.push_back(*it);
+        ids.push_back(id);
     }
     if (configs.empty()) throw Error(ErrorLocation{"--rows"}, "no rows selected");
+    refuse_repeated_entries("--rows", ids);
     return configs;
 }
 

@@ -23,6 +23,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "app/bench/bench_options.h"
 #include "app/commands.h"
 #include "renderer/core/error.h"
 
@@ -215,6 +216,8 @@ void print_table(const BenchMpiArgs& a, const std::vector<Run>& runs) {
 }
 
 void run(const BenchMpiArgs& a) {
+    refuse_repeated_entries("--ranks", a.ranks);
+    refuse_repeated_entries("--distributions", a.distributions);
     std::filesystem::create_directories(a.work_dir);
     std::vector<Run> runs;
     for (const std::string& d : a.distributions) {

@@ -380,3 +380,27 @@ foreach(_case kdtree_no_rays)
   set_tests_properties(smoke.bench_${_case} PROPERTIES PASS_REGULAR_EXPRESSION "PASS: ${_case}"
                        FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)
 endforeach()
+# A list entry given twice would make two rows of the same run (bench mpi then reported a
+# "speedup" between them): refused, naming the option and the entry, before any work (FAIL on
+# the model loading, the reference rendering or the runs' header).
+set(_repeat_kdtree --threads 1)
+set(_repeat_mpi --mpiexec /bin/false --work-dir ${_tmp}/bench_repeated)
+set(_repeat_converge --threads 1 --width 8 --height 6 --reference-spp 1 --max-spp 1 --no-plot
+    -o ${_tmp}/bench_repeated)
+foreach(_case "kdtree;--rows;1,1;1"
+              "kdtree;--rows;sah,2,sah;sah"
+              "kdtree;--stream-lanes;4,16,4;4"
+              "mpi;--ranks;1,1;1"
+              "mpi;--distributions;strips,dynamic,strips;strips"
+              "converge;--configs;mis,mis;mis")
+  list(GET _case 0 _bench)
+  list(GET _case 1 _flag)
+  list(GET _case 2 _value)
+  list(GET _case 3 _entry)
+  string(MAKE_C_IDENTIFIER "${_bench}${_flag}_${_value}" _id)
+  add_test(NAME smoke.bench_repeated_${_id} COMMAND ${_kdt} bench ${_bench} ${_flag} ${_value}
+           ${_repeat_${_bench}})
+  set_tests_properties(smoke.bench_repeated_${_id} PROPERTIES
+    PASS_REGULAR_EXPRESSION "error: ${_flag}: '${_entry}' is given twice"
+    FAIL_REGULAR_EXPRESSION "loading /|reference: [0-9]|bench converge: |bench mpi: " TIMEOUT 30)
+endforeach()
