@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -24,6 +25,7 @@
 #include <nlohmann/json.hpp>
 
 #include "app/bench/bench_options.h"
+#include "app/bench/bench_table.h"
 #include "app/commands.h"
 #include "renderer/core/error.h"
 
@@ -58,13 +60,6 @@ double load_average() {
     double one = 0.0;
     std::ifstream("/proc/loadavg") >> one;
     return one;
-}
-
-double median(std::vector<double> v) {
-    if (v.empty()) return 0.0;
-    std::sort(v.begin(), v.end());
-    const size_t n = v.size();
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 std::string self_path() { return std::filesystem::read_symlink("/proc/self/exe").string(); }
@@ -152,9 +147,15 @@ std::string row_kind(const BenchMpiArgs& a, const Run& r) {
     return r.frames ? std::to_string(a.frames) + " frames" : "tiles";
 }
 
+// Speedups and efficiencies compare with the 1-rank run of the same work and distribution:
+// without one (--ranks 2,4) they are "-", and the turntable line gives no ideal time.
 void print_table(const BenchMpiArgs& a, const std::vector<Run>& runs) {
     std::map<std::string, double> one_rank;  // kind + distribution -> median s with 1 rank
     std::map<std::string, double> one_cpu;   // the same: CPU seconds, last repeat
+    auto baseline = [](const std::map<std::string, double>& m, const std::string& key) {
+        const auto it = m.find(key);
+        return it != m.end() ? it->second : std::nan("");
+    };
     for (const Run& r : runs) {
         if (r.ranks == 1 && !r.throttled) {
             one_rank[row_kind(a, r) + r.distribution] = median(r.seconds);
@@ -180,15 +181,13 @@ void print_table(const BenchMpiArgs& a, const std::vector<Run>& runs) {
         const auto [lo, hi] = std::minmax_element(r.seconds.begin(), r.seconds.end());
         const auto [load_lo, load_hi] = std::minmax_element(r.load.begin(), r.load.end());
         const std::string key = row_kind(a, r) + r.distribution;
-        const double base = one_rank.count(key) ? one_rank[key] : 0.0;
-        const double speedup = base > 0.0 && wall > 0.0 ? base / wall : 0.0;
-        const double cpu = total_cpu(r);
-        const double cpu_eff = cpu > 0.0 && one_cpu.count(key) ? one_cpu[key] / cpu : 0.0;
+        const double speedup = quotient(baseline(one_rank, key), wall);
+        const double cpu_eff = quotient(baseline(one_cpu, key), total_cpu(r));
         std::printf(
-            "| %s | %s | %d | %s | %.1f-%.1f | %.3f (%.3f-%.3f) | %.2f | %.2f | %.2f | %.3f | %s "
-            "|\n",
+            "| %s | %s | %d | %s | %.1f-%.1f | %.3f (%.3f-%.3f) | %s | %s | %s | %.3f | %s |\n",
             row_kind(a, r).c_str(), r.distribution.c_str(), r.ranks, r.throttled ? "rank 1" : "no",
-            *load_lo, *load_hi, wall, *lo, *hi, speedup, speedup / double(r.ranks), cpu_eff,
+            *load_lo, *load_hi, wall, *lo, *hi, fmt("%.2f", speedup).c_str(),
+            fmt("%.2f", speedup / double(r.ranks)).c_str(), fmt("%.2f", cpu_eff).c_str(),
             r.last["per_rank"][0].value("serve_seconds", 0.0), per.c_str());
     }
     std::printf(
@@ -198,19 +197,23 @@ void print_table(const BenchMpiArgs& a, const std::vector<Run>& runs) {
         "share of the cores the machine gave); per rank: last repeat\n");
     for (const Run& r : runs) {
         if (!r.frames || r.ranks < 2 || r.throttled) continue;
-        const double base = one_rank[row_kind(a, r) + r.distribution];
+        const double base = baseline(one_rank, row_kind(a, r) + r.distribution);
+        const double wall = median(r.seconds);
+        std::string ideal = " (no 1-rank run to compare with)";
+        if (std::isfinite(base)) {
+            ideal = " against the ideal " + fmt("%.3f", base / double(r.ranks)) + " s (1 rank / " +
+                    std::to_string(r.ranks) +
+                    "): " + fmt("%.2f", quotient(wall * double(r.ranks), base)) + "x";
+        }
         const auto& rank0 = r.last["per_rank"][0];
         const int worker_frames = a.frames - rank0["items"].get<int>();
         std::printf(
-            "turntable, %d ranks: %.3f s against the ideal %.3f s (1 rank / %d): %.2fx; rank 0 "
-            "received and sent %llu bytes in %llu messages for %d frames of the workers "
-            "(%.0f bytes, %.1f messages per frame), serving %.3f s\n",
-            r.ranks, median(r.seconds), base / double(r.ranks), r.ranks,
-            base > 0.0 ? median(r.seconds) * double(r.ranks) / base : 0.0,
-            (unsigned long long)rank0["bytes"].get<uint64_t>(),
+            "turntable, %d ranks: %.3f s%s; rank 0 received and sent %llu bytes in %llu messages "
+            "for %d frames of the workers (%s bytes, %s messages per frame), serving %.3f s\n",
+            r.ranks, wall, ideal.c_str(), (unsigned long long)rank0["bytes"].get<uint64_t>(),
             (unsigned long long)rank0["messages"].get<uint64_t>(), worker_frames,
-            worker_frames > 0 ? double(rank0["bytes"].get<uint64_t>()) / worker_frames : 0.0,
-            worker_frames > 0 ? double(rank0["messages"].get<uint64_t>()) / worker_frames : 0.0,
+            fmt("%.0f", quotient(double(rank0["bytes"].get<uint64_t>()), worker_frames)).c_str(),
+            fmt("%.1f", quotient(double(rank0["messages"].get<uint64_t>()), worker_frames)).c_str(),
             rank0.value("serve_seconds", 0.0));
     }
 }

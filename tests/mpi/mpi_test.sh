@@ -366,5 +366,23 @@ bench_quote)
         --width 24 --height 16 --spp 1 --repeat 1 --work-dir "$work/q/f" 2>&1)
     grep -q "bench mpi: '/bin/false' .* failed; see" <<< "$out" || { echo "$out"; fail "/bin/false"; }
     echo "ok: bench mpi passes file names as they are" ;;
+bench_no_baseline)
+    # Speedups compare with the 1-rank run of the same work: without one they are "-" and
+    # the turntable line names no ideal time; with one (given last) they are numbers.
+    bench=(bench mpi --model "$model" --mpiexec "$mpiexec" --no-tiles --frames 2 --repeat 1
+           --width 24 --height 16 --spp 1 --work-dir "$work/b")
+    out=$(timeout -k 5 100 "$kdtrace" "${bench[@]}" --ranks 3 2>&1) || { echo "$out"; fail "--ranks 3"; }
+    echo "$out"
+    grep -q '^| 2 frames | dynamic | 3 | no | [^|]* | [^|]* | - | - | - | ' <<< "$out" ||
+        fail "--ranks 3: speedup, speedup / ranks and cpu eff. are not -"
+    grep -q '^turntable, 3 ranks: [0-9.]* s (no 1-rank run to compare with); ' <<< "$out" ||
+        fail "--ranks 3: the turntable line"
+    out=$(timeout -k 5 100 "$kdtrace" "${bench[@]}" --ranks 3,1 2>&1) || { echo "$out"; fail "--ranks 3,1"; }
+    echo "$out"
+    grep -q '^| 2 frames | dynamic | 3 | no | [^|]* | [^|]* | [0-9.]* | [0-9.]* | [0-9.]* | ' <<< "$out" ||
+        fail "--ranks 3,1: no speedup against the 1-rank run"
+    grep -q '^turntable, 3 ranks: [0-9.]* s against the ideal [0-9.]* s (1 rank / 3): [0-9.]*x; ' <<< "$out" ||
+        fail "--ranks 3,1: the turntable line"
+    echo "ok: bench mpi without a 1-rank run prints no speedup" ;;
 *) fail "unknown case $case_name" ;;
 esac
