@@ -8,7 +8,6 @@
 #include <cctype>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -19,6 +18,7 @@
 #include "app/bench/bench_options.h"
 #include "app/bench/bench_rays.h"
 #include "app/bench/bench_table.h"
+#include "app/bench/run_program.h"
 #include "app/commands.h"
 #include "app/options_cli.h"
 #include "renderer/core/error.h"
@@ -428,8 +428,8 @@ void run(const ConvergeArgs& a) {
         const fs::path script = find_plot_script();
         // Debian's interpreter has python3-matplotlib; a python3 earlier in PATH may not.
         const std::string python = fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
-        const std::string cmd = python + " '" + script.string() + "' '" + csv + "' '" + png + "'";
-        if (fs::exists(script) && std::system(cmd.c_str()) == 0) {
+        // An argument vector, not a shell command: any character in the paths is plain.
+        if (fs::exists(script) && run_program({python, script.string(), csv, png}) == 0) {
             std::printf("wrote %s\n", png.c_str());
         } else {
             std::printf("plot skipped: needs python3-matplotlib and %s\n", script.string().c_str());

@@ -5,16 +5,9 @@
 // (speedup / ranks), rank 0's serving time and bytes and messages per frame, and the
 // machine's load average. Runs take turns within each repeat; the medians of the repeats are
 // shown. A benchmark: it never fails on a time.
-#include <fcntl.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
-#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -26,6 +19,7 @@
 
 #include "app/bench/bench_options.h"
 #include "app/bench/bench_table.h"
+#include "app/bench/run_program.h"
 #include "app/commands.h"
 #include "renderer/core/error.h"
 
@@ -71,34 +65,6 @@ std::string shell_word(const std::string& s) {
     return q + "'";
 }
 
-// Runs argv (argv[0] looked up in PATH) with stdout and stderr to `log`, without a shell:
-// file names reach the program as they are, whatever characters they hold. Returns the
-// exit status, or 128 + the signal, or 127 when it could not be started.
-int run_logged(const std::vector<std::string>& argv, const std::string& log) {
-    std::vector<char*> args;
-    for (const std::string& s : argv) args.push_back(const_cast<char*>(s.c_str()));
-    args.push_back(nullptr);
-    const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
-    if (fd < 0) throw Error(log + ": cannot write the launcher's log: " + std::strerror(errno));
-    std::fflush(stdout);
-    std::fflush(stderr);
-    const pid_t pid = ::fork();
-    if (pid == 0) {
-        ::dup2(fd, 1);
-        ::dup2(fd, 2);
-        ::execvp(args[0], args.data());
-        std::fprintf(stderr, "%s: %s\n", args[0], std::strerror(errno));
-        ::_exit(127);
-    }
-    ::close(fd);
-    if (pid < 0) throw Error(std::string("bench mpi: cannot fork: ") + std::strerror(errno));
-    int status = 0;
-    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-    }
-    if (WIFEXITED(status)) return WEXITSTATUS(status);
-    return WIFSIGNALED(status) ? 128 + WTERMSIG(status) : 1;
-}
-
 nlohmann::json run_once(const BenchMpiArgs& a, const Run& r, int index) {
     const std::string stats = a.work_dir + "/stats_" + std::to_string(index) + ".json";
     std::vector<std::string> argv = {a.mpiexec, "--oversubscribe", "--allow-run-as-root"};
@@ -126,7 +92,7 @@ nlohmann::json run_once(const BenchMpiArgs& a, const Run& r, int index) {
     }
     std::filesystem::remove(stats);
     const std::string log = a.work_dir + "/log.txt";
-    if (run_logged(argv, log) != 0) {
+    if (run_program(argv, log) != 0) {
         std::string cmd;
         for (const std::string& word : argv) cmd += (cmd.empty() ? "" : " ") + shell_word(word);
         throw Error("bench mpi: " + cmd + " failed; see " + log);

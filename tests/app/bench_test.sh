@@ -1,6 +1,6 @@
 #!/bin/bash
 # Smoke runs of `kdtrace bench kdtree` and `bench converge` on hostile input: degenerate
-# models, repeated list entries, output names a shell would misread. Tiny models and views,
+# models, output names a shell would misread. Tiny models and views,
 # one repeat: no case depends on a time.
 # Usage: bench_test.sh CASE KDTRACE WORKDIR. Prints "PASS: CASE" or "FAIL: reason".
 set -u
@@ -60,6 +60,24 @@ kdtree_no_rays)
         grep -q '^robustness,"kdtrace row sah (sah)","0","-","0","-",' $m.csv ||
             fail "$m: robustness CSV"
     done
+    ;;
+converge_quote)
+    # The plot runs without a shell: an output directory with a quote and a $(...) gets its
+    # plot (or "plot skipped" without matplotlib), and the name runs nothing.
+    ply tri.ply "$(printf -- '-1 0 0\n1 0 0\n0 1 0')" "0 1 2"
+    o="$dir/q'd \$(touch pwned)/out"
+    out=$("$kdt" bench converge tri.ply --no-cache --configs mis,bsdf --width 16 --height 12 \
+        --reference-spp 4 --max-spp 8 --threads 1 -o "$o" 2>&1) || fail "exit status $?: $out"
+    echo "$out"
+    [ -e pwned ] || [ -e "$o/pwned" ] && fail "the output directory's name ran a command"
+    python=python3
+    [ -x /usr/bin/python3 ] && python=/usr/bin/python3
+    if "$python" -c 'import matplotlib' 2>/dev/null; then
+        grep -qF "wrote $o/converge.png" <<<"$out" || fail "no plot"
+        [ -s "$o/converge.png" ] || fail "no $o/converge.png"
+    else
+        grep -q "plot skipped: needs python3-matplotlib" <<<"$out" || fail "no skip message"
+    fi
     ;;
 *) fail "unknown case $case_name" ;;
 esac
