@@ -130,7 +130,8 @@ void errors(const std::vector<float>& img, const std::vector<float>& ref, double
     relmse = rel / double(img.size());
 }
 
-// Least-squares slope of log(y) against log(x).
+// Least-squares slope of log(y) against log(x); NaN when it cannot be estimated (fewer than
+// two points, or all at one x).
 double loglog_slope(const std::vector<double>& x, const std::vector<double>& y) {
     double sx = 0, sy = 0, sxx = 0, sxy = 0;
     const double n = double(x.size());
@@ -141,7 +142,7 @@ double loglog_slope(const std::vector<double>& x, const std::vector<double>& y) 
         sxx += lx * lx;
         sxy += lx * ly;
     }
-    return (n * sxy - sx * sy) / (n * sxx - sx * sx);
+    return n >= 2.0 ? quotient(n * sxy - sx * sy, n * sxx - sx * sx) : std::nan("");
 }
 
 // RMSE at time t by log-log interpolation between the recorded points; NaN outside.
@@ -406,11 +407,14 @@ void run(const ConvergeArgs& a) {
                 e.push_back(p.rmse);
             }
         }
-        const double slope = t.size() >= 2 ? loglog_slope(t, e) : std::nan("");
-        const bool ok = std::abs(slope + 0.5) <= 0.15;
-        std::printf("| %s | %.3f %s | %.5f | %.3f |\n", c.front().config.c_str(), slope,
-                    ok ? "(close to -1/2)" : "(NOT close to -1/2: reference noise or bias?)",
-                    c.back().rmse, c.back().seconds);
+        // Too few points (a run of fewer than 8 spp) leave the slope, and so its verdict, open.
+        const double slope = loglog_slope(t, e);
+        const char* verdict = !std::isfinite(slope) ? ""
+                              : std::abs(slope + 0.5) <= 0.15
+                                  ? " (close to -1/2)"
+                                  : " (NOT close to -1/2: reference noise or bias?)";
+        std::printf("| %s | %s%s | %.5f | %.3f |\n", c.front().config.c_str(),
+                    fmt("%.3f", slope).c_str(), verdict, c.back().rmse, c.back().seconds);
         common_t = std::min(common_t, c.back().seconds);
     }
     // Equal-time comparison against the first configuration (the baseline).
@@ -420,7 +424,8 @@ void run(const ConvergeArgs& a) {
         const double base = rmse_at(curves.front(), common_t);
         for (size_t i = 1; i < curves.size(); ++i) {
             const double e = rmse_at(curves[i], common_t);
-            std::printf("  %-16s %.3f\n", curves[i].front().config.c_str(), e / base);
+            std::printf("  %-16s %s\n", curves[i].front().config.c_str(),
+                        fmt("%.3f", quotient(e, base)).c_str());
         }
     }
     if (!a.no_plot) {

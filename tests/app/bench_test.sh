@@ -79,6 +79,17 @@ converge_quote)
         grep -q "plot skipped: needs python3-matplotlib" <<<"$out" || fail "no skip message"
     fi
     ;;
+converge_tiny)
+    # Up to 2 spp leaves no point from 4 spp on to fit the slope to: "-", with no verdict, and
+    # no nan anywhere (nor in the equal-time ratios).
+    ply tri.ply "$(printf -- '-1 0 0\n1 0 0\n0 1 0')" "0 1 2"
+    out=$("$kdt" bench converge tri.ply --no-cache --configs mis,bsdf --width 16 --height 12 \
+        --reference-spp 4 --max-spp 2 --threads 1 --no-plot -o out 2>&1) || fail "exit status $?: $out"
+    echo "$out"
+    grep -q 'nan' <<<"$out" && fail "a nan"
+    grep -q '^| mis | - | [0-9.]* | [0-9.]* |$' <<<"$out" || fail "the slope of mis is not -"
+    grep -q '^| bsdf | - | [0-9.]* | [0-9.]* |$' <<<"$out" || fail "the slope of bsdf is not -"
+    ;;
 *) fail "unknown case $case_name" ;;
 esac
 echo "PASS: $case_name"
