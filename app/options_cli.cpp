@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <new>
 #include <optional>
 #include <tuple>
 #include <utility>
@@ -167,6 +168,17 @@ void check_subdivide(uint64_t triangles, int levels) {
                 " triangles become " + std::to_string(result) + ", more than the " +
                 std::to_string(budget) + " that fit the kd-tree and the memory available (about " +
                 std::to_string(kRenderBytesPerTriangle) + " bytes each)");
+}
+
+void subdivide_model(const std::string& model, TriangleMesh& mesh, int levels) {
+    check_subdivide(mesh.triangle_count(), levels);
+    try {
+        mesh = subdivide_mesh(mesh, levels);
+    } catch (const std::bad_alloc&) {
+        throw Error(model + ": --subdivide " + std::to_string(levels) + ": out of memory making " +
+                    std::to_string(subdivided_triangle_count(mesh.triangle_count(), levels)) +
+                    " triangles");
+    }
 }
 
 void add_scene_options(CLI::App& app, SceneOptions& scene) {

@@ -8,6 +8,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "renderer/geometry/mesh.h"
 #include "renderer/render/render_options.h"
 
 namespace kdt::app {
@@ -60,6 +61,12 @@ void warn_unused_render_flags(const CLI::App& app, const RenderOptions& options)
 /// Refuses --subdivide LEVELS of a mesh of `triangles` when the result would not fit in the
 /// memory available (scene_triangle_budget()) or the kd-tree, before the minutes of work.
 void check_subdivide(uint64_t triangles, int levels);
+
+/// `mesh` (of the file `model`) split into 4^`levels` triangles each, after check_subdivide().
+/// Memory running out on the way (the check counts what is available, not a ulimit or what
+/// other processes take meanwhile) is an Error naming the model and the flag, "dragon.ply:
+/// --subdivide 3: out of memory making 55770496 triangles", not main()'s bare "out of memory".
+void subdivide_model(const std::string& model, TriangleMesh& mesh, int levels);
 
 /// A renderer message with every field name it mentions ("trace.max_depth") followed by the
 /// flag that sets it ("trace.max_depth (--path-depth)"), so a CLI user knows what to change.

@@ -73,8 +73,7 @@ Context load_context(const Options& opt) {
     mesh->colors.clear();
     ctx.model_key = ctx.model;
     if (opt.subdivide > 0) {
-        check_subdivide(mesh->triangle_count(), opt.subdivide);
-        *mesh = subdivide_mesh(*mesh, opt.subdivide);
+        subdivide_model(ctx.model, *mesh, opt.subdivide);
         ctx.model_key += ".sub" + std::to_string(opt.subdivide);
     }
     // The renderer's spatial triangle order (compile_snapshot), for every engine alike.

@@ -374,7 +374,7 @@ if(EXISTS /proc/self)
 endif()
 
 # bench kdtree and bench converge on hostile input (tests/app/bench_test.sh).
-foreach(_case kdtree_no_rays converge_quote converge_tiny)
+foreach(_case kdtree_no_rays kdtree_subdivide_oom converge_quote converge_tiny)
   add_test(NAME smoke.bench_${_case} COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/bench_test.sh
            ${_case} ${_kdt} ${_tmp}/bench_${_case})
   set_tests_properties(smoke.bench_${_case} PROPERTIES PASS_REGULAR_EXPRESSION "PASS: ${_case}"
