@@ -22,6 +22,7 @@
 #include "app/bench/run_program.h"
 #include "app/commands.h"
 #include "renderer/core/error.h"
+#include "renderer/core/shell_word.h"
 
 namespace kdt::app {
 namespace {
@@ -57,13 +58,6 @@ double load_average() {
 }
 
 std::string self_path() { return std::filesystem::read_symlink("/proc/self/exe").string(); }
-
-// One shell word, for messages: single quotes, each quote inside written as '\''.
-std::string shell_word(const std::string& s) {
-    std::string q = "'";
-    for (char ch : s) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
-    return q + "'";
-}
 
 nlohmann::json run_once(const BenchMpiArgs& a, const Run& r, int index) {
     const std::string stats = a.work_dir + "/stats_" + std::to_string(index) + ".json";
