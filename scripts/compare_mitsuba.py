@@ -135,24 +135,27 @@ def build_scenes(out, probe, upsample):
     files["speck"] = mesh_dir / "speck.ply"
     write_ply(files["speck"], [(0, 0, 1e3), (1e-3, 0, 1e3), (0, 1e-3, 1e3)], [(0, 1, 2)])
 
-    # kdtrace reads the probe file itself. Its lookups are nearest-pixel: pixel (x, y) covers
-    # u in [x/W, (x+1)/W), v in [y/H, (y+1)/H). Mitsuba's envmap interpolates bilinearly
-    # between texel values placed at u = (x + 0.5)/W, v = y/(H - 1) (first and last rows on
-    # the poles), which lowers e.g. the irradiance of a horizontal plane under grace.hdr by
-    # 3 %. So Mitsuba gets our function sampled at its own texel positions on a grid
-    # `upsample` times finer; the two then differ only within one fine texel of the probe's
-    # pixel edges, symmetrically (relative irradiance error 1.5e-6 at 16x).
+    # kdtrace reads the probe file itself and interpolates bilinearly between pixel centres
+    # ((x + 0.5)/W, (y + 0.5)/H), wrapping in u, clamped to the first and last row beyond
+    # their centres. Mitsuba's envmap interpolates bilinearly between texel values placed at
+    # u = (x + 0.5)/W, v = y/(H - 1) (first and last rows on the poles), which lowers e.g.
+    # the irradiance of a horizontal plane under grace.hdr by 3 %. So Mitsuba gets our
+    # function sampled at its own texel positions with the columns kept and `upsample`
+    # (even) times as many row intervals: then our row centres are Mitsuba rows, each of its
+    # cells lies inside one of our bilinear patches, and its interpolation is ours exactly
+    # (checked against Mitsuba's envmap eval: equal to float rounding).
     import mitsuba as mi
     raw = np.array(mi.Bitmap(str(probe)).convert(mi.Bitmap.PixelFormat.RGB,
                                                  mi.Struct.Type.Float32, False))
-    h, w = raw.shape[:2]
+    raw = raw.astype(np.float64)
+    h = raw.shape[0]
     j = np.arange(upsample * h + 1)  # Mitsuba row j sits at v = j / (upsample * h)
-    lo = np.minimum(j // upsample, h - 1)
-    # A row on one of our row edges gets the mean of both sides, so that Mitsuba's linear
-    # ramp is centred on our step and integrals agree to second order.
-    hi = np.where((j % upsample == 0) & (j > 0) & (j < upsample * h), j // upsample - 1, lo)
-    cols = np.arange(upsample * w) // upsample  # centres (x + 0.5) / W' fall inside our pixels
-    fine = np.ascontiguousarray(0.5 * (raw[lo] + raw[hi])[:, cols])
+    fy = (2.0 * j - upsample) / (2.0 * upsample)  # v * h - 0.5: in units of our rows
+    y0 = np.floor(fy)
+    t = (fy - y0)[:, None, None]
+    ya = np.clip(y0, 0, h - 1).astype(int)
+    yb = np.clip(y0 + 1, 0, h - 1).astype(int)
+    fine = np.ascontiguousarray(raw[ya] * (1.0 - t) + raw[yb] * t)
     grace = {"file": str(probe), "mitsuba_bitmap": fine, "rotation": 60.0, "intensity": 0.5}
     grace_raw = {"file": str(probe), "rotation": 60.0, "intensity": 0.5}
     white = {"color": [1.0, 1.0, 1.0], "intensity": 1.0}
@@ -415,7 +418,8 @@ def main():
     ap.add_argument("--spp", default="16,64,256", help="comma-separated spp levels")
     ap.add_argument("--width", type=int, default=160)
     ap.add_argument("--height", type=int, default=120)
-    ap.add_argument("--upsample", type=int, default=16, help="probe upsampling factor")
+    ap.add_argument("--upsample", type=int, default=2,
+                    help="row upsampling factor (even) of the probe given to Mitsuba")
     ap.add_argument("--variant", default="scalar_rgb",
                     help="Mitsuba variant; llvm_ad_rgb fails to compile its kernels with "
                     "Debian bookworm's LLVM 14/15 (Dr.Jit 1.5)")
@@ -435,6 +439,8 @@ def main():
     if not probe.exists():
         sys.exit(f"compare_mitsuba: {probe} not found (set KDT_SHARED_DATA or --probe)")
     levels = [int(x) for x in args.spp.split(",")]
+    if args.upsample < 2 or args.upsample % 2:
+        sys.exit(f"compare_mitsuba: --upsample must be even and >= 2 (got {args.upsample})")
     scenes = build_scenes(out, probe, args.upsample)
     if args.scenes:
         want = args.scenes.split(",")
@@ -444,7 +450,8 @@ def main():
         scenes = [s for s in scenes if s["name"] in want]
     W, H = args.width, args.height
     print(f"kdtrace {args.kdtrace}; Mitsuba {mi.__version__} ({args.variant}); {W}x{H}; "
-          f"spp levels {levels}, two seeds each; probe {probe.name} (Mitsuba: x{args.upsample})\n")
+          f"spp levels {levels}, two seeds each; probe {probe.name} "
+          f"(Mitsuba: rows x{args.upsample})\n")
 
     rows, summary = [], []
     for s in scenes:
