@@ -87,6 +87,16 @@ def quad(half_size, height):
     return p, np.array([(0, 2, 1), (0, 3, 2)])
 
 
+def flipped_copy(positions, faces, offset):
+    """The same triangles wound the other way, each vertex moved by `offset` against the
+    (mean) front normal: Mitsuba's back face of a two-sided emitter (see mitsuba_scene_dict).
+    Meant for flat meshes, whose triangles share one normal."""
+    p = np.asarray(positions, dtype=np.float64)
+    f = np.asarray(faces)
+    n = np.cross(p[f[:, 1]] - p[f[:, 0]], p[f[:, 2]] - p[f[:, 0]]).sum(axis=0)
+    return p - offset * n / np.linalg.norm(n), f[:, ::-1].copy()
+
+
 def read_pfm(path):
     with open(path, "rb") as f:
         magic = f.readline().strip()
@@ -131,6 +141,23 @@ def build_scenes(out, probe, upsample):
                          "plane": quad(20.0, 0.0)}.items():
         files[name] = mesh_dir / f"{name}.ply"
         write_ply(files[name], p, f)
+    # Emitters. kdtrace's emissive meshes emit from both sides; Mitsuba's `area` emitter only
+    # from the front (counter-clockwise) side, so each open emitter also gets a flipped copy
+    # 1e-4 behind it (Mitsuba only). Fronts: the small quad faces +y (up, away from the
+    # sphere, so what lights the sphere is kdtrace's back side), the large one +x (away from
+    # the sphere and the camera). The ball is closed: its outside is all anyone sees.
+    eps = 1e-4
+    vq = np.array([(1.15, 0.0, -1.5), (1.15, 0.0, 1.5), (1.15, 2.5, 1.5), (1.15, 2.5, -1.5)])
+    emitter_meshes = {"light_small": quad(0.3, 2.3),
+                      "light_big": (vq, np.array([(0, 2, 1), (0, 3, 2)]))}
+    for name, (p, f) in emitter_meshes.items():
+        files[name] = mesh_dir / f"{name}.ply"
+        write_ply(files[name], p, f)
+        files[name + "_back"] = mesh_dir / f"{name}_back.ply"
+        write_ply(files[name + "_back"], *flipped_copy(p, f, eps))
+    bp, bf = icosphere(3)
+    files["light_ball"] = mesh_dir / "light_ball.ply"
+    write_ply(files["light_ball"], 0.25 * bp + np.array([1.3, 0.6, 0.9]), bf)
     # A triangle behind the camera: kdtrace scenes need a mesh, the env scenes see none.
     files["speck"] = mesh_dir / "speck.ply"
     write_ply(files["speck"], [(0, 0, 1e3), (1e-3, 0, 1e3), (0, 1e-3, 1e3)], [(0, 1, 2)])
@@ -178,6 +205,19 @@ def build_scenes(out, probe, upsample):
     unit_sphere = lambda mat: [  # noqa: E731
         {"file": files["sphere_l5"], "matrix": np.eye(4), "material": mat, "smooth": True}]
 
+    black = {"color": [0.0, 0.0, 0.0], "intensity": 1.0}
+    warm = [12.0, 8.0, 4.0]  # emitters are picked by area x mean(emission): not grey
+
+    def light(name, emission):
+        m = {"file": files[name], "matrix": np.eye(4), "smooth": False,
+             "material": {"type": "emissive", "emission": emission}}
+        if name + "_back" in files:
+            m["mitsuba_back"] = files[name + "_back"]
+        return m
+
+    def conductor(alpha):
+        return {"type": "conductor", "albedo": [1.0, 1.0, 1.0], "roughness": alpha}
+
     scenes = [
         dict(name="sphere_white", what="diffuse 0.5 sphere on a plane, constant white sky; "
              "kdtrace roulette on, Mitsuba roulette off", meshes=sphere_on_plane,
@@ -216,6 +256,36 @@ def build_scenes(out, probe, upsample):
              rr=True),
         dict(name="coarse_alone", what="the 80-triangle flat sphere alone under rotated Grace",
              meshes=coarse(False)[:1], camera=cam_sphere, env=grace, depth=16, rr=True),
+        dict(name="emit_quad_d4", what="small warm emissive quad (kdtrace back side down) over "
+             "the diffuse sphere on the plane, black sky, depth 4, roulette off",
+             meshes=sphere_on_plane + [light("light_small", warm)], camera=cam_sphere,
+             env=black, depth=4, rr=False),
+        dict(name="emit_quad", what="the same, depth 16, kdtrace roulette on",
+             meshes=sphere_on_plane + [light("light_small", warm)], camera=cam_sphere,
+             env=black, depth=16, rr=True),
+        dict(name="emit_quad_grace", what="the same quad and rotated Grace together",
+             meshes=sphere_on_plane + [light("light_small", warm)], camera=cam_sphere,
+             env=grace, depth=16, rr=True),
+        dict(name="emit_big", what="large emissive quad (3 x 2.5, emission 1) standing 0.15 from "
+             "the sphere; both sides light the plane; black sky",
+             meshes=sphere_on_plane + [light("light_big", [1.0, 1.0, 1.0])],
+             camera=cam_sphere, env=black, depth=16, rr=True),
+        dict(name="emit_ball", what="emissive icosphere (1280 triangles, r 0.25) beside the "
+             "sphere, black sky", meshes=sphere_on_plane + [light("light_ball", warm)],
+             camera=cam_sphere, env=black, depth=16, rr=True),
+        dict(name="conductor_005", what="GGX conductor sphere, alpha 0.05, albedo 1, Grace",
+             meshes=unit_sphere(conductor(0.05)), camera=cam_centre, env=grace, depth=16,
+             rr=True),
+        dict(name="conductor_02", what="the same, alpha 0.2",
+             meshes=unit_sphere(conductor(0.2)), camera=cam_centre, env=grace, depth=16,
+             rr=True),
+        dict(name="conductor_06", what="the same, alpha 0.6",
+             meshes=unit_sphere(conductor(0.6)), camera=cam_centre, env=grace, depth=16,
+             rr=True),
+        dict(name="conductor_emit", what="alpha-0.2 conductor sphere on the diffuse plane under "
+             "the quad and Grace", meshes=[dict(sphere_on_plane[0], material=conductor(0.2)),
+                                           sphere_on_plane[1], light("light_small", warm)],
+             camera=cam_sphere, env=grace, depth=16, rr=True),
     ]
     if dragon.exists():
         # Bounds of the res2 dragon: [-0.108, 0.096] x [0.053, 0.197] x [-0.050, 0.041].
@@ -298,6 +368,26 @@ def mitsuba_scene_dict(s, width, height):
                              "specular_reflectance": {"type": "rgb", "value": mat["albedo"]}}}
         elif mat["type"] == "dielectric":
             bsdf = {"type": "dielectric", "int_ior": mat["ior"], "ext_ior": 1.0}
+        elif mat["type"] == "conductor":
+            # material "none" is eta 0, k 1: Fresnel exactly 1, times specular_reflectance.
+            # kdtrace's Schlick with F0 = albedo is the same only for albedo 1.
+            if mat["albedo"] != [1.0, 1.0, 1.0]:
+                raise ValueError("conductor: Mitsuba has no Schlick Fresnel; albedo 1 only")
+            bsdf = {"type": "twosided",
+                    "bsdf": {"type": "roughconductor", "distribution": "ggx",
+                             "alpha": mat["roughness"], "material": "none",
+                             "specular_reflectance": {"type": "rgb", "value": mat["albedo"]}}}
+        elif mat["type"] == "emissive":
+            # A shape with an emitter and no BSDF gets a black diffuse one in Mitsuba 3.
+            emitter = {"type": "area",
+                       "radiance": {"type": "rgb", "value": mat["emission"]}}
+            for key, f in (("", m["file"]), ("_back", m.get("mitsuba_back"))):
+                if f is not None:
+                    d[f"mesh{i}{key}"] = {"type": "ply", "filename": str(f),
+                                          "face_normals": not m["smooth"],
+                                          "to_world": T(np.asarray(m["matrix"]).tolist()),
+                                          "emitter": dict(emitter)}
+            continue
         else:
             raise ValueError(f"no Mitsuba mapping for material {mat['type']}")
         d[f"mesh{i}"] = {"type": "ply", "filename": str(m["file"]),
