@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
@@ -14,10 +15,12 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <string_view>
 
 #include <nlohmann/json.hpp>
 
 #include "renderer/core/error.h"
+#include "renderer/core/fields.h"
 #include "renderer/core/output_path.h"
 #include "renderer/core/temp_file.h"
 #include "renderer/core/timer.h"
@@ -35,17 +38,38 @@
 
 namespace kdt::app {
 
+namespace {
+
+// The names of --distribution, also without MPI (the flag is then only warned about).
+constexpr std::array<const char*, 3> kDistributions = {"dynamic", "interleaved", "strips"};
+#ifdef KDT_HAVE_MPI
+static_assert(std::string_view(kDistributions[0]) == dist::kDistributionNames[0] &&
+              std::string_view(kDistributions[1]) == dist::kDistributionNames[1] &&
+              std::string_view(kDistributions[2]) == dist::kDistributionNames[2]);
+#endif
+
+}  // namespace
+
 void add_dist_options(CLI::App& app, DistArgs& a, RenderOptions& options) {
     a.command = &app;
     a.command_options = &options;
     app.add_flag("--mpi", a.mpi,
                  "Split the render over the ranks of mpirun (every rank loads the scene and the "
                  "tree cache itself: a shared filesystem is assumed)");
-    app.add_option("--distribution", a.distribution,
-                   "How --mpi hands out work: dynamic (a queue served on request), interleaved "
-                   "(every n-th tile to rank n) or strips (one band of tile rows per rank)")
-        ->check(CLI::IsMember({"dynamic", "interleaved", "strips"}))
-        ->capture_default_str();
+    app.add_option_function<std::string>(
+           "--distribution",
+           [&a](const std::string& text) {
+               if (std::find_if(kDistributions.begin(), kDistributions.end(),
+                                [&](const char* n) { return text == n; }) == kDistributions.end()) {
+                   throw Error("--distribution must be " + detail::choices_text(kDistributions) +
+                               " " + detail::got(text));
+               }
+               a.distribution = text;
+           },
+           "How --mpi hands out work: dynamic (a queue served on request), interleaved "
+           "(every n-th tile to rank n) or strips (one band of tile rows per rank)")
+        ->type_name("NAME")
+        ->default_str(a.distribution);
     app.add_option_function<std::string>(
            "--tile-batch",
            [&a](const std::string& text) {

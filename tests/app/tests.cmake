@@ -61,6 +61,11 @@ foreach(_case "env-intensity;;must be a number \\(got ''\\)"
   set_tests_properties(smoke.number_flag_${_id} PROPERTIES
     PASS_REGULAR_EXPRESSION "error: --${_flag} ${_why}")
 endforeach()
+# --distribution names a choice in the words of every other choice flag, with status 1.
+add_test(NAME smoke.distribution_bogus COMMAND ${_kdt} render --distribution bogus --spp 1
+         --width 8 --height 6 --quiet -o ${_tmp}/distribution.pfm)
+set_tests_properties(smoke.distribution_bogus PROPERTIES PASS_REGULAR_EXPRESSION
+  "kdtrace: error: --distribution must be one of: dynamic, interleaved, strips \\(got 'bogus'\\)")
 # bench mpi --ranks is bounded before anything is launched (/bin/false would launch nothing).
 add_test(NAME smoke.bench_mpi_ranks_range COMMAND ${_kdt} bench mpi --mpiexec /bin/false
          --repeat 1 --work-dir ${_tmp}/bench_mpi_ranks --ranks 2,100000)
