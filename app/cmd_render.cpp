@@ -1,5 +1,6 @@
 // `kdtrace render`: renders a scene, a model or the built-in default scene progressively and
-// writes PNG (tone-mapped), EXR or PFM (linear) with the render settings as metadata.
+// writes PNG (tone-mapped), EXR, PFM or Radiance HDR (linear), PNG and EXR with the render
+// settings as metadata.
 #include <unistd.h>
 
 #include <algorithm>
@@ -228,7 +229,8 @@ void add_render_command(CLI::App& parent) {
         parent.add_subcommand("render", "Render a scene, a model or the built-in default scene");
     add_render_options(*sub, cmd.options);
     sub->add_option("-o,--output", cmd.output,
-                    "Output image: .png (tone-mapped sRGB), .exr or .pfm (linear)")
+                    "Output image: .png (tone-mapped sRGB), .exr, .pfm or .hdr (linear); "
+                    "the render settings are stored in .png and .exr")
         ->capture_default_str();
     sub->add_flag("--quiet", cmd.quiet, "No progress bar or cache messages");
     add_dist_options(*sub, cmd.dist, cmd.options);

@@ -66,6 +66,10 @@ add_test(NAME smoke.distribution_bogus COMMAND ${_kdt} render --distribution bog
          --width 8 --height 6 --quiet -o ${_tmp}/distribution.pfm)
 set_tests_properties(smoke.distribution_bogus PROPERTIES PASS_REGULAR_EXPRESSION
   "kdtrace: error: --distribution must be one of: dynamic, interleaved, strips \\(got 'bogus'\\)")
+# render --help lists every output format -o accepts (check_image_output()).
+add_test(NAME smoke.render_help_formats COMMAND ${_kdt} render --help)
+set_tests_properties(smoke.render_help_formats PROPERTIES
+  PASS_REGULAR_EXPRESSION "Output image: \\.png [^\n]*\\.exr[^\n]*\\.pfm[^\n]*\\.hdr")
 # bench mpi --ranks is bounded before anything is launched (/bin/false would launch nothing).
 add_test(NAME smoke.bench_mpi_ranks_range COMMAND ${_kdt} bench mpi --mpiexec /bin/false
          --repeat 1 --work-dir ${_tmp}/bench_mpi_ranks --ranks 2,100000)
