@@ -8,6 +8,7 @@
 
 #include "app/commands.h"
 #include "app/options_cli.h"
+#include "renderer/core/error.h"
 #include "renderer/core/timer.h"
 #include "renderer/io/image_io.h"
 #include "renderer/io/mesh_io.h"
@@ -35,7 +36,7 @@ bool is_image_file(const std::string& path) {
 
 /// Metadata text as it is safe to print: control bytes other than newline and tab become
 /// \xHH, and each new line is indented under the key.
-std::string printable(const std::string& value) {
+std::string metadata_text(const std::string& value) {
     std::string out;
     for (unsigned char c : value) {
         if (c == '\n') {
@@ -53,10 +54,11 @@ std::string printable(const std::string& value) {
 
 void print_image_info(const InfoArgs& args) {
     const ImageInfo info = read_image_info(args.file);
+    // The name as errors show it: one line, nothing that drives the terminal.
     std::printf("file:        %s\n", printable(args.file).c_str());
     std::printf("format:      %s\n", info.format.c_str());
     std::printf("size:        %dx%d\n", info.width, info.height);
-    std::printf("encoding:    %s\n", printable(info.encoding).c_str());
+    std::printf("encoding:    %s\n", metadata_text(info.encoding).c_str());
     bool rendered = false;
     for (const auto& [key, value] : info.metadata) rendered |= key.rfind("kdtrace:", 0) == 0;
     if (!rendered) std::printf("render:      no kdtrace settings stored\n");
@@ -70,7 +72,7 @@ void print_image_info(const InfoArgs& args) {
                         value.size());
             return;
         }
-        std::printf("%s: %s\n", printable(key).c_str(), printable(value).c_str());
+        std::printf("%s: %s\n", metadata_text(key).c_str(), metadata_text(value).c_str());
     };
     for (const char* key : order) {
         for (const auto& [k, v] : info.metadata) {
@@ -98,9 +100,9 @@ void run_info(const InfoArgs& args) {
     const size_t peak = peak_rss_bytes();
     const Bounds3f b = mesh.bounds();
     const double mib = 1.0 / (1024.0 * 1024.0);
-    std::printf("file:        %s\n", args.file.c_str());
+    std::printf("file:        %s\n", printable(args.file).c_str());
     std::printf("format:      %s\n", info.format.c_str());
-    std::printf("encoding:    %s\n", info.encoding.c_str());
+    std::printf("encoding:    %s\n", printable(info.encoding).c_str());
     std::printf("gzip:        %s\n", info.gzip ? "yes" : "no");
     std::printf("data bytes:  %llu\n", (unsigned long long)info.file_bytes);
     std::printf("vertices:    %zu\n", mesh.vertex_count());

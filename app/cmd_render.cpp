@@ -212,13 +212,13 @@ void run(const RenderCommand& cmd) {
         "render: %s: %dx%d, %.2f s, %.1f spp, %.2f Mrays/s (%llu rays: %llu camera, %llu bounce, "
         "%llu shadow; %.1f nodes, %.1f triangles per ray), est. rel. error %s, %llu non-finite "
         "dropped, tree %.2f s%s -> %s\n",
-        scene.empty() ? "default scene" : scene.c_str(), film.width(), film.height(), p.seconds,
-        spp, mrays, (unsigned long long)c.rays(), (unsigned long long)c.camera_rays,
+        scene.empty() ? "default scene" : printable(scene).c_str(), film.width(), film.height(),
+        p.seconds, spp, mrays, (unsigned long long)c.rays(), (unsigned long long)c.camera_rays,
         (unsigned long long)c.bounce_rays, (unsigned long long)c.shadow_rays,
         double(c.nodes_visited) / double(std::max<uint64_t>(c.rays(), 1)),
         double(c.triangles_tested) / double(std::max<uint64_t>(c.rays(), 1)), error_text.c_str(),
         (unsigned long long)c.nonfinite_dropped, prep.tree_seconds,
-        prep.tree_from_cache ? " (cached)" : "", cmd.output.c_str());
+        prep.tree_from_cache ? " (cached)" : "", printable(cmd.output).c_str());
 }
 
 }  // namespace

@@ -428,10 +428,10 @@ void run_local_frames(const RenderOptions& base, const std::string& output, bool
         write_film(f, session.film(), *snaps[i], "local");
         if (!quiet)
             std::fprintf(stderr, "kdtrace: frame %zu/%zu -> %s\n", i + 1, frames.size(),
-                         f.output.c_str());
+                         printable(f.output).c_str());
     }
     std::printf("render: %zu frames, %.2f s -> %s\n", frames.size(), timer.seconds(),
-                output.c_str());
+                printable(output).c_str());
 }
 
 }  // namespace
@@ -645,10 +645,11 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
     std::printf(
         "render: %s: %dx%d, %.2f s, %d spp, %.2f Mrays/s over %d ranks (%llu rays, %llu "
         "non-finite dropped) -> %s\n",
-        o.scene.scene_path.empty() ? "default scene" : o.scene.scene_path.c_str(), o.scene.width,
-        o.scene.height, seconds, o.stop.spp,
+        o.scene.scene_path.empty() ? "default scene" : printable(o.scene.scene_path).c_str(),
+        o.scene.width, o.scene.height, seconds, o.stop.spp,
         seconds > 0.0 ? double(c.rays()) / seconds * 1e-6 : 0.0, ctx.size(),
-        (unsigned long long)c.rays(), (unsigned long long)c.nonfinite_dropped, output.c_str());
+        (unsigned long long)c.rays(), (unsigned long long)c.nonfinite_dropped,
+        printable(output).c_str());
 }
 
 }  // namespace

@@ -70,6 +70,17 @@ set_tests_properties(smoke.distribution_bogus PROPERTIES PASS_REGULAR_EXPRESSION
 add_test(NAME smoke.render_help_formats COMMAND ${_kdt} render --help)
 set_tests_properties(smoke.render_help_formats PROPERTIES
   PASS_REGULAR_EXPRESSION "Output image: \\.png [^\n]*\\.exr[^\n]*\\.pfm[^\n]*\\.hdr")
+# Success lines show file names as errors do (printable()): an escape sequence or a newline in
+# a name reaches the terminal as \x1b or \n, never raw.
+add_test(NAME smoke.summary_names_escaped COMMAND sh -c "d=\"$1\"; rm -rf \"$d\"; mkdir -p \"$d\" \
+&& e=$(printf '\\033') && \"$0\" render --spp 1 --width 8 --height 6 --quiet \
+-o \"$d/$e[31mx.pfm\" && \"$0\" info \"$d/$e[31mx.pfm\" && cp \"$d/$e[31mx.pfm\" \"$d/a
+b.pfm\" && \"$0\" info \"$d/a
+b.pfm\" && cp /usr/share/assimp/models/PLY/cube.ply \"$d/c
+$e[2J.ply\" && \"$0\" info \"$d/c
+$e[2J.ply\"" ${_kdt} ${_tmp}/escaped_names)
+set_tests_properties(smoke.summary_names_escaped PROPERTIES
+  PASS_REGULAR_EXPRESSION "-> [^\n]*/\\\\x1b\\[31mx\\.pfm\nfile: +[^\n]*/\\\\x1b\\[31mx\\.pfm\n.*file: +[^\n]*/a\\\\nb\\.pfm\n.*file: +[^\n]*/c\\\\n\\\\x1b\\[2J\\.ply\n")
 # bench mpi --ranks is bounded before anything is launched (/bin/false would launch nothing).
 add_test(NAME smoke.bench_mpi_ranks_range COMMAND ${_kdt} bench mpi --mpiexec /bin/false
          --repeat 1 --work-dir ${_tmp}/bench_mpi_ranks --ranks 2,100000)
