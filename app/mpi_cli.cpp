@@ -548,7 +548,7 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
     dist::FarmParams params;
     dist::InjectedFault fault;
     std::vector<FramePlan> frames;
-    dist::check_every_rank(ctx, "could not start", [&]() -> dist::Fingerprint {
+    dist::check_every_rank(ctx, "start", [&]() -> dist::Fingerprint {
         options_from_json(json, o, "rank 0's options");
         frames = plan_frames(o, output, a, root);  // only rank 0 writes
         for (const FramePlan& f : frames) {
@@ -581,7 +581,7 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
         return dist::prepare_everywhere(ctx, k, log, fault);
     });
     std::vector<dist::FrameJob> jobs;
-    dist::check_every_rank(ctx, "could not set up the frames", [&]() -> dist::Fingerprint {
+    dist::check_every_rank(ctx, "set up the frames", [&]() -> dist::Fingerprint {
         for (size_t i = 0; i < frames.size(); ++i) {
             jobs.push_back({frame_snapshot(scenes, frames, i), frames[i].options});
             if (!root) continue;

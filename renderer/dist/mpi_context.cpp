@@ -230,8 +230,7 @@ void check_every_rank(const MpiContext& ctx, const std::string& what,
         ~Pending() { ctx.set_pending({}); }
     } clear{ctx};
     if (ctx.rank() == 0) {
-        const std::string stage = what.rfind("could not ", 0) == 0 ? what.substr(10) : what;
-        ctx.set_pending([&ctx, stage]() -> std::string {
+        ctx.set_pending([&ctx, stage = what]() -> std::string {
             std::vector<int> missing;
             for (int r = 1; r < ctx.size(); ++r) {
                 int flag = 0;
@@ -263,10 +262,14 @@ void check_every_rank(const MpiContext& ctx, const std::string& what,
     bool same = failed == ctx.size() && ctx.size() > 1;
     for (int r = 1; same && r < ctx.size(); ++r)
         same = std::strcmp(all[size_t(r)].message, all[0].message) == 0;
-    if (same) throw FarmError("every rank " + what + ": " + all[0].message, ctx.rank() == 0);
+    if (same) {
+        throw FarmError("all " + std::to_string(ctx.size()) + " ranks failed to " + what + ": " +
+                            all[0].message,
+                        ctx.rank() == 0);
+    }
     if (failed > 0) {
-        std::string m =
-            "rank " + std::to_string(first) + of + " " + what + ": " + all[size_t(first)].message;
+        std::string m = "rank " + std::to_string(first) + of + " could not " + what + ": " +
+                        all[size_t(first)].message;
         if (failed > 1) m += " (and " + std::to_string(failed - 1) + " more ranks failed)";
         throw FarmError(m, ctx.rank() == 0);
     }
@@ -280,7 +283,7 @@ Prepared prepare_everywhere(const MpiContext& ctx, const RenderOptions& options,
                             const PrepareLog& log, const InjectedFault& fault) {
     const std::string json = options_to_json(options);
     Prepared prep;
-    check_every_rank(ctx, "could not load the scene", [&] {
+    check_every_rank(ctx, "load the scene", [&] {
         RenderOptions o = options;
         if (fault.rank == ctx.rank() && fault.what == "load") {
             o.scene.scene_path = "/nonexistent/kdtrace-injected-fault/" +

@@ -115,19 +115,22 @@ struct InjectedFault {
 using Fingerprint = std::vector<std::pair<std::string, uint64_t>>;
 inline constexpr size_t kMaxFingerprintParts = 4;
 
-/// Collective: every rank runs `step`, then all ranks compare outcomes. When any rank's step
-/// threw, every rank throws FarmError "rank R of N <what>: <reason>" (the lowest failing
-/// rank, and how many others failed). The fingerprints `step` returns must agree part by
-/// part; for the first part that does not, every rank throws FarmError naming it (rank 0's
-/// name) and the odd ranks: with 2 ranks "ranks 0 and 1 of 2 see a different <part>", with
-/// more the ranks outside the largest group ("rank 0 of 3 sees a different <part> than the
-/// other ranks"), or "the ranks of N disagree on <part>" when no group is largest.
+/// Collective: every rank runs `step`, then all ranks compare outcomes. `what` names the step
+/// ("load the scene"). When any rank's step threw, every rank throws FarmError "rank R of N
+/// could not <what>: <reason>" (the lowest failing rank, and how many others failed), or "all
+/// N ranks failed to <what>: <reason>" when every rank failed with the same reason. The
+/// fingerprints `step` returns must agree part by part; for the first part that does not, every
+/// rank throws FarmError naming it (rank 0's name) and the odd ranks: with 2 ranks "ranks 0 and 1
+/// of 2 see a different <part>", with more the ranks outside the largest group ("rank 0 of 3 sees a
+/// different <part> than the other ranks"), or "the ranks of N disagree on <part>" when no group is
+/// largest.
 void check_every_rank(const MpiContext& ctx, const std::string& what,
                       const std::function<Fingerprint()>& step);
 
 /// Collective: every rank runs prepare_render(options) and then all ranks compare outcomes.
 /// When any rank failed, every rank throws FarmError "rank R of N could not load the scene:
-/// <reason>" (the lowest failing rank, and how many others failed); when ranks loaded a
+/// <reason>" (the lowest failing rank, and how many others failed; "all N ranks failed to
+/// load the scene: <reason>" when all failed alike); when ranks loaded a
 /// different mesh, tree, environment map or options (snapshot_fingerprint), the message
 /// names the part and the odd ranks. No rank renders before every rank has loaded.
 Prepared prepare_everywhere(const MpiContext& ctx, const RenderOptions& options,

@@ -154,7 +154,7 @@ fail_missing)
     out=$(mpi 2 render "$work/no_such_model.ply" --no-cache --spp 1 --mpi -o x.pfm 2>&1); rc=$?
     echo "$out"
     [ $rc -ne 0 ] || fail "a missing model gave exit status 0"
-    grep -q "kdtrace: error: every rank could not load the scene: .*no_such_model.ply" <<< "$out" ||
+    grep -q "kdtrace: error: all 2 ranks failed to load the scene: .*no_such_model.ply" <<< "$out" ||
         fail "message" ;;
 timeout)
     # Rank 2 sleeps 100000x its render time: the run is stuck until --timeout ends it. Its
@@ -199,14 +199,14 @@ refuse_adaptive)
         out=$(mpi 2 "${common[@]}" $flags --mpi -o x.pfm 2>&1); rc=$?
         echo "$out"
         [ $rc -ne 0 ] || fail "$flags with a tiled --mpi render gave exit status 0"
-        grep -q "every rank could not start: a tiled render (--mpi without --frames) takes a fixed stop.spp.*3x3 neighbourhood" <<< "$out" ||
+        grep -q "kdtrace: error: all 2 ranks failed to start: a tiled render (--mpi without --frames) takes a fixed stop.spp.*3x3 neighbourhood" <<< "$out" ||
             fail "message for $flags"
     done
     # A time limit depends on each rank's speed: refused for frames too.
     out=$(mpi 2 "${common[@]}" --frames 2 --turntable --time 1 --mpi -o "t_%d.pfm" 2>&1); rc=$?
     echo "$out"
     [ $rc -ne 0 ] || fail "--time with a frame farm gave exit status 0"
-    grep -q "every rank could not start: a frame farm (--mpi --frames) cannot stop on stop.seconds (--time)" <<< "$out" ||
+    grep -q "kdtrace: error: all 2 ranks failed to start: a frame farm (--mpi --frames) cannot stop on stop.seconds (--time)" <<< "$out" ||
         fail "message for --time"
     [ -e t_0.pfm ] && fail "a refused run wrote a frame"
     echo "ok: adaptive tiles and timed frames refused on every rank" ;;
@@ -293,7 +293,7 @@ bad_list)
         echo "$out"
         [ $rc -ne 0 ] || fail "$what: exit status 0"
         [ "$(grep -c 'kdtrace: error:' <<< "$out")" -eq 1 ] || fail "$what: not exactly one error message"
-        grep -q "kdtrace: error: every rank could not start: $expect" <<< "$out" || fail "$what: message"
+        grep -q "kdtrace: error: all 3 ranks failed to start: $expect" <<< "$out" || fail "$what: message"
         ls out_*.pfm 2> /dev/null && fail "$what: a frame was written"
         return 0
     }
@@ -346,7 +346,7 @@ test_flags)
         out=$(mpi 3 "${common[@]}" --mpi $flags -o x.pfm 2>&1); rc=$?
         echo "$out"
         [ $rc -ne 0 ] || fail "$flags: exit status 0"
-        grep -q "kdtrace: error: every rank could not start: ${flags%% *} " <<< "$out" ||
+        grep -q "kdtrace: error: all 3 ranks failed to start: ${flags%% *} " <<< "$out" ||
             fail "$flags: no message"
     done
     echo "ok: bad test flags refused" ;;
