@@ -236,8 +236,11 @@ void add_render_command(CLI::App& parent) {
     add_dist_options(*sub, cmd.dist, cmd.options);
     sub->callback([sub] {
         interrupt::install();
-        warn_unused_tree_flags(*sub, cmd.options.tree, !cmd.options.scene.tree_file.empty());
-        warn_unused_render_flags(*sub, cmd.options);
+        // Every rank of an --mpi render parses the same flags: rank 0 warns for all.
+        if (!(cmd.dist.mpi && launcher_rank() > 0)) {
+            warn_unused_tree_flags(*sub, cmd.options.tree, !cmd.options.scene.tree_file.empty());
+            warn_unused_render_flags(*sub, cmd.options);
+        }
         check_dist_flags(*sub, cmd.dist);
         // With --mpi or --frames, plan_frames() reads it (with --mpi, in step on every rank).
         if (!dist_requested(cmd.dist)) check_views_file(*sub);

@@ -4,14 +4,17 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <chrono>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <exception>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "app/commands.h"
+#include "app/mpi_cli.h"
 #include "renderer/core/error.h"
 
 namespace {
@@ -78,6 +81,16 @@ int finish_stdout(int status) {
 }
 
 int run(int argc, char** argv);
+int report_error();
+
+// Under `mpirun ... kdtrace ... --mpi` every rank parses the same command line, so an error in
+// it is rank 0's to print: another rank exits with the same status without a word, a second
+// later, so that mpirun (which ends the job once a rank exits non-zero) does not end rank 0
+// before its message.
+int exit_quietly(int status) {
+    if (status != 0) std::this_thread::sleep_for(std::chrono::seconds(1));
+    return status;
+}
 
 }  // namespace
 
@@ -106,10 +119,12 @@ int run(int argc, char** argv) {
     kdt::app::add_bench_mpi_command(*bench);
     // CLI11 would take an unknown word for a stray positional and say only that a subcommand
     // is required.
+    const bool worker = kdt::app::mpi_worker_before_init(argc, argv);
     const CLI::App* level = &app;
     for (int i = 1; i < argc && level; ++i) {
         if (argv[i][0] == '-') break;
         if (std::string message = unknown_subcommand(*level, argv[i]); !message.empty()) {
+            if (worker) return exit_quietly(1);
             std::fprintf(stderr, "kdtrace: error: %s\n", message.c_str());
             return 1;
         }
@@ -123,7 +138,19 @@ int run(int argc, char** argv) {
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
+        if (worker) return exit_quietly(e.get_exit_code());
         return app.exit(e);
+    } catch (...) {
+        if (worker) return exit_quietly(1);
+        return report_error();
+    }
+    return 0;
+}
+
+// The message of the exception being handled, printed as kdtrace's one error line; returns 1.
+int report_error() {
+    try {
+        throw;
     } catch (const kdt::Error& e) {
         std::fprintf(stderr, "kdtrace: error: %s\n", e.what());
         return 1;
@@ -132,9 +159,8 @@ int run(int argc, char** argv) {
         return 1;
     } catch (const std::exception& e) {
         std::fprintf(stderr, "kdtrace: error: %s\n", e.what());
-        return 1;
     }
-    return 0;
+    return 1;
 }
 
 }  // namespace

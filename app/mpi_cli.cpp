@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -104,6 +105,23 @@ void add_dist_options(CLI::App& app, DistArgs& a, RenderOptions& options) {
                    "rank reports a different tree), RANK:stall (its load never ends), RANK:stop "
                    "(a worker stops itself, SIGSTOP, before its first item) or 0:write (rank 0 "
                    "cannot write the images)");
+}
+
+int launcher_rank() {
+    for (const char* name : {"OMPI_COMM_WORLD_RANK", "PMIX_RANK", "PMI_RANK", "SLURM_PROCID"}) {
+        const char* value = std::getenv(name);
+        double rank = 0.0;
+        if (value && detail::parse_number(value, rank) && rank >= 0 && rank < 1e9 &&
+            rank == std::floor(rank))
+            return int(rank);
+    }
+    return -1;
+}
+
+bool mpi_worker_before_init(int argc, const char* const* argv) {
+    bool mpi = false;
+    for (int i = 1; i < argc; ++i) mpi = mpi || std::strcmp(argv[i], "--mpi") == 0;
+    return mpi && launcher_rank() > 0;
 }
 
 void check_dist_flags(const CLI::App& app, const DistArgs& a) {

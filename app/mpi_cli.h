@@ -41,6 +41,16 @@ void add_dist_options(CLI::App& app, DistArgs& args, RenderOptions& options);
 /// silently dropped).
 void check_dist_flags(const CLI::App& app, const DistArgs& args);
 
+/// The rank an MPI launcher gave this process, from the environment it sets before MPI_Init
+/// (Open MPI's OMPI_COMM_WORLD_RANK, PMIx's PMIX_RANK, MPICH's PMI_RANK, Slurm's
+/// SLURM_PROCID); -1 when no launcher started it.
+int launcher_rank();
+
+/// True for a process of `mpirun ... kdtrace ... --mpi` other than rank 0 (`argv` holds
+/// "--mpi" and launcher_rank() > 0): it leaves what every rank would print before MPI starts
+/// (an option error, a flag warning) to rank 0.
+bool mpi_worker_before_init(int argc, const char* const* argv);
+
 /// True when `render` runs through run_dist_render().
 inline bool dist_requested(const DistArgs& args) {
     return args.mpi || !args.frames.empty() || args.turntable;

@@ -350,6 +350,20 @@ test_flags)
             fail "$flags: no message"
     done
     echo "ok: bad test flags refused" ;;
+option_error)
+    # Every rank parses the same command line: an error or a warning found before MPI starts
+    # is printed once, by rank 0, and every rank exits with its status.
+    for flags in "--tile-batch -1:--tile-batch must be in" "--no-such-flag:--no-such-flag" \
+        "--distribution bogus:--distribution must be one of"; do
+        out=$(mpi 3 "${common[@]}" --mpi ${flags%%:*} -o x.pfm 2>&1); rc=$?
+        echo "$out"
+        [ $rc -ne 0 ] || fail "${flags%%:*}: exit status 0"
+        [ "$(grep -c -- "${flags#*:}" <<< "$out")" -eq 1 ] || fail "${flags%%:*}: not printed once"
+    done
+    out=$(mpi 3 "${common[@]}" --mpi --max-spp 4 -o x.pfm 2>&1) || { echo "$out"; fail "warning run"; }
+    echo "$out"
+    [ "$(grep -c 'warning: --spp 5 is above --max-spp 4' <<< "$out")" -eq 1 ] || fail "warning not printed once"
+    echo "ok: option errors and warnings printed by rank 0 alone" ;;
 bench_quote)
     # bench mpi launches without a shell: a quote in a name works and a crafted name runs
     # nothing.
