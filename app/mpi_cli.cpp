@@ -677,6 +677,13 @@ void run_dist_render(const RenderOptions& options, const std::string& output, bo
                      const DistArgs& a) {
     if (!a.mpi) return run_local_frames(options, output, quiet, a);
 #ifdef KDT_HAVE_MPI
+    // Without a launcher MPI_Init would start Open MPI's singleton mode, whose daemon needs
+    // ssh or rsh on PATH even for one process, and fails in 40 lines of its own otherwise.
+    if (launcher_rank() < 0) {
+        throw Error(
+            "--mpi: not started by mpirun (run it as `mpirun -np N kdtrace render ... --mpi`; "
+            "without --mpi one process renders the same image)");
+    }
     bool failed = false;
     {
         dist::MpiContext ctx;

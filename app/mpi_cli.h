@@ -60,7 +60,8 @@ inline bool dist_requested(const DistArgs& args) {
 /// sequence a pattern with one printf integer conversion ("frame_%03d.png", the frame's
 /// position from 0), or for views and sessions a name that gets "_<view name>" or
 /// "_<session file stem>" before its extension. Every listed file is read, and every scene
-/// loaded, before the first frame renders. Throws kdt::Error for bad input; with --mpi a
+/// loaded, before the first frame renders. Throws kdt::Error for bad input, and for --mpi in a
+/// process no MPI launcher started (launcher_rank() < 0), before MPI_Init; with --mpi a
 /// failure ends every rank with status 1, rank 0 printing the one message.
 void run_dist_render(const RenderOptions& options, const std::string& output, bool quiet,
                      const DistArgs& args);

@@ -38,13 +38,12 @@ refused "cannot write the image: it is the input" render s.json -o e_link.pfm --
 refused "cannot write the image: is a FIFO" render m.ply -o fifo.png --spp 1 --quiet
 refused "cannot write the scene: is a character device" scene m.ply -o /dev/null
 refused "cannot write the CSV table: it is the input" bench load m.ply --csv link.ply --repeat 1
-# Files the options come from: --session, --views (with or without --view, with --mpi).
+# Files the options come from: --session, --views (with or without --view; with --mpi in
+# tests/mpi/mpi_test.sh, stats_output).
 printf '{"trace":{"seed":3}}\n' >session.png
 printf '{"views":[{"name":"A","eye":[0,2,3],"target":[0,0,0],"up":[0,1,0],"vfov_degrees":40}]}\n' >views.png
 refused "cannot write the image: it is the input" render m.ply --session session.png \
     -o session.png --spp 1 --quiet
-refused "cannot write the image: it is the input" render m.ply --session session.png --mpi \
-    -o ./session.png --spp 1 --quiet
 refused "cannot write the image: it is the input" render m.ply --views views.png --view A \
     -o views.png --spp 1 --quiet
 refused "cannot write the image: it is the input" render m.ply --views views.png \

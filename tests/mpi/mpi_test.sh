@@ -322,6 +322,13 @@ stats_output)
         [ -e x.pfm ] && fail "--mpi-stats '$bad': the image was written"
     done
     [ "$(md5sum < model.ply)" = "$sum" ] || fail "the model was overwritten"
+    # A file the options come from is an input too.
+    printf '{"trace":{"seed":3}}\n' > session.png
+    out=$(mpi 2 render model.ply --no-cache --session session.png --spp 1 --quiet --mpi \
+        -o ./session.png 2>&1)
+    grep -q "kdtrace: error: .*cannot write the image: it is the input" <<< "$out" ||
+        { echo "$out"; fail "--session file as the image"; }
+    [ "$(cat session.png)" = '{"trace":{"seed":3}}' ] || fail "the session file was overwritten"
     mpi 2 render model.ply --no-cache --width 24 --height 16 --spp 1 --threads 1 --quiet --mpi \
         --mpi-stats stats.json -o x.pfm > log.txt 2>&1 || { cat log.txt; fail "a good --mpi-stats"; }
     grep -q '"per_rank"' stats.json || fail "stats.json has no per_rank"

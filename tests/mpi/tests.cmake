@@ -18,6 +18,17 @@ if(KDT_WITH_MPI AND EXISTS /usr/share/assimp/models/PLY/Wuson.ply)
   endforeach()
 endif()
 
+# --mpi outside mpirun is one line and status 1 before MPI_Init, not Open MPI's singleton
+# start-up, which fails in 40 lines without ssh or rsh on PATH.
+if(KDT_WITH_MPI)
+  add_test(NAME smoke.mpi_without_mpirun
+           COMMAND env -u OMPI_COMM_WORLD_RANK -u PMIX_RANK -u PMI_RANK -u SLURM_PROCID
+                   PATH=/nonexistent $<TARGET_FILE:kdtrace> render --mpi --spp 1 --width 8
+                   --height 6 --quiet -o ${CMAKE_BINARY_DIR}/mpi_without_mpirun.pfm)
+  set_tests_properties(smoke.mpi_without_mpirun PROPERTIES PASS_REGULAR_EXPRESSION
+    "^kdtrace: error: --mpi: not started by mpirun \\(run it as `mpirun -np N kdtrace render[^\n]*\n$")
+endif()
+
 # --frames without MPI: bad output patterns and a sequence without a kind are errors.
 set(_cube /usr/share/assimp/models/PLY/cube.ply)
 if(EXISTS ${_cube})
