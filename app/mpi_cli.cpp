@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
@@ -22,6 +23,7 @@
 
 #include "renderer/core/error.h"
 #include "renderer/core/fields.h"
+#include "renderer/core/interrupt.h"
 #include "renderer/core/output_path.h"
 #include "renderer/core/temp_file.h"
 #include "renderer/core/timer.h"
@@ -554,8 +556,29 @@ uint64_t plan_hash(const std::vector<FramePlan>& frames) {
     return std::hash<std::string>{}(all);
 }
 
+// Rank 0: the images written so far, for the message of an interrupted run (read from the
+// signal watcher's thread too).
+struct Kept {
+    bool sequence = false;
+    std::atomic<int> written{0};
+    std::atomic<int> frames{0};  // of a sequence, once planned
+};
+
+std::string kept_text(const Kept& k) {
+    const int written = k.written.load(), frames = k.frames.load();
+    if (!k.sequence) {
+        return written > 0 ? "the image was written"
+                           : "nothing was kept: a tiled --mpi render writes its image only once "
+                             "every tile is back";
+    }
+    if (written == 0) return "nothing was kept: no frame was finished";
+    if (written == frames) return "all " + std::to_string(frames) + " frames were written";
+    return "kept the " + std::to_string(written) + " of " + std::to_string(frames) +
+           " frames already written";
+}
+
 void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, bool quiet,
-             const DistArgs& a) {
+             const DistArgs& a, Kept& kept) {
     ctx.start_watchdog(a.timeout_seconds);
     const bool root = ctx.rank() == 0;
     const bool sequence = !a.frames.empty();
@@ -591,6 +614,7 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
         return dist::Fingerprint{
             {"list of frames and their options (views and session files)", plan_hash(frames)}};
     });
+    kept.frames = int(frames.size());
     const PrepareLog log = [&](const std::string& line) {
         if (root && !quiet) std::fprintf(stderr, "kdtrace: %s\n", line.c_str());
     };
@@ -634,6 +658,7 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
             ctx, jobs, params,
             [&](int f, const Film& film) {
                 write_film(frames[size_t(f)], film, *jobs[size_t(f)].snapshot, how);
+                ++kept.written;
             },
             progress);
     } else {
@@ -646,6 +671,7 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
         if (root) {
             try {
                 write_film(frames[0], film, *jobs[0].snapshot, how);
+                ++kept.written;
             } catch (const Error& e) {
                 throw dist::FarmError(e.what(), true);
             }
@@ -685,14 +711,25 @@ void run_dist_render(const RenderOptions& options, const std::string& output, bo
             "without --mpi one process renders the same image)");
     }
     bool failed = false;
+    Kept kept;  // outlives ctx, whose signal watcher reads it
+    kept.sequence = !a.frames.empty();
     {
         dist::MpiContext ctx;
+        // mpirun passes a Ctrl-C on as SIGTERM and SIGKILLs the ranks 1 s later: no time to
+        // finish the tiles in flight, nor always to write an image. Rank 0 says what was
+        // written (a sequence's frames are written as they come) and every rank ends.
+        ctx.watch_interrupts([&kept] { return kept_text(kept); });
         try {
-            run_mpi(ctx, options, output, quiet, a);
+            run_mpi(ctx, options, output, quiet, a, kept);
+            if (interrupt::requested()) ctx.end_after_interrupt();
+        } catch (const dist::FarmInterrupted&) {
+            ctx.end_after_interrupt();  // never finalizes: see FarmInterrupted
         } catch (const dist::FarmTimeout& e) {
             // Never finalizes: see FarmTimeout.
             ctx.end_after_timeout(with_flags(e.what()));
         } catch (const dist::FarmError& e) {
+            // A signal may have ended the others mid-step: it, not their absence, is the news.
+            if (interrupt::requested()) ctx.end_after_interrupt();
             // Printed before MPI_Finalize: mpirun ends the job once any rank has exited
             // non-zero, which could otherwise cut rank 0 off before its message.
             if (e.report())
@@ -705,6 +742,7 @@ void run_dist_render(const RenderOptions& options, const std::string& output, bo
             // exits non-zero. Not MPI_Abort (Open MPI 4.1.4's mpirun hung in
             // PMIx_server_finalize after it, 2 runs in 7), not MPI_Finalize (the others
             // never reach it).
+            if (interrupt::requested()) ctx.end_after_interrupt();
             std::fprintf(stderr, "kdtrace: error: rank %d: %s\n", ctx.rank(), e.what());
             std::fflush(stderr);
             std::fflush(stdout);

@@ -55,6 +55,7 @@ void remove_registered_temps() {
 void handler(int sig) {
     int none = 0;
     const bool first = g_signal.compare_exchange_strong(none, sig);
+    if (first && g_mode.load() == int(Mode::report)) return;
     if (first && g_mode.load() == int(Mode::finish_work)) {
         write_stderr(sig == SIGINT ? "\nkdtrace: SIGINT: finishing the tiles in flight and saving "
                                      "(interrupt again to quit at once)\n"
@@ -120,6 +121,16 @@ void exit_interrupted() {
     std::fflush(stdout);
     std::fflush(stderr);
     std::exit(exit_code());
+}
+
+void die_now(const std::function<void()>& last_words) {
+    const int sig = g_signal.load();
+    g_dying.store(true);  // before the removal, as in die()
+    remove_registered_temps();
+    if (last_words) last_words();
+    std::fflush(stdout);
+    std::fflush(stderr);
+    die(sig ? sig : SIGTERM);
 }
 
 int register_temp(const char* path) {

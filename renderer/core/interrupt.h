@@ -16,6 +16,9 @@ enum class Mode {
     /// Only records the signal (requested() turns true) so that the work in flight can stop
     /// cleanly and save what it has; a second signal then behaves as exit_now.
     finish_work,
+    /// As finish_work, without the notice: the caller says what it keeps (an MPI rank, whose
+    /// message rank 0 alone prints).
+    report,
 };
 
 /// Installs the SIGINT and SIGTERM handlers (install_handlers()) and sets the mode of the
@@ -46,6 +49,12 @@ void wait_if_dying();
 /// Flushes stdout and stderr and exits with exit_code() (static destructors run; the
 /// caller has removed or committed its temporary files).
 [[noreturn]] void exit_interrupted();
+/// From any thread: what exit_now mode's handler does, for a signal that was only recorded.
+/// Makes dying() true and removes the registered temporary files (so that a TempFile commit
+/// in flight on another thread ends with the process, not as a written file), calls
+/// `last_words` (a message), flushes stdout and stderr, and dies of the signal that arrived
+/// (SIGTERM when none did).
+[[noreturn]] void die_now(const std::function<void()>& last_words = {});
 
 /// Temporary file registry: a fixed table the signal handler can read without locking.
 /// Paths longer than kMaxTempPath (or beyond kMaxTempFiles at once) are still removed on

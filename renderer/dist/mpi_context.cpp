@@ -1,6 +1,7 @@
 #include "renderer/dist/mpi_context.h"
 
 #include <mpi.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -10,6 +11,7 @@
 #include <fstream>
 #include <functional>
 #include <map>
+#include <optional>
 #include <stdexcept>
 #include <vector>
 
@@ -74,6 +76,41 @@ void MpiContext::end_after_timeout(const std::string& message) {
     for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));
 }
 
+void MpiContext::watch_interrupts(std::function<std::string()> kept) {
+    kept_ = std::move(kept);
+    interrupt::install(interrupt::Mode::report);
+    const double grace = rank_ == 0 ? 0.25 : 2.0;
+    std::optional<std::chrono::steady_clock::time_point> since;
+    interrupt_watcher_ = std::make_unique<interrupt::Watcher>([this, grace, since]() mutable {
+        const auto now = std::chrono::steady_clock::now();
+        if (!since) since = now;
+        if (std::chrono::duration<double>(now - *since).count() >= grace) die_interrupted();
+    });
+}
+
+void MpiContext::end_after_interrupt() {
+    if (rank_ == 0) die_interrupted();
+    // mpirun ends a worker; the watcher, when it does not.
+    for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));
+}
+
+void MpiContext::die_interrupted() {
+    if (dying_.exchange(true)) {
+        for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));  // the other thread ends it
+    }
+    interrupt::die_now([this] {
+        if (rank_ == 0) {
+            // On a line of its own after the progress bar and the terminal's ^C.
+            std::fprintf(stderr, "%skdtrace: interrupted (%s); %s\n",
+                         isatty(STDERR_FILENO) ? "\n" : "", interrupt::signal_name(),
+                         kept_ ? kept_().c_str() : "nothing was kept");
+        } else {
+            std::fprintf(stderr, "kdtrace: rank %d: interrupted (%s); ending this rank\n", rank_,
+                         interrupt::signal_name());
+        }
+    });
+}
+
 void MpiContext::stop_watchdog() {
     {
         std::lock_guard<std::mutex> lock(mutex_);
@@ -92,6 +129,9 @@ std::string MpiContext::broadcast(const std::string& text) const {
 }
 
 void MpiContext::check_timeout() const {
+    if (interrupt_watcher_ && interrupt::requested())
+        throw FarmInterrupted(std::string("interrupted (") + interrupt::signal_name() + ")",
+                              rank_ == 0);
     if (!expired()) return;
     char buf[64];
     std::snprintf(buf, sizeof buf, "--timeout %g s reached", timeout_);

@@ -8,6 +8,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <stdexcept>
 #include <string>
@@ -17,6 +18,7 @@
 
 #include <mpi.h>
 
+#include "renderer/core/interrupt.h"
 #include "renderer/render/prepare.h"
 
 namespace kdt::dist {
@@ -41,8 +43,16 @@ public:
     using FarmError::FarmError;
 };
 
+/// SIGINT or SIGTERM arrived (thrown by MpiContext::check_timeout once
+/// MpiContext::watch_interrupts() is on). Such a rank must not finalize either (the other
+/// ranks are being ended, and MPI_Finalize waits for them); end_after_interrupt() ends it.
+class FarmInterrupted : public FarmError {
+public:
+    using FarmError::FarmError;
+};
+
 /// MPI_Init_thread on construction,
-/// MPI_Finalize on destruction. One per process.
+/// MPI_Finalize on destruction. One per process. Depends on core/interrupt for signals.
 class MpiContext {
 public:
     MpiContext();
@@ -64,7 +74,8 @@ public:
     void start_watchdog(double seconds, double grace_seconds = 5.0);
     bool expired() const { return expired_.load(std::memory_order_relaxed); }
     /// Throws FarmTimeout "--timeout S s reached: <pending>; ending every rank" once
-    /// expired(), with what set_pending() describes on rank 0.
+    /// expired(), with what set_pending() describes on rank 0, and FarmInterrupted once a
+    /// signal arrived under watch_interrupts().
     void check_timeout() const;
     /// Rank 0: what the farm is waiting for, for the timeout message ("rank 2 of 3 had not
     /// answered"); empty = not known. Cleared with an empty function.
@@ -75,16 +86,31 @@ public:
     double timeout_seconds() const { return timeout_; }
     void stop_watchdog();
 
+    /// Makes SIGINT and SIGTERM end the job with one message. Open MPI's mpirun, given either,
+    /// sends every rank SIGCONT, then SIGTERM 1 s later and SIGKILL 1 s after that
+    /// (odls_base_sigkill_timeout, Open MPI 4.1.4). From this call on a signal is only
+    /// recorded (interrupt::Mode::report): check_timeout() throws FarmInterrupted and
+    /// end_after_interrupt() ends the rank. Rank 0 prints "interrupted (SIGTERM); <kept()>"
+    /// and dies of the signal, without MPI_Finalize; its watcher thread does so itself when
+    /// the main thread has not 0.25 s after the signal (a load, a long pass). A worker waits
+    /// silently for mpirun to end it; one still running 2 s later (the signal was its own)
+    /// prints "rank R: interrupted (SIGINT); ending this rank" and dies of it. `kept` is
+    /// called on rank 0, on either thread, after the registered temporary files are removed.
+    void watch_interrupts(std::function<std::string()> kept);
+    /// After a FarmInterrupted, or once interrupt::requested(): ends the rank as
+    /// watch_interrupts() says. Never returns; never finalizes.
+    [[noreturn]] void end_after_interrupt();
+
     /// Rank 0's string on every rank.
     std::string broadcast(const std::string& text) const;
 
     /// Waits for a non-blocking MPI operation without taking a core: a short spin, then
     /// MPI_Test every 50 us with sleeps in between (Open MPI's blocking calls poll at full
     /// speed unless mpi_yield_when_idle, which takes a core from the ranks still rendering
-    /// on a machine with as many ranks as cores). Throws FarmError when the watchdog expired.
+    /// on a machine with as many ranks as cores). Throws what check_timeout() throws.
     void wait(MPI_Request& request) const;
     /// The same polling for any condition (an MPI_Test, an MPI_Iprobe): returns once `done`
-    /// returns true; throws FarmError when the watchdog expired.
+    /// returns true; throws what check_timeout() throws.
     void poll_until(const std::function<bool()>& done) const;
 
 private:
@@ -97,6 +123,11 @@ private:
     bool stop_ = false;
     mutable std::function<std::string()> pending_;
     std::atomic<bool> reported_{false};  // rank 0 printed the timeout message
+    std::function<std::string()> kept_;
+    std::atomic<bool> dying_{false};  // a thread is ending the process after a signal
+    std::unique_ptr<interrupt::Watcher> interrupt_watcher_;  // after kept_: joined first
+
+    [[noreturn]] void die_interrupted();
 };
 
 /// "rank 2 of 3" or "ranks 1, 2 of 3", for messages.

@@ -134,7 +134,9 @@ public:
         stats.serve_seconds += serve.seconds();
     }
 
+    // Also between the passes of rank 0's own items: a signal or a timeout stops it there.
     void poll() {
+        ctx_.check_timeout();
         int flag = 1;
         while (flag) {
             MPI_Iprobe(MPI_ANY_SOURCE, kTagResult, MPI_COMM_WORLD, &flag, MPI_STATUS_IGNORE);

@@ -357,6 +357,48 @@ test_flags)
             fail "$flags: no message"
     done
     echo "ok: bad test flags refused" ;;
+interrupt)
+    # Ctrl-C or kill to mpirun: it sends every rank SIGCONT, SIGTERM 1 s later and SIGKILL 1 s
+    # after that. Rank 0 says once what was kept, no rank hangs, no temporary file is left;
+    # mpirun itself exits with 1. The signal is sent once rank 0 has loaded (its cache line,
+    # or the first frame file), when the ranks handle it, whatever the timing after that.
+    interrupted() {  # SIGNAL READY-COMMAND ARGS...: runs the render, signals mpirun when ready
+        local sig=$1 ready=$2 pid launcher i
+        shift 2
+        "$mpiexec" --oversubscribe --allow-run-as-root -np 3 "$kdtrace" "$@" > log.txt 2>&1 &
+        launcher=$!
+        for i in $(seq 600); do eval "$ready" && break; sleep 0.1; done
+        eval "$ready" || { kill -KILL $launcher; cat log.txt; fail "$sig: the render never got going"; }
+        kill -"$sig" $launcher
+        # A hang is a failure: mpirun must be gone well before this.
+        for i in $(seq 300); do kill -0 $launcher 2> /dev/null || break; sleep 0.1; done
+        kill -0 $launcher 2> /dev/null && { kill -KILL $launcher; fail "$sig: mpirun still running 30 s later"; }
+        wait $launcher
+    }
+    big=(render "$model" --cache-dir cache --threads 1 --mpi)
+    for sig in INT TERM; do
+        rm -rf cache tiles.pfm* && mkdir cache
+        interrupted $sig "grep -q 'kd-tree cache:' log.txt" "${big[@]}" --width 200 --height 150 \
+            --spp 60000 -o tiles.pfm; rc=$?
+        cat log.txt
+        [ $rc -eq 1 ] || fail "tiles, SIG$sig: exit status $rc, not 1"
+        [ "$(grep -c '^kdtrace: ' log.txt)" -eq 2 ] || fail "tiles, SIG$sig: not the cache line and one message"
+        grep -q "^kdtrace: interrupted (SIGTERM); nothing was kept: a tiled --mpi render writes its image only once every tile is back$" \
+            log.txt || fail "tiles, SIG$sig: no message"
+        ls tiles.pfm* 2> /dev/null && fail "tiles, SIG$sig: a file was left"
+    done
+    # A sequence writes each frame as it comes: those are kept, and counted.
+    rm -rf cache frames && mkdir cache frames
+    interrupted INT "ls frames/f_000.pfm > /dev/null 2>&1" "${big[@]}" --width 48 --height 32 \
+        --spp 64 --quiet --frames 1000 --turntable -o "frames/f_%03d.pfm"; rc=$?
+    cat log.txt
+    [ $rc -eq 1 ] || fail "frames: exit status $rc, not 1"
+    [ "$(grep -c '^kdtrace: ' log.txt)" -eq 1 ] || fail "frames: not exactly one message"
+    n=$(ls frames | wc -l)
+    grep -q "^kdtrace: interrupted (SIGTERM); kept the $n of 1000 frames already written$" log.txt ||
+        fail "frames: the message does not count the $n frames written"
+    ls frames | grep -v '^f_[0-9][0-9][0-9]\.pfm$' && fail "frames: a temporary file was left"
+    echo "ok: an interrupted run says what it kept ($n frames) and ends" ;;
 option_error)
     # Every rank parses the same command line: an error or a warning found before MPI starts
     # is printed once, by rank 0, and every rank exits with its status.

@@ -94,6 +94,29 @@ TEST(InterruptDeathTest, SignalsRemoveTemporaryFiles) {
     }
 }
 
+// Report mode records the first signal without a word; die_now() from another thread then
+// removes the temporary files, says its last words and dies of that signal.
+void report_then_die_now(const fs::path& dir, int sig) {
+    interrupt::reset_for_testing();
+    interrupt::install(interrupt::Mode::report);
+    TempFile a((dir / "a.png").string());
+    a.write("data", 4);
+    ::raise(sig);
+    if (!interrupt::requested()) std::_Exit(2);
+    std::thread([] { interrupt::die_now([] { std::fprintf(stderr, "last words\n"); }); }).join();
+    std::_Exit(0);
+}
+
+TEST(InterruptDeathTest, ReportModeIsSilentAndDieNowEndsWithTheSignal) {
+    GTEST_FLAG_SET(death_test_style, "threadsafe");
+    for (int sig : {SIGINT, SIGTERM}) {
+        const fs::path dir = test::temp_dir("interrupt_report_" + std::to_string(sig));
+        EXPECT_EXIT(report_then_die_now(dir, sig), ::testing::KilledBySignal(sig),
+                    "^last words\n$");
+        EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 0) << dir;
+    }
+}
+
 // The kernel hands a process-directed signal to any thread that does not block it: here
 // the handler runs on `other` and removes the file that this thread is committing. The
 // process must still die of the signal, with no file written and no error reported.
