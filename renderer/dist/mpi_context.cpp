@@ -12,6 +12,7 @@
 #include <functional>
 #include <map>
 #include <optional>
+#include <sstream>
 #include <stdexcept>
 #include <vector>
 
@@ -319,10 +320,56 @@ void check_every_rank(const MpiContext& ctx, const std::string& what,
     }
 }
 
+namespace {
+
+// Rank 0: every rank's lines (joined by '\n', at most kMaxLogBytes each); elsewhere empty.
+constexpr size_t kMaxLogBytes = 8192;
+std::vector<std::string> gather_lines(const MpiContext& ctx,
+                                      const std::vector<std::string>& lines) {
+    std::string mine;
+    for (const std::string& line : lines) {
+        if (mine.size() + line.size() + 1 > kMaxLogBytes) break;
+        mine += line + "\n";
+    }
+    const bool root = ctx.rank() == 0;
+    int size = int(mine.size());
+    std::vector<int> sizes(root ? size_t(ctx.size()) : 1), offsets(sizes.size(), 0);
+    MPI_Request request;
+    MPI_Igather(&size, 1, MPI_INT, sizes.data(), 1, MPI_INT, 0, MPI_COMM_WORLD, &request);
+    ctx.wait(request);
+    std::string all;
+    if (root) {
+        for (size_t r = 1; r < sizes.size(); ++r) offsets[r] = offsets[r - 1] + sizes[r - 1];
+        all.resize(size_t(offsets.back() + sizes.back()));
+    }
+    MPI_Igatherv(mine.data(), size, MPI_CHAR, all.data(), sizes.data(), offsets.data(), MPI_CHAR, 0,
+                 MPI_COMM_WORLD, &request);
+    ctx.wait(request);
+    std::vector<std::string> out;
+    for (size_t r = 0; root && r < sizes.size(); ++r)
+        out.push_back(all.substr(size_t(offsets[r]), size_t(sizes[r])));
+    return out;
+}
+
+// A line without a trailing " (...)" (the timings of "kd-tree cache: loaded F (0.012 s)"),
+// so that ranks that did the same are not told apart by their times.
+std::string without_times(const std::string& line) {
+    const size_t open = line.rfind(" (");
+    return !line.empty() && line.back() == ')' && open != std::string::npos ? line.substr(0, open)
+                                                                            : line;
+}
+
+}  // namespace
+
 Prepared prepare_everywhere(const MpiContext& ctx, const RenderOptions& options,
                             const PrepareLog& log, const InjectedFault& fault) {
     const std::string json = options_to_json(options);
     Prepared prep;
+    std::vector<std::string> lines;  // what this rank's load said
+    const PrepareLog keep = [&](const std::string& line) {
+        lines.push_back(line);
+        if (log) log(line);
+    };
     check_every_rank(ctx, "load the scene", [&] {
         RenderOptions o = options;
         if (fault.rank == ctx.rank() && fault.what == "load") {
@@ -332,11 +379,30 @@ Prepared prepare_everywhere(const MpiContext& ctx, const RenderOptions& options,
         if (fault.rank == ctx.rank() && fault.what == "stall") {
             for (;;) std::this_thread::sleep_for(std::chrono::milliseconds(100));
         }
-        prep = prepare_render(o, log);
+        prep = prepare_render(o, keep);
         Fingerprint f = snapshot_fingerprint(*prep.snapshot, json);
         if (fault.rank == ctx.rank() && fault.what == "hash") f[1].second ^= 1;  // the tree
         return f;
     });
+    // The workers' lines that rank 0 did not say itself (a cache they could not write), once
+    // per text with the ranks that said it.
+    const std::vector<std::string> all = gather_lines(ctx, lines);
+    if (all.empty() || !log) return prep;
+    std::vector<std::string> own;
+    for (const std::string& line : lines) own.push_back(without_times(line));
+    std::vector<std::pair<std::string, std::vector<int>>> said;  // in the order first said
+    for (int r = 1; r < ctx.size(); ++r) {
+        std::istringstream in(all[size_t(r)]);
+        for (std::string line; std::getline(in, line);) {
+            const std::string key = without_times(line);
+            if (std::find(own.begin(), own.end(), key) != own.end()) continue;
+            auto it = std::find_if(said.begin(), said.end(),
+                                   [&](const auto& s) { return without_times(s.first) == key; });
+            if (it == said.end()) it = said.insert(said.end(), {line, {}});
+            if (it->second.empty() || it->second.back() != r) it->second.push_back(r);
+        }
+    }
+    for (const auto& [line, ranks] : said) log(rank_list(ranks, ctx.size()) + ": " + line);
     return prep;
 }
 

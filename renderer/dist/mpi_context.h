@@ -163,7 +163,10 @@ void check_every_rank(const MpiContext& ctx, const std::string& what,
 /// <reason>" (the lowest failing rank, and how many others failed; "all N ranks failed to
 /// load the scene: <reason>" when all failed alike); when ranks loaded a
 /// different mesh, tree, environment map or options (snapshot_fingerprint), the message
-/// names the part and the odd ranks. No rank renders before every rank has loaded.
+/// names the part and the odd ranks. No rank renders before every rank has loaded. `log` is
+/// called on every rank with its own lines; after a good load rank 0's `log` also gets, once
+/// per text, the workers' lines it did not say itself (times left aside), prefixed with the
+/// ranks ("rank 1 of 3: kd-tree cache: cannot write to ...").
 Prepared prepare_everywhere(const MpiContext& ctx, const RenderOptions& options,
                             const PrepareLog& log, const InjectedFault& fault = {});
 

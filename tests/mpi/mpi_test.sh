@@ -399,6 +399,24 @@ interrupt)
         fail "frames: the message does not count the $n frames written"
     ls frames | grep -v '^f_[0-9][0-9][0-9]\.pfm$' && fail "frames: a temporary file was left"
     echo "ok: an interrupted run says what it kept ($n frames) and ends" ;;
+worker_warnings)
+    # A worker's load lines reach the terminal through rank 0, once per text with the ranks
+    # that said them: here ranks 1 and 2 run where --cache-dir c is a file, not a directory.
+    rm -rf a b && mkdir -p a/c b && touch b/c
+    args=(render "$model" --width 16 --height 8 --spp 1 --threads 1 --mpi -o "$work/x.pfm")
+    out=$(timeout -k 5 100 "$mpiexec" --oversubscribe --allow-run-as-root \
+        -np 1 -wdir "$work/a" "$kdtrace" "${args[@]}" --cache-dir c : \
+        -np 2 -wdir "$work/b" "$kdtrace" "${args[@]}" --cache-dir c 2>&1) ||
+        { echo "$out"; fail "the run failed"; }
+    echo "$out"
+    [ "$(grep -c 'cannot write to c' <<< "$out")" -eq 1 ] || fail "the workers' warning is not printed once"
+    grep -q "^kdtrace: ranks 1, 2 of 3: kd-tree cache: cannot write to c: not a writable directory; tree not cached$" \
+        <<< "$out" || fail "the workers' warning does not name them"
+    # Lines every rank says alike (the cache loaded, with other times) come from rank 0 alone.
+    out=$(mpi 3 "${args[@]}" --cache-dir a/c 2>&1) || { echo "$out"; fail "the cached run failed"; }
+    echo "$out"
+    [ "$(grep -c '^kdtrace: ' <<< "$out")" -eq 1 ] || fail "the cached run printed more than rank 0's line"
+    echo "ok: workers' warnings printed by rank 0" ;;
 option_error)
     # Every rank parses the same command line: an error or a warning found before MPI starts
     # is printed once, by rank 0, and every rank exits with its status.
