@@ -236,20 +236,56 @@ std::optional<PixelInfo> RenderSession::inspect(int x, int y) const {
     return info;
 }
 
-PassStats RenderSession::render_pass(int max_spp, int per_pass) {
+PassStats RenderSession::render_pass(int max_spp, int per_pass, int budget_spp) {
     // Cleared before the changes are taken: a cancel() that follows a change never goes
     // missing, it can at worst stop the first pass that already has the change.
     cancel_requested_.store(false);
     apply_pending();
     std::vector<int> tiles(static_cast<size_t>(tile_count()));
     for (size_t i = 0; i < tiles.size(); ++i) tiles[i] = int(i);
-    return run_tiles(tiles, max_spp, per_pass);
+    return run_tiles(tiles, max_spp, per_pass, budget_spp);
 }
 
-PassStats RenderSession::render_pass(const std::vector<int>& tiles, int max_spp, int per_pass) {
+PassStats RenderSession::render_pass(const std::vector<int>& tiles, int max_spp, int per_pass,
+                                     int budget_spp) {
     cancel_requested_.store(false);
     apply_pending();
-    return run_tiles(tiles, max_spp, per_pass);
+    return run_tiles(tiles, max_spp, per_pass, budget_spp);
+}
+
+int RenderSession::fit_budget(const std::vector<int>& tiles, int per_pass, size_t active,
+                              int budget_spp) {
+    const uint64_t budget = uint64_t(budget_spp) * film_.pixel_count();
+    const uint64_t left = budget > totals_.samples ? budget - totals_.samples : 0;
+    // `active` counts the whole film: when even that fits, the tiles' pixels do.
+    if (uint64_t(active) * uint64_t(per_pass) <= left) return per_pass;
+    const int width = film_.width(), height = film_.height();
+    const int tiles_x = (width + kTileSize - 1) / kTileSize;
+    const auto for_each_active = [&](const auto& f) {
+        for (const int tile : tiles) {
+            const int x0 = (tile % tiles_x) * kTileSize, y0 = (tile / tiles_x) * kTileSize;
+            const int x1 = std::min(x0 + kTileSize, width), y1 = std::min(y0 + kTileSize, height);
+            for (int y = y0; y < y1; ++y) {
+                for (int x = x0; x < x1; ++x) {
+                    if (film_.active(x, y)) f(x, y);
+                }
+            }
+        }
+    };
+    uint64_t in_tiles = 0;
+    for_each_active([&](int, int) { ++in_tiles; });
+    if (in_tiles * uint64_t(per_pass) <= left) return per_pass;
+    // Sample indices are per pixel: cutting a pass drops samples, it changes none.
+    if (left >= in_tiles) return int(left / in_tiles);
+    uint64_t kept = 0;
+    for_each_active([&](int x, int y) {
+        if (kept < left) {
+            ++kept;
+        } else {
+            film_.set_active(x, y, false);
+        }
+    });
+    return 1;
 }
 
 size_t RenderSession::update_active(int max_spp, int per_pass) {
@@ -284,11 +320,15 @@ size_t RenderSession::update_active(int max_spp, int per_pass) {
     return film_.update_active(film_params_, in);
 }
 
-PassStats RenderSession::run_tiles(const std::vector<int>& tiles, int max_spp, int per_pass) {
+PassStats RenderSession::run_tiles(const std::vector<int>& tiles, int max_spp, int per_pass,
+                                   int budget_spp) {
     Timer timer;
     PassStats stats;
     stats.active_pixels = update_active(max_spp, per_pass > 0 ? per_pass : trace_.samples_per_pass);
     stats.open_pixels = film_.open_count();
+    int pass_samples = film_.pass_samples();
+    if (budget_spp > 0)
+        pass_samples = fit_budget(tiles, pass_samples, stats.active_pixels, budget_spp);
 
     const int width = film_.width(), height = film_.height();
     const int tiles_x = (width + kTileSize - 1) / kTileSize;
@@ -297,9 +337,9 @@ PassStats RenderSession::run_tiles(const std::vector<int>& tiles, int max_spp, i
     target.scene = snapshot_->scene.get();
     target.camera = &snapshot_->camera;
     // The pass's samples per pixel: per_pass or samples_per_pass, or more for an adaptive
-    // pass (Film::pass_samples).
+    // pass (Film::pass_samples), or fewer to keep to the sample budget.
     TraceParams pass_trace = trace_;
-    pass_trace.samples_per_pass = film_.pass_samples();
+    pass_trace.samples_per_pass = pass_samples;
     target.trace = &pass_trace;
     target.film = &film_;
     if (heat_map_ && !heat_nodes_.empty()) {
@@ -408,14 +448,16 @@ RenderProgress run_render(RenderSession& session, const StopConditions& stop,
     const bool adaptive = session.film_params().adaptive;
     const double pixels = double(session.film().pixel_count());
     const uint64_t budget = stop.spp > 0 ? uint64_t(stop.spp) * uint64_t(pixels) : 0;
-    // Without adaptivity, --spp is exact per pixel; with it, a total budget and a cap.
+    // Without adaptivity, --spp is exact per pixel; with it, a total budget that no pass
+    // draws past, and a cap.
     int cap = stop.max_spp;
     if (stop.spp > 0 && !adaptive) cap = std::min(cap, stop.spp);
+    const int budget_spp = adaptive ? stop.spp : 0;
     Timer timer;
     RenderProgress p;
     int per_pass = first_samples_per_pass(session, stop);
     for (;;) {
-        const PassStats ps = session.render_pass(cap, per_pass);
+        const PassStats ps = session.render_pass(cap, per_pass, budget_spp);
         const Film& film = session.film();
         p.passes = session.passes();
         p.seconds = timer.seconds();

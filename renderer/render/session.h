@@ -95,10 +95,17 @@ public:
 
     /// One pass: samples_per_pass samples for every active pixel (all pixels without
     /// adaptive sampling; per_pass > 0 replaces trace_params().samples_per_pass for this
-    /// pass, and 0 there means 1). max_spp > 0 caps samples drawn per pixel.
-    PassStats render_pass(int max_spp = 0, int per_pass = 0);
-    /// The same restricted to the given tile indices (row-major, tile_count() of them).
-    PassStats render_pass(const std::vector<int>& tiles, int max_spp = 0, int per_pass = 0);
+    /// pass, and 0 there means 1). max_spp > 0 caps samples drawn per pixel. budget_spp > 0
+    /// caps totals().samples (drawn since the last reset) at budget_spp times the film's
+    /// pixels, both as they are after pending changes: a pass that could draw past it gives
+    /// each active pixel its share of what is left, and when that is less than one sample
+    /// each, one sample to the first active pixels in tile order and none to the rest. The
+    /// image of a render that stays within the budget does not change.
+    PassStats render_pass(int max_spp = 0, int per_pass = 0, int budget_spp = 0);
+    /// The same restricted to the given tile indices (row-major, tile_count() of them); the
+    /// budget is shared by those tiles' pixels.
+    PassStats render_pass(const std::vector<int>& tiles, int max_spp = 0, int per_pass = 0,
+                          int budget_spp = 0);
 
     /// Copies the published image (and with `layers`, the heat maps and AOVs that are on)
     /// into `out` when its version differs from out.version; returns whether it copied. Holds
@@ -145,7 +152,11 @@ private:
     };
 
     void apply_pending();
-    PassStats run_tiles(const std::vector<int>& tiles, int max_spp, int per_pass);
+    PassStats run_tiles(const std::vector<int>& tiles, int max_spp, int per_pass, int budget_spp);
+    /// The samples per active pixel of a pass of `per_pass` over `tiles` cut to what is left
+    /// of the budget (render_pass's budget_spp times the film's pixels), deactivating pixels
+    /// when that is below one each.
+    int fit_budget(const std::vector<int>& tiles, int per_pass, size_t active, int budget_spp);
     void reset_published();
     void publish_tile(int x0, int y0, int x1, int y1);
     /// Film::update_active for the next pass, whose active pixels take at least per_pass

@@ -2,6 +2,7 @@
 // error estimate before there is a variance to estimate it from. Automatic pass sizes change
 // the passes, not the image.
 #include <cstring>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -68,6 +69,58 @@ TEST(RunRender, AdaptiveFirstPassKeepsToTheSppBudget) {
         ASSERT_FALSE(seen.empty());
         EXPECT_EQ(seen.back().samples, uint64_t(spp) * 24u * 16u)
             << "--spp " << spp << " --spp-per-pass " << per_pass;
+    }
+}
+
+// Later adaptive passes keep to the budget too: a pass that would draw past spp * pixels is
+// cut to what is left (--adaptive --spp 16 --spp-per-pass 12 drew 24 spp: 12, then 12 more).
+// Below adaptive_min_spp every pixel samples, so each one ends at exactly spp.
+TEST(RunRender, AdaptivePassesKeepToTheSppBudget) {
+    struct Case {
+        int spp, per_pass;
+    };
+    for (const Case c : {Case{16, 12}, Case{8, 3}, Case{40, 16}, Case{64, 12}, Case{21, 5}}) {
+        TraceParams tp;
+        tp.samples_per_pass = c.per_pass;
+        FilmParams fp;
+        fp.adaptive = true;
+        StopConditions stop;
+        stop.spp = c.spp;
+        RenderSession s(scene_snapshot(), tp, fp);
+        const RenderProgress p = run_render(s, stop);
+        const Film& f = s.film();
+        const uint64_t budget = uint64_t(c.spp) * f.pixel_count();
+        const std::string what =
+            "--spp " + std::to_string(c.spp) + " --spp-per-pass " + std::to_string(c.per_pass);
+        EXPECT_EQ(p.samples, budget) << what;
+        EXPECT_EQ(f.total_drawn(), budget) << what;
+        if (c.spp > fp.adaptive_min_spp) continue;
+        for (int y = 0; y < f.height(); ++y) {
+            for (int x = 0; x < f.width(); ++x)
+                ASSERT_EQ(f.next_sample_index(x, y), uint32_t(c.spp))
+                    << what << " " << x << "," << y;
+        }
+    }
+}
+
+// Less than one sample per active pixel left: one each for the first active pixels in tile
+// order, none for the rest.
+TEST(RunRender, SampleBudgetBelowOnePerPixelGoesToTheFirstPixels) {
+    TraceParams tp;
+    FilmParams fp;
+    fp.adaptive = true;
+    RenderSession s(scene_snapshot(), tp, fp);  // 24x16: tile 0 is x < 16, tile 1 the rest
+    s.render_pass(0, 1);
+    s.render_pass(std::vector<int>{1}, 0, 2);  // 1 + 2 samples for tile 1's 128 pixels
+    // A budget of 2 spp leaves 768 - 640 = 128 samples for 384 active pixels.
+    const PassStats ps = s.render_pass(0, 4, 2);
+    EXPECT_EQ(ps.active_pixels, 128u);
+    EXPECT_EQ(s.totals().samples, 2u * 24u * 16u);
+    for (int y = 0; y < 16; ++y) {
+        for (int x = 0; x < 24; ++x) {
+            const uint32_t want = x >= 16 ? 3u : y < 8 ? 2u : 1u;
+            ASSERT_EQ(s.film().next_sample_index(x, y), want) << x << "," << y;
+        }
     }
 }
 
