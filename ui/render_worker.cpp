@@ -225,11 +225,13 @@ void RenderWorker::render_loop() {
                                                        height_ / preview_divisor_)
                                          : full_camera_locked());
         }
-        // Without adaptivity a sample count is exact per pixel; the preview takes one.
+        // Without adaptivity a sample count is exact per pixel; with it, stop.spp is a budget
+        // of samples that no pass draws past (run_render's rules); the preview takes one.
         int cap = stop.max_spp;
         if (stop.spp > 0 && !adaptive) cap = std::min(cap, stop.spp);
         if (preview) cap = std::min(cap, 1);
-        const PassStats ps = session_->render_pass(cap, preview ? 1 : per_pass);
+        const int budget_spp = adaptive && !preview ? stop.spp : 0;
+        const PassStats ps = session_->render_pass(cap, preview ? 1 : per_pass, budget_spp);
         if (ps.cancelled) continue;  // a change (or pause) is waiting
         if (preview) {
             preview = false;

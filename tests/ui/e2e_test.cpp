@@ -179,6 +179,33 @@ TEST(ViewerE2E, SavedImageCommandRendersItAgain) {
     EXPECT_NE(log.find("plain.png: a PNG image without kdtrace:params"), std::string::npos) << log;
 }
 
+// An adaptive render's stop.spp is a sample budget that no pass draws past, the viewer's first
+// pass (which samples every pixel) included: --spp-per-pass 64 after `set stop.spp 1` drew
+// 64 spp. Non-adaptive passes were already capped per pixel.
+TEST(ViewerE2E, AdaptivePassesKeepToTheStopSpp) {
+    const auto dir = test::temp_dir("view_spp_budget");
+    struct Case {
+        std::string flags, script_spp;
+        const char* spp;
+    };
+    for (const Case& c : {Case{"--spp-per-pass 64", "1", "1.000000"},
+                          Case{"--spp 16 --spp-per-pass 12", "", "16.000000"}}) {
+        const std::string exr = (dir / "view.exr").string();
+        const std::string set = c.script_spp.empty() ? "" : "set stop.spp " + c.script_spp + "; ";
+        std::string log;
+        ASSERT_EQ(run(xvfb() + KDT_EXE + " view --width 48 --height 32 --no-cache --adaptive " +
+                          c.flags + " --script '" + set + "wait_done; save " + exr + "' --frames 1",
+                      dir / "view.txt", &log),
+                  0)
+            << log;
+        std::string spp;
+        for (const auto& [key, value] : read_image_info(exr).metadata) {
+            if (key == "kdtrace:spp") spp = value;
+        }
+        EXPECT_EQ(spp, c.spp) << c.flags << " " << set;
+    }
+}
+
 // The split view end to end: side B with its own tree, the divider moved, the normals and
 // radiance views drawn with no GL error (check_gl fails the script, and the run, on one).
 TEST(ViewerE2E, SplitViewDrawsBothSidesWithNoGlError) {
