@@ -18,10 +18,11 @@ CameraDesc with_camera_overrides(CameraDesc c, const SceneOptions& o) {
     return c;
 }
 
-Scene load_scene_with_overrides(const SceneOptions& o) {
+Scene load_scene_with_overrides(const SceneOptions& o, const PrepareLog& log) {
     validate(o);
     SceneLoadOptions lo;
     lo.drop_invalid = o.drop_invalid;
+    lo.warn = log;
     Scene scene =
         o.scene_path.empty() ? make_default_scene() : load_scene_or_model(o.scene_path, lo);
     EnvironmentDesc& env = scene.environment;
@@ -57,15 +58,15 @@ Prepared prepare_render(const RenderOptions& o, const PrepareLog& log, const Pre
     validate(o);
     Prepared out;
     Timer timer;
+    const PrepareLog say =
+        log ? log : [](const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); };
     enter(PrepareStage::reading);
-    out.scene = load_scene_with_overrides(o.scene);
+    out.scene = load_scene_with_overrides(o.scene, say);
     out.load_seconds = timer.seconds();
 
     // The camera and the environment before the tree: a bad image size or probe fails first.
     const Camera camera = make_camera(out.scene.camera, o.scene.width, o.scene.height);
     TraceScene ts = merge_instances(out.scene);
-    const PrepareLog say =
-        log ? log : [](const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); };
     enter(PrepareStage::environment);
     ts.env = make_environment_light(out.scene.environment, say);
 

@@ -21,7 +21,7 @@ struct Prepared {
     bool tree_from_cache = false;
 };
 
-/// One-line messages (cache hits and writes); empty = stderr.
+/// One-line messages (cache hits and writes, the scene file's warnings); empty = stderr.
 using PrepareLog = std::function<void(const std::string&)>;
 
 /// The stages of prepare_render, in the order it runs them.
@@ -49,7 +49,8 @@ Prepared prepare_render(const RenderOptions& options, const PrepareLog& log = {}
 CameraDesc with_camera_overrides(CameraDesc camera, const SceneOptions& options);
 
 /// The loaded scene with options.scene's overrides (environment file, mapping, intensity,
-/// rotation, camera) applied; no snapshot.
-Scene load_scene_with_overrides(const SceneOptions& options);
+/// rotation, camera) applied; no snapshot. The scene file's warnings go to `log` (empty =
+/// stderr).
+Scene load_scene_with_overrides(const SceneOptions& options, const PrepareLog& log = {});
 
 }  // namespace kdt

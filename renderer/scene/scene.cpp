@@ -58,6 +58,9 @@ public:
     std::string child_path(const std::string& key) const {
         return where_.empty() ? key : where_ + "/" + key;
     }
+    const std::string& file() const { return file_; }
+    /// The object's JSON path ("scene" for the root).
+    std::string where() const { return where_.empty() ? "scene" : where_; }
 
     float number(const char* key, float fallback) const {
         if (!has(key)) return fallback;
@@ -190,6 +193,18 @@ Mat4f read_transform(const Reader& r) {
     m = glm::rotate(m, glm::radians(rot.y), Vec3f(0, 1, 0));
     m = glm::rotate(m, glm::radians(rot.x), Vec3f(1, 0, 0));
     return glm::scale(m, s);
+}
+
+// A warning about the key `key` of `r` (its object when empty), through options.warn.
+void warn(const SceneLoadOptions& options, const Reader& r, const char* key,
+          const std::string& message) {
+    const std::string line = "warning: " + printable(r.file()) + ": " +
+                             printable(*key ? r.child_path(key) : r.where()) + ": " + message;
+    if (options.warn) {
+        options.warn(line);
+    } else {
+        std::fprintf(stderr, "kdtrace: %s\n", line.c_str());
+    }
 }
 
 MaterialDesc read_material(const Reader& r) {
@@ -407,7 +422,18 @@ Scene load_scene_text(const std::string& text, const std::string& path,
             inst.mesh = slot;
         }
         if (m.has("transform")) inst.world_from_object = read_transform(m.object("transform"));
-        if (m.has("material")) inst.material = read_material(m.object("material"));
+        if (m.has("material")) {
+            const Reader mr = m.object("material");
+            inst.material = read_material(mr);
+            if (inst.material.type == MaterialType::emissive &&
+                inst.material.emission == Vec3f(0.0f)) {
+                warn(options, mr, mr.has("emission") ? "emission" : "",
+                     std::string(mr.has("emission") ? "emission 0 0 0 on type emissive"
+                                                    : "type emissive without \"emission\"") +
+                         ": it emits no light, and the mesh (" + printable(file) +
+                         ") renders black");
+            }
+        }
         inst.smooth = m.boolean("smooth", inst.smooth);
         Bounds3f b = inst.mesh->bounds();
         if (!b.empty()) {

@@ -63,11 +63,17 @@ struct SceneLoadOptions {
     /// Check that the environment map is a regular file that can be opened (mesh files are
     /// read anyway). Off only for fuzzers, which must not touch the file system.
     bool check_files = true;
+    /// Called with each warning, a problem of the file that is not an error (an emissive
+    /// material that emits nothing), as one line "warning: FILE: KEY: ...". Empty: written to
+    /// stderr after "kdtrace: ".
+    std::function<void(const std::string&)> warn;
 };
 
 /// Loads a JSON scene file; mesh paths are relative to the scene file. Unknown keys,
-/// wrong types and missing files throw kdt::Error naming the file and the key. Each mesh
-/// file and builtin is loaded once and shared by all its instances.
+/// wrong types and missing files throw kdt::Error naming the file and the key; a material of
+/// type emissive whose emission is absent or zero is a warning (options.warn), as black
+/// emitters may be meant. Each mesh file and builtin is loaded once and shared by all its
+/// instances.
 Scene load_scene(const std::string& path, const SceneLoadOptions& options = {});
 
 /// load_scene() on a scene file's text already in memory; `path` names it in messages and

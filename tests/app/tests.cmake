@@ -232,6 +232,16 @@ add_test(NAME smoke.build_output_is_directory COMMAND ${_kdt} build
 set_tests_properties(smoke.build_output_is_directory PROPERTIES
   PASS_REGULAR_EXPRESSION "cannot write the tree: is a directory \\(give a file name\\)")
 
+# An emissive material that emits nothing is a warning naming the scene file and the key; the
+# render goes on (black emitters may be meant).
+file(WRITE ${_tmp}/black_emitter.json
+     "{\"meshes\": [{\"file\": \"builtin:ground_plane\"},\n"
+     "  {\"file\": \"builtin:icosphere\", \"material\": {\"type\": \"emissive\"}}]}\n")
+add_test(NAME smoke.black_emitter_warning COMMAND ${_kdt} render ${_tmp}/black_emitter.json
+         --no-cache --spp 1 --width 8 --height 6 -o ${_tmp}/black_emitter.png)
+set_tests_properties(smoke.black_emitter_warning PROPERTIES PASS_REGULAR_EXPRESSION
+  "kdtrace: warning: [^\n]*black_emitter.json: meshes/1/material: type emissive without \"emission\": it emits no light[^\n]*\nrender: ")
+
 # --session FILE sets every option it names, and flags given with it override them: the same
 # image as the flags alone, bit for bit.
 file(WRITE ${_tmp}/session.json

@@ -224,6 +224,30 @@ TEST(Scene, MeshSourceReplacesMeshFilesAndBuiltins) {
     }
 }
 
+// An emissive material that emits nothing renders black without a word otherwise: a warning
+// naming the file and the key, not an error (black emitters may be meant); any emission, or
+// another type, gives none.
+TEST(Scene, EmissiveWithoutEmissionIsAWarning) {
+    std::vector<std::string> warnings;
+    SceneLoadOptions options;
+    options.warn = [&](const std::string& line) { warnings.push_back(line); };
+    const Scene s = load_scene_text(
+        R"({"meshes": [{"file": "builtin:icosphere", "material": {"type": "diffuse"}},)"
+        R"( {"file": "builtin:icosphere", "material": {"type": "emissive"}},)"
+        R"( {"file": "builtin:icosphere", "material": {"type": "emissive", "emission": [0, 0, 0]}},)"
+        R"( {"file": "builtin:icosphere", "material": {"type": "emissive", "emission": [0, 0, 1]}},)"
+        R"( {"file": "builtin:icosphere", "material": {"type": "mirror", "emission": [0, 0, 0]}}]})",
+        "dir/s.json", options);
+    ASSERT_EQ(s.meshes.size(), 5u);
+    ASSERT_EQ(warnings.size(), 2u);
+    EXPECT_EQ(warnings[0],
+              "warning: dir/s.json: meshes/1/material: type emissive without \"emission\": it "
+              "emits no light, and the mesh (builtin:icosphere) renders black");
+    EXPECT_EQ(warnings[1],
+              "warning: dir/s.json: meshes/2/material/emission: emission 0 0 0 on type emissive: "
+              "it emits no light, and the mesh (builtin:icosphere) renders black");
+}
+
 // Singularity does not depend on scale: a uniform scale of 1e-20 (or a strong anisotropic
 // one) is an invertible transform, and its normals stay finite unit vectors.
 TEST(Scene, TinyAndAnisotropicScalesAreNotSingular) {
