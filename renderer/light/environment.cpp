@@ -163,7 +163,15 @@ ImageEnvironment::ImageEnvironment(ImageRGB image, EnvMapping mapping, float rot
                     "sampling cells per pixel must be 0 (automatic), 1, even in [2, 16], or -T "
                     "for T x T pixels per cell, T in [2, 64]");
     }
-    float radians = rotation_degrees * (kPi / 180.0f);
+    // Whole turns taken off before the trigonometry, so that any multiple of 360 is exactly
+    // 0 and -90 exactly 270: fmod is exact, an angle in [0, 360) stays as it is, and adding
+    // 360 to a negative remainder is exact for multiples of 2^-15 degrees (integers, halves;
+    // one that rounds to 360 is 0). +0 for -0 keeps the sine's sign, which atan2 reads at
+    // the seam.
+    float degrees = std::fmod(rotation_degrees, 360.0f);
+    if (degrees < 0.0f) degrees += 360.0f;
+    if (degrees == 0.0f || degrees == 360.0f) degrees = 0.0f;
+    const float radians = degrees * (kPi / 180.0f);
     cos_rot_ = std::cos(radians);
     sin_rot_ = std::sin(radians);
 

@@ -21,7 +21,7 @@ struct EnvironmentDesc {
     Vec3f color{1.0f};  ///< constant radiance when file is empty
     std::string file;   ///< .hdr, .exr or .pfm
     EnvMapping mapping = EnvMapping::latlong;
-    float rotation_degrees = 0.0f;  ///< about the world +y axis
+    float rotation_degrees = 0.0f;  ///< about the world +y axis; modulo 360 (exactly)
     float intensity = 1.0f;         ///< multiplies the map (or the colour)
 };
 

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <functional>
 #include <utility>
@@ -440,6 +441,38 @@ TEST_P(MapTest, LookupsAreContinuousAcrossPixels) {
         EXPECT_LT(max_jump, 0.05f) << "axis " << axis.x << "," << axis.y << "," << axis.z;
         EXPECT_GT(nearest_jump, 0.3f) << "the test map must show texel blocks without bilinear";
     }
+}
+
+// Rotations are taken modulo 360 before the trigonometry: whole turns give the lookups of 0
+// bit for bit (720 differed from 0 by the float error of cos and sin of 4 pi), and a
+// negative angle those of the same angle plus 360.
+TEST_P(MapTest, WholeTurnsOfRotationAreExactlyNone) {
+    const auto same = [&](float a, float b) {
+        const ImageEnvironment ea = make(false, a), eb = make(false, b);
+        HashRng rng(13);
+        for (int i = 0; i < 2000; ++i) {
+            const Vec2f u = rng.next2();
+            const Vec3f d = sample_uniform_sphere(rng.next2());
+            const EnvSample sa = ea.sample(u), sb = eb.sample(u);
+            const Vec3f va = ea.eval(d), vb = eb.eval(d);
+            const Vec2f uva = ea.uv_from_dir(d), uvb = eb.uv_from_dir(d);
+            // Bitwise, and -0 apart from +0.
+            if (std::memcmp(&va, &vb, sizeof va) != 0 || std::memcmp(&uva, &uvb, sizeof uva) != 0 ||
+                std::memcmp(&sa.dir, &sb.dir, sizeof sa.dir) != 0 ||
+                std::memcmp(&sa.radiance, &sb.radiance, sizeof sa.radiance) != 0 ||
+                sa.pdf_solid_angle != sb.pdf_solid_angle || ea.pdf(d) != eb.pdf(d)) {
+                ADD_FAILURE() << a << " and " << b << " degrees differ at lookup " << i;
+                return;
+            }
+        }
+    };
+    same(720.0f, 0.0f);
+    same(36000.0f, 0.0f);
+    same(-360.0f, 0.0f);
+    same(-36000.0f, 0.0f);
+    same(-90.0f, 270.0f);
+    same(390.0f, 30.0f);
+    same(-0.5f, 359.5f);
 }
 
 /// The message of the kdt::Error that building the light throws ("" and a failure if none).
