@@ -259,9 +259,10 @@ sessions)
     echo "ok: 2 session frames (40x30 and 56x24) identical to single renders" ;;
 adaptive_frames)
     # Adaptive sampling and an error target are allowed for whole frames: each frame is
-    # bitwise the single-process adaptive render, for every split.
+    # bitwise the single-process adaptive render, for every split. A minimum below --spp 5
+    # lets the allocation pick pixels (below it every pixel samples, as without adaptivity).
     views
-    for stop in "--error 0.25" "--adaptive"; do
+    for stop in "--error 0.25 --adaptive-min-spp 2" "--adaptive --adaptive-min-spp 2"; do
         tag=${stop// /}
         for v in front top; do
             "$kdtrace" "${common[@]}" $stop --views views.json --view "$v" -o "single_${tag}_$v.pfm" \
@@ -277,7 +278,8 @@ adaptive_frames)
     done
     # The adaptive render is not the fixed-spp one (so the comparisons above can fail).
     "$kdtrace" "${common[@]}" --views views.json --view front -o fixed_front.pfm > /dev/null
-    cmp -s fixed_front.pfm single_--error0.25_front.pfm && fail "--error made no difference"
+    cmp -s fixed_front.pfm single_--error0.25--adaptive-min-spp2_front.pfm &&
+        fail "--error made no difference"
     echo "ok: --error and --adaptive frames identical over 2 and 3 ranks" ;;
 bad_list)
     # A bad listed file stops every rank before any frame renders: one message naming it,
