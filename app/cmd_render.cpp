@@ -144,7 +144,7 @@ void run(const RenderCommand& cmd) {
     check_output(cmd.output, inputs, "the image");
 
     const Prepared prep = prepare_render(o, [&](const std::string& line) {
-        if (!cmd.quiet) std::fprintf(stderr, "kdtrace: %s\n", line.c_str());
+        if (!cmd.quiet || is_warning(line)) std::fprintf(stderr, "kdtrace: %s\n", line.c_str());
     });
     const RenderSnapshot& snap = *prep.snapshot;
     if (cmd.env_rotation_given && prep.scene.environment.file.empty()) {

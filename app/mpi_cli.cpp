@@ -433,7 +433,7 @@ void run_local_frames(const RenderOptions& base, const std::string& output, bool
                       const DistArgs& a) {
     const std::vector<FramePlan> frames = plan_frames(base, output, a, true);
     const PrepareLog log = [&](const std::string& line) {
-        if (!quiet) std::fprintf(stderr, "kdtrace: %s\n", line.c_str());
+        if (!quiet || is_warning(line)) std::fprintf(stderr, "kdtrace: %s\n", line.c_str());
     };
     const SceneGroups scenes =
         load_scenes(frames, [&](const RenderOptions& o) { return prepare_render(o, log); });
@@ -616,7 +616,8 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
     });
     kept.frames = int(frames.size());
     const PrepareLog log = [&](const std::string& line) {
-        if (root && !quiet) std::fprintf(stderr, "kdtrace: %s\n", line.c_str());
+        if (root && (!quiet || is_warning(line)))
+            std::fprintf(stderr, "kdtrace: %s\n", line.c_str());
     };
     // Every scene of the sequence is loaded on every rank before any frame renders.
     const SceneGroups scenes = load_scenes(frames, [&](const RenderOptions& k) {

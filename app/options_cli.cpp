@@ -306,4 +306,8 @@ std::string with_flags(const std::string& message) {
     return m;
 }
 
+bool is_warning(const std::string& line) {
+    return line.rfind("warning: ", 0) == 0 || line.find(": warning: ") != std::string::npos;
+}
+
 }  // namespace kdt::app

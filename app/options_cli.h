@@ -68,6 +68,10 @@ void check_subdivide(uint64_t triangles, int levels);
 /// --subdivide 3: out of memory making 55770496 triangles", not main()'s bare "out of memory".
 void subdivide_model(const std::string& model, TriangleMesh& mesh, int levels);
 
+/// Whether a line of prepare_render()'s log (or a worker's, "ranks 1, 2 of 3: ...") is a
+/// warning: shown under --quiet, which silences progress and cache messages, not problems.
+bool is_warning(const std::string& line);
+
 /// A renderer message with every field name it mentions ("trace.max_depth") followed by the
 /// flag that sets it ("trace.max_depth (--path-depth)"), so a CLI user knows what to change.
 std::string with_flags(const std::string& message);

@@ -241,6 +241,11 @@ add_test(NAME smoke.black_emitter_warning COMMAND ${_kdt} render ${_tmp}/black_e
          --no-cache --spp 1 --width 8 --height 6 -o ${_tmp}/black_emitter.png)
 set_tests_properties(smoke.black_emitter_warning PROPERTIES PASS_REGULAR_EXPRESSION
   "kdtrace: warning: [^\n]*black_emitter.json: meshes/1/material: type emissive without \"emission\": it emits no light[^\n]*\nrender: ")
+# --quiet silences progress and cache messages, not warnings.
+add_test(NAME smoke.quiet_keeps_warnings COMMAND ${_kdt} render ${_tmp}/black_emitter.json
+         --no-cache --spp 1 --width 8 --height 6 --quiet -o ${_tmp}/black_emitter_quiet.png)
+set_tests_properties(smoke.quiet_keeps_warnings PROPERTIES PASS_REGULAR_EXPRESSION
+  "kdtrace: warning: [^\n]*black_emitter.json: meshes/1/material: type emissive without")
 
 # --session FILE sets every option it names, and flags given with it override them: the same
 # image as the flags alone, bit for bit.
