@@ -12,6 +12,7 @@
 
 #include "renderer/core/error.h"
 #include "renderer/core/timer.h"
+#include "renderer/io/ply_simd.h"
 
 namespace kdt {
 namespace {
@@ -24,6 +25,22 @@ constexpr uint32_t kNone = UINT32_MAX;
 
 bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\v' || c == '\f'; }
 bool is_letter(char c) { return (c | 0x20) >= 'a' && (c | 0x20) <= 'z'; }
+bool is_eol(char c) { return c == '\n' || c == '\r'; }
+
+// The first CR or LF in [p, end), or end: one pass, where two memchr calls would scan a
+// file of CR-only line endings to the end of its block for each line.
+const char* find_eol(const char* p, const char* end) {
+#if defined(__SSE2__)
+    const __m128i lf = _mm_set1_epi8('\n'), cr = _mm_set1_epi8('\r');
+    for (; end - p >= 16; p += 16) {
+        const __m128i x = _mm_loadu_si128(reinterpret_cast<const __m128i*>(p));
+        const int m = _mm_movemask_epi8(_mm_or_si128(_mm_cmpeq_epi8(x, lf), _mm_cmpeq_epi8(x, cr)));
+        if (m != 0) return p + __builtin_ctz(unsigned(m));
+    }
+#endif
+    while (p < end && !is_eol(*p)) ++p;
+    return p;
+}
 
 // A token for messages: quoted, at most 40 bytes, through printable().
 std::string quoted(const char* b, const char* e) {
@@ -73,6 +90,12 @@ bool overflows(const char* b, const char* e) {
     return magnitude + exponent > 0;
 }
 
+// The values of a `v` or `vn` statement read so far.
+struct Values {
+    float v[3] = {0.0f, 0.0f, 0.0f};
+    int count = 0;
+};
+
 // Where the largest positive (1-based) index of a kind was seen: positive indices may point
 // at elements defined later, so they are checked at the end of the file.
 struct Farthest {
@@ -110,12 +133,21 @@ private:
     }
 
     bool next_line(const char*& b, const char*& e);
-    void long_line();
+    bool long_line();
+    void long_statement();
     void refill();
     void statement(const char* b, const char* e);
     void vertex(const char* b, const char* e);
     void normal(const char* b, const char* e);
     void face(const char* b, const char* e);
+    // The parts of vertex(), normal() and face() that long_statement() shares: one value or
+    // corner each, then the end of the statement.
+    [[gnu::always_inline]] inline void vertex_value(Values& s, const char* tb, const char* te);
+    [[gnu::always_inline]] inline void vertex_end(const Values& s);
+    [[gnu::always_inline]] inline void normal_value(Values& s, const char* tb, const char* te);
+    [[gnu::always_inline]] inline void normal_end(const Values& s);
+    [[gnu::always_inline]] inline void face_corner(uint64_t& n, const char* tb, const char* te);
+    [[gnu::always_inline]] inline void face_end(uint64_t n);
     void corner(const char* b, const char* e, int64_t face);
     uint32_t index(const char* b, const char* e, uint64_t count, const char* what,
                    const char* plural, Farthest& farthest, int64_t face);
@@ -153,56 +185,58 @@ bool ObjParser::next_line(const char*& b, const char*& e) {
     bool continued = false;
     for (;;) {
         const char* base = buf_.data();
-        const void* nl = scan_ < end_ ? std::memchr(base + scan_, '\n', end_ - scan_) : nullptr;
-        if (nl) {
-            const size_t at = size_t(static_cast<const char*>(nl) - base);
+        const size_t at = size_t(find_eol(base + scan_, base + end_) - base);
+        // CR, LF and CRLF end a line; a CR ending the data read so far waits for the next
+        // byte, which may be its LF.
+        if (at < end_ && (base[at] == '\n' || at + 1 < end_ || eof_)) {
+            const size_t next =
+                at + 1 + size_t(base[at] == '\r' && at + 1 < end_ && base[at + 1] == '\n');
             ++next_line_;
             if (skipping_) {  // the end of a long comment: an empty statement
                 skipping_ = false;
                 b = e = base + at;
-                pos_ = scan_ = at + 1;
+                pos_ = scan_ = next;
                 break;
             }
-            size_t q = at;
-            if (q > pos_ && base[q - 1] == '\r') --q;
-            if (q > pos_ && base[q - 1] == '\\') {
+            if (at > pos_ && base[at - 1] == '\\') {
                 // A '\' ending the line continues the statement on the next line, except in
                 // a comment (which must not swallow a statement).
                 const char* s = base + pos_;
-                while (s < base + q && is_blank(*s)) ++s;
+                while (s < base + at && is_blank(*s)) ++s;
                 if (*s != '#') {
                     continued = true;
-                    scan_ = at + 1;
+                    scan_ = next;
                     continue;
                 }
             }
             b = base + pos_;
             e = base + at;
-            pos_ = scan_ = at + 1;
+            pos_ = scan_ = next;
             break;
         }
         if (eof_) {
             if (pos_ == end_) return false;
             b = base + pos_;
-            e = base + end_;  // the last line has no newline
+            e = base + end_;  // the last line has no line end
             pos_ = scan_ = end_;
             break;
         }
-        if (skipping_ || end_ - pos_ >= kBlockBytes) long_line();
+        if ((skipping_ || end_ - pos_ >= kBlockBytes) && long_line()) {
+            b = e = buf_.data() + pos_;  // read by long_statement(): an empty statement
+            return true;
+        }
         refill();
     }
     if (continued) {
-        // Each '\' before a line break becomes a blank.
+        // Each '\' before a line end becomes a blank.
         joined_.clear();
         for (const char* p = b; p < e; ++p) {
-            if (*p == '\\') {
+            if (*p == '\\' && p + 1 < e && is_eol(p[1])) {
                 const char* q = p + 1;
-                if (q < e && *q == '\r') ++q;
-                if (q < e && *q == '\n') {
-                    joined_ += ' ';
-                    p = q;
-                    continue;
-                }
+                if (*q == '\r' && q + 1 < e && q[1] == '\n') ++q;
+                joined_ += ' ';
+                p = q;
+                continue;
             }
             joined_ += *p;
         }
@@ -212,31 +246,148 @@ bool ObjParser::next_line(const char*& b, const char*& e) {
     return true;
 }
 
-// A statement not ended within a block: before the buffer grows for it, its start gets the
-// checks statement() would make first, so binary data fails at its first line after one
-// block rather than after the whole line is held (the message is the same: tokens are
-// quoted up to 40 bytes). A comment (never continued) is dropped as it is read.
-void ObjParser::long_line() {
+// A statement not ended within a block. A comment line (never continued) is dropped as it is
+// read. Any other statement first gets the checks statement() would make first, so binary
+// data fails at its first line after one block with the same message (tokens are quoted up
+// to 40 bytes); then long_statement() reads it. Returns true once the statement is read.
+bool ObjParser::long_line() {
     const char* b = buf_.data() + pos_;
     const char* e = buf_.data() + end_;
     const char* s = b;
     while (s < e && is_blank(*s)) ++s;
     if (skipping_ || (s < e && *s == '#')) {  // the rule next_line() applies to comments
         skipping_ = true;
-        pos_ = scan_ = end_ = 0;
-        return;
+        // A final CR is kept: it ends the comment, alone or with an LF still unread.
+        const bool cr = e > b && e[-1] == '\r';
+        if (cr) buf_[0] = '\r';
+        pos_ = scan_ = 0;
+        end_ = cr ? 1 : 0;
+        return false;
     }
     if (line_ == 1 && e - b >= 3 && std::memcmp(b, "\xef\xbb\xbf", 3) == 0) b += 3;  // BOM
     while (b < e && is_blank(*b)) ++b;
     const char* k = b;
     while (k < e && !is_blank(*k)) ++k;
-    // A continuation inside the first token would change the token; leave that to
-    // statement(), as a comment after a BOM.
-    if (e - b <= 40 || *b == '#' || std::memchr(b, '\n', size_t(k - b))) return;
-    if (!is_letter(b[0]))
-        fail("", -1, "not an OBJ statement: " + quoted(b, k) + " (binary data or UTF-16 text?)");
-    if (std::memchr(b, '\0', size_t(e - b)))
-        fail("", -1, "NUL byte in a statement (binary data or UTF-16 text?)");
+    // A line end (continuation) inside the first token changes the token, and 40 bytes or
+    // less may not hold all of it: long_statement() checks those.
+    if (e - b > 40 && *b != '#' && !std::memchr(b, '\n', size_t(k - b)) &&
+        !std::memchr(b, '\r', size_t(k - b))) {
+        if (!is_letter(b[0]))
+            fail("", -1,
+                 "not an OBJ statement: " + quoted(b, k) + " (binary data or UTF-16 text?)");
+        if (std::memchr(b, '\0', size_t(e - b)))
+            fail("", -1, "NUL byte in a statement (binary data or UTF-16 text?)");
+    }
+    long_statement();
+    return true;
+}
+
+// Reads the statement starting at pos_ to its end, holding one token (keyword, value or
+// corner) at a time: blanks, comments and whole skipped statements are dropped as they are
+// read, so a line's length costs no memory. A value or corner of kBlockBytes or more is an
+// error. Lines are counted again from line_: next_line() may have counted continued ones.
+void ObjParser::long_statement() {
+    enum class Kind { kKeyword, kVertex, kNormal, kFace, kOther };
+    Kind kind = Kind::kKeyword;
+    Values values;
+    uint64_t corners = 0;
+    bool comment = false;  // after a '#', up to the line end
+    char prev = '\n';      // the byte before pos_, for a '\' ending a line
+    next_line_ = line_;
+    if (line_ == 1 && end_ - pos_ >= 3 && std::memcmp(buf_.data() + pos_, "\xef\xbb\xbf", 3) == 0)
+        pos_ += 3;  // BOM
+    // The length of the line end at p (CR, LF or CRLF).
+    auto eol_length = [](const char* p, const char* end) {
+        return size_t(1) + size_t(*p == '\r' && p + 1 < end && p[1] == '\n');
+    };
+    bool done = false;
+    while (!done) {
+        const char* base = buf_.data();
+        const char* p = base + pos_;
+        const char* end = base + end_;
+        // Up to two bytes of look-ahead ('\', CR, LF) tell line ends apart until the data ends.
+        const char* lim = eof_ ? end : p + (end_ - pos_ > 2 ? end_ - pos_ - 2 : 0);
+        while (p < lim) {
+            if (comment || kind == Kind::kOther) {
+                // Dropped up to the line end; a comment line may hold NULs and is not continued.
+                const bool line_comment = kind == Kind::kKeyword;
+                const char* x = find_eol(p, lim);
+                if (!line_comment && std::memchr(p, '\0', size_t(x - p)))
+                    fail("", -1, "NUL byte in a statement (binary data or UTF-16 text?)");
+                if (x == lim) {
+                    prev = lim[-1];
+                    p = lim;
+                    break;
+                }
+                const bool continues = !line_comment && (x > p ? x[-1] : prev) == '\\';
+                p = x + eol_length(x, end);
+                ++next_line_;
+                prev = '\n';
+                // A comment goes on over a continued line, as in a joined one.
+                if (!continues) {
+                    done = true;
+                    break;
+                }
+                continue;
+            }
+            const char c = *p;
+            if (is_blank(c)) {
+                ++p;
+            } else if (c == '\\' && p + 1 < end && is_eol(p[1])) {  // continued: a blank
+                p += 1 + eol_length(p + 1, end);
+                ++next_line_;
+            } else if (is_eol(c)) {
+                p += eol_length(p, end);
+                ++next_line_;
+                done = true;
+                break;
+            } else if (c == '#') {
+                comment = true;
+            } else {
+                const char* t = p;
+                while (t < lim && !is_blank(*t) && !is_eol(*t) &&
+                       !(*t == '\\' && t + 1 < end && is_eol(t[1])))
+                    ++t;
+                // A token reaching lim may go on; a keyword of over 40 bytes is none we read.
+                if (t == lim && !eof_ && (kind != Kind::kKeyword || t - p <= 40)) break;
+                if (kind == Kind::kKeyword) {
+                    if (!is_letter(*p))
+                        fail("", -1,
+                             "not an OBJ statement: " + quoted(p, t) +
+                                 " (binary data or UTF-16 text?)");
+                    const size_t n = size_t(t - p);
+                    kind = n == 1 && p[0] == 'v'                  ? Kind::kVertex
+                           : n == 2 && p[0] == 'v' && p[1] == 'n' ? Kind::kNormal
+                           : (n == 1 && p[0] == 'f') || (n == 2 && p[0] == 'f' && p[1] == 'o')
+                               ? Kind::kFace
+                               : Kind::kOther;
+                    if (kind == Kind::kOther) continue;  // dropped from p on, NULs checked
+                } else {
+                    if (std::memchr(p, '\0', size_t(t - p)))
+                        fail("", -1, "NUL byte in a statement (binary data or UTF-16 text?)");
+                    if (kind == Kind::kVertex) vertex_value(values, p, t);
+                    if (kind == Kind::kNormal) normal_value(values, p, t);
+                    if (kind == Kind::kFace) face_corner(corners, p, t);
+                }
+                p = t;
+            }
+        }
+        pos_ = scan_ = size_t(p - base);
+        if (done || (eof_ && pos_ == end_)) break;
+        // Only a token that may go on is kept.
+        if (end_ - pos_ >= kBlockBytes) {
+            if (kind == Kind::kFace)
+                fail("face", int64_t(face_sizes_.size()),
+                     "corner " + quoted(p, end) + " longer than 1 MiB");
+            fail(kind == Kind::kVertex ? "vertex" : "normal",
+                 int64_t(kind == Kind::kVertex ? positions_.size() : normal_count_),
+                 "value " + quoted(p, end) + " longer than 1 MiB");
+        }
+        refill();
+    }
+    if (kind == Kind::kVertex) vertex_end(values);
+    if (kind == Kind::kNormal) normal_end(values);
+    if (kind == Kind::kFace) face_end(corners);
 }
 
 void ObjParser::refill() {
@@ -250,7 +401,8 @@ void ObjParser::refill() {
         // One block, or less for a small file: +1 so that the read finding the end fits.
         buf_.resize(size_t(std::min<uint64_t>(kBlockBytes, in_.size_bound() + 1)));
     } else if (end_ == buf_.size()) {
-        // A line longer than the buffer: grow it (doubling, so a long line costs linear time).
+        // A line longer than the buffer (only before long_line() takes it, for a small
+        // buffer): grow it, doubling, so that it costs linear time.
         buf_.resize(2 * buf_.size());
     }
     const size_t got = in_.read(buf_.data() + end_, buf_.size() - end_);
@@ -260,7 +412,6 @@ void ObjParser::refill() {
 }
 
 void ObjParser::statement(const char* b, const char* e) {
-    if (e > b && e[-1] == '\r') --e;                                                 // CRLF
     if (line_ == 1 && e - b >= 3 && std::memcmp(b, "\xef\xbb\xbf", 3) == 0) b += 3;  // BOM
     while (b < e && is_blank(*b)) ++b;
     if (b == e || *b == '#') return;
@@ -270,10 +421,6 @@ void ObjParser::statement(const char* b, const char* e) {
         fail("", -1, "not an OBJ statement: " + quoted(b, k) + " (binary data or UTF-16 text?)");
     if (std::memchr(b, '\0', size_t(e - b)))
         fail("", -1, "NUL byte in a statement (binary data or UTF-16 text?)");
-    if (std::memchr(b, '\r', size_t(e - b)))
-        fail("", -1,
-             "carriage return inside a line (CR-only line endings are not supported; use LF "
-             "or CRLF)");
     const size_t n = size_t(k - b);
     if (n == 1 && b[0] == 'v') return vertex(k, e);
     if (n == 2 && b[0] == 'v' && b[1] == 'n') return normal(k, e);
@@ -297,21 +444,28 @@ float ObjParser::number(const char* b, const char* e, const char* element, uint6
 }
 
 void ObjParser::vertex(const char* b, const char* e) {
+    Values s;
+    const char *tb = nullptr, *te = nullptr;
+    while (next_token(b, e, tb, te)) vertex_value(s, tb, te);
+    vertex_end(s);
+}
+
+void ObjParser::vertex_value(Values& s, const char* tb, const char* te) {
+    const uint64_t i = positions_.size();
+    if (s.count == 7)
+        fail("vertex", int64_t(i), "more than 7 values (x y z [w] or x y z r g b [a])");
+    const float x = number(tb, te, "vertex", i);
+    if (s.count < 3) s.v[s.count] = x;
+    ++s.count;
+}
+
+void ObjParser::vertex_end(const Values& s) {
     const uint64_t i = positions_.size();
     if (i >= kMaxElements) fail("vertex", int64_t(i), "more than 2^32-1 vertices");
-    float v[3] = {0.0f, 0.0f, 0.0f};
-    int count = 0;
-    const char *tb = nullptr, *te = nullptr;
-    while (next_token(b, e, tb, te)) {
-        if (count == 7)
-            fail("vertex", int64_t(i), "more than 7 values (x y z [w] or x y z r g b [a])");
-        const float x = number(tb, te, "vertex", i);
-        if (count < 3) v[count] = x;
-        ++count;
-    }
-    if (count < 3)
-        fail("vertex", int64_t(i), "has " + std::to_string(count) + " coordinates (x y z needed)");
-    const Vec3f p(v[0], v[1], v[2]);
+    if (s.count < 3)
+        fail("vertex", int64_t(i),
+             "has " + std::to_string(s.count) + " coordinates (x y z needed)");
+    const Vec3f p(s.v[0], s.v[1], s.v[2]);
     if (!is_finite(p)) [[unlikely]]
         non_finite_vertex(i, p);
     positions_.push_back(p);
@@ -328,30 +482,42 @@ void ObjParser::non_finite_vertex(uint64_t i, const Vec3f& p) {
 }
 
 void ObjParser::normal(const char* b, const char* e) {
+    Values s;
+    const char *tb = nullptr, *te = nullptr;
+    while (next_token(b, e, tb, te)) normal_value(s, tb, te);
+    normal_end(s);
+}
+
+void ObjParser::normal_value(Values& s, const char* tb, const char* te) {
+    if (s.count == 3) fail("normal", int64_t(normal_count_), "more than 3 values (x y z)");
+    s.v[s.count++] = number(tb, te, "normal", normal_count_);
+}
+
+void ObjParser::normal_end(const Values& s) {
     const uint64_t i = normal_count_;
     if (i >= kMaxElements) fail("normal", int64_t(i), "more than 2^32-1 normals");
-    float v[3] = {0.0f, 0.0f, 0.0f};
-    int count = 0;
-    const char *tb = nullptr, *te = nullptr;
-    while (next_token(b, e, tb, te)) {
-        if (count == 3) fail("normal", int64_t(i), "more than 3 values (x y z)");
-        v[count++] = number(tb, te, "normal", i);
-    }
-    if (count < 3)
-        fail("normal", int64_t(i), "has " + std::to_string(count) + " values (x y z needed)");
-    if (options_.keep_normals) normals_.emplace_back(v[0], v[1], v[2]);
+    if (s.count < 3)
+        fail("normal", int64_t(i), "has " + std::to_string(s.count) + " values (x y z needed)");
+    if (options_.keep_normals) normals_.emplace_back(s.v[0], s.v[1], s.v[2]);
     ++normal_count_;
 }
 
 void ObjParser::face(const char* b, const char* e) {
-    const int64_t f = int64_t(face_sizes_.size());
     uint64_t n = 0;
     const char *tb = nullptr, *te = nullptr;
-    while (next_token(b, e, tb, te)) {
-        if (n == kMaxElements) fail("face", f, "more than 2^32-1 vertices");
-        corner(tb, te, f);
-        ++n;
-    }
+    while (next_token(b, e, tb, te)) face_corner(n, tb, te);
+    face_end(n);
+}
+
+void ObjParser::face_corner(uint64_t& n, const char* tb, const char* te) {
+    const int64_t f = int64_t(face_sizes_.size());
+    if (n == kMaxElements) fail("face", f, "more than 2^32-1 vertices");
+    corner(tb, te, f);
+    ++n;
+}
+
+void ObjParser::face_end(uint64_t n) {
+    const int64_t f = int64_t(face_sizes_.size());
     if (n < 3)
         fail("face", f,
              std::to_string(n) + (n == 1 ? " index" : " indices") + ", a face needs at least 3");

@@ -1,5 +1,6 @@
-// The x86 SIMD intrinsics the PLY decoders use, where the target has SSE2 at least.
-// Internal to renderer/io/ply_*.
+// The x86 SIMD intrinsics the PLY decoders and the OBJ line scan use, where the target has
+// SSE2 at least.
+// Internal to renderer/io.
 #pragma once
 
 #if defined(__SSE2__)

@@ -194,6 +194,36 @@ TEST_F(ObjReader, TextConventions) {
               Vec3f(0.0f));
 }
 
+TEST_F(ObjReader, LfCrlfAndCrLineEndingsReadAlike) {
+    // A cube with LF, CRLF and CR-only (old Mac) line endings, and all three mixed.
+    const std::vector<std::string> lines = {"v 0 0 0",   "v 1 0 0",   "v 1 1 0",   "v 0 1 0",
+                                            "v 0 0 1",   "v 1 0 1",   "v 1 1 1",   "v 0 1 1",
+                                            "# faces",   "f 1 2 3 4", "f 5 6 7 8", "f 1 2 6 5",
+                                            "f 2 3 7 6", "f 3 4 8 7", "f 4 1 5 8"};
+    auto join = [&](const std::vector<std::string>& ends) {
+        std::string text;
+        for (size_t i = 0; i < lines.size(); ++i) text += lines[i] + ends[i % ends.size()];
+        return text;
+    };
+    const TriangleMesh lf = load(join({"\n"}));
+    ASSERT_EQ(lf.vertex_count(), 8u);
+    ASSERT_EQ(lf.triangle_count(), 12u);
+    for (const auto& ends : std::vector<std::vector<std::string>>{
+             {"\r\n"}, {"\r"}, {"\r", "\n", "\r\n"}, {"\r\n", "\r", "\r", "\n"}}) {
+        const TriangleMesh m = load(join(ends));
+        EXPECT_EQ(m.positions, lf.positions) << printable(join(ends));
+        EXPECT_EQ(m.triangles, lf.triangles) << printable(join(ends));
+    }
+    // CR counts lines as LF does, CRLF counts one; '\' continues a line before any of them;
+    // a comment ends at a CR; a last CR is a line end.
+    EXPECT_EQ(error_of("v 0 0 0\rv 1 \\\r0 0\r\nv 0 1 0\n\r# c \\\rf 1 2 x\r"),
+              "t.obj: line 7: face 1: invalid vertex index 'x'");
+    EXPECT_EQ(load("v 0 0 0\rv 1 \\\r0 0\r\nv 0 1 0 # c\rf 1 2 3\r").triangle_count(), 1u);
+    // A CR before the end of the data is not "inside a line" any more: old files that were
+    // refused for it load.
+    EXPECT_EQ(load("v 0 0 0\rv 1 0 0\rv 0 1 0\rf 1 2 3\r").triangle_count(), 1u);
+}
+
 TEST_F(ObjReader, LongLines) {
     // Lines longer than the 1 MiB read block: a comment, then a polygon of 400000 corners.
     std::string text = "#" + std::string(3u << 20, 'c') + "\n" + kTriangle + "f";
@@ -340,8 +370,6 @@ TEST_F(ObjReader, HostileInputsGiveClearErrors) {
         {tri + "vn 0 0 1 0\n", "t.obj: line 4: normal 1: more than 3 values (x y z)"},
         // tinyobjloader overflowed an int on this exponent (undefined behaviour).
         {"v 1e2147483648 0 0\n", "t.obj: line 1: vertex 1: non-finite coordinate (inf"},
-        {"v 0 0 0\rv 1 0 0\rv 0 1 0\rf 1 2 3\r",
-         "t.obj: line 1: carriage return inside a line (CR-only line endings are not supported"},
         {std::string("\x89PNG\r\n\x1a\n\0\0\0\rIHDR", 16),
          "t.obj: line 1: not an OBJ statement: '\\x89PNG' (binary data or UTF-16 text?)"},
         {std::string("\xfe\xff\0v\0 \0\x31", 8), "t.obj: line 1: not an OBJ statement: '\\xfe"},
