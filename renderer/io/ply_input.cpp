@@ -19,9 +19,18 @@ constexpr int kPopulateRead = 22;
 // Mesh data inflate about 2-10:1; the buffer for gzip input is sized for that.
 constexpr uint64_t kLikelyInflation = 16;
 
+MapParams g_map_params;
+
 }  // namespace
 
-// Plain files of at least kMapBytes are mapped: no copy, no buffer to fault in.
+MapParams set_map_params(const MapParams& params) {
+    const MapParams old = g_map_params;
+    g_map_params = params;
+    g_map_params.window_bytes = std::max<size_t>(params.window_bytes, 1);
+    return old;
+}
+
+// Plain files of at least MapParams::min_file_bytes are mapped: no copy, no buffer to fault in.
 // Small files and gzip/memory input get a buffer, small inputs one of their own size;
 // gzip input one for what its compressed size makes likely (it grows when a line needs
 // more).
@@ -64,13 +73,15 @@ bool Input::refill(size_t n) {
 }
 
 // Maps the whole file read-only over a reservation one padding page longer, so loads past
-// the end read zeros; the parser then sees the file through a window of kBlockBytes that
-// slide() moves on. A file truncated by another process while it is read would fault; the
-// guard turns the missing pages into zeros and check_unchanged() into an Error.
+// the end read zeros; the parser then sees the file through a window of window_ bytes
+// (kBlockBytes but in tests) that slide() moves on. A file truncated by another process while it is
+// read would fault; the guard turns the missing pages into zeros and check_unchanged() into an
+// Error.
 bool Input::map_file() {
     const int fd = reader_.plain_fd();
     const uint64_t size = reader_.file_bytes();
-    if (fd < 0 || size < kMapBytes || size > uint64_t(SIZE_MAX) / 2) return false;
+    if (fd < 0 || size == 0 || size < g_map_params.min_file_bytes || size > uint64_t(SIZE_MAX) / 2)
+        return false;
     const size_t page = size_t(::sysconf(_SC_PAGESIZE));
     const size_t bytes = (size_t(size) + kPad + 2 * page - 1) / page * page;
     void* base = ::mmap(nullptr, bytes, PROT_READ, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
@@ -90,12 +101,13 @@ bool Input::map_file() {
     map_bytes_ = bytes;
     map_end_ = map_ + size;
     page_ = page;
+    window_ = g_map_params.window_bytes;
     released_ = map_;
     pos_ = end_ = map_;
     return true;
 }
 
-// Moves the window of a mapped file to [pos, pos + max(n, kBlockBytes)) and unmaps the pages
+// Moves the window of a mapped file to [pos, pos + max(n, window_)) and unmaps the pages
 // before it, so resident memory stays about one window whatever the file size.
 bool Input::slide(size_t n) {
     // The pages past a truncation read as zeros: stop at the next window, not at the end.
@@ -106,7 +118,7 @@ bool Input::slide(size_t n) {
         released_ = done;
     }
     const char* old_end = end_;
-    end_ = pos_ + std::min(size_t(map_end_ - pos_), std::max(n, kBlockBytes));
+    end_ = pos_ + std::min(size_t(map_end_ - pos_), std::max(n, window_));
     eof_ = end_ == map_end_;
     // Map the window's pages in one call rather than one fault per 16 pages.
     char* from = map_ + size_t(std::max(old_end, pos_) - map_) / page_ * page_;

@@ -1,6 +1,6 @@
 // Block input for the PLY reader: a plain file of 1 MiB or more is mapped and seen through a
-// sliding window, any other input (small files, gzip, memory) through a reused buffer.
-// Internal to renderer/io/ply_*; depends on io/file_reader.
+// sliding window of kBlockBytes, any other input (small files, gzip, memory) through a reused
+// buffer. Internal to renderer/io/ply_*; depends on io/file_reader.
 #pragma once
 
 #include <algorithm>
@@ -16,6 +16,18 @@
 
 namespace kdt::ply {
 
+/// When the PLY reader maps a file, and the window it sees a mapped file through. Tests and
+/// fuzzing only, not a user option: they lower both so that small inputs take the mapped
+/// path and cross window ends.
+struct MapParams {
+    uint64_t min_file_bytes = uint64_t(1) << 20;  ///< plain files of this size or more
+    size_t window_bytes = kBlockBytes;            ///< at least 1
+};
+
+/// Sets the parameters later Inputs use and returns the previous ones. Not thread-safe: to be
+/// called while no PLY file is being opened.
+MapParams set_map_params(const MapParams& params);
+
 /// A reused buffer refilled from the reader, or a window on the mapped file; never reads past
 /// its data.
 class Input {
@@ -25,8 +37,9 @@ public:
     // allocation; bytes at or past end() never count.
     static constexpr size_t kPad = 80;
 
-    // Plain files of at least kMapBytes are mapped: no copy, no buffer to fault in.
-    // Small files and gzip/memory input get a buffer, small inputs one of their own size.
+    // Plain files of at least MapParams::min_file_bytes (1 MiB) are mapped: no copy, no
+    // buffer to fault in. Small files and gzip/memory input get a buffer, small inputs one of
+    // their own size.
     explicit Input(FileReader& reader);
     Input(const Input&) = delete;
     Input& operator=(const Input&) = delete;
@@ -37,7 +50,7 @@ public:
     bool eof() const { return eof_; }
     size_t avail() const { return size_t(end_ - pos_); }
     /// Bytes the buffer holds without growing.
-    size_t capacity() const { return map_ ? kBlockBytes : buf_.size() - kPad; }
+    size_t capacity() const { return map_ ? window_ : buf_.size() - kPad; }
     void advance(size_t n) { pos_ += n; }
     /// Stream offset of pos().
     uint64_t offset() const {
@@ -101,7 +114,6 @@ private:
     bool map_file();
     bool slide(size_t n);
 
-    static constexpr uint64_t kMapBytes = uint64_t(1) << 20;
     static constexpr size_t kReleaseBytes = size_t(1) << 20;
 
     FileReader& reader_;
@@ -113,7 +125,7 @@ private:
     char* map_ = nullptr;  // mapped file, or null for buffered input
     const char* map_end_ = nullptr;
     char* released_ = nullptr;  // pages before it are unmapped again
-    size_t map_bytes_ = 0, page_ = 4096;
+    size_t map_bytes_ = 0, page_ = 4096, window_ = kBlockBytes;
     std::unique_ptr<MapGuard> guard_;  // set while map_ is
 };
 

@@ -3,16 +3,20 @@
 // clang); run by scripts/run_fuzz.sh. Inputs reach the reader three ways: gzip inputs (the
 // .ply.gz seeds, magic 1f 8b) as a file, so FileReader inflates them with its limits; one
 // plain input in two (by size) gzip-compressed here and read as a file, so the parser runs
-// on input of unknown size, whose arrays grow as data arrives; the rest from memory.
+// on input of unknown size, whose arrays grow as data arrives; the rest both from memory and
+// as a mapped file (the mapping threshold lowered from 1 MiB to 1 byte, the window from 4 MiB
+// to 1 byte .. 4 KiB or left, by size), which must give the same mesh or the same error.
 #include <sys/mman.h>
 #include <unistd.h>
 #include <zlib.h>
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <string>
 #include <vector>
 
 #include "renderer/core/error.h"
+#include "renderer/io/ply_input.h"
 #include "renderer/io/ply_reader.h"
 
 namespace {
@@ -49,6 +53,57 @@ kdt::TriangleMesh read_as_file(const uint8_t* bytes, size_t size, const kdt::Mes
     return kdt::read_ply("/proc/self/fd/" + std::to_string(file.fd), o, info);
 }
 
+// What one read gave: the mesh, or the error's message.
+struct Result {
+    kdt::TriangleMesh mesh;
+    std::string error;  // empty when it loaded
+};
+
+template <typename F>
+Result result_of(F&& read) {
+    Result r;
+    try {
+        r.mesh = read();
+    } catch (const kdt::Error& e) {
+        r.error = e.what();
+        if (r.error.empty()) __builtin_trap();
+    }
+    return r;
+}
+
+template <typename T>
+bool same_bytes(const std::vector<T>& a, const std::vector<T>& b) {
+    return a.size() == b.size() &&
+           (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
+}
+
+// `data` read from memory and as a mapped file seen through a window of `window` bytes: the
+// two must agree, bit for bit or message for message (both name the file by its path).
+void read_both_ways(const uint8_t* data, size_t size, const kdt::MeshLoadOptions& o,
+                    size_t window) {
+    struct Fd {
+        int fd;
+        ~Fd() { ::close(fd); }
+    } file{::memfd_create("fuzz.ply", MFD_CLOEXEC)};
+    if (file.fd < 0) __builtin_trap();
+    for (size_t done = 0; done < size;) {
+        const ssize_t n = ::write(file.fd, data + done, size - done);
+        if (n <= 0) __builtin_trap();
+        done += size_t(n);
+    }
+    const std::string path = "/proc/self/fd/" + std::to_string(file.fd);
+    const Result memory = result_of([&] { return kdt::read_ply_memory(data, size, path, o); });
+    const kdt::ply::MapParams old = kdt::ply::set_map_params({1, window});
+    const Result mapped = result_of([&] { return kdt::read_ply(path, o); });
+    kdt::ply::set_map_params(old);
+    if (memory.error != mapped.error) __builtin_trap();
+    if (!same_bytes(memory.mesh.positions, mapped.mesh.positions) ||
+        !same_bytes(memory.mesh.triangles, mapped.mesh.triangles) ||
+        !same_bytes(memory.mesh.normals, mapped.mesh.normals) ||
+        !same_bytes(memory.mesh.colors, mapped.mesh.colors))
+        __builtin_trap();
+}
+
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
@@ -64,6 +119,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
             const std::vector<uint8_t> gz = gzip(data, size);
             mesh = read_as_file(gz.data(), gz.size(), options, &info);
         } else {
+            if (size > 0) {
+                static constexpr size_t kWindows[] = {1, 7, 64, 1000, 4096, kdt::ply::kBlockBytes};
+                read_both_ways(data, size, options, kWindows[size / 4 % std::size(kWindows)]);
+            }
             mesh = kdt::read_ply_memory(data, size, "fuzz.ply", options, &info);
         }
         // Every index must be in range: read them all so ASan sees any stray one.
