@@ -485,15 +485,17 @@ FileHeader checked_header(const unsigned char* data, size_t size, const std::str
 
 std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
                                           std::shared_ptr<const TriangleMesh> mesh,
-                                          const KdTreeParams& params, double* verify_seconds) {
+                                          const KdTreeParams& params, double* verify_seconds,
+                                          bool use_stamps) {
     MappedFile file(path);
     // The header checksum sits at a fixed offset; the full checks below validate it.
     uint64_t header_checksum = 0;
     if (file.size() >= sizeof(FileHeader)) {
         std::memcpy(&header_checksum, file.data() + offsetof(FileHeader, header_checksum), 8);
     }
-    const std::string key =
-        mesh ? stamp_key(file.stat(), header_checksum, mesh->content_hash()) : std::string();
+    const std::string key = use_stamps && mesh
+                                ? stamp_key(file.stat(), header_checksum, mesh->content_hash())
+                                : std::string();
     const bool verified = !key.empty() && stamped(file.stat(), key);
     double seconds = 0.0;
     std::shared_ptr<const KdTree> tree;
@@ -505,7 +507,7 @@ std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
         file.check_unchanged();  // a file that shrank meanwhile is the problem to report
         throw;
     }
-    if (!verified) write_stamp(file.stat(), key);
+    if (!verified && !key.empty()) write_stamp(file.stat(), key);
     if (verify_seconds) *verify_seconds = seconds;
     return tree;
 }
@@ -726,7 +728,7 @@ std::shared_ptr<const KdTree> get_or_build_kdtree(const std::string& model_path,
         std::error_code ec;
         if (!fs::exists(fs::symlink_status(file, ec))) continue;
         try {
-            auto tree = load_kdtree(file.string(), mesh, params, &rep.verify_seconds);
+            auto tree = load_kdtree(file.string(), mesh, params, &rep.verify_seconds, true);
             rep.path = file.string();
             rep.loaded = true;
             rep.seconds = timer.seconds();

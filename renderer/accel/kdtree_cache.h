@@ -36,10 +36,15 @@ void save_kdtree(const std::string& path, const KdTree& tree);
 /// mapping). Throws kdt::Error with the path, the element and the byte offset on any
 /// mismatch; never trusts a file it has not fully checked: last, check_kdtree_complete()
 /// (whose time goes to `verify_seconds` when given).
+/// With `use_stamps`, a file verified before (a verified-stamp in the user's cache directory,
+/// default_kdtree_cache_dir()/verified, matches it) skips check_kdtree_complete(), and one
+/// verified now gets a stamp; without (the default: a file of the user's choice, `--tree`),
+/// the cache directory is neither read nor written.
 std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
                                           std::shared_ptr<const TriangleMesh> mesh,
                                           const KdTreeParams& params,
-                                          double* verify_seconds = nullptr);
+                                          double* verify_seconds = nullptr,
+                                          bool use_stamps = false);
 
 /// The parameters a cache file (or a tree written by `kdtrace build -o`) was built with, after
 /// checking its header (magic, version, checksum; values in range). Throws kdt::Error naming
@@ -96,6 +101,7 @@ std::string default_kdtree_cache_dir();
 /// "<model>-<mesh hash>.<builder>-<params hash>.kdt" in default_kdtree_cache_dir(), so models
 /// of one file name in different folders do not evict each other. `model_path` may be empty
 /// for generated meshes: the name is then "mesh-<mesh hash>...".
+/// Files are loaded with verified-stamps (load_kdtree), and the trees it writes are stamped.
 /// A corrupt, truncated, stale or foreign file is reported through `log` (one line with the
 /// reason; stderr when `log` is empty), rebuilt and rewritten atomically. A cache that cannot
 /// be written is reported and the built tree still returned. Throws only what the build

@@ -326,6 +326,16 @@ add_test(NAME smoke.tree_file_render COMMAND ${_kdt} render
          --height 12 -o ${_tmp}/wuson_tree.png)
 set_tests_properties(smoke.tree_file_render PROPERTIES DEPENDS smoke.tree_file_build
   PASS_REGULAR_EXPRESSION "tree [0-9.]+ s \\(cached\\)")
+# Verified-stamps are kept for the cache's own files only: `--tree FILE` and `--no-cache`
+# (alone or together) leave the cache directory ($KDT_CACHE_DIR/trees) uncreated.
+add_test(NAME smoke.tree_file_no_stamp COMMAND sh -c "k=\"$0\" t=\"$1\" d=\"$2\"; rm -rf \"$d\"; \
+r() { KDT_CACHE_DIR=\"$d\" \"$k\" render /usr/share/assimp/models/PLY/Wuson.ply \"$@\" --spp 1 \
+--width 16 --height 12 --quiet -o \"$d.png\" || exit 1; }; r --tree \"$t\"; \
+r --tree \"$t\" --no-cache; r --no-cache; \
+if [ -e \"$d\" ]; then find \"$d\"; else echo PASS: no cache directory; fi"
+         ${_kdt} ${_tmp}/wuson_thesis.kdt ${_tmp}/stamp_cache)
+set_tests_properties(smoke.tree_file_no_stamp PROPERTIES DEPENDS smoke.tree_file_build
+  PASS_REGULAR_EXPRESSION "PASS: no cache directory")
 add_test(NAME smoke.tree_file_other_model COMMAND ${_kdt} render
          /usr/share/assimp/models/PLY/cube.ply --tree ${_tmp}/wuson_thesis.kdt --spp 1
          -o ${_tmp}/cube_tree.png)

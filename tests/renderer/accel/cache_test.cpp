@@ -61,9 +61,9 @@ void expect_same_tree(const KdTree& a, const KdTree& b) {
 }
 
 std::string load_error(const fs::path& file, std::shared_ptr<const TriangleMesh> mesh,
-                       const KdTreeParams& params) {
+                       const KdTreeParams& params, bool use_stamps = true) {
     try {
-        load_kdtree(file.string(), std::move(mesh), params);
+        load_kdtree(file.string(), std::move(mesh), params, nullptr, use_stamps);
     } catch (const Error& e) {
         return e.what();
     }
@@ -718,8 +718,8 @@ TEST(CacheCompleteness, VerifiedOnFirstUseThenStampedUntilTheFileChanges) {
     const fs::path file = dir / "t.kdt";
     save_kdtree(file.string(), *built);  // from outside: not stamped
     double first = -1.0, second = -1.0;
-    load_kdtree(file.string(), mesh, params, &first);
-    load_kdtree(file.string(), mesh, params, &second);
+    load_kdtree(file.string(), mesh, params, &first, true);
+    load_kdtree(file.string(), mesh, params, &second, true);
     EXPECT_GT(first, 0.0);   // verified ...
     EXPECT_EQ(second, 0.0);  // ... once
     // The stamp lives in the private cache directory, created with mode 0700.
@@ -738,7 +738,7 @@ TEST(CacheCompleteness, VerifiedOnFirstUseThenStampedUntilTheFileChanges) {
     EXPECT_NE(load_error(file, mesh, params).find("incomplete"), std::string::npos);
     save_kdtree((dir / "good.kdt").string(), *built);
     const std::vector<unsigned char> bad = read_bytes(file);
-    load_kdtree((dir / "good.kdt").string(), mesh, params);  // stamped now
+    load_kdtree((dir / "good.kdt").string(), mesh, params, nullptr, true);  // stamped now
     {
         std::fstream out(dir / "good.kdt", std::ios::in | std::ios::out | std::ios::binary);
         out.write(reinterpret_cast<const char*>(bad.data()), std::streamsize(bad.size()));
@@ -756,6 +756,29 @@ TEST(CacheCompleteness, VerifiedOnFirstUseThenStampedUntilTheFileChanges) {
         ASSERT_EQ(::stat(p.c_str(), &st), 0);
         EXPECT_EQ(st.st_mode & 0777, 0700u) << p;
     }
+}
+
+// A file of the user's choice (`render --tree`, `--no-cache` or not) is loaded without
+// stamps: verified in full on every load, and nothing is written to the cache directory.
+TEST(CacheCompleteness, LoadWithoutStampsLeavesTheCacheDirectoryAlone) {
+    const fs::path dir = test::temp_dir("kdt_cache_no_stamp");
+    ScopedCacheDirEnv env(dir / "user_cache");
+    const auto mesh = sphere_mesh(3);
+    const KdTreeParams params = thesis_params();
+    const fs::path file = dir / "t.kdt";
+    save_kdtree(file.string(), *build_kdtree(mesh, params));
+    for (int run = 0; run < 2; ++run) {
+        double seconds = -1.0;
+        load_kdtree(file.string(), mesh, params, &seconds);
+        EXPECT_GT(seconds, 0.0) << "run " << run;  // verified every time
+    }
+    EXPECT_FALSE(fs::exists(dir / "user_cache"));
+    // A stamp written with use_stamps is not read without it either.
+    load_kdtree(file.string(), mesh, params, nullptr, true);
+    ASSERT_TRUE(fs::is_directory(dir / "user_cache" / "trees" / "verified"));
+    double seconds = -1.0;
+    load_kdtree(file.string(), mesh, params, &seconds);
+    EXPECT_GT(seconds, 0.0);
 }
 
 }  // namespace
