@@ -108,6 +108,9 @@ void add_build_command(CLI::App& parent) {
             Timer t;
             tree = build_kdtree(shared, params);
             std::printf("built in %.3f s\n", t.seconds());
+            // (get_or_build_kdtree() below warns through its log.)
+            if (const std::string w = kdtree_leaf_warning(*tree); !w.empty())
+                std::fprintf(stderr, "kdtrace: warning: %s\n", w.c_str());
             save_kdtree(output, *tree);
             std::printf("wrote %s\n", output.c_str());
         } else {

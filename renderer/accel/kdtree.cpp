@@ -4,7 +4,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <sstream>
+#include <utility>
+#include <vector>
 
 #include "renderer/accel/builder.h"
 #include "renderer/core/error.h"
@@ -149,6 +152,62 @@ std::shared_ptr<const KdTree> build_kdtree(std::shared_ptr<const TriangleMesh> m
     finalize_stats(out, mesh->triangles.size());
     return std::make_shared<const KdTree>(std::move(mesh), out.bounds, std::move(out.nodes),
                                           std::move(out.indices), params, std::move(out.stats));
+}
+
+std::string kdtree_leaf_warning(const KdTree& tree) {
+    const KdTreeParams& p = tree.params();
+    const auto& nodes = tree.nodes();
+    const uint32_t root_bound = std::max<uint32_t>(kRootLeafTriangles, 4 * uint32_t(p.n0));
+    const uint32_t bound = std::max<uint32_t>(kLargeLeafTriangles, 4 * uint32_t(p.n0));
+    // The largest leaf and its depth (the first of equals in depth-first order).
+    uint32_t largest = 0;
+    int depth = 0;
+    std::vector<std::pair<uint32_t, int>> stack{{0u, 0}};
+    while (!stack.empty()) {
+        const auto [i, d] = stack.back();
+        stack.pop_back();
+        const KdNode& n = nodes[i];
+        if (n.is_leaf()) {
+            if (n.count() > largest) {
+                largest = n.count();
+                depth = d;
+            }
+        } else {
+            stack.emplace_back(n.child() + 1, d + 1);
+            stack.emplace_back(n.child(), d + 1);
+        }
+    }
+    const bool root_leaf = nodes.size() == 1;
+    if (largest <= (root_leaf ? root_bound : bound)) return {};
+    const int limit = p.max_depth > 0 ? std::min(p.max_depth, kMaxTreeDepth)
+                                      : automatic_max_depth(tree.mesh().triangle_count());
+    char head[160];
+    std::snprintf(head, sizeof(head), "the kd-tree's largest leaf holds %u triangles%s", largest,
+                  root_leaf ? " (the root is a leaf)" : "");
+    char cause[320];
+    if (p.q < 0.9f) {
+        std::snprintf(cause, sizeof(cause),
+                      ": --q %g makes the leaf cost f(n) grow as n^%.2f, so splitting %s pays; "
+                      "try --q 0.9 or more (default 0.98)",
+                      double(p.q), 1.0 + std::log2(double(p.q)), p.q <= 0.5f ? "never" : "rarely");
+    } else if (depth >= limit) {
+        std::snprintf(cause, sizeof(cause),
+                      ": it lies at the depth limit %d; try a larger --depth (at most %d)", limit,
+                      kMaxTreeDepth);
+    } else if (p.builder == KdBuilder::sah &&
+               p.intersect_cost * thesis_f(float(largest), p.q, p.n0) <= p.traversal_cost) {
+        std::snprintf(
+            cause, sizeof(cause),
+            ": --sah-traversal-cost %g exceeds its leaf cost; try a lower --sah-traversal-cost "
+            "or a higher --sah-intersect-cost",
+            double(p.traversal_cost));
+    } else if (root_leaf) {
+        std::snprintf(cause, sizeof(cause),
+                      ": no split plane separates them (coincident or overlapping triangles?)");
+    } else {
+        return {};  // the builder's own choice: no parameter to blame
+    }
+    return std::string(head) + cause;
 }
 
 }  // namespace kdt

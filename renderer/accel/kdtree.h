@@ -226,6 +226,22 @@ std::shared_ptr<const KdTree> build_kdtree(std::shared_ptr<const TriangleMesh> m
 /// Deepest tree the traversal's stack holds (one entry per level).
 inline constexpr int kMaxTreeDepth = 64;
 
+/// Leaf sizes kdtree_leaf_warning() lets pass: a root leaf of up to kRootLeafTriangles, other
+/// leaves of up to kLargeLeafTriangles (each raised to 4 n0 when that is larger). The builders'
+/// defaults stay well within them on the Stanford dragon and its coarser scans (largest
+/// leaves: SAH 26-33, thesis 40-347, the latter with no parameter to blame).
+inline constexpr uint32_t kRootLeafTriangles = 64;
+inline constexpr uint32_t kLargeLeafTriangles = 128;
+
+/// A one-line warning when the largest leaf of `tree` holds far more triangles than its
+/// parameters intend, else empty: when the root is a leaf of more than kRootLeafTriangles
+/// (whatever the cause), or a leaf holds more than kLargeLeafTriangles for a cause the user
+/// can change. The causes, checked in this order: q below 0.9 (f(n) then grows as
+/// n^(1 + log2 q), so a split rarely pays; at q 0.5 never), the depth limit reached, an SAH
+/// traversal cost above the leaf's cost; for a root leaf without any of these, triangles that
+/// no plane separates. The message says what to try.
+std::string kdtree_leaf_warning(const KdTree& tree);
+
 /// The depth limit of KdTreeParams::max_depth = 0 for a tree over `triangles` triangles:
 /// 8 + 1.3 log2 N, at most kMaxTreeDepth.
 inline int automatic_max_depth(size_t triangles) {

@@ -741,6 +741,7 @@ std::shared_ptr<const KdTree> get_or_build_kdtree(const std::string& model_path,
                               rep.seconds);
             }
             say("kd-tree cache: loaded " + rep.path + buf);
+            if (const std::string w = kdtree_leaf_warning(*tree); !w.empty()) say("warning: " + w);
             if (report) *report = rep;
             return tree;
         } catch (const Error& e) {
@@ -752,6 +753,7 @@ std::shared_ptr<const KdTree> get_or_build_kdtree(const std::string& model_path,
     rep.reason = reasons;
 
     auto tree = build_kdtree(mesh, params);
+    if (const std::string w = kdtree_leaf_warning(*tree); !w.empty()) say("warning: " + w);
     for (const fs::path& dir : dirs) {
         std::error_code ec;
         // Only the cache directory is ours to create; the model's directory must exist.

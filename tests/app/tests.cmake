@@ -449,3 +449,17 @@ foreach(_case "kdtree;--rows;1,1;1"
     PASS_REGULAR_EXPRESSION "error: ${_flag}: '${_entry}' is given twice"
     FAIL_REGULAR_EXPRESSION "loading /|reference: [0-9]|bench converge: |bench mpi: " TIMEOUT 30)
 endforeach()
+# A tree whose largest leaf holds far more triangles than its parameters intend is reported
+# with its cause, by `build -o` and through the cache; the defaults are not.
+add_test(NAME smoke.build_leaf_warning COMMAND ${_kdt} build
+         /usr/share/assimp/models/PLY/Wuson.ply --q 0.5 -o ${_tmp}/wuson_q05.kdt)
+set_tests_properties(smoke.build_leaf_warning PROPERTIES PASS_REGULAR_EXPRESSION
+  "kdtrace: warning: the kd-tree's largest leaf holds 3732 triangles \\(the root is a leaf\\): --q 0.5 makes the leaf cost f\\(n\\) grow as n\\^0.00, so splitting never pays; try --q 0.9 or more")
+add_test(NAME smoke.build_leaf_warning_cached COMMAND ${_kdt} build
+         /usr/share/assimp/models/PLY/Wuson.ply --depth 3 --cache-dir ${_tmp}/leaf_cache)
+set_tests_properties(smoke.build_leaf_warning_cached PROPERTIES PASS_REGULAR_EXPRESSION
+  "kdtrace: warning: the kd-tree's largest leaf holds [0-9]+ triangles: it lies at the depth limit 3; try a larger --depth")
+add_test(NAME smoke.build_no_leaf_warning COMMAND ${_kdt} build
+         /usr/share/assimp/models/PLY/Wuson.ply -o ${_tmp}/wuson_default.kdt)
+set_tests_properties(smoke.build_no_leaf_warning PROPERTIES PASS_REGULAR_EXPRESSION "max leaf"
+  FAIL_REGULAR_EXPRESSION "largest leaf")

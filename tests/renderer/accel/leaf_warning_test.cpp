@@ -1,0 +1,92 @@
+// kdtree_leaf_warning(): silent for the builders' defaults, one line naming the cause (q,
+// the depth limit, the SAH traversal cost, inseparable triangles) when a leaf holds far more
+// triangles than the parameters intend.
+#include <memory>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "renderer/accel/kdtree.h"
+#include "renderer/io/mesh_io.h"
+#include "tests/renderer/accel/kd_test_meshes.h"
+#include "tests/test_util.h"
+
+namespace kdt {
+namespace {
+
+std::string warning_of(const TriangleMesh& mesh, const KdTreeParams& params) {
+    return kdtree_leaf_warning(*build_kdtree(std::make_shared<const TriangleMesh>(mesh), params));
+}
+
+KdTreeParams with_builder(KdBuilder b) {
+    KdTreeParams p;
+    p.builder = b;
+    return p;
+}
+
+TEST(LeafWarning, NoneForTheDefaults) {
+    const TriangleMesh blob = test::make_blob(5, 1.0f, 7);  // 8192 triangles
+    const TriangleMesh soup = test::make_soup(5000, 0.1f, 3);
+    for (const KdBuilder b : {KdBuilder::sah, KdBuilder::thesis}) {
+        EXPECT_EQ(warning_of(blob, with_builder(b)), "");
+        EXPECT_EQ(warning_of(soup, with_builder(b)), "");
+    }
+    // A small mesh may well be one leaf.
+    EXPECT_EQ(warning_of(test::make_blob(2, 1.0f, 7), with_builder(KdBuilder::sah)), "");
+}
+
+TEST(LeafWarning, NamesTheCause) {
+    const TriangleMesh blob = test::make_blob(5, 1.0f, 7);
+    for (const KdBuilder b : {KdBuilder::sah, KdBuilder::thesis}) {
+        KdTreeParams p = with_builder(b);
+        p.q = 0.5f;
+        const std::string w = warning_of(blob, p);
+        EXPECT_NE(w.find("--q 0.5 makes the leaf cost f(n) grow as n^0.00, so splitting never "
+                         "pays; try --q 0.9 or more (default 0.98)"),
+                  std::string::npos)
+            << w;
+        if (b == KdBuilder::sah) {
+            EXPECT_EQ(w.rfind("the kd-tree's largest leaf holds 8192 triangles (the root is a "
+                              "leaf): ",
+                              0),
+                      0u)
+                << w;
+        }
+        p = with_builder(b);
+        p.max_depth = 2;
+        EXPECT_NE(warning_of(blob, p).find("at the depth limit 2; try a larger --depth"),
+                  std::string::npos)
+            << warning_of(blob, p);
+    }
+    KdTreeParams p;
+    p.traversal_cost = 1e30f;
+    EXPECT_NE(warning_of(blob, p).find("(the root is a leaf): --sah-traversal-cost 1e+30 exceeds"),
+              std::string::npos)
+        << warning_of(blob, p);
+    // 100 copies of one triangle: no plane separates them.
+    TriangleMesh same;
+    same.positions = {Vec3f(0, 0, 0), Vec3f(1, 0, 0), Vec3f(0, 1, 0)};
+    for (int i = 0; i < 100; ++i) same.triangles.emplace_back(0, 1, 2);
+    EXPECT_EQ(warning_of(same, KdTreeParams{}),
+              "the kd-tree's largest leaf holds 100 triangles (the root is a leaf): no split "
+              "plane separates them (coincident or overlapping triangles?)");
+    // n0 raises the bounds: leaves of up to n0 triangles are what it asks for.
+    p = KdTreeParams{};
+    p.n0 = 200;
+    EXPECT_EQ(warning_of(same, p), "");
+}
+
+// The Stanford dragon's scans at the defaults of both builders (the full scan takes a few
+// seconds per builder, so the two coarsest only).
+TEST(LeafWarning, NoneForTheDragonScans) {
+    const auto dir = test::dragon_dir();
+    if (dir.empty()) GTEST_SKIP() << "the Stanford dragon is not fetched (scripts/fetch_assets.sh)";
+    for (const char* name : {"dragon_vrip_res4.ply", "dragon_vrip_res3.ply"}) {
+        const auto mesh = std::make_shared<const TriangleMesh>(load_mesh((dir / name).string()));
+        for (const KdBuilder b : {KdBuilder::sah, KdBuilder::thesis})
+            EXPECT_EQ(kdtree_leaf_warning(*build_kdtree(mesh, with_builder(b))), "") << name;
+    }
+}
+
+}  // namespace
+}  // namespace kdt
