@@ -38,8 +38,8 @@ void save_kdtree(const std::string& path, const KdTree& tree);
 /// (whose time goes to `verify_seconds` when given).
 /// With `use_stamps`, a file verified before (a verified-stamp in the user's cache directory,
 /// default_kdtree_cache_dir()/verified, matches it) skips check_kdtree_complete(), and one
-/// verified now gets a stamp; without (the default: a file of the user's choice, `--tree`),
-/// the cache directory is neither read nor written.
+/// verified now gets a stamp; without (the default; `--tree` under `--no-cache`), the cache
+/// directory is neither read nor written.
 std::shared_ptr<const KdTree> load_kdtree(const std::string& path,
                                           std::shared_ptr<const TriangleMesh> mesh,
                                           const KdTreeParams& params,

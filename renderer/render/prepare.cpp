@@ -75,7 +75,9 @@ Prepared prepare_render(const RenderOptions& o, const PrepareLog& log, const Pre
     if (!o.scene.tree_file.empty()) {
         KdTreeParams params = kdtree_file_params(o.scene.tree_file);
         params.threads = o.tree.threads;
-        ts.tree = load_kdtree(o.scene.tree_file, ts.mesh, params);
+        // A file of the user's choice, verified once per version of it while the cache is
+        // in use; --no-cache keeps the cache directory untouched.
+        ts.tree = load_kdtree(o.scene.tree_file, ts.mesh, params, nullptr, o.scene.use_cache);
         out.tree_from_cache = true;
     } else if (o.scene.use_cache) {
         KdCacheReport report;
@@ -86,6 +88,7 @@ Prepared prepare_render(const RenderOptions& o, const PrepareLog& log, const Pre
         out.tree_from_cache = report.loaded;
     } else {
         ts.tree = build_kdtree(ts.mesh, o.tree);
+        if (const std::string w = kdtree_leaf_warning(*ts.tree); !w.empty()) say("warning: " + w);
     }
     out.tree_seconds = tree_timer.seconds();
 

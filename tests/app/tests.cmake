@@ -326,16 +326,17 @@ add_test(NAME smoke.tree_file_render COMMAND ${_kdt} render
          --height 12 -o ${_tmp}/wuson_tree.png)
 set_tests_properties(smoke.tree_file_render PROPERTIES DEPENDS smoke.tree_file_build
   PASS_REGULAR_EXPRESSION "tree [0-9.]+ s \\(cached\\)")
-# Verified-stamps are kept for the cache's own files only: `--tree FILE` and `--no-cache`
-# (alone or together) leave the cache directory ($KDT_CACHE_DIR/trees) uncreated.
+# --no-cache (alone or with --tree FILE) leaves the cache directory ($KDT_CACHE_DIR/trees)
+# uncreated; a --tree file used with the cache gets a verified-stamp there.
 add_test(NAME smoke.tree_file_no_stamp COMMAND sh -c "k=\"$0\" t=\"$1\" d=\"$2\"; rm -rf \"$d\"; \
 r() { KDT_CACHE_DIR=\"$d\" \"$k\" render /usr/share/assimp/models/PLY/Wuson.ply \"$@\" --spp 1 \
---width 16 --height 12 --quiet -o \"$d.png\" || exit 1; }; r --tree \"$t\"; \
+--width 16 --height 12 --quiet -o \"$d.png\" || exit 1; }; \
 r --tree \"$t\" --no-cache; r --no-cache; \
-if [ -e \"$d\" ]; then find \"$d\"; else echo PASS: no cache directory; fi"
+if [ -e \"$d\" ]; then find \"$d\"; exit 1; fi; r --tree \"$t\"; \
+ls \"$d\"/trees/verified/*.stamp >/dev/null && echo PASS: stamps only with the cache"
          ${_kdt} ${_tmp}/wuson_thesis.kdt ${_tmp}/stamp_cache)
 set_tests_properties(smoke.tree_file_no_stamp PROPERTIES DEPENDS smoke.tree_file_build
-  PASS_REGULAR_EXPRESSION "PASS: no cache directory")
+  PASS_REGULAR_EXPRESSION "PASS: stamps only with the cache")
 add_test(NAME smoke.tree_file_other_model COMMAND ${_kdt} render
          /usr/share/assimp/models/PLY/cube.ply --tree ${_tmp}/wuson_thesis.kdt --spp 1
          -o ${_tmp}/cube_tree.png)
@@ -459,6 +460,11 @@ add_test(NAME smoke.build_leaf_warning_cached COMMAND ${_kdt} build
          /usr/share/assimp/models/PLY/Wuson.ply --depth 3 --cache-dir ${_tmp}/leaf_cache)
 set_tests_properties(smoke.build_leaf_warning_cached PROPERTIES PASS_REGULAR_EXPRESSION
   "kdtrace: warning: the kd-tree's largest leaf holds [0-9]+ triangles: it lies at the depth limit 3; try a larger --depth")
+add_test(NAME smoke.render_leaf_warning_no_cache COMMAND ${_kdt} render
+         /usr/share/assimp/models/PLY/Wuson.ply --q 0.5 --no-cache --spp 1 --width 8 --height 6
+         --quiet -o ${_tmp}/wuson_q05.png)
+set_tests_properties(smoke.render_leaf_warning_no_cache PROPERTIES PASS_REGULAR_EXPRESSION
+  "kdtrace: warning: the kd-tree's largest leaf holds 3732 triangles \\(the root is a leaf\\)")
 add_test(NAME smoke.build_no_leaf_warning COMMAND ${_kdt} build
          /usr/share/assimp/models/PLY/Wuson.ply -o ${_tmp}/wuson_default.kdt)
 set_tests_properties(smoke.build_no_leaf_warning PROPERTIES PASS_REGULAR_EXPRESSION "max leaf"
