@@ -2,7 +2,6 @@
 // what the build produced; with -o writes the tree to a cache file of the user's choice.
 #include <cstdio>
 #include <memory>
-#include <new>
 #include <string>
 
 #include "app/commands.h"
@@ -84,17 +83,8 @@ void add_build_command(CLI::App& parent) {
                     mesh->vertex_count(), mesh->triangle_count(), info.seconds);
         std::string model_key = model;
         if (subdivide > 0) {
-            check_subdivide(mesh->triangle_count(), subdivide);
             Timer t;
-            try {
-                *mesh = subdivide_mesh(*mesh, subdivide);
-            } catch (const std::bad_alloc&) {
-                throw Error(
-                    model + ": --subdivide " + std::to_string(subdivide) +
-                    ": out of memory making " +
-                    std::to_string(subdivided_triangle_count(mesh->triangle_count(), subdivide)) +
-                    " triangles");
-            }
+            subdivide_model(model, *mesh, subdivide);
             std::printf("subdivided %d times: %zu triangles (%.2f s)\n", subdivide,
                         mesh->triangle_count(), t.seconds());
             model_key += ".sub" + std::to_string(subdivide);
