@@ -244,9 +244,13 @@ uint32_t read_be32(const uint8_t* p) {
     return (uint32_t(p[0]) << 24) | (uint32_t(p[1]) << 16) | (uint32_t(p[2]) << 8) | p[3];
 }
 
+/// The text metadata of one PNG, all chunks together, inflated: kdtrace writes a few KB, so a
+/// file above this is not ours, and memory stays bounded whatever the file holds.
+constexpr size_t kMaxPngText = size_t(64) << 20;
+
 /// Inflates a zlib stream, refusing outputs above `limit` bytes.
 std::string inflate_text(const std::string& path, const uint8_t* src, size_t size, int64_t offset,
-                         size_t limit = size_t(64) << 20) {
+                         size_t limit) {
     z_stream zs{};
     if (inflateInit(&zs) != Z_OK) fail(path, "zlib initialisation failed", offset);
     zs.next_in = const_cast<Bytef*>(src);
@@ -259,7 +263,12 @@ std::string inflate_text(const std::string& path, const uint8_t* src, size_t siz
         zs.avail_out = sizeof(buffer);
         ret = inflate(&zs, Z_NO_FLUSH);
         out.append(buffer, sizeof(buffer) - zs.avail_out);
-        if (out.size() > limit) ret = Z_MEM_ERROR;
+        if (out.size() > limit) {
+            inflateEnd(&zs);
+            fail(path,
+                 "text metadata larger than " + std::to_string(kMaxPngText >> 20) + " MiB in all",
+                 offset);
+        }
         if (ret == Z_OK && zs.avail_in == 0 && zs.avail_out != 0) ret = Z_DATA_ERROR;
     }
     inflateEnd(&zs);
@@ -272,6 +281,17 @@ ImageMetadata parse_png_metadata(const std::string& path, const std::vector<uint
         fail(path, "not a PNG file", 0);
     }
     ImageMetadata metadata;
+    size_t text = 0;  // bytes of text so far
+    // Adds a value, refusing text beyond kMaxPngText in all.
+    const auto add = [&](std::string key, std::string value, int64_t at) {
+        text += key.size() + value.size();
+        if (text > kMaxPngText) {
+            fail(path,
+                 "text metadata larger than " + std::to_string(kMaxPngText >> 20) + " MiB in all",
+                 at);
+        }
+        metadata.emplace_back(std::move(key), std::move(value));
+    };
     size_t pos = 8;
     for (;;) {
         if (data.size() - pos < 12) fail(path, "truncated PNG: no IEND chunk", int64_t(pos));
@@ -292,12 +312,12 @@ ImageMetadata parse_png_metadata(const std::string& path, const std::vector<uint
             if (!nul) fail(path, type + " chunk without keyword terminator", at);
             std::string key(b, nul);
             size_t rest = size_t(nul - b) + 1;
+            const size_t room = kMaxPngText - std::min(kMaxPngText, text + key.size());
             if (type == "tEXt") {
-                metadata.emplace_back(key, std::string(b + rest, length - rest));
+                add(key, std::string(b + rest, length - rest), at);
             } else if (type == "zTXt") {
                 if (rest + 1 > length || body[rest] != 0) fail(path, "bad zTXt chunk", at);
-                metadata.emplace_back(key,
-                                      inflate_text(path, body + rest + 1, length - rest - 1, at));
+                add(key, inflate_text(path, body + rest + 1, length - rest - 1, at, room), at);
             } else {
                 if (rest + 2 > length) fail(path, "bad iTXt chunk", at);
                 bool compressed = body[rest] != 0;
@@ -308,9 +328,9 @@ ImageMetadata parse_png_metadata(const std::string& path, const std::vector<uint
                     rest = size_t(static_cast<const char*>(end) - b) + 1;
                 }
                 if (compressed) {
-                    metadata.emplace_back(key, inflate_text(path, body + rest, length - rest, at));
+                    add(key, inflate_text(path, body + rest, length - rest, at, room), at);
                 } else {
-                    metadata.emplace_back(key, std::string(b + rest, length - rest));
+                    add(key, std::string(b + rest, length - rest), at);
                 }
             }
         }

@@ -12,6 +12,7 @@
 #include <limits>
 
 #include <gtest/gtest.h>
+#include <zlib.h>
 
 #include "renderer/core/color.h"
 #include "renderer/core/error.h"
@@ -71,6 +72,47 @@ TEST_F(ImageIoTest, PfmBigEndianGreyAndScale) {
     ASSERT_EQ(img.width, 2);
     EXPECT_EQ(img.at(0, 0), Vec3f(3.0f));
     EXPECT_EQ(img.at(1, 0), Vec3f(-8.0f));
+}
+
+// A PNG's text metadata is bounded in all (64 MiB inflated), so that a small file of many
+// compressed chunks cannot take gigabytes; going past it is said as such, not as corruption.
+TEST_F(ImageIoTest, PngTextMetadataIsBoundedInAll) {
+    write_png(path("small.png"), ImageRGB(2, 2), {}, {{"kdtrace:params", "{}"}});
+    const std::vector<uint8_t> base = read_bytes(path("small.png"));
+    // A zTXt chunk of `mib` MiB of zeros (a few KB compressed).
+    auto ztxt = [](const std::string& key, size_t mib) {
+        const std::vector<uint8_t> zeros(mib << 20, 0);
+        uLongf size = compressBound(uLong(zeros.size()));
+        std::vector<uint8_t> z(size);
+        EXPECT_EQ(compress2(z.data(), &size, zeros.data(), uLong(zeros.size()), 9), Z_OK);
+        std::vector<uint8_t> body(key.begin(), key.end());
+        body.push_back(0);
+        body.push_back(0);  // deflate
+        body.insert(body.end(), z.begin(), z.begin() + long(size));
+        std::vector<uint8_t> chunk;
+        const uint32_t n = uint32_t(body.size());
+        for (int b = 3; b >= 0; --b) chunk.push_back(uint8_t(n >> (8 * b)));
+        for (char c : std::string("zTXt")) chunk.push_back(uint8_t(c));
+        chunk.insert(chunk.end(), body.begin(), body.end());
+        const uint32_t crc = uint32_t(crc32(0L, chunk.data() + 4, uInt(chunk.size() - 4)));
+        for (int b = 3; b >= 0; --b) chunk.push_back(uint8_t(crc >> (8 * b)));
+        return chunk;
+    };
+    auto with = [&](const std::string& name, const std::vector<std::vector<uint8_t>>& chunks) {
+        std::vector<uint8_t> png(base.begin(), base.end() - 12);  // all but IEND
+        for (const auto& c : chunks) png.insert(png.end(), c.begin(), c.end());
+        png.insert(png.end(), base.end() - 12, base.end());
+        write_bytes(path(name), png);
+        return test::error_of_call([&] { read_png_metadata(path(name)); });
+    };
+    EXPECT_EQ(with("one.png", {ztxt("junk", 8)}), "");
+    EXPECT_NE(with("many.png", {ztxt("a", 40), ztxt("b", 40)}).find("many.png: byte "),
+              std::string::npos);
+    EXPECT_NE(with("many2.png", {ztxt("a", 40), ztxt("b", 40)})
+                  .find("text metadata larger than 64 MiB in all"),
+              std::string::npos);
+    EXPECT_NE(with("big.png", {ztxt("a", 65)}).find("text metadata larger than 64 MiB in all"),
+              std::string::npos);
 }
 
 TEST_F(ImageIoTest, PngRoundTripWithinQuantisationAndMetadata) {
