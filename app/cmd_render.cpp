@@ -189,8 +189,10 @@ void run(const RenderCommand& cmd) {
     meta.emplace_back("kdtrace:scene_json", scene_to_json(prep.scene));
     meta.emplace_back("kdtrace:camera", camera_to_json(snap.camera));
     // The tree's parameters are those of the tree used: a --tree file's, not the flags'.
+    // With absolute file names, the image is a session (`--session IMAGE`) from anywhere.
     RenderOptions used = o;
     used.tree = snap.tree_params;
+    make_file_names_absolute(used.scene);
     meta.emplace_back("kdtrace:params", options_to_json(used));
     meta.emplace_back("kdtrace:seed", std::to_string(o.trace.seed));
     meta.emplace_back("kdtrace:spp", std::to_string(spp));

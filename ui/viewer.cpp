@@ -9,13 +9,13 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <filesystem>
 #include <sstream>
 #include <thread>
 
 #include <sys/stat.h>
 
 #include "renderer/core/error.h"
+#include "renderer/core/open_file.h"
 #include "renderer/core/output_path.h"
 #include "renderer/core/shell_word.h"
 #include "renderer/core/temp_file.h"
@@ -32,16 +32,6 @@ namespace {
 
 double ms_since(Viewer::Clock::time_point t) {
     return std::chrono::duration<double, std::milli>(Viewer::Clock::now() - t).count();
-}
-
-// A session is read from anywhere (`kdtrace render --session`, another viewer), while the
-// viewer's file names are as typed, relative to its working directory: a session holds them
-// absolute.
-std::string absolute_file_name(const std::string& name) {
-    if (name.empty()) return name;
-    std::error_code ec;
-    const std::filesystem::path p = std::filesystem::absolute(name, ec);
-    return ec ? name : p.lexically_normal().string();
 }
 
 // Two names of one file: the same text, or the same inode.
@@ -351,9 +341,7 @@ RenderOptions Viewer::shown_options(bool tree_in_use) const {
 
 RenderOptions Viewer::session_options(bool tree_in_use) const {
     RenderOptions o = shown_options(tree_in_use);
-    for (std::string* name :
-         {&o.scene.scene_path, &o.scene.env_file, &o.scene.tree_file, &o.scene.cache_dir})
-        *name = absolute_file_name(*name);
+    make_file_names_absolute(o.scene);
     return o;
 }
 

@@ -7,6 +7,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 
 #include "renderer/core/error.h"
 
@@ -87,6 +88,13 @@ std::vector<uint8_t> read_regular_file(const std::string& path, uint64_t max_byt
     }
     ::close(fd);
     return data;
+}
+
+std::string absolute_file_name(const std::string& name) {
+    if (name.empty()) return name;
+    std::error_code ec;
+    const std::filesystem::path p = std::filesystem::absolute(name, ec);
+    return ec ? name : p.lexically_normal().string();
 }
 
 }  // namespace kdt

@@ -17,6 +17,11 @@ const char* special_file_kind(uint32_t st_mode);
 /// "tri.ply\u0000.obj" opening tri.ply); empty when it has none.
 std::string file_name_problem(const std::string& name);
 
+/// `name` made absolute against the working directory (lexically normal, links kept), for
+/// files named in sessions and image metadata, which are read from any directory; an empty
+/// name (not given) stays empty, and a name the system cannot make absolute stays as it is.
+std::string absolute_file_name(const std::string& name);
+
 /// Opens path read-only (close-on-exec) and returns the descriptor. The file is opened
 /// non-blocking, so a FIFO without a writer cannot hang the caller, and then checked: a
 /// directory, FIFO, socket or device (/dev/zero would never end) is refused with an Error

@@ -367,29 +367,45 @@ void options_from_json(const std::string& text, RenderOptions& o, const std::str
     validate(o);
 }
 
+void make_file_names_absolute(SceneOptions& scene) {
+    for (std::string* name :
+         {&scene.scene_path, &scene.env_file, &scene.tree_file, &scene.cache_dir})
+        *name = absolute_file_name(*name);
+}
+
 namespace {
 
-// A PNG or OpenEXR file by its first bytes (a short or unreadable file is not).
-bool is_png_or_exr(const std::string& path) {
+// "PNG" or "OpenEXR" by the file's first bytes, else nullptr (a short file is not an image).
+const char* image_kind(const std::string& path) {
     const int fd = open_regular_file(path, "a session file");
     unsigned char head[4] = {};
     const ssize_t n = ::read(fd, head, sizeof head);
     ::close(fd);
-    if (n != ssize_t(sizeof head)) return false;
+    if (n != ssize_t(sizeof head)) return nullptr;
     static const unsigned char kPng[4] = {0x89, 'P', 'N', 'G'}, kExr[4] = {0x76, 0x2f, 0x31, 0x01};
-    return std::memcmp(head, kPng, 4) == 0 || std::memcmp(head, kExr, 4) == 0;
+    if (std::memcmp(head, kPng, 4) == 0) return "PNG";
+    if (std::memcmp(head, kExr, 4) == 0) return "OpenEXR";
+    return nullptr;
 }
 
 }  // namespace
 
 void options_from_session_file(const std::string& path, RenderOptions& o) {
-    if (is_png_or_exr(path)) {
-        const ImageInfo info = read_image_info(path);
-        for (const auto& [key, value] : info.metadata) {
-            if (key == "kdtrace:params") return options_from_json(value, o, path);
+    if (const char* kind = image_kind(path)) {
+        // The metadata alone: the pixels are never decoded.
+        const ImageMetadata meta =
+            kind[0] == 'P' ? read_png_metadata(path) : read_exr_metadata(path);
+        const std::string* params = nullptr;
+        for (const auto& [key, value] : meta) {
+            if (key != "kdtrace:params") continue;
+            if (params) throw Error(ErrorLocation{path, "kdtrace:params", -1}, "given twice");
+            params = &value;
         }
-        throw Error(path + ": a " + info.format +
-                    " image without kdtrace:params (not saved by kdtrace) is not a session");
+        if (!params) {
+            throw Error(path + ": no kdtrace:params text in this " + kind +
+                        " image (not written by kdtrace?), so it is not a session");
+        }
+        return options_from_json(*params, o, path);
     }
     const std::vector<uint8_t> text = read_regular_file(path, uint64_t(1) << 20, "a session file");
     options_from_json(std::string(text.begin(), text.end()), o, path);

@@ -84,6 +84,11 @@ void validate(const FilmParams& film);
 void validate(const StopConditions& stop);
 void validate(const RenderOptions& options);
 
+/// The scene's file names (scene_path, env_file, tree_file, cache_dir) made absolute
+/// (absolute_file_name()): what sessions and image metadata hold, since they are read from
+/// any directory.
+void make_file_names_absolute(SceneOptions& scene);
+
 /// Every tabled field of every group as one JSON object {"tree": {...}, "trace": {...},
 /// "film": {...}, "stop": {...}, "scene": {...}} (one line; strings of the scene too).
 std::string options_to_json(const RenderOptions& options);

@@ -176,7 +176,8 @@ TEST(ViewerE2E, SavedImageCommandRendersItAgain) {
                       " --quiet -o " + again,
                   dir / "plain.txt", &log),
               0);
-    EXPECT_NE(log.find("plain.png: a PNG image without kdtrace:params"), std::string::npos) << log;
+    EXPECT_NE(log.find("plain.png: no kdtrace:params text in this PNG image"), std::string::npos)
+        << log;
 }
 
 // An adaptive render's stop.spp is a sample budget that no pass draws past, the viewer's first

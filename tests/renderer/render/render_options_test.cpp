@@ -4,6 +4,7 @@
 #include "renderer/render/render_options.h"
 
 #include <cmath>
+#include <fstream>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -11,6 +12,7 @@
 #include "tests/test_util.h"
 
 #include "renderer/core/error.h"
+#include "renderer/io/image_io.h"
 #include "renderer/render/prepare.h"
 
 namespace kdt {
@@ -238,6 +240,56 @@ TEST(RenderOptions, MaterialsReadBackAreCheckedAndReplaceTheScenes) {
     EXPECT_NE(test::error_of_call([&] { load_scene_with_overrides(s); })
                   .find("scene.materials: " + std::to_string(n + 1) + " materials for a scene of " +
                         std::to_string(n) + " mesh instances"),
+              std::string::npos);
+}
+
+// A scene's rotation loses its whole turns before the flag's is added: 1e20 degrees would
+// otherwise swallow --env-rotation 90 in the float sum.
+TEST(RenderOptions, HugeSceneRotationKeepsTheFlags) {
+    const auto dir = test::temp_dir("rotation_sum");
+    write_image((dir / "sky.pfm").string(), ImageRGB(8, 4));
+    const std::string scene = (dir / "s.json").string();
+    {
+        std::ofstream f(scene);
+        f << "{\"environment\": {\"file\": \"sky.pfm\", \"rotation_degrees\": 1e20},"
+             " \"meshes\": [{\"file\": \"builtin:icosphere\"}]}";
+    }
+    SceneOptions s;
+    s.scene_path = scene;
+    s.env_rotation_degrees = 90.0f;
+    EXPECT_EQ(load_scene_with_overrides(s).environment.rotation_degrees,
+              std::fmod(1e20f, 360.0f) + 90.0f);
+}
+
+// A PNG or EXR that kdtrace wrote is a session: its kdtrace:params are read, the pixels never
+// decoded; an image without them, or with them twice, is refused naming the file.
+TEST(RenderOptions, ImagesWrittenByKdtraceAreSessions) {
+    const auto dir = test::temp_dir("image_sessions");
+    ImageRGB img(4, 2);
+    RenderOptions written;
+    written.trace.seed = 77;
+    written.scene.width = 4;
+    const ImageMetadata meta = {{"kdtrace:params", options_to_json(written)}};
+    for (const char* ext : {".png", ".exr"}) {
+        const std::string path = (dir / (std::string("a") + ext)).string();
+        write_image(path, img, {}, meta);
+        RenderOptions o;
+        options_from_session_file(path, o);
+        EXPECT_EQ(o.trace.seed, 77u) << ext;
+        EXPECT_EQ(options_to_json(o), options_to_json(written)) << ext;
+        const std::string plain = (dir / (std::string("plain") + ext)).string();
+        write_image(plain, img);
+        EXPECT_NE(test::error_of_call([&] {
+                      options_from_session_file(plain, o);
+                  }).find(plain + ": no kdtrace:params text in this"),
+                  std::string::npos);
+    }
+    const std::string twice = (dir / "twice.png").string();
+    write_image(twice, img, {}, {{"kdtrace:params", "{}"}, {"kdtrace:params", "{}"}});
+    RenderOptions o;
+    EXPECT_NE(test::error_of_call([&] {
+                  options_from_session_file(twice, o);
+              }).find("twice.png: kdtrace:params: given twice"),
               std::string::npos);
 }
 
