@@ -1,5 +1,6 @@
 #include "renderer/render/prepare.h"
 
+#include <cmath>
 #include <cstdio>
 #include <string>
 
@@ -36,7 +37,9 @@ Scene load_scene_with_overrides(const SceneOptions& o, const PrepareLog& log) {
         env.mapping = EnvMapping(parse_name(kEnvMappingNames, o.env_mapping, "scene.env_mapping"));
     }
     if (o.env_intensity) env.intensity = *o.env_intensity;
-    env.rotation_degrees += o.env_rotation_degrees;
+    // The scene's whole turns come off first (fmod is exact): a rotation of 1e20 would
+    // otherwise swallow the flag's 90 in the float sum.
+    env.rotation_degrees = std::fmod(env.rotation_degrees, 360.0f) + o.env_rotation_degrees;
     scene.camera = with_camera_overrides(scene.camera, o);
     if (!o.materials.empty()) {
         if (o.materials.size() != scene.meshes.size()) {
