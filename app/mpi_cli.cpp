@@ -53,6 +53,13 @@ static_assert(std::string_view(kDistributions[0]) == dist::kDistributionNames[0]
 
 }  // namespace
 
+void check_distribution_name(const std::string& option, const std::string& text) {
+    if (std::find_if(kDistributions.begin(), kDistributions.end(),
+                     [&](const char* n) { return text == n; }) == kDistributions.end())
+        throw Error(option + " must be " + detail::choices_text(kDistributions) + " " +
+                    detail::got(text));
+}
+
 void add_dist_options(CLI::App& app, DistArgs& a, RenderOptions& options) {
     a.command = &app;
     a.command_options = &options;
@@ -62,11 +69,7 @@ void add_dist_options(CLI::App& app, DistArgs& a, RenderOptions& options) {
     app.add_option_function<std::string>(
            "--distribution",
            [&a](const std::string& text) {
-               if (std::find_if(kDistributions.begin(), kDistributions.end(),
-                                [&](const char* n) { return text == n; }) == kDistributions.end()) {
-                   throw Error("--distribution must be " + detail::choices_text(kDistributions) +
-                               " " + detail::got(text));
-               }
+               check_distribution_name("--distribution", text);
                a.distribution = text;
            },
            "How --mpi hands out work: dynamic (a queue served on request), interleaved "

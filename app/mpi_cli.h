@@ -30,6 +30,10 @@ struct DistArgs {
     RenderOptions* command_options = nullptr;
 };
 
+/// Throws Error "<option> must be one of: dynamic, interleaved, strips (got '<text>')" unless
+/// `text` names a work distribution (--distribution of render, --distributions of bench mpi).
+void check_distribution_name(const std::string& option, const std::string& text);
+
 /// Adds the flags to `app`, the render command, whose other flags (add_render_options) write
 /// into `options`: --frames sessions: renders each session file with the command's flags.
 void add_dist_options(CLI::App& app, DistArgs& args, RenderOptions& options);

@@ -21,6 +21,7 @@
 #include "app/bench/bench_table.h"
 #include "app/bench/run_program.h"
 #include "app/commands.h"
+#include "app/mpi_cli.h"
 #include "renderer/core/error.h"
 #include "renderer/core/shell_word.h"
 
@@ -229,9 +230,14 @@ void add_bench_mpi_command(CLI::App& parent) {
         ->delimiter(',')
         ->check(CLI::Range(1, 4096))
         ->capture_default_str();
-    sub->add_option("--distributions", args.distributions, "dynamic, strips, interleaved")
-        ->delimiter(',')
-        ->check(CLI::IsMember({"dynamic", "interleaved", "strips"}));
+    sub->add_option_function<std::vector<std::string>>(
+           "--distributions",
+           [](const std::vector<std::string>& names) {
+               for (const std::string& n : names) check_distribution_name("--distributions", n);
+               args.distributions = names;
+           },
+           "dynamic, strips, interleaved")
+        ->delimiter(',');
     sub->add_option("--width", args.width)->check(CLI::Range(1, 1 << 14))->capture_default_str();
     sub->add_option("--height", args.height)->check(CLI::Range(1, 1 << 14))->capture_default_str();
     sub->add_option("--spp", args.spp)->check(CLI::Range(1, 1 << 20))->capture_default_str();

@@ -81,6 +81,12 @@ $e[2J.ply\" && \"$0\" info \"$d/c
 $e[2J.ply\"" ${_kdt} ${_tmp}/escaped_names)
 set_tests_properties(smoke.summary_names_escaped PROPERTIES
   PASS_REGULAR_EXPRESSION "-> [^\n]*/\\\\x1b\\[31mx\\.pfm\nfile: +[^\n]*/\\\\x1b\\[31mx\\.pfm\n.*file: +[^\n]*/a\\\\nb\\.pfm\n.*file: +[^\n]*/c\\\\n\\\\x1b\\[2J\\.ply\n")
+# bench mpi --distributions names a choice as render's --distribution does, with status 1.
+add_test(NAME smoke.bench_mpi_distributions_bogus COMMAND sh -c
+         "\"$0\" bench mpi --mpiexec /bin/false --repeat 1 --work-dir \"$1\" --distributions strips,bogus 2>&1; echo \"status $?\""
+         ${_kdt} ${_tmp}/bench_mpi_bogus)
+set_tests_properties(smoke.bench_mpi_distributions_bogus PROPERTIES PASS_REGULAR_EXPRESSION
+  "^kdtrace: error: --distributions must be one of: dynamic, interleaved, strips \\(got 'bogus'\\)\nstatus 1\n$")
 # bench mpi --ranks is bounded before anything is launched (/bin/false would launch nothing).
 add_test(NAME smoke.bench_mpi_ranks_range COMMAND ${_kdt} bench mpi --mpiexec /bin/false
          --repeat 1 --work-dir ${_tmp}/bench_mpi_ranks --ranks 2,100000)
