@@ -16,6 +16,7 @@
 #include "app/commands.h"
 #include "renderer/core/error.h"
 #include "renderer/core/output_path.h"
+#include "renderer/core/temp_file.h"
 #include "renderer/core/timer.h"
 #include "renderer/io/mesh_io.h"
 #include "renderer/io/ply_writer.h"
@@ -196,30 +197,31 @@ void run_bench_load(const BenchLoadArgs& args) {
     std::printf("|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     for (const Row& r : rows) {
         double mb = r.bytes / 1e6;
-        std::printf("| %s | %s | %s | %.1f | %zu | %.1f | %.1f | %.0f | %.2f | ",
+        // A time of 0 (a clock too coarse for the load) gives no rate or speedup: "-".
+        std::printf("| %s | %s | %s | %.1f | %zu | %.1f | %.1f | %s | %.2f | ",
                     std::filesystem::path(r.file).filename().c_str(), r.encoding.c_str(),
                     r.gzip ? "yes" : "no", mb, r.triangles, r.ours_ms, r.ours_cpu_ms,
-                    r.ours_cpu_ms > 0 ? mb / (r.ours_cpu_ms * 1e-3) : 0.0, r.peak_ratio);
+                    fmt("%.0f", quotient(mb, r.ours_cpu_ms * 1e-3)).c_str(), r.peak_ratio);
         if (r.assimp_ms > 0)
-            std::printf("%.1f | %.1f | %zu | %.1fx | %.1fx |\n", r.assimp_ms, r.assimp_cpu_ms,
-                        r.assimp_triangles, r.assimp_ms / r.ours_ms,
-                        r.ours_cpu_ms > 0 ? r.assimp_cpu_ms / r.ours_cpu_ms : 0.0);
+            std::printf("%.1f | %.1f | %zu | %s | %s |\n", r.assimp_ms, r.assimp_cpu_ms,
+                        r.assimp_triangles, fmt("%.1fx", quotient(r.assimp_ms, r.ours_ms)).c_str(),
+                        fmt("%.1fx", quotient(r.assimp_cpu_ms, r.ours_cpu_ms)).c_str());
         else
             std::printf("- | - | - | - | - |\n");
     }
     if (!args.csv.empty()) {
-        FILE* out = std::fopen(args.csv.c_str(), "w");
-        if (!out) throw Error(ErrorLocation{args.csv}, "cannot open for writing");
-        std::fprintf(
-            out,
+        std::string csv =
             "file,encoding,gzip,bytes,triangles,ours_ms,ours_cpu_ms,assimp_ms,assimp_cpu_ms,"
-            "assimp_triangles,peak_rss_over_mesh\n");
-        for (const Row& r : rows)
-            std::fprintf(out, "%s,%s,%d,%llu,%zu,%.4f,%.4f,%.4f,%.4f,%zu,%.4f\n", r.file.c_str(),
-                         r.encoding.c_str(), int(r.gzip), (unsigned long long)r.bytes, r.triangles,
-                         r.ours_ms, r.ours_cpu_ms, r.assimp_ms, r.assimp_cpu_ms, r.assimp_triangles,
-                         r.peak_ratio);
-        std::fclose(out);
+            "assimp_triangles,peak_rss_over_mesh\n";
+        for (const Row& r : rows) {
+            char line[512];
+            std::snprintf(line, sizeof(line), ",%s,%d,%llu,%zu,%.4f,%.4f,%.4f,%.4f,%zu,%.4f\n",
+                          r.encoding.c_str(), int(r.gzip), (unsigned long long)r.bytes, r.triangles,
+                          r.ours_ms, r.ours_cpu_ms, r.assimp_ms, r.assimp_cpu_ms,
+                          r.assimp_triangles, r.peak_ratio);
+            csv += r.file + line;
+        }
+        write_file_atomically(args.csv, csv.data(), csv.size());
     }
 }
 

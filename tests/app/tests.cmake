@@ -81,6 +81,14 @@ $e[2J.ply\" && \"$0\" info \"$d/c
 $e[2J.ply\"" ${_kdt} ${_tmp}/escaped_names)
 set_tests_properties(smoke.summary_names_escaped PROPERTIES
   PASS_REGULAR_EXPRESSION "-> [^\n]*/\\\\x1b\\[31mx\\.pfm\nfile: +[^\n]*/\\\\x1b\\[31mx\\.pfm\n.*file: +[^\n]*/a\\\\nb\\.pfm\n.*file: +[^\n]*/c\\\\n\\\\x1b\\[2J\\.ply\n")
+# bench load writes --csv through a temporary file renamed over it: a hard link to the old
+# CSV keeps the old text (fopen wrote through it).
+add_test(NAME smoke.bench_load_csv_atomic COMMAND sh -c "mkdir -p \"$1\" && cd \"$1\" && \
+echo old > a.csv && ln -f a.csv b.csv && \"$0\" bench load $2 --no-assimp --repeat 1 \
+--csv b.csv >/dev/null && cat a.csv && head -c 5 b.csv && echo" ${_kdt} ${_tmp}/bench_load_csv
+         /usr/share/assimp/models/PLY/cube.ply)
+set_tests_properties(smoke.bench_load_csv_atomic PROPERTIES
+  PASS_REGULAR_EXPRESSION "^old\nfile,\n$")
 # bench mpi --distributions names a choice as render's --distribution does, with status 1.
 add_test(NAME smoke.bench_mpi_distributions_bogus COMMAND sh -c
          "\"$0\" bench mpi --mpiexec /bin/false --repeat 1 --work-dir \"$1\" --distributions strips,bogus 2>&1; echo \"status $?\""
