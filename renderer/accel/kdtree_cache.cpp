@@ -740,7 +740,7 @@ std::shared_ptr<const KdTree> get_or_build_kdtree(const std::string& model_path,
                 std::snprintf(buf, sizeof(buf), " (%.3f s; tree verified on an earlier run)",
                               rep.seconds);
             }
-            say("kd-tree cache: loaded " + rep.path + buf);
+            say("kd-tree cache: loaded " + printable(rep.path) + buf);
             if (const std::string w = kdtree_leaf_warning(*tree); !w.empty()) say("warning: " + w);
             if (report) *report = rep;
             return tree;
@@ -760,7 +760,7 @@ std::shared_ptr<const KdTree> get_or_build_kdtree(const std::string& model_path,
         if (&dir == &dirs.back() && !fs::exists(dir, ec)) create_private_directories(dir);
         if (!directory_writable(dir)) {
             if (&dir == &dirs.back() || !cache_dir.empty()) {
-                say("kd-tree cache: cannot write to " + dir.string() +
+                say("kd-tree cache: cannot write to " + printable(dir.string()) +
                     ": not a writable directory; tree not cached");
             }
             continue;
@@ -770,7 +770,7 @@ std::shared_ptr<const KdTree> get_or_build_kdtree(const std::string& model_path,
             save_kdtree_file(file.string(), *tree, true);
             rep.path = file.string();
             rep.written = true;
-            say("kd-tree cache: wrote " + rep.path);
+            say("kd-tree cache: wrote " + printable(rep.path));
             break;
         } catch (const Error& e) {
             say("kd-tree cache: " + std::string(e.what()));

@@ -334,6 +334,30 @@ TEST_F(CacheTest, UnwritableCacheDirectoryIsReportedAndTreeStillBuilt) {
     EXPECT_NE(r.log.find("cannot write"), std::string::npos) << r.log;
 }
 
+// The log names paths as errors do, through printable(): a cache directory holding an ESC
+// or a newline can neither drive the terminal nor forge a log line.
+TEST_F(CacheTest, LogLinesEscapeThePaths) {
+    const fs::path cache = dir_ / "a\x1b[2Jb\nkdtrace: c";
+    CacheRun wrote = run_cache(model_, mesh_, params_, cache);
+    ASSERT_TRUE(wrote.report.written) << wrote.log;
+    CacheRun loaded = run_cache(model_, mesh_, params_, cache);
+    ASSERT_TRUE(loaded.report.loaded) << loaded.log;
+    std::ofstream(dir_ / "file\x1b") << "x";
+    CacheRun refused = run_cache(model_, mesh_, params_, dir_ / "file\x1b" / "trees\n");
+    ASSERT_FALSE(refused.report.written) << refused.log;
+    for (const CacheRun* r : {&wrote, &loaded, &refused}) {
+        const std::string line = r->log.substr(0, r->log.find('\n') + 1);
+        EXPECT_EQ(line, r->log) << "one line expected";
+        EXPECT_EQ(r->log.find('\x1b'), std::string::npos) << r->log;
+        EXPECT_NE(r->log.find("\\x1b"), std::string::npos) << r->log;
+    }
+    EXPECT_NE(wrote.log.find("kd-tree cache: wrote "), std::string::npos) << wrote.log;
+    EXPECT_NE(wrote.log.find("b\\nkdtrace: c"), std::string::npos) << wrote.log;
+    EXPECT_NE(loaded.log.find("kd-tree cache: loaded "), std::string::npos) << loaded.log;
+    EXPECT_NE(refused.log.find("trees\\n: not a writable directory"), std::string::npos)
+        << refused.log;
+}
+
 TEST_F(CacheTest, SaveToUnwritablePathThrowsNamingIt) {
     auto tree = build_kdtree(mesh_, params_);
     const std::string bad = (dir_ / "missing" / "t.kdt").string();
