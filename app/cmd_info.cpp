@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <memory>
 #include <string>
+#include <string_view>
 
 #include "app/commands.h"
 #include "app/options_cli.h"
@@ -34,20 +35,17 @@ bool is_image_file(const std::string& path) {
     return false;
 }
 
-/// Metadata text as it is safe to print: control bytes other than newline and tab become
-/// \xHH, and each new line is indented under the key.
+/// Metadata text as it is safe to print: each line (and each tab-separated part of it)
+/// through printable(), so control bytes, C1 controls and invalid UTF-8 come out escaped,
+/// while a multi-line value stays readable, each new line indented under the key.
 std::string metadata_text(const std::string& value) {
     std::string out;
-    for (unsigned char c : value) {
-        if (c == '\n') {
-            out += "\n             ";
-        } else if ((c < 0x20 && c != '\t') || c == 0x7f) {
-            char buf[8];
-            std::snprintf(buf, sizeof(buf), "\\x%02x", c);
-            out += buf;
-        } else {
-            out += char(c);
-        }
+    size_t begin = 0;
+    for (size_t i = 0; i <= value.size(); ++i) {
+        if (i < value.size() && value[i] != '\n' && value[i] != '\t') continue;
+        out += printable(std::string_view(value).substr(begin, i - begin));
+        if (i < value.size()) out += value[i] == '\n' ? "\n             " : "\t";
+        begin = i + 1;
     }
     return out;
 }

@@ -1,0 +1,44 @@
+// `kdtrace info IMAGE` (app/cmd_info.cpp) on metadata that could drive a terminal: a PNG
+// written here with a tEXt/iTXt value holding a C1 control (0x9b, CSI on some terminals),
+// invalid UTF-8 and several lines is printed escaped, line by line. Runs the built kdtrace;
+// skips when it is not built (the sanitizer presets build no app).
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "renderer/io/image_io.h"
+#include "tests/test_util.h"
+
+namespace kdt {
+namespace {
+
+TEST(ImageInfoCli, MetadataValuesArePrintedEscapedLineByLine) {
+    const std::string exe = std::string(KDT_BINARY_DIR) + "/bin/kdtrace";
+    if (!std::filesystem::exists(exe)) GTEST_SKIP() << "no " << exe;
+    const std::filesystem::path dir = test::temp_dir("kdt_info_cli");
+    const std::string png = (dir / "meta.png").string();
+    ImageRGB image(2, 2);
+    write_png(png, image, {},
+              {{"note",
+                "csi \x9b"
+                "1m, \xc2\x9b"
+                "31m red\nbad \xff\xfe utf-8\tand \xc3\xa9 kept"}});
+    FILE* p = ::popen(("'" + exe + "' info '" + png + "' 2>&1").c_str(), "r");
+    ASSERT_NE(p, nullptr);
+    std::string out;
+    char buf[4096];
+    for (size_t n; (n = std::fread(buf, 1, sizeof(buf), p)) > 0;) out.append(buf, n);
+    EXPECT_EQ(::pclose(p), 0) << out;
+    std::filesystem::remove_all(dir);
+    EXPECT_EQ(out.find('\x9b'), std::string::npos) << out;  // raw, or in C1's UTF-8 (c2 9b)
+    EXPECT_EQ(out.find('\xff'), std::string::npos) << out;
+    EXPECT_NE(out.find("note: csi \\x9b1m, \\u009b31m red\n"
+                       "             bad \\xff\\xfe utf-8\tand \xc3\xa9 kept\n"),
+              std::string::npos)
+        << out;
+}
+
+}  // namespace
+}  // namespace kdt
