@@ -4,6 +4,7 @@
 #include <charconv>
 #include <cstdint>
 #include <cstring>
+#include <exception>
 #include <limits>
 #include <new>
 #include <string_view>
@@ -18,6 +19,10 @@ namespace kdt {
 namespace {
 
 constexpr size_t kBlockBytes = size_t(1) << 20;
+// The longest value or corner read; independent of the block size, so that a smaller block
+// (obj::set_block_bytes) reads any file alike.
+constexpr size_t kMaxTokenBytes = size_t(1) << 20;
+size_t g_block_bytes = kBlockBytes;
 // Vertices and normals are addressed by 32-bit indices; kNone (= the cap) marks a corner
 // without a normal.
 constexpr uint64_t kMaxElements = UINT32_MAX;
@@ -107,7 +112,7 @@ struct Farthest {
 class ObjParser {
 public:
     ObjParser(FileReader& in, const MeshLoadOptions& options)
-        : in_(in), options_(options), all_normals_(options.keep_normals) {}
+        : in_(in), options_(options), block_(g_block_bytes), all_normals_(options.keep_normals) {}
 
     TriangleMesh run(MeshLoadInfo* info) {
         const char *b = nullptr, *e = nullptr;
@@ -157,6 +162,7 @@ private:
 
     FileReader& in_;
     const MeshLoadOptions& options_;
+    const size_t block_;  // bytes read at a time; a statement not ended within one is long
 
     // Input: buf_[pos_, end_) is unparsed; the next line's end is searched from scan_.
     std::vector<char> buf_;
@@ -200,9 +206,16 @@ bool ObjParser::next_line(const char*& b, const char*& e) {
             }
             if (at > pos_ && base[at - 1] == '\\') {
                 // A '\' ending the line continues the statement on the next line, except in
-                // a comment (which must not swallow a statement).
+                // a comment line (which must not swallow a statement): one whose first byte
+                // past blanks and continued line ends is '#'.
                 const char* s = base + pos_;
-                while (s < base + at && is_blank(*s)) ++s;
+                if (line_ == 1 && at - pos_ >= 3 && std::memcmp(s, "\xef\xbb\xbf", 3) == 0)
+                    s += 3;  // BOM
+                for (;;) {
+                    while (s < base + at && is_blank(*s)) ++s;
+                    if (s + 1 >= base + at || *s != '\\' || !is_eol(s[1])) break;
+                    s += 2 + size_t(s[1] == '\r' && s[2] == '\n');
+                }
                 if (*s != '#') {
                     continued = true;
                     scan_ = next;
@@ -221,7 +234,7 @@ bool ObjParser::next_line(const char*& b, const char*& e) {
             pos_ = scan_ = end_;
             break;
         }
-        if ((skipping_ || end_ - pos_ >= kBlockBytes) && long_line()) {
+        if ((skipping_ || end_ - pos_ >= block_) && long_line()) {
             b = e = buf_.data() + pos_;  // read by long_statement(): an empty statement
             return true;
         }
@@ -269,9 +282,10 @@ bool ObjParser::long_line() {
     const char* k = b;
     while (k < e && !is_blank(*k)) ++k;
     // A line end (continuation) inside the first token changes the token, and 40 bytes or
-    // less may not hold all of it: long_statement() checks those.
+    // less may not hold all of it, nor a '\' ending the data read, whose line end is unread:
+    // long_statement() checks those.
     if (e - b > 40 && *b != '#' && !std::memchr(b, '\n', size_t(k - b)) &&
-        !std::memchr(b, '\r', size_t(k - b))) {
+        !std::memchr(b, '\r', size_t(k - b)) && !(k == e && e[-1] == '\\')) {
         if (!is_letter(b[0]))
             fail("", -1,
                  "not an OBJ statement: " + quoted(b, k) + " (binary data or UTF-16 text?)");
@@ -284,18 +298,21 @@ bool ObjParser::long_line() {
 
 // Reads the statement starting at pos_ to its end, holding one token (keyword, value or
 // corner) at a time: blanks, comments and whole skipped statements are dropped as they are
-// read, so a line's length costs no memory. A value or corner of kBlockBytes or more is an
+// read, so a line's length costs no memory. A value or corner of kMaxTokenBytes or more is an
 // error. Lines are counted again from line_: next_line() may have counted continued ones.
 void ObjParser::long_statement() {
     enum class Kind { kKeyword, kVertex, kNormal, kFace, kOther };
     Kind kind = Kind::kKeyword;
     Values values;
     uint64_t corners = 0;
-    bool comment = false;  // after a '#', up to the line end
-    char prev = '\n';      // the byte before pos_, for a '\' ending a line
+    bool comment = false;         // after a '#', up to the line end
+    std::exception_ptr deferred;  // a value's error, thrown at the end of the statement
+    char prev = '\n';             // the byte before pos_, for a '\' ending a line
     next_line_ = line_;
-    if (line_ == 1 && end_ - pos_ >= 3 && std::memcmp(buf_.data() + pos_, "\xef\xbb\xbf", 3) == 0)
-        pos_ += 3;  // BOM
+    if (line_ == 1) {  // a BOM, once its 3 bytes are read (a small block may hold fewer)
+        while (end_ - pos_ < 3 && !eof_) refill();
+        if (end_ - pos_ >= 3 && std::memcmp(buf_.data() + pos_, "\xef\xbb\xbf", 3) == 0) pos_ += 3;
+    }
     // The length of the line end at p (CR, LF or CRLF).
     auto eol_length = [](const char* p, const char* end) {
         return size_t(1) + size_t(*p == '\r' && p + 1 < end && p[1] == '\n');
@@ -365,9 +382,16 @@ void ObjParser::long_statement() {
                 } else {
                     if (std::memchr(p, '\0', size_t(t - p)))
                         fail("", -1, "NUL byte in a statement (binary data or UTF-16 text?)");
-                    if (kind == Kind::kVertex) vertex_value(values, p, t);
-                    if (kind == Kind::kNormal) normal_value(values, p, t);
-                    if (kind == Kind::kFace) face_corner(corners, p, t);
+                    try {
+                        if (kind == Kind::kVertex) vertex_value(values, p, t);
+                        if (kind == Kind::kNormal) normal_value(values, p, t);
+                        if (kind == Kind::kFace) face_corner(corners, p, t);
+                    } catch (const Error&) {
+                        // statement() refuses a NUL anywhere in the statement before its
+                        // values: the rest is checked for one before this error is thrown.
+                        deferred = std::current_exception();
+                        kind = Kind::kOther;
+                    }
                 }
                 p = t;
             }
@@ -375,7 +399,7 @@ void ObjParser::long_statement() {
         pos_ = scan_ = size_t(p - base);
         if (done || (eof_ && pos_ == end_)) break;
         // Only a token that may go on is kept.
-        if (end_ - pos_ >= kBlockBytes) {
+        if (end_ - pos_ >= kMaxTokenBytes) {
             if (kind == Kind::kFace)
                 fail("face", int64_t(face_sizes_.size()),
                      "corner " + quoted(p, end) + " longer than 1 MiB");
@@ -385,6 +409,7 @@ void ObjParser::long_statement() {
         }
         refill();
     }
+    if (deferred) std::rethrow_exception(deferred);
     if (kind == Kind::kVertex) vertex_end(values);
     if (kind == Kind::kNormal) normal_end(values);
     if (kind == Kind::kFace) face_end(corners);
@@ -399,10 +424,11 @@ void ObjParser::refill() {
     }
     if (buf_.empty()) {
         // One block, or less for a small file: +1 so that the read finding the end fits.
-        buf_.resize(size_t(std::min<uint64_t>(kBlockBytes, in_.size_bound() + 1)));
+        buf_.resize(size_t(std::min<uint64_t>(block_, in_.size_bound() + 1)));
     } else if (end_ == buf_.size()) {
         // A line longer than the buffer (only before long_line() takes it, for a small
-        // buffer): grow it, doubling, so that it costs linear time.
+        // buffer) or a value longer than a small block: grow it, doubling, so that it costs
+        // linear time.
         buf_.resize(2 * buf_.size());
     }
     const size_t got = in_.read(buf_.data() + end_, buf_.size() - end_);
@@ -695,6 +721,16 @@ TriangleMesh ObjParser::build(MeshLoadInfo* info) {
 }
 
 }  // namespace
+
+namespace obj {
+
+size_t set_block_bytes(size_t bytes) {
+    const size_t old = g_block_bytes;
+    g_block_bytes = std::max<size_t>(bytes, 1);
+    return old;
+}
+
+}  // namespace obj
 
 TriangleMesh read_obj(FileReader& reader, const MeshLoadOptions& options, MeshLoadInfo* info) {
     Timer timer;

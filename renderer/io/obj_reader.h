@@ -51,4 +51,14 @@ TriangleMesh read_obj(FileReader& reader, const MeshLoadOptions& options = {},
 TriangleMesh read_obj_memory(const void* data, size_t size, const std::string& name,
                              const MeshLoadOptions& options = {}, MeshLoadInfo* info = nullptr);
 
+namespace obj {
+
+/// Sets the block size later reads use (default 1 MiB, at least 1) and returns the previous
+/// one. Tests and fuzzing only, not a user option: a small block makes small inputs take the
+/// long-line path and cross block ends; the result (mesh or message) must not change. Not
+/// thread-safe: to be called while no OBJ file is being read.
+size_t set_block_bytes(size_t bytes);
+
+}  // namespace obj
+
 }  // namespace kdt

@@ -1,13 +1,46 @@
 // libFuzzer target for the OBJ reader: any input must load or throw a kdt::Error naming the
-// file with a message safe to print, never crash, leak, hang or trip a sanitizer. Built by
-// tests/fuzz/tests.cmake (KDT_FUZZ=ON, clang); run by scripts/run_fuzz.sh.
+// file with a message safe to print, never crash, leak, hang or trip a sanitizer. Each input
+// is read twice, with the default block of 1 MiB and with a block of 1..64 bytes (from the
+// input), so that the long-line path and block ends are reached; the two must give the same
+// mesh bit for bit or the same message. Built by tests/fuzz/tests.cmake (KDT_FUZZ=ON, clang);
+// run by scripts/run_fuzz.sh.
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <string>
+#include <vector>
 
 #include "renderer/core/error.h"
 #include "renderer/io/obj_reader.h"
+
+namespace {
+
+// What one read gave: the mesh, or the error's message.
+struct Result {
+    kdt::TriangleMesh mesh;
+    kdt::MeshLoadInfo info;
+    std::string error;  // empty when it loaded
+};
+
+Result read(const uint8_t* data, size_t size, const kdt::MeshLoadOptions& options) {
+    Result r;
+    try {
+        r.mesh = kdt::read_obj_memory(data, size, "fuzz.obj", options, &r.info);
+    } catch (const kdt::Error& e) {
+        r.error = e.what();
+        if (r.error.empty()) __builtin_trap();
+    }
+    return r;
+}
+
+template <typename T>
+bool same_bytes(const std::vector<T>& a, const std::vector<T>& b) {
+    return a.size() == b.size() &&
+           (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
+}
+
+}  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     kdt::MeshLoadOptions options;
@@ -15,9 +48,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     // the reader with and without normals.
     options.drop_invalid = size % 2 == 1;
     options.keep_normals = size % 4 < 2;
-    try {
-        kdt::MeshLoadInfo info;
-        kdt::TriangleMesh mesh = kdt::read_obj_memory(data, size, "fuzz.obj", options, &info);
+    const Result r = read(data, size, options);
+    if (r.error.empty()) {
+        const kdt::TriangleMesh& mesh = r.mesh;
         // Every index must be in range: read them all so ASan sees any stray one.
         for (const kdt::Vec3u& t : mesh.triangles) {
             if (t.x >= mesh.positions.size() || t.y >= mesh.positions.size() ||
@@ -28,15 +61,38 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         for (const kdt::Vec3f& p : mesh.positions) {
             if (!kdt::is_finite(p)) __builtin_trap();
         }
-        if (info.dropped_faces > info.source_faces) __builtin_trap();
-    } catch (const kdt::Error& e) {
-        if (std::strncmp(e.what(), "fuzz.obj: ", 10) != 0) {
-            std::fprintf(stderr, "error without the file name: %s\n", e.what());
+        if (r.info.dropped_faces > r.info.source_faces) __builtin_trap();
+    } else {
+        if (std::strncmp(r.error.c_str(), "fuzz.obj: ", 10) != 0) {
+            std::fprintf(stderr, "error without the file name: %s\n", r.error.c_str());
             __builtin_trap();
         }
         // Messages are safe to print: bytes from the file come out escaped.
-        for (const char* p = e.what(); *p; ++p)
-            if (static_cast<unsigned char>(*p) < 0x20 || *p == 0x7f) __builtin_trap();
+        for (const char c : r.error)
+            if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) __builtin_trap();
+    }
+
+    // The same input through a tiny block: the long-line path, block ends between CR and
+    // LF, '\' and its line end, inside values and keywords.
+    size_t hash = size;
+    for (size_t i = 0; i < size && i < 16; ++i) hash = hash * 31 + data[i];
+    const size_t block = 1 + hash % 64;
+    const size_t old = kdt::obj::set_block_bytes(block);
+    const Result small = read(data, size, options);
+    kdt::obj::set_block_bytes(old);
+    if (small.error != r.error) {
+        std::fprintf(stderr, "block %zu: '%s'\ndefault: '%s'\n", block, small.error.c_str(),
+                     r.error.c_str());
+        __builtin_trap();
+    }
+    if (!same_bytes(small.mesh.positions, r.mesh.positions) ||
+        !same_bytes(small.mesh.triangles, r.mesh.triangles) ||
+        !same_bytes(small.mesh.normals, r.mesh.normals) ||
+        small.info.source_faces != r.info.source_faces ||
+        small.info.dropped_faces != r.info.dropped_faces ||
+        small.info.degenerate_faces != r.info.degenerate_faces) {
+        std::fprintf(stderr, "block %zu: a different mesh\n", block);
+        __builtin_trap();
     }
     return 0;
 }
