@@ -359,6 +359,13 @@ std::string without_times(const std::string& line) {
                                                                             : line;
 }
 
+// A load line that reports the usual course, not a problem: which rank wrote the shared
+// cache file and which loaded it depends on timing, and is no news.
+bool routine(const std::string& line) {
+    return line.rfind("kd-tree cache: loaded ", 0) == 0 ||
+           line.rfind("kd-tree cache: wrote ", 0) == 0;
+}
+
 }  // namespace
 
 Prepared prepare_everywhere(const MpiContext& ctx, const RenderOptions& options,
@@ -395,7 +402,7 @@ Prepared prepare_everywhere(const MpiContext& ctx, const RenderOptions& options,
         std::istringstream in(all[size_t(r)]);
         for (std::string line; std::getline(in, line);) {
             const std::string key = without_times(line);
-            if (std::find(own.begin(), own.end(), key) != own.end()) continue;
+            if (std::find(own.begin(), own.end(), key) != own.end() || routine(line)) continue;
             auto it = std::find_if(said.begin(), said.end(),
                                    [&](const auto& s) { return without_times(s.first) == key; });
             if (it == said.end()) it = said.insert(said.end(), {line, {}});

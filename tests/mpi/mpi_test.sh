@@ -414,6 +414,16 @@ worker_warnings)
     [ "$(grep -c 'cannot write to c' <<< "$out")" -eq 1 ] || fail "the workers' warning is not printed once"
     grep -q "^kdtrace: ranks 1, 2 of 3: kd-tree cache: cannot write to c: not a writable directory; tree not cached$" \
         <<< "$out" || fail "the workers' warning does not name them"
+    # Which rank wrote a cache file and which loaded one is no news: here rank 0 loads what
+    # it wrote above and the workers write their own; rank 0's line alone is printed.
+    rm -rf d && mkdir -p d/c
+    out=$(timeout -k 5 100 "$mpiexec" --oversubscribe --allow-run-as-root \
+        -np 1 -wdir "$work/a" "$kdtrace" "${args[@]}" --cache-dir c : \
+        -np 2 -wdir "$work/d" "$kdtrace" "${args[@]}" --cache-dir c 2>&1) ||
+        { echo "$out"; fail "the run with caches of its own failed"; }
+    echo "$out"
+    ls d/c/*.kdt > /dev/null || fail "the workers wrote no cache"
+    [ "$(grep -c '^kdtrace: ' <<< "$out")" -eq 1 ] || fail "the workers' cache writes were printed"
     # Lines every rank says alike (the cache loaded, with other times) come from rank 0 alone.
     out=$(mpi 3 "${args[@]}" --cache-dir a/c 2>&1) || { echo "$out"; fail "the cached run failed"; }
     echo "$out"
