@@ -332,7 +332,9 @@ std::string options_to_json(const RenderOptions& o) {
     j["trace"] = group_json(o.trace, trace_fields());
     j["film"] = group_json(o.film, film_fields());
     j["stop"] = group_json(o.stop, stop_fields());
-    return j.dump();
+    // File names are bytes, JSON is UTF-8: a name that is not valid UTF-8 is written with
+    // U+FFFD in place of its bad bytes rather than failing the render that stores it.
+    return j.dump(-1, ' ', false, json::error_handler_t::replace);
 }
 
 void options_from_json(const std::string& text, RenderOptions& o, const std::string& where) {

@@ -571,7 +571,8 @@ std::string scene_to_json(const Scene& scene) {
         meshes.push_back(jm);
     }
     root["meshes"] = meshes;
-    return root.dump(2) + "\n";
+    // A file name that is not valid UTF-8 gets U+FFFD for its bad bytes (as options_to_json()).
+    return root.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
 }
 
 }  // namespace kdt

@@ -255,6 +255,14 @@ add_test(NAME smoke.black_emitter_warning COMMAND ${_kdt} render ${_tmp}/black_e
          --no-cache --spp 1 --width 8 --height 6 -o ${_tmp}/black_emitter.png)
 set_tests_properties(smoke.black_emitter_warning PROPERTIES PASS_REGULAR_EXPRESSION
   "kdtrace: warning: [^\n]*black_emitter.json: meshes/1/material: type emissive without \"emission\": it emits no light[^\n]*\nrender: ")
+# A model whose name is not valid UTF-8 renders; its name is stored in the image's JSON
+# metadata with U+FFFD for the bad byte (JSON cannot hold the byte).
+add_test(NAME smoke.non_utf8_model_name COMMAND sh -c "m=\"$1/$(printf '\\233')q.ply\"; \
+cp /usr/share/assimp/models/PLY/cube.ply \"$m\" && \"$0\" render \"$m\" --no-cache --spp 1 \
+--width 8 --height 6 --quiet -o \"$1/non_utf8.png\" && \"$0\" info --all \"$1/non_utf8.png\""
+         ${_kdt} ${_tmp})
+set_tests_properties(smoke.non_utf8_model_name PROPERTIES PASS_REGULAR_EXPRESSION
+  "scene_path\":\"[^\"]*�q.ply\"")
 # --quiet silences progress and cache messages, not warnings.
 add_test(NAME smoke.quiet_keeps_warnings COMMAND ${_kdt} render ${_tmp}/black_emitter.json
          --no-cache --spp 1 --width 8 --height 6 --quiet -o ${_tmp}/black_emitter_quiet.png)
