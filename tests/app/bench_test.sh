@@ -34,11 +34,12 @@ case $case_name in
 kdtree_no_rays)
     # 50 triangles at one point, and one triangle on a line: no diffuse ray leaves them and
     # no ray can be aimed at a closed fan. Every mean, share or ratio of no rays is "-", in
-    # the Markdown and the CSV alike; none is nan.
+    # the Markdown and the CSV alike; none is nan. One row (sah), so that it is the "best tree"
+    # of the Embree table whatever the timing.
     ply point.ply "$(printf '0 0.1 0\n0 0.1 0\n0 0.1 0')" "$(for i in $(seq 50); do echo 0 1 2; done)"
     ply line.ply "$(printf '0 0.1 0\n0.05 0.12 0\n0.1 0.14 0')" "0 1 2"
     for m in point line; do
-        out=$("$kdt" "${kdtree[@]}" --model $m.ply --rows 1,sah --csv $m.csv 2>&1) ||
+        out=$("$kdt" "${kdtree[@]}" --model $m.ply --rows sah --csv $m.csv 2>&1) ||
             fail "$m: exit status $?: $out"
         echo "$out"
         cat $m.csv
