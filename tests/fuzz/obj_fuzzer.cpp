@@ -13,31 +13,14 @@
 
 #include "renderer/core/error.h"
 #include "renderer/io/obj_reader.h"
+#include "tests/fuzz/fuzz_mesh.h"
 
 namespace {
 
-// What one read gave: the mesh, or the error's message.
-struct Result {
-    kdt::TriangleMesh mesh;
-    kdt::MeshLoadInfo info;
-    std::string error;  // empty when it loaded
-};
-
-Result read(const uint8_t* data, size_t size, const kdt::MeshLoadOptions& options) {
-    Result r;
-    try {
-        r.mesh = kdt::read_obj_memory(data, size, "fuzz.obj", options, &r.info);
-    } catch (const kdt::Error& e) {
-        r.error = e.what();
-        if (r.error.empty()) __builtin_trap();
-    }
-    return r;
-}
-
-template <typename T>
-bool same_bytes(const std::vector<T>& a, const std::vector<T>& b) {
-    return a.size() == b.size() &&
-           (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
+kdt::fuzz::ReadResult read(const uint8_t* data, size_t size, const kdt::MeshLoadOptions& options) {
+    return kdt::fuzz::result_of([&](kdt::MeshLoadInfo* info) {
+        return kdt::read_obj_memory(data, size, "fuzz.obj", options, info);
+    });
 }
 
 }  // namespace
@@ -48,7 +31,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     // the reader with and without normals.
     options.drop_invalid = size % 2 == 1;
     options.keep_normals = size % 4 < 2;
-    const Result r = read(data, size, options);
+    const kdt::fuzz::ReadResult r = read(data, size, options);
     if (r.error.empty()) {
         const kdt::TriangleMesh& mesh = r.mesh;
         // Every index must be in range: read them all so ASan sees any stray one.
@@ -78,16 +61,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     for (size_t i = 0; i < size && i < 16; ++i) hash = hash * 31 + data[i];
     const size_t block = 1 + hash % 64;
     const size_t old = kdt::obj::set_block_bytes(block);
-    const Result small = read(data, size, options);
+    const kdt::fuzz::ReadResult small = read(data, size, options);
     kdt::obj::set_block_bytes(old);
     if (small.error != r.error) {
         std::fprintf(stderr, "block %zu: '%s'\ndefault: '%s'\n", block, small.error.c_str(),
                      r.error.c_str());
         __builtin_trap();
     }
-    if (!same_bytes(small.mesh.positions, r.mesh.positions) ||
-        !same_bytes(small.mesh.triangles, r.mesh.triangles) ||
-        !same_bytes(small.mesh.normals, r.mesh.normals) ||
+    if (!kdt::fuzz::same_mesh(small.mesh, r.mesh) ||
         small.info.source_faces != r.info.source_faces ||
         small.info.dropped_faces != r.info.dropped_faces ||
         small.info.degenerate_faces != r.info.degenerate_faces) {

@@ -18,6 +18,7 @@
 #include "renderer/core/error.h"
 #include "renderer/io/ply_input.h"
 #include "renderer/io/ply_reader.h"
+#include "tests/fuzz/fuzz_mesh.h"
 
 namespace {
 
@@ -36,72 +37,45 @@ std::vector<uint8_t> gzip(const uint8_t* data, size_t size) {
     return out;
 }
 
-// Reads `bytes` through a file, as read_ply(path) does: an anonymous memory file named by
-// its /proc/self/fd path.
-kdt::TriangleMesh read_as_file(const uint8_t* bytes, size_t size, const kdt::MeshLoadOptions& o,
-                               kdt::MeshLoadInfo* info) {
-    struct Fd {
-        int fd;
-        ~Fd() { ::close(fd); }
-    } file{::memfd_create("fuzz.ply.gz", MFD_CLOEXEC)};
-    if (file.fd < 0) __builtin_trap();
-    for (size_t done = 0; done < size;) {
-        const ssize_t n = ::write(file.fd, bytes + done, size - done);
-        if (n <= 0) __builtin_trap();
-        done += size_t(n);
+// An anonymous memory file holding `bytes`, closed with it.
+struct MemFile {
+    int fd;
+    MemFile(const char* name, const uint8_t* bytes, size_t size)
+        : fd(::memfd_create(name, MFD_CLOEXEC)) {
+        if (fd < 0) __builtin_trap();
+        for (size_t done = 0; done < size;) {
+            const ssize_t n = ::write(fd, bytes + done, size - done);
+            if (n <= 0) __builtin_trap();
+            done += size_t(n);
+        }
     }
-    return kdt::read_ply("/proc/self/fd/" + std::to_string(file.fd), o, info);
-}
-
-// What one read gave: the mesh, or the error's message.
-struct Result {
-    kdt::TriangleMesh mesh;
-    std::string error;  // empty when it loaded
+    MemFile(const MemFile&) = delete;
+    MemFile& operator=(const MemFile&) = delete;
+    ~MemFile() { ::close(fd); }
+    std::string path() const { return "/proc/self/fd/" + std::to_string(fd); }
 };
 
-template <typename F>
-Result result_of(F&& read) {
-    Result r;
-    try {
-        r.mesh = read();
-    } catch (const kdt::Error& e) {
-        r.error = e.what();
-        if (r.error.empty()) __builtin_trap();
-    }
-    return r;
-}
-
-template <typename T>
-bool same_bytes(const std::vector<T>& a, const std::vector<T>& b) {
-    return a.size() == b.size() &&
-           (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
+// Reads `bytes` through a file, as read_ply(path) does.
+kdt::TriangleMesh read_as_file(const uint8_t* bytes, size_t size, const kdt::MeshLoadOptions& o,
+                               kdt::MeshLoadInfo* info) {
+    const MemFile file("fuzz.ply.gz", bytes, size);
+    return kdt::read_ply(file.path(), o, info);
 }
 
 // `data` read from memory and as a mapped file seen through a window of `window` bytes: the
 // two must agree, bit for bit or message for message (both name the file by its path).
 void read_both_ways(const uint8_t* data, size_t size, const kdt::MeshLoadOptions& o,
                     size_t window) {
-    struct Fd {
-        int fd;
-        ~Fd() { ::close(fd); }
-    } file{::memfd_create("fuzz.ply", MFD_CLOEXEC)};
-    if (file.fd < 0) __builtin_trap();
-    for (size_t done = 0; done < size;) {
-        const ssize_t n = ::write(file.fd, data + done, size - done);
-        if (n <= 0) __builtin_trap();
-        done += size_t(n);
-    }
-    const std::string path = "/proc/self/fd/" + std::to_string(file.fd);
-    const Result memory = result_of([&] { return kdt::read_ply_memory(data, size, path, o); });
+    const MemFile file("fuzz.ply", data, size);
+    const std::string path = file.path();
+    using kdt::fuzz::result_of;
+    const auto memory =
+        result_of([&](kdt::MeshLoadInfo*) { return kdt::read_ply_memory(data, size, path, o); });
     const kdt::ply::MapParams old = kdt::ply::set_map_params({1, window});
-    const Result mapped = result_of([&] { return kdt::read_ply(path, o); });
+    const auto mapped = result_of([&](kdt::MeshLoadInfo*) { return kdt::read_ply(path, o); });
     kdt::ply::set_map_params(old);
     if (memory.error != mapped.error) __builtin_trap();
-    if (!same_bytes(memory.mesh.positions, mapped.mesh.positions) ||
-        !same_bytes(memory.mesh.triangles, mapped.mesh.triangles) ||
-        !same_bytes(memory.mesh.normals, mapped.mesh.normals) ||
-        !same_bytes(memory.mesh.colors, mapped.mesh.colors))
-        __builtin_trap();
+    if (!kdt::fuzz::same_mesh(memory.mesh, mapped.mesh)) __builtin_trap();
 }
 
 }  // namespace
