@@ -108,8 +108,9 @@ void add_dist_options(CLI::App& app, DistArgs& a, RenderOptions& options) {
     app.add_option("--mpi-inject", a.inject,
                    "Test only: RANK:load (the rank cannot open the scene), RANK:hash (the "
                    "rank reports a different tree), RANK:stall (its load never ends), RANK:stop "
-                   "(a worker stops itself, SIGSTOP, before its first item) or 0:write (rank 0 "
-                   "cannot write the images)");
+                   "(a worker stops itself, SIGSTOP, before its first item), RANK:interrupt (a "
+                   "worker raises SIGTERM just after sending its first result) or 0:write (rank "
+                   "0 cannot write the images)");
 }
 
 int launcher_rank() {
@@ -480,14 +481,16 @@ void check_fault(const dist::InjectedFault& fault, const std::string& spec, int 
                     std::to_string(ranks));
     }
     if (fault.what != "load" && fault.what != "hash" && fault.what != "write" &&
-        fault.what != "stall" && fault.what != "stop") {
+        fault.what != "stall" && fault.what != "stop" && fault.what != "interrupt") {
         throw Error("--mpi-inject " + spec + ": unknown fault '" + printable(fault.what) +
-                    "' (faults: load, hash, stall, stop, write)");
+                    "' (faults: load, hash, stall, stop, interrupt, write)");
     }
     if (fault.what == "write" && fault.rank != 0)
         throw Error("--mpi-inject " + spec + ": only rank 0 writes images (use 0:write)");
-    if (fault.what == "stop" && fault.rank == 0)
-        throw Error("--mpi-inject " + spec + ": only a worker can stop (rank 1 or above)");
+    if ((fault.what == "stop" || fault.what == "interrupt") && fault.rank == 0) {
+        throw Error("--mpi-inject " + spec + ": only a worker can " + fault.what +
+                    " (rank 1 or above)");
+    }
 }
 
 dist::FarmParams farm_params(const DistArgs& a, const RenderOptions& o) {
@@ -613,6 +616,7 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
             std::tie(fault.rank, fault.what) = rank_and(a.inject, "--mpi-inject");
             check_fault(fault, a.inject, ctx.size());
             if (fault.what == "stop") params.stop_rank = fault.rank;
+            if (fault.what == "interrupt") params.interrupt_rank = fault.rank;
         }
         return dist::Fingerprint{
             {"list of frames and their options (views and session files)", plan_hash(frames)}};

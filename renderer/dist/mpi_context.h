@@ -137,7 +137,8 @@ std::string rank_list(const std::vector<int>& ranks, int size);
 struct InjectedFault {
     int rank = -1;  ///< -1 = none
     /// "load": the scene path cannot be opened; "hash": a different tree; "stall": the load
-    /// never ends (until the job is ended); the app handles "write" and "stop"
+    /// never ends (until the job is ended); the app handles "write", "stop" and
+    /// "interrupt"
     std::string what;
 };
 

@@ -141,8 +141,13 @@ FarmResult render_tile_farm(const MpiContext& ctx, std::shared_ptr<const RenderS
             off += n;
         }
     };
+    const ResultSize size = [&](const std::vector<int>& tiles) {
+        size_t pixels = 0;
+        for (int t : tiles) pixels += tile_rect(session.film(), t).pixel_count();
+        return pixels * sizeof(FilmPixel);
+    };
     FarmResult out;
-    out.ranks = run_farm(ctx, session.tile_count(), params, render, consume, progress);
+    out.ranks = run_farm(ctx, session.tile_count(), params, render, size, consume, progress);
     out.counters = reduce_counters(session.totals());
     return out;
 }
@@ -199,8 +204,16 @@ FarmResult render_frame_farm(const MpiContext& ctx, const std::vector<FrameJob>&
         }
         if (off != size) throw Error("frame farm: result of the wrong size");
     };
+    const ResultSize size = [&](const std::vector<int>& items) {
+        size_t pixels = 0;
+        for (int frame : items) {
+            const Camera& c = frames[size_t(frame)].snapshot->camera;
+            pixels += size_t(c.width) * size_t(c.height);
+        }
+        return pixels * sizeof(FilmPixel);
+    };
     FarmResult out;
-    out.ranks = run_farm(ctx, int(frames.size()), params, render, consume, progress);
+    out.ranks = run_farm(ctx, int(frames.size()), params, render, size, consume, progress);
     out.counters = reduce_counters(mine);
     return out;
 }

@@ -10,9 +10,13 @@
 #include <chrono>
 #include <cstring>
 #include <deque>
+#include <exception>
 #include <list>
+#include <set>
+#include <string>
 #include <thread>
 
+#include "renderer/core/error.h"
 #include "renderer/core/timer.h"
 
 namespace kdt::dist {
@@ -71,15 +75,16 @@ void throttle(const MpiContext& ctx, const FarmParams& p, double seconds) {
 // Rank 0: the sources of items, the replies to requests, the consumption of results.
 class Master {
 public:
-    Master(const MpiContext& ctx, int items, const FarmParams& params, const ConsumeItems& consume,
-           const FarmProgress& progress)
+    Master(const MpiContext& ctx, int items, const FarmParams& params, const ResultSize& size,
+           const ConsumeItems& consume, const FarmProgress& progress)
         : ctx_(ctx),
           total_(items),
           params_(params),
+          result_size_(size),
           consume_(consume),
           progress_(progress),
           told_done_(size_t(ctx.size()), false),
-          outstanding_(size_t(ctx.size()), 0) {
+          given_(size_t(ctx.size())) {
         const auto lists = assign_items(params.distribution, items, params.columns, ctx.size());
         for (const auto& l : lists) sources_.emplace_back(l.begin(), l.end());
     }
@@ -102,31 +107,28 @@ public:
         if (progress_) progress_(done_, total_);
     }
 
-    // Receives one message from `source` (MPI_ANY_SOURCE allowed) and answers it.
+    // Receives one message from `source` (MPI_ANY_SOURCE allowed) and answers it. A message
+    // that is not a well-formed result of items given to its sender is an error naming the
+    // sender, before any of it is consumed.
     void handle(int source) {
         MPI_Status st;
         probe(ctx_, source, kTagResult, &st);
         Timer serve;
         int size = 0;
         MPI_Get_count(&st, MPI_BYTE, &size);
-        buffer_.resize(size_t(size));
-        MPI_Recv(buffer_.data(), size, MPI_BYTE, st.MPI_SOURCE, kTagResult, MPI_COMM_WORLD,
-                 MPI_STATUS_IGNORE);
+        const int w = st.MPI_SOURCE;
+        buffer_.resize(size_t(std::max(size, 0)));
+        MPI_Recv(buffer_.data(), size, MPI_BYTE, w, kTagResult, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
         stats.messages += 1;
         stats.bytes += uint64_t(size);
         ResultHeader h;
-        std::memcpy(&h, buffer_.data(), sizeof h);
-        std::vector<int> items(size_t(h.items));
-        if (!items.empty())
-            std::memcpy(items.data(), buffer_.data() + sizeof h, items.size() * sizeof(int32_t));
-        const size_t off = sizeof h + items.size() * sizeof(int32_t);
+        const std::vector<int> items = parse_result(w, &h);
+        const size_t off = sizeof(ResultHeader) + items.size() * sizeof(int32_t);
         if (!items.empty()) done_items(items, buffer_.data() + off, buffer_.size() - off);
-        const int w = st.MPI_SOURCE;
-        outstanding_[size_t(w)] -= int(items.size());
         if (!told_done_[size_t(w)]) {
             const std::vector<int> next = take(w, std::max(h.want, 1));
             MPI_Send(next.data(), int(next.size()), MPI_INT, w, kTagWork, MPI_COMM_WORLD);
-            outstanding_[size_t(w)] += int(next.size());
+            given_[size_t(w)].insert(next.begin(), next.end());
             stats.messages += 1;
             stats.bytes += next.size() * sizeof(int32_t);
             if (next.empty()) told_done_[size_t(w)] = true;
@@ -148,7 +150,7 @@ public:
     std::string pending() const {
         std::vector<int> late;
         for (int w = 1; w < ctx_.size(); ++w)
-            if (outstanding_[size_t(w)] > 0) late.push_back(w);
+            if (!given_[size_t(w)].empty()) late.push_back(w);
         if (late.empty()) return "";
         return rank_list(late, ctx_.size()) + " had not returned " +
                (late.size() == 1 ? "its" : "their") + " work";
@@ -191,12 +193,110 @@ private:
     const MpiContext& ctx_;
     int total_, done_ = 0;
     FarmParams params_;
+    const ResultSize& result_size_;
     const ConsumeItems& consume_;
     const FarmProgress& progress_;
     std::vector<std::deque<int>> sources_;
     std::vector<bool> told_done_;
-    std::vector<int> outstanding_;  // per worker: items sent and not returned
+    std::vector<std::set<int>> given_;  // per worker: items sent and not returned
     std::vector<char> buffer_;
+
+    std::string bad_result(int w) const {
+        return "a result from " + rank_list({w}, ctx_.size()) + " is malformed: ";
+    }
+
+    // The header and item ids of the message in buffer_ from worker `w`; marks the items
+    // returned. Throws Error when the sizes disagree or an item was not given to `w`.
+    std::vector<int> parse_result(int w, ResultHeader* h) {
+        const size_t size = buffer_.size();
+        if (size < sizeof *h) {
+            throw Error(bad_result(w) + std::to_string(size) + " bytes, shorter than its " +
+                        std::to_string(sizeof *h) + "-byte header");
+        }
+        std::memcpy(h, buffer_.data(), sizeof *h);
+        if (h->items < 0 || h->want < 0 ||
+            uint64_t(h->items) > (size - sizeof *h) / sizeof(int32_t)) {
+            throw Error(bad_result(w) + std::to_string(size) + " bytes, but its header announces " +
+                        std::to_string(h->items) + " items and asks for " +
+                        std::to_string(h->want));
+        }
+        std::vector<int> items(size_t(h->items));
+        if (!items.empty())
+            std::memcpy(items.data(), buffer_.data() + sizeof *h, items.size() * sizeof(int32_t));
+        for (int i : items) {
+            if (given_[size_t(w)].erase(i) == 0) {
+                throw Error(bad_result(w) + "item " + std::to_string(i) +
+                            " was not given to it or was returned before");
+            }
+        }
+        const size_t bytes = size - sizeof *h - items.size() * sizeof(int32_t);
+        const size_t want = items.empty() ? 0 : result_size_(items);
+        if (bytes != want) {
+            throw Error(bad_result(w) + std::to_string(bytes) + " bytes of results for " +
+                        std::to_string(items.size()) + " items, not " + std::to_string(want));
+        }
+        return items;
+    }
+};
+
+// A worker's sends in flight: requests and results go out without waiting for rank 0 to
+// receive them (it may be rendering), and each buffer lives until its send completes. A
+// worker that leaves the farm by an exception (a signal, a timeout) never finalizes, and
+// until it ends rank 0 may still receive what it sent: Open MPI's shared-memory transport
+// copies a large message straight out of this process's memory, so a freed and reused
+// buffer would reach rank 0 as a result. The buffers of sends still pending then are never
+// freed (MPI_Cancel of a send is deprecated and unreliable).
+class Sends {
+public:
+    explicit Sends(const MpiContext& ctx) : ctx_(ctx) {}
+    Sends(const Sends&) = delete;
+    Sends& operator=(const Sends&) = delete;
+    ~Sends() {
+        test();
+        if (pending_.empty()) return;
+        auto* kept = new std::list<Pending>;  // never deleted, see above
+        kept->splice(kept->end(), pending_);
+    }
+
+    void send(std::vector<char> msg) {
+        pending_.emplace_back(MPI_REQUEST_NULL, std::move(msg));
+        Pending& s = pending_.back();
+        MPI_Isend(s.second.data(), int(s.second.size()), MPI_BYTE, 0, kTagResult, MPI_COMM_WORLD,
+                  &s.first);
+        test();
+    }
+
+    /// Waits for every send; throws what MpiContext::wait() throws.
+    void wait_all() {
+        for (Pending& s : pending_) ctx_.wait(s.first);
+        pending_.clear();
+    }
+
+private:
+    using Pending = std::pair<MPI_Request, std::vector<char>>;
+
+    void test() {
+        for (auto it = pending_.begin(); it != pending_.end();) {
+            int done = 0;
+            MPI_Test(&it->first, &done, MPI_STATUS_IGNORE);
+            it = done ? pending_.erase(it) : std::next(it);
+        }
+    }
+
+    const MpiContext& ctx_;
+    std::list<Pending> pending_;
+};
+
+// Test-only (FarmParams::interrupt_rank): after the worker's sends are gone, allocates
+// buffers of their sizes filled with 0xff, which take the place of any buffer that was freed,
+// so that a send whose buffer was freed delivers garbage.
+struct Scribble {
+    bool on = false;
+    std::vector<size_t> sizes;
+    ~Scribble() {
+        if (!on || std::uncaught_exceptions() == 0) return;
+        for (size_t n : sizes) new std::vector<char>(n, char(0xff));  // kept until the end
+    }
 };
 
 RankStats run_worker(const MpiContext& ctx, const FarmParams& params, const RenderItems& render) {
@@ -204,21 +304,13 @@ RankStats run_worker(const MpiContext& ctx, const FarmParams& params, const Rend
     stats.rank = ctx.rank();
     Timer wall;
     const int batch = std::max(params.batch, 1);
-    // Requests and results are sent without waiting for rank 0 to receive them (it may be
-    // rendering); their buffers live until the send completes.
-    std::list<std::pair<MPI_Request, std::vector<char>>> sends;
+    Scribble scribble{ctx.rank() == params.interrupt_rank, {}};
+    Sends sends(ctx);  // destroyed before `scribble`
     auto send = [&](std::vector<char> msg) {
         stats.messages += 1;
         stats.bytes += msg.size();
-        sends.emplace_back(MPI_REQUEST_NULL, std::move(msg));
-        auto& s = sends.back();
-        MPI_Isend(s.second.data(), int(s.second.size()), MPI_BYTE, 0, kTagResult, MPI_COMM_WORLD,
-                  &s.first);
-        for (auto it = sends.begin(); it != sends.end();) {
-            int done = 0;
-            MPI_Test(&it->first, &done, MPI_STATUS_IGNORE);
-            it = done ? sends.erase(it) : std::next(it);
-        }
+        if (scribble.on) scribble.sizes.push_back(msg.size());
+        sends.send(std::move(msg));
     };
     send(pack_result({}, batch * std::max(params.batches_in_flight, 1), {}));
     std::deque<int> queue;
@@ -257,8 +349,13 @@ RankStats run_worker(const MpiContext& ctx, const FarmParams& params, const Rend
         stats.busy_seconds += t.seconds();
         stats.items += int32_t(mine.size());
         send(pack_result(mine, no_more ? 0 : int(mine.size()), bytes));
+        if (scribble.on) {
+            // As a SIGTERM would, while the result is most likely still unreceived.
+            std::raise(SIGTERM);
+            ctx.check_timeout();
+        }
     }
-    for (auto& s : sends) ctx.wait(s.first);
+    sends.wait_all();
     stats.wall_seconds = wall.seconds();
     return stats;
 }
@@ -285,8 +382,8 @@ std::vector<std::vector<int>> assign_items(Distribution d, int items, int column
 }
 
 std::vector<RankStats> run_farm(const MpiContext& ctx, int items, const FarmParams& params,
-                                const RenderItems& render, const ConsumeItems& consume,
-                                const FarmProgress& progress) {
+                                const RenderItems& render, const ResultSize& size,
+                                const ConsumeItems& consume, const FarmProgress& progress) {
     // Every rank starts the clock together. The collectives here wait without spinning
     // (MpiContext::wait): a rank that is done must not take a core from one still rendering.
     MPI_Request request;
@@ -295,7 +392,7 @@ std::vector<RankStats> run_farm(const MpiContext& ctx, int items, const FarmPara
     const double cpu0 = process_cpu_seconds();
     RankStats mine;
     if (ctx.rank() == 0) {
-        Master master(ctx, items, params, consume, progress);
+        Master master(ctx, items, params, size, consume, progress);
         master.run(render);
         mine = master.stats;
     } else {

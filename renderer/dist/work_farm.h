@@ -35,6 +35,10 @@ struct FarmParams {
     int throttle_rank = -1;  ///< test-only: this rank sleeps (factor - 1) x its render time
     double throttle_factor = 1.0;
     int stop_rank = -1;  ///< test-only: this rank stops itself (SIGSTOP) before its first item
+    /// Test-only: this worker raises SIGTERM right after sending its first result and leaves
+    /// the farm at once (FarmInterrupted), the send most likely still pending; memory it
+    /// frees then is overwritten, so that a pending send whose buffer was freed shows.
+    int interrupt_rank = -1;
 };
 
 /// What one rank did, gathered on rank 0. idle = wall - busy.
@@ -55,6 +59,8 @@ struct RankStats {
 /// between parts of a long item so rank 0 keeps serving workers. Returns the result bytes.
 using RenderItems = std::function<std::vector<char>(const std::vector<int>& items,
                                                     const std::function<void()>& poll)>;
+/// The size in bytes of the result of `items` (rank 0 checks every worker's against it).
+using ResultSize = std::function<size_t(const std::vector<int>& items)>;
 /// Rank 0: takes the result bytes of items rendered by any rank (in any order).
 using ConsumeItems =
     std::function<void(const std::vector<int>& items, const char* bytes, size_t size)>;
@@ -63,9 +69,11 @@ using FarmProgress = std::function<void(int done, int total)>;
 
 /// Collective: every item in [0, items) is rendered exactly once by some rank and consumed on
 /// rank 0. Returns every rank's stats on rank 0 (one entry per rank), only the caller's
-/// elsewhere.
+/// elsewhere. On rank 0, a message that is not the result of items given to its sender, of
+/// `size` bytes, throws Error "a result from rank R of N is malformed: ..." before any of it
+/// is consumed.
 std::vector<RankStats> run_farm(const MpiContext& ctx, int items, const FarmParams& params,
-                                const RenderItems& render, const ConsumeItems& consume,
-                                const FarmProgress& progress = {});
+                                const RenderItems& render, const ResultSize& size,
+                                const ConsumeItems& consume, const FarmProgress& progress = {});
 
 }  // namespace kdt::dist

@@ -351,7 +351,7 @@ rescue)
 test_flags)
     # The test-only flags name a rank of the job and a known fault, or are errors.
     for flags in "--throttle 5:2" "--throttle -1:2" "--mpi-inject 7:load" "--mpi-inject 1:foo" \
-        "--mpi-inject 1:write" "--mpi-inject 0:stop"; do
+        "--mpi-inject 1:write" "--mpi-inject 0:stop" "--mpi-inject 0:interrupt"; do
         out=$(mpi 3 "${common[@]}" --mpi $flags -o x.pfm 2>&1); rc=$?
         echo "$out"
         [ $rc -ne 0 ] || fail "$flags: exit status 0"
@@ -401,6 +401,33 @@ interrupt)
         fail "frames: the message does not count the $n frames written"
     ls frames | grep -v '^f_[0-9][0-9][0-9]\.pfm$' && fail "frames: a temporary file was left"
     echo "ok: an interrupted run says what it kept ($n frames) and ends" ;;
+interrupt_worker)
+    # A worker signalled while its result is on the way (--mpi-inject 1:interrupt: rank 1
+    # raises SIGTERM just after sending its first frame and leaves the farm; the memory it
+    # frees then is overwritten). Under strips rank 0 renders the small frame and rank 1 the
+    # big one; rank 0 then sleeps 99x its render time without receiving (--throttle), so
+    # rank 1's frame most likely arrives while rank 0 sleeps, and is received after rank 1
+    # has left the farm. Rank 0 must still receive that frame intact (or name rank 1 if it
+    # cannot): never garbage. Rank 1 says it was interrupted, then mpirun ends the job and rank
+    # 0 says what it kept; every frame written is the local render's.
+    camera='"camera": {"eye": [1.5, 1.2, 3.0], "target": [0, 0.7, 0], "up": [0, 1, 0], "vfov_degrees": 35}'
+    echo "{\"scene\": {\"width\": 16, \"height\": 16, $camera}}" > small.json
+    echo "{\"scene\": {\"width\": 96, \"height\": 64, $camera}}" > big.json
+    args=(render "$model" --no-cache --spp 5 --spp-per-pass 2 --seed 11 --threads 1 --quiet
+          --frames sessions:small.json,big.json)
+    "$kdtrace" "${args[@]}" -o local.pfm > /dev/null || fail "local frames"
+    rm -rf frames && mkdir frames
+    mpi 2 "${args[@]}" --mpi --distribution strips --mpi-inject 1:interrupt --throttle 0:100 \
+        -o frames/f.pfm > log.txt 2>&1; rc=$?
+    cat log.txt
+    [ $rc -eq 143 ] || fail "exit status $rc, not 143 (SIGTERM)"
+    grep -q "^kdtrace: rank 1: interrupted (SIGTERM); ending this rank$" log.txt ||
+        fail "rank 1 does not say it was interrupted"
+    grep -q "^kdtrace: interrupted (SIGTERM); all 2 frames were written$" log.txt ||
+        fail "rank 0 does not say it kept both frames"
+    grep -q "error" log.txt && fail "an error"
+    for f in small big; do cmp "frames/f_$f.pfm" "local_$f.pfm" || fail "frame $f differs"; done
+    echo "ok: a worker interrupted with a send pending does not corrupt rank 0's results" ;;
 worker_warnings)
     # A worker's load lines reach the terminal through rank 0, once per text with the ranks
     # that said them: here ranks 1 and 2 run where --cache-dir c is a file, not a directory.
