@@ -25,6 +25,7 @@
 #include "renderer/core/fields.h"
 #include "renderer/core/interrupt.h"
 #include "renderer/core/output_path.h"
+#include "renderer/core/shell_word.h"
 #include "renderer/core/temp_file.h"
 #include "renderer/core/timer.h"
 #include "renderer/io/image_io.h"
@@ -406,11 +407,36 @@ std::shared_ptr<const RenderSnapshot> frame_snapshot(const SceneGroups& g,
     return s;
 }
 
-void write_film(const FramePlan& f, const Film& film, const RenderSnapshot& snap,
-                const std::string& how) {
-    // The tree's parameters are those of the tree used: a --tree file's, not the flags'.
+// A file name that means the same from any working directory (a frame image is a session,
+// read from anywhere).
+std::string absolute_file_name(const std::string& name) {
+    if (name.empty()) return name;
+    std::error_code ec;
+    const std::filesystem::path p = std::filesystem::absolute(name, ec);
+    return ec ? name : p.lexically_normal().string();
+}
+
+// What `render --session IMAGE` reads back from a frame image to render it again: the
+// frame's options with the tree used (a --tree file's parameters, not the flags'), the
+// frame's own camera in full (a turntable's turn, a view's or a session's camera with the
+// command line's --eye, --fov, ...) and absolute file names.
+RenderOptions frame_session(const FramePlan& f, const RenderSnapshot& snap) {
     RenderOptions o = f.options;
     o.tree = snap.tree_params;
+    SceneOptions& sc = o.scene;
+    sc.camera = snap.camera_desc;
+    sc.eye.reset();
+    sc.target.reset();
+    sc.up.reset();
+    sc.vfov_degrees.reset();
+    for (std::string* name : {&sc.scene_path, &sc.env_file, &sc.tree_file, &sc.cache_dir})
+        *name = absolute_file_name(*name);
+    return o;
+}
+
+void write_film(const FramePlan& f, const Film& film, const RenderSnapshot& snap,
+                const std::string& how) {
+    const RenderOptions o = frame_session(f, snap);
     ImageRGB image(film.width(), film.height());
     image.rgb = film.linear_rgb();
     image.alpha = film.coverage();
@@ -426,6 +452,11 @@ void write_film(const FramePlan& f, const Film& film, const RenderSnapshot& snap
                       std::to_string(double(film.total_drawn()) / double(film.pixel_count())));
     if (!f.name.empty()) meta.emplace_back("kdtrace:frame", f.name);
     meta.emplace_back("kdtrace:distribution", how);
+    // The image is its own session; the spp of its stop conditions (none when it stops on an
+    // error target alone).
+    std::string command = "kdtrace render --session " + shell_word(absolute_file_name(f.output));
+    if (o.stop.spp > 0) command += " --spp " + std::to_string(o.stop.spp);
+    meta.emplace_back("kdtrace:command", command);
     ToneParams tone;
     tone.exposure = o.film.exposure;
     tone.curve = o.film.tonemap;

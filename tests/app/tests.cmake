@@ -491,3 +491,10 @@ add_test(NAME smoke.build_no_leaf_warning COMMAND ${_kdt} build
          /usr/share/assimp/models/PLY/Wuson.ply -o ${_tmp}/wuson_default.kdt)
 set_tests_properties(smoke.build_no_leaf_warning PROPERTIES PASS_REGULAR_EXPRESSION "max leaf"
   FAIL_REGULAR_EXPRESSION "largest leaf")
+
+# A --frames image is its own session: `render --session FRAME` and its kdtrace:command render
+# that frame again bit for bit, for turntables, views and sessions (frames_session_test.sh).
+add_test(NAME smoke.frames_session COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/frames_session_test.sh
+         ${_kdt} ${_tmp}/frames_session /usr/share/assimp/models/PLY/Wuson.ply)
+set_tests_properties(smoke.frames_session PROPERTIES PASS_REGULAR_EXPRESSION "PASS: frames_session"
+                     FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)

@@ -401,6 +401,23 @@ interrupt)
         fail "frames: the message does not count the $n frames written"
     ls frames | grep -v '^f_[0-9][0-9][0-9]\.pfm$' && fail "frames: a temporary file was left"
     echo "ok: an interrupted run says what it kept ($n frames) and ends" ;;
+frames_session)
+    # A farmed frame is its own session, as a local one: `render --session FRAME` (one
+    # process) renders it again bit for bit, with its turn of the turntable or its view.
+    views
+    for run in "t_%d:--frames 4 --turntable" "v:--views views.json --frames views:front,top"; do
+        pattern=${run%%:*} flags=${run#*:}
+        "$kdtrace" "${common[@]}" $flags -o "$pattern.pfm" > /dev/null || fail "local $flags"
+        rm -f "${pattern%%[%_]*}"_*.png
+        mpi 3 "${common[@]}" $flags --mpi -o "$pattern.png" > log.txt 2>&1 ||
+            { cat log.txt; fail "$flags over 3 ranks"; }
+        for png in "${pattern%%[%_]*}"_*.png; do
+            "$kdtrace" render --session "$png" --quiet -o "s_${png%.png}.pfm" > /dev/null ||
+                fail "$png: session"
+            cmp "${png%.png}.pfm" "s_${png%.png}.pfm" || fail "render --session $png differs"
+        done
+    done
+    echo "ok: farmed frames render again through --session" ;;
 interrupt_worker)
     # A worker signalled while its result is on the way (--mpi-inject 1:interrupt: rank 1
     # raises SIGTERM just after sending its first frame and leaves the farm; the memory it
