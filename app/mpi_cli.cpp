@@ -24,6 +24,7 @@
 #include "renderer/core/error.h"
 #include "renderer/core/fields.h"
 #include "renderer/core/interrupt.h"
+#include "renderer/core/open_file.h"
 #include "renderer/core/output_path.h"
 #include "renderer/core/shell_word.h"
 #include "renderer/core/temp_file.h"
@@ -407,15 +408,6 @@ std::shared_ptr<const RenderSnapshot> frame_snapshot(const SceneGroups& g,
     return s;
 }
 
-// A file name that means the same from any working directory (a frame image is a session,
-// read from anywhere).
-std::string absolute_file_name(const std::string& name) {
-    if (name.empty()) return name;
-    std::error_code ec;
-    const std::filesystem::path p = std::filesystem::absolute(name, ec);
-    return ec ? name : p.lexically_normal().string();
-}
-
 // What `render --session IMAGE` reads back from a frame image to render it again: the
 // frame's options with the tree used (a --tree file's parameters, not the flags'), the
 // frame's own camera in full (a turntable's turn, a view's or a session's camera with the
@@ -429,8 +421,7 @@ RenderOptions frame_session(const FramePlan& f, const RenderSnapshot& snap) {
     sc.target.reset();
     sc.up.reset();
     sc.vfov_degrees.reset();
-    for (std::string* name : {&sc.scene_path, &sc.env_file, &sc.tree_file, &sc.cache_dir})
-        *name = absolute_file_name(*name);
+    make_file_names_absolute(sc);
     return o;
 }
 
