@@ -250,22 +250,24 @@ std::string mismatch(const std::vector<LoadStatus>& all, size_t i, const std::st
 
 void check_every_rank(const MpiContext& ctx, const std::string& what,
                       const std::function<Fingerprint()>& step) {
-    LoadStatus mine;
+    // Buffers of the operations below: kept if a wait throws (MpiBuffer).
+    MpiBuffer<LoadStatus> mine;
     Fingerprint parts;
     try {
         parts = step();
         if (parts.size() > kMaxFingerprintParts)
             throw std::logic_error("check_every_rank: too many fingerprint parts");
-        mine.parts = int32_t(parts.size());
-        for (size_t i = 0; i < parts.size(); ++i) mine.hash[i] = parts[i].second;
-        mine.ok = 1;
+        mine->parts = int32_t(parts.size());
+        for (size_t i = 0; i < parts.size(); ++i) mine->hash[i] = parts[i].second;
+        mine->ok = 1;
     } catch (const std::exception& e) {
-        std::snprintf(mine.message, sizeof mine.message, "%s", e.what());
+        std::snprintf(mine->message, sizeof mine->message, "%s", e.what());
     }
-    std::vector<LoadStatus> all(size_t(ctx.size()));
-    int32_t arrived = 1;
+    MpiBuffer<std::vector<LoadStatus>> all(size_t(ctx.size()));
+    MpiBuffer<int32_t> arrived(1);
     MPI_Request sent = MPI_REQUEST_NULL;
-    if (ctx.rank() != 0) MPI_Isend(&arrived, 1, MPI_INT32_T, 0, kTagArrived, MPI_COMM_WORLD, &sent);
+    if (ctx.rank() != 0)
+        MPI_Isend(&*arrived, 1, MPI_INT32_T, 0, kTagArrived, MPI_COMM_WORLD, &sent);
     struct Pending {
         const MpiContext& ctx;
         ~Pending() { ctx.set_pending({}); }
@@ -284,38 +286,38 @@ void check_every_rank(const MpiContext& ctx, const std::string& what,
     }
     // Ranks that finish first wait without spinning, leaving the cores to those still loading.
     MPI_Request request;
-    MPI_Iallgather(&mine, int(sizeof mine), MPI_BYTE, all.data(), int(sizeof mine), MPI_BYTE,
-                   MPI_COMM_WORLD, &request);
+    MPI_Iallgather(&*mine, int(sizeof(LoadStatus)), MPI_BYTE, all->data(), int(sizeof(LoadStatus)),
+                   MPI_BYTE, MPI_COMM_WORLD, &request);
     ctx.wait(request);
     if (ctx.rank() == 0) {
         for (int r = 1; r < ctx.size(); ++r)
-            MPI_Recv(&arrived, 1, MPI_INT32_T, r, kTagArrived, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+            MPI_Recv(&*arrived, 1, MPI_INT32_T, r, kTagArrived, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
     } else {
         ctx.wait(sent);
     }
     const std::string of = " of " + std::to_string(ctx.size());
     int failed = 0, first = -1;
     for (int r = 0; r < ctx.size(); ++r) {
-        if (all[size_t(r)].ok) continue;
+        if ((*all)[size_t(r)].ok) continue;
         if (first < 0) first = r;
         ++failed;
     }
     bool same = failed == ctx.size() && ctx.size() > 1;
     for (int r = 1; same && r < ctx.size(); ++r)
-        same = std::strcmp(all[size_t(r)].message, all[0].message) == 0;
+        same = std::strcmp((*all)[size_t(r)].message, (*all)[0].message) == 0;
     if (same) {
         throw FarmError("all " + std::to_string(ctx.size()) + " ranks failed to " + what + ": " +
-                            all[0].message,
+                            (*all)[0].message,
                         ctx.rank() == 0);
     }
     if (failed > 0) {
         std::string m = "rank " + std::to_string(first) + of + " could not " + what + ": " +
-                        all[size_t(first)].message;
+                        (*all)[size_t(first)].message;
         if (failed > 1) m += " (and " + std::to_string(failed - 1) + " more ranks failed)";
         throw FarmError(m, ctx.rank() == 0);
     }
     for (size_t i = 0; i < parts.size(); ++i) {
-        const std::string m = mismatch(all, i, parts[i].first);
+        const std::string m = mismatch(*all, i, parts[i].first);
         if (!m.empty()) throw FarmError(m, ctx.rank() == 0);
     }
 }
@@ -326,28 +328,31 @@ namespace {
 constexpr size_t kMaxLogBytes = 8192;
 std::vector<std::string> gather_lines(const MpiContext& ctx,
                                       const std::vector<std::string>& lines) {
-    std::string mine;
+    // Buffers of the operations below: kept if a wait throws (MpiBuffer).
+    MpiBuffer<std::string> mine;
     for (const std::string& line : lines) {
-        if (mine.size() + line.size() + 1 > kMaxLogBytes) break;
-        mine += line + "\n";
+        if (mine->size() + line.size() + 1 > kMaxLogBytes) break;
+        *mine += line + "\n";
     }
     const bool root = ctx.rank() == 0;
-    int size = int(mine.size());
-    std::vector<int> sizes(root ? size_t(ctx.size()) : 1), offsets(sizes.size(), 0);
+    MpiBuffer<int> size(int(mine->size()));
+    MpiBuffer<std::vector<int>> sizes(root ? size_t(ctx.size()) : 1),
+        offsets(root ? size_t(ctx.size()) : 1, 0);
     MPI_Request request;
-    MPI_Igather(&size, 1, MPI_INT, sizes.data(), 1, MPI_INT, 0, MPI_COMM_WORLD, &request);
+    MPI_Igather(&*size, 1, MPI_INT, sizes->data(), 1, MPI_INT, 0, MPI_COMM_WORLD, &request);
     ctx.wait(request);
-    std::string all;
+    MpiBuffer<std::string> all;
     if (root) {
-        for (size_t r = 1; r < sizes.size(); ++r) offsets[r] = offsets[r - 1] + sizes[r - 1];
-        all.resize(size_t(offsets.back() + sizes.back()));
+        for (size_t r = 1; r < sizes->size(); ++r)
+            (*offsets)[r] = (*offsets)[r - 1] + (*sizes)[r - 1];
+        all->resize(size_t(offsets->back() + sizes->back()));
     }
-    MPI_Igatherv(mine.data(), size, MPI_CHAR, all.data(), sizes.data(), offsets.data(), MPI_CHAR, 0,
-                 MPI_COMM_WORLD, &request);
+    MPI_Igatherv(mine->data(), *size, MPI_CHAR, all->data(), sizes->data(), offsets->data(),
+                 MPI_CHAR, 0, MPI_COMM_WORLD, &request);
     ctx.wait(request);
     std::vector<std::string> out;
-    for (size_t r = 0; root && r < sizes.size(); ++r)
-        out.push_back(all.substr(size_t(offsets[r]), size_t(sizes[r])));
+    for (size_t r = 0; root && r < sizes->size(); ++r)
+        out.push_back(all->substr(size_t((*offsets)[r]), size_t((*sizes)[r])));
     return out;
 }
 

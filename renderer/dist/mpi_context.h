@@ -19,6 +19,7 @@
 #include <mpi.h>
 
 #include "renderer/core/interrupt.h"
+#include "renderer/dist/mpi_buffer.h"
 #include "renderer/render/prepare.h"
 
 namespace kdt::dist {

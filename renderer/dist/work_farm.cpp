@@ -399,12 +399,14 @@ std::vector<RankStats> run_farm(const MpiContext& ctx, int items, const FarmPara
         mine = run_worker(ctx, params, render);
     }
     mine.cpu_seconds = process_cpu_seconds() - cpu0;
-    std::vector<RankStats> all(ctx.rank() == 0 ? size_t(ctx.size()) : 1);
-    MPI_Igather(&mine, int(sizeof mine), MPI_BYTE, all.data(), int(sizeof mine), MPI_BYTE, 0,
-                MPI_COMM_WORLD, &request);
+    // Buffers of the gather: kept if the wait throws (MpiBuffer).
+    MpiBuffer<RankStats> sent(mine);
+    MpiBuffer<std::vector<RankStats>> all(ctx.rank() == 0 ? size_t(ctx.size()) : 1);
+    MPI_Igather(&*sent, int(sizeof(RankStats)), MPI_BYTE, all->data(), int(sizeof(RankStats)),
+                MPI_BYTE, 0, MPI_COMM_WORLD, &request);
     ctx.wait(request);
-    if (ctx.rank() != 0) all[0] = mine;
-    return all;
+    if (ctx.rank() != 0) (*all)[0] = mine;
+    return *all;
 }
 
 }  // namespace kdt::dist
