@@ -120,11 +120,16 @@ std::string rerender_command(const RenderOptions& o, const CameraDesc& camera, d
     }
     append_flags(c, o.trace, trace_fields());
     StopConditions stop;
+    stop.max_spp = o.stop.max_spp;  // the per-pixel cap shapes adaptive and --error renders
     FilmParams film = o.film;
     if (film.adaptive && o.stop.error > 0.0f) {
         stop.error = o.stop.error;  // the error target sets the threshold (resolve())
+        stop.spp = o.stop.spp;      // a budget given with it, which may stop the render first
         film.adaptive_threshold = FilmParams{}.adaptive_threshold;
         film.adaptive = false;
+    } else if (film.adaptive && o.stop.spp > 0 && o.stop.seconds <= 0.0 &&
+               !interrupt::requested()) {
+        stop.spp = o.stop.spp;  // the budget decides an adaptive render, not the mean reached
     } else {
         stop.spp = int(std::lround(spp));
     }

@@ -32,6 +32,9 @@ same camera --eye 0.1,0.2,3.3 --target 0.01,0,0 --up 0,1,0.1 --fov 33.3333 --thr
 same view --view B --views "$views" --threads 2
 same tree --tree t.kdt --threads 1 --fov 50
 same tree_and_flags --tree t.kdt --builder sah --q 0.5 --threads 1
+# The per-pixel cap and an adaptive budget decide where these stop: the command keeps them.
+same error_cap --error 0.001 --max-spp 8 --threads 1
+same adaptive_cap --adaptive --max-spp 2 --threads 1
 
 params=$("$kdt" info --all tree_and_flags.exr | sed -n 's/^kdtrace:params: //p')
 grep -q '"tree":{"builder":"thesis",[^}]*"n0":3,"q":0.7,' <<<"$params" ||
