@@ -425,9 +425,18 @@ RenderOptions frame_session(const FramePlan& f, const RenderSnapshot& snap) {
     return o;
 }
 
+// `partial`: the render was interrupted (a local sequence's frame in flight).
 void write_film(const FramePlan& f, const Film& film, const RenderSnapshot& snap,
-                const std::string& how) {
-    const RenderOptions o = frame_session(f, snap);
+                const std::string& how, bool partial = false) {
+    RenderOptions o = frame_session(f, snap);
+    const double spp = double(film.total_drawn()) / double(film.pixel_count());
+    if (partial || o.stop.seconds > 0.0) {
+        // Where a time limit or a signal stopped it depends on the run: the image's session
+        // asks for the samples it reached instead.
+        o.stop.seconds = 0.0;
+        o.stop.error = 0.0f;
+        o.stop.spp = std::max(1, int(std::lround(spp)));
+    }
     ImageRGB image(film.width(), film.height());
     image.rgb = film.linear_rgb();
     image.alpha = film.coverage();
@@ -439,8 +448,11 @@ void write_film(const FramePlan& f, const Film& film, const RenderSnapshot& snap
     meta.emplace_back("kdtrace:params", options_to_json(o));
     meta.emplace_back("kdtrace:seed", std::to_string(o.trace.seed));
     // Measured: a farmed frame may be adaptive or stop on an error target.
-    meta.emplace_back("kdtrace:spp",
-                      std::to_string(double(film.total_drawn()) / double(film.pixel_count())));
+    meta.emplace_back("kdtrace:spp", std::to_string(spp));
+    if (partial) {
+        meta.emplace_back("kdtrace:interrupted", std::string(interrupt::signal_name()) + " at " +
+                                                     std::to_string(spp) + " spp");
+    }
     if (!f.name.empty()) meta.emplace_back("kdtrace:frame", f.name);
     meta.emplace_back("kdtrace:distribution", how);
     // The image is its own session; the spp of its stop conditions (none when it stops on an
@@ -466,12 +478,32 @@ void run_local_frames(const RenderOptions& base, const std::string& output, bool
     std::vector<std::shared_ptr<const RenderSnapshot>> snaps;
     for (size_t i = 0; i < frames.size(); ++i) snaps.push_back(frame_snapshot(scenes, frames, i));
     Timer timer;
+    // The first SIGINT/SIGTERM ends the frame in flight after its tiles in flight; that frame
+    // is written, marked interrupted, and the sequence stops (render then exits 130 or 143).
+    interrupt::install(interrupt::Mode::finish_work);
     for (size_t i = 0; i < frames.size(); ++i) {
+        if (interrupt::requested()) {
+            std::fprintf(stderr, "kdtrace: interrupted (%s); kept the %zu of %zu frames written\n",
+                         interrupt::signal_name(), i, frames.size());
+            return;
+        }
         const FramePlan& f = frames[i];
         RenderSession session(snaps[i], f.options.trace, f.options.film);
         session.set_publishing(false);
-        run_render(session, f.options.stop);
-        write_film(f, session.film(), *snaps[i], "local");
+        {
+            interrupt::Watcher watcher([&session] { session.cancel(); });
+            run_render(session, f.options.stop);
+        }
+        const bool partial = interrupt::requested();
+        write_film(f, session.film(), *snaps[i], "local", partial);
+        if (partial) {
+            std::fprintf(stderr,
+                         "kdtrace: interrupted (%s); kept the %zu of %zu frames written, the last "
+                         "(%s) with the samples it had\n",
+                         interrupt::signal_name(), i + 1, frames.size(),
+                         printable(f.output).c_str());
+            return;
+        }
         if (!quiet)
             std::fprintf(stderr, "kdtrace: frame %zu/%zu -> %s\n", i + 1, frames.size(),
                          printable(f.output).c_str());

@@ -41,4 +41,12 @@ command=$("$kdtrace" info t_2.png | sed -n 's/^kdtrace:command: //p')
 (cd other && eval "\"$kdtrace\" ${command#kdtrace } --quiet -o c_2.pfm" > /dev/null) ||
     fail "the stored command failed"
 cmp t_2.pfm other/c_2.pfm || fail "the stored command renders another image"
+# A frame stopped by --time stores the samples it reached: its command asks for them.
+"$kdtrace" render model.ply --width 16 --height 12 --threads 1 --quiet --time 0.2 \
+    --frames 1 --turntable -o "tm_%d.png" > /dev/null || fail "--time frames"
+spp=$("$kdtrace" info tm_0.png | sed -n 's/^kdtrace:spp: \([0-9]*\)\.0*$/\1/p')
+[ -n "$spp" ] || fail "tm_0.png: no whole kdtrace:spp"
+command=$("$kdtrace" info tm_0.png | sed -n 's/^kdtrace:command: //p')
+[ "$command" = "kdtrace render --session '$work/tm_0.png' --spp $spp" ] ||
+    fail "tm_0.png (reached $spp spp): command '$command'"
 echo "PASS: frames_session"

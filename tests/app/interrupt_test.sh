@@ -1,7 +1,8 @@
 #!/bin/bash
 # SIGINT and SIGTERM against the real executable: usage interrupt_test.sh KDTRACE CASE WORKDIR.
 # Cases: render_int, render_term (the first signal saves the image with the samples so far,
-# marked interrupted, exit 130/143), render_twice (a second signal quits at once, writing
+# marked interrupted, exit 130/143), frames_int (a --frames sequence keeps its frames and the
+# one in flight, then stops), render_twice (a second signal quits at once, writing
 # nothing), build_int (a signal while the tree file is written). Every case then checks that
 # no temporary file is left in the output directory.
 set -u
@@ -78,6 +79,24 @@ render_twice)
     rc=$?
     [ $rc -eq 130 ] || fail "exit status $rc, expected 130"
     [ ! -e "$dir/out.png" ] || fail "the second signal did not quit at once: an image was written"
+    ;;
+frames_int)
+    # A sequence stops at the first signal: the frame in flight is written with the samples
+    # it had, marked interrupted, the ones after it are not, and one line says what was kept.
+    start render "$model" --spp 1000000 --width 64 --height 48 --threads 1 \
+        --cache-dir "$dir/cache" --frames 3 --turntable -o "$dir/f_%d.png"
+    wait_for_log "kd-tree cache"
+    sleep 0.5
+    kill -s INT $pid
+    wait $pid
+    rc=$?
+    [ $rc -eq 130 ] || fail "exit status $rc, expected 130"
+    [ -s "$dir/f_0.png" ] || fail "the frame in flight was not written"
+    [ ! -e "$dir/f_1.png" ] || fail "a frame after the signal was rendered"
+    grep -aq "kdtrace:interrupted.SIGINT at [0-9.]* spp" "$dir/f_0.png" ||
+        fail "the frame lacks kdtrace:interrupted"
+    grep -q "^kdtrace: interrupted (SIGINT); kept the 1 of 3 frames written, the last ($dir/f_0.png) with the samples it had$" \
+        "$dir/log" || fail "no message saying what was kept"
     ;;
 build_int)
     # The tree's temporary file exists only while it is written: stop the process (SIGSTOP)
