@@ -152,13 +152,15 @@ int report_error() {
     try {
         throw;
     } catch (const kdt::Error& e) {
-        std::fprintf(stderr, "kdtrace: error: %s\n", e.what());
+        // printable(): a message may quote bytes from a file through a library (a JSON
+        // parser's "last read"); none may reach the terminal raw. Escaped text stays as it is.
+        std::fprintf(stderr, "kdtrace: error: %s\n", kdt::printable(e.what()).c_str());
         return 1;
     } catch (const std::bad_alloc&) {
         std::fprintf(stderr, "kdtrace: error: out of memory\n");
         return 1;
     } catch (const std::exception& e) {
-        std::fprintf(stderr, "kdtrace: error: %s\n", e.what());
+        std::fprintf(stderr, "kdtrace: error: %s\n", kdt::printable(e.what()).c_str());
     }
     return 1;
 }

@@ -795,7 +795,8 @@ void run_dist_render(const RenderOptions& options, const std::string& output, bo
             // Printed before MPI_Finalize: mpirun ends the job once any rank has exited
             // non-zero, which could otherwise cut rank 0 off before its message.
             if (e.report())
-                std::fprintf(stderr, "kdtrace: error: %s\n", with_flags(e.what()).c_str());
+                std::fprintf(stderr, "kdtrace: error: %s\n",
+                             printable(with_flags(e.what())).c_str());
             std::fflush(stderr);
             failed = true;
         } catch (const std::exception& e) {
@@ -805,7 +806,8 @@ void run_dist_render(const RenderOptions& options, const std::string& output, bo
             // PMIx_server_finalize after it, 2 runs in 7), not MPI_Finalize (the others
             // never reach it).
             if (interrupt::requested()) ctx.end_after_interrupt();
-            std::fprintf(stderr, "kdtrace: error: rank %d: %s\n", ctx.rank(), e.what());
+            std::fprintf(stderr, "kdtrace: error: rank %d: %s\n", ctx.rank(),
+                         printable(e.what()).c_str());
             std::fflush(stderr);
             std::fflush(stdout);
             std::_Exit(1);

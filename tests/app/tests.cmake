@@ -263,6 +263,12 @@ cp /usr/share/assimp/models/PLY/cube.ply \"$m\" && \"$0\" render \"$m\" --no-cac
          ${_kdt} ${_tmp})
 set_tests_properties(smoke.non_utf8_model_name PROPERTIES PASS_REGULAR_EXPRESSION
   "scene_path\":\"[^\"]*�q.ply\"")
+# Bytes a library quotes from a file (the JSON parser's "last read") reach the terminal escaped.
+add_test(NAME smoke.error_bytes_escaped COMMAND sh -c "printf '{\"scene\": {\"scene_path\": \"/x\\233' \
+> \"$1/bad_bytes.json\"; \"$0\" render --session \"$1/bad_bytes.json\" -o \"$1/bad_bytes.pfm\""
+         ${_kdt} ${_tmp})
+set_tests_properties(smoke.error_bytes_escaped PROPERTIES PASS_REGULAR_EXPRESSION
+  "malformed JSON: [^\n]*last read: '\"/x\\\\x9b'")
 # --quiet silences progress and cache messages, not warnings.
 add_test(NAME smoke.quiet_keeps_warnings COMMAND ${_kdt} render ${_tmp}/black_emitter.json
          --no-cache --spp 1 --width 8 --height 6 --quiet -o ${_tmp}/black_emitter_quiet.png)
