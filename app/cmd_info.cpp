@@ -64,9 +64,16 @@ void print_image_info(const InfoArgs& args) {
     const char* order[] = {"kdtrace:command", "kdtrace:scene",     "kdtrace:spp",
                            "kdtrace:passes",  "kdtrace:seed",      "kdtrace:camera",
                            "kdtrace:params",  "kdtrace:scene_json"};
+    // Values kdtrace writes are short but for the scene; a file may hold megabytes in one.
+    constexpr size_t kLongValue = 16384;
     auto print = [&](const std::string& key, const std::string& value) {
         if (key == "kdtrace:scene_json" && !args.all) {
             std::printf("%s: %zu bytes of scene JSON (--all prints it)\n", key.c_str(),
+                        value.size());
+            return;
+        }
+        if (value.size() > kLongValue && !args.all) {
+            std::printf("%s: %zu bytes (--all prints it)\n", metadata_text(key).c_str(),
                         value.size());
             return;
         }

@@ -40,5 +40,28 @@ TEST(ImageInfoCli, MetadataValuesArePrintedEscapedLineByLine) {
         << out;
 }
 
+// A long value (a file may hold megabytes in one) is summarised unless --all.
+TEST(ImageInfoCli, LongValuesAreSummarisedUnlessAll) {
+    const std::string exe = std::string(KDT_BINARY_DIR) + "/bin/kdtrace";
+    if (!std::filesystem::exists(exe)) GTEST_SKIP() << "no " << exe;
+    const std::filesystem::path dir = test::temp_dir("kdt_info_long");
+    const std::string png = (dir / "long.png").string();
+    write_png(png, ImageRGB(2, 2), {}, {{"junk", std::string(100000, 'x')}, {"short", "kept"}});
+    auto info = [&](const std::string& flags) {
+        FILE* p = ::popen(("'" + exe + "' info " + flags + "'" + png + "' 2>&1").c_str(), "r");
+        std::string out;
+        char buf[4096];
+        for (size_t n; p && (n = std::fread(buf, 1, sizeof(buf), p)) > 0;) out.append(buf, n);
+        if (p) ::pclose(p);
+        return out;
+    };
+    const std::string brief = info(""), all = info("--all ");
+    std::filesystem::remove_all(dir);
+    EXPECT_NE(brief.find("junk: 100000 bytes (--all prints it)\n"), std::string::npos) << brief;
+    EXPECT_NE(brief.find("short: kept\n"), std::string::npos) << brief;
+    EXPECT_LT(brief.size(), size_t(10000));
+    EXPECT_NE(all.find("junk: " + std::string(100000, 'x') + "\n"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace kdt
