@@ -64,13 +64,14 @@ void add_build_command(CLI::App& parent) {
     add_tree_options(*cmd, params);
     cmd->add_option("--subdivide", subdivide, "Split every triangle into 4^K first")
         ->check(CLI::Range(0, 4));
+    static bool quiet = false;
+    cmd->add_flag("--quiet", quiet, "No cache messages (warnings are still printed)");
     cmd->add_option("-o,--output", output,
                     "Write the tree to this file (always rebuilt) instead of the automatic cache");
-    non_empty_file_name(
-        cmd->add_option("--cache-dir", cache_dir,
-                        "Cache directory (default: next to the model, else $KDT_CACHE_DIR/trees, "
-                        "$XDG_CACHE_HOME/kdtrace/trees or ~/.cache/kdtrace/trees)"),
-        "--cache-dir");
+    non_empty_file_name(cmd->add_option("--cache-dir", cache_dir,
+                                        "Cache directory (default: $KDT_CACHE_DIR/trees, "
+                                        "$XDG_CACHE_HOME/kdtrace/trees or ~/.cache/kdtrace/trees)"),
+                        "--cache-dir");
     cmd->callback([cmd] {
         interrupt::install();
         validate(params);
@@ -79,7 +80,7 @@ void add_build_command(CLI::App& parent) {
         if (!output.empty()) check_output(output, {model}, "the tree");
         MeshLoadInfo info;
         auto mesh = std::make_shared<TriangleMesh>(load_mesh(model, {}, &info));
-        std::printf("%s: %zu vertices, %zu triangles, loaded in %.3f s\n", model.c_str(),
+        std::printf("%s: %zu vertices, %zu triangles, loaded in %.3f s\n", printable(model).c_str(),
                     mesh->vertex_count(), mesh->triangle_count(), info.seconds);
         std::string model_key = model;
         if (subdivide > 0) {
@@ -102,12 +103,16 @@ void add_build_command(CLI::App& parent) {
             if (const std::string w = kdtree_leaf_warning(*tree); !w.empty())
                 std::fprintf(stderr, "kdtrace: warning: %s\n", w.c_str());
             save_kdtree(output, *tree);
-            std::printf("wrote %s\n", output.c_str());
+            std::printf("wrote %s\n", printable(output).c_str());
         } else {
             KdCacheReport report;
-            tree = get_or_build_kdtree(model_key, shared, params, cache_dir, {}, &report);
+            const KdCacheLog log = [](const std::string& line) {
+                if (!quiet || is_warning(line)) std::fprintf(stderr, "kdtrace: %s\n", line.c_str());
+            };
+            tree = get_or_build_kdtree(model_key, shared, params, cache_dir, log, &report);
             std::printf("%s in %.3f s%s%s\n", report.loaded ? "loaded from cache" : "built",
-                        report.seconds, report.path.empty() ? "" : ": ", report.path.c_str());
+                        report.seconds, report.path.empty() ? "" : ": ",
+                        printable(report.path).c_str());
         }
         print_stats(*tree);
         std::printf("peak RSS %.1f MB\n", double(peak_rss_bytes()) / (1024.0 * 1024.0));

@@ -202,7 +202,7 @@ void add_scene_options(CLI::App& app, SceneOptions& scene) {
     non_empty_file_name(
         app.add_option("--cache-dir", scene.cache_dir,
                        "Directory of kd-tree cache files (default: the user's cache directory; "
-                       "'.' puts them next to the model)"),
+                       "a relative one is taken from the working directory)"),
         "--cache-dir");
     non_empty_file_name(app.add_option("--tree", scene.tree_file,
                                        "kd-tree file written by `kdtrace build -o`, used instead "

@@ -493,6 +493,12 @@ add_test(NAME smoke.render_leaf_warning_no_cache COMMAND ${_kdt} render
          --quiet -o ${_tmp}/wuson_q05.png)
 set_tests_properties(smoke.render_leaf_warning_no_cache PROPERTIES PASS_REGULAR_EXPRESSION
   "kdtrace: warning: the kd-tree's largest leaf holds 3732 triangles \\(the root is a leaf\\)")
+# build --quiet: no cache lines, the warnings still.
+add_test(NAME smoke.build_quiet COMMAND ${_kdt} build /usr/share/assimp/models/PLY/Wuson.ply
+         --q 0.5 --quiet --cache-dir ${_tmp}/build_quiet)
+set_tests_properties(smoke.build_quiet PROPERTIES
+  PASS_REGULAR_EXPRESSION "kdtrace: warning: the kd-tree's largest leaf"
+  FAIL_REGULAR_EXPRESSION "kd-tree cache:")
 add_test(NAME smoke.build_no_leaf_warning COMMAND ${_kdt} build
          /usr/share/assimp/models/PLY/Wuson.ply -o ${_tmp}/wuson_default.kdt)
 set_tests_properties(smoke.build_no_leaf_warning PROPERTIES PASS_REGULAR_EXPRESSION "max leaf"
