@@ -188,6 +188,15 @@ timeout_stop)
     start=$(date +%s)
     out=$(mpi 3 "${common[@]}" --mpi --mpi-inject 1:stop --timeout 1 -o x.pfm 2>&1); rc=$?
     echo "$out"
+    # Open MPI 4.1.4's mpirun itself sometimes segfaults in PMIx_server_finalize while it ends
+    # a job with a stopped rank (docs/mpi.md; once in a CI run here). Tolerated only when
+    # the backtrace is mpirun's own and no rank died of a signal.
+    if [ $rc -eq 139 ] && grep -q "PMIx_server_finalize" <<< "$out" &&
+        grep -q "\] \[ *[0-9]*\] /usr/bin/mpi\(run\|exec\)(" <<< "$out" &&
+        ! grep -q "exited on signal" <<< "$out"; then
+        echo "note: mpirun crashed in PMIx_server_finalize after the job ended (Open MPI bug)"
+        rc=1
+    fi
     [ $rc -eq 1 ] || fail "exit status $rc, not 1"
     grep -q "kdtrace: error: --timeout 1 s reached: rank 1 of 3 had not returned its work; ending every rank" \
         <<< "$out" || fail "the message does not name rank 1"
