@@ -81,6 +81,16 @@ void RenderSession::set_aov(bool on) {
     reset_requested_.store(true);
 }
 
+FilmRect RenderSession::tile_rect(int tile) const {
+    const int tiles_x = (film_.width() + kTileSize - 1) / kTileSize;
+    FilmRect r;
+    r.x0 = (tile % tiles_x) * kTileSize;
+    r.y0 = (tile / tiles_x) * kTileSize;
+    r.x1 = std::min(r.x0 + kTileSize, film_.width());
+    r.y1 = std::min(r.y0 + kTileSize, film_.height());
+    return r;
+}
+
 int RenderSession::tile_count() const {
     const int tx = (film_.width() + kTileSize - 1) / kTileSize;
     const int ty = (film_.height() + kTileSize - 1) / kTileSize;
@@ -259,14 +269,11 @@ int RenderSession::fit_budget(const std::vector<int>& tiles, int per_pass, size_
     const uint64_t left = budget > totals_.samples ? budget - totals_.samples : 0;
     // `active` counts the whole film: when even that fits, the tiles' pixels do.
     if (uint64_t(active) * uint64_t(per_pass) <= left) return per_pass;
-    const int width = film_.width(), height = film_.height();
-    const int tiles_x = (width + kTileSize - 1) / kTileSize;
     const auto for_each_active = [&](const auto& f) {
         for (const int tile : tiles) {
-            const int x0 = (tile % tiles_x) * kTileSize, y0 = (tile / tiles_x) * kTileSize;
-            const int x1 = std::min(x0 + kTileSize, width), y1 = std::min(y0 + kTileSize, height);
-            for (int y = y0; y < y1; ++y) {
-                for (int x = x0; x < x1; ++x) {
+            const FilmRect r = tile_rect(tile);
+            for (int y = r.y0; y < r.y1; ++y) {
+                for (int x = r.x0; x < r.x1; ++x) {
                     if (film_.active(x, y)) f(x, y);
                 }
             }
@@ -330,8 +337,6 @@ PassStats RenderSession::run_tiles(const std::vector<int>& tiles, int max_spp, i
     if (budget_spp > 0)
         pass_samples = fit_budget(tiles, pass_samples, stats.active_pixels, budget_spp);
 
-    const int width = film_.width(), height = film_.height();
-    const int tiles_x = (width + kTileSize - 1) / kTileSize;
     const int threads = trace_.threads > 0 ? trace_.threads : omp_get_max_threads();
     TileTarget target;
     target.scene = snapshot_->scene.get();
@@ -371,11 +376,7 @@ PassStats RenderSession::run_tiles(const std::vector<int>& tiles, int max_spp, i
     for (int64_t k = 0; k < ntiles; ++k) {
         if (cancel_requested_.load(std::memory_order_relaxed)) continue;
         const int tile = tiles[size_t(k)];
-        FilmRect r;
-        r.x0 = (tile % tiles_x) * kTileSize;
-        r.y0 = (tile / tiles_x) * kTileSize;
-        r.x1 = std::min(r.x0 + kTileSize, width);
-        r.y1 = std::min(r.y0 + kTileSize, height);
+        const FilmRect r = tile_rect(tile);
         PathCounters counters;
         pixels_done += render_tile(target, r, counters);
         per_thread[size_t(omp_get_thread_num())].c += counters;

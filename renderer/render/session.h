@@ -152,6 +152,8 @@ private:
     };
 
     void apply_pending();
+    /// The pixels of tile `tile` (row-major, kTileSize square, cut at the film's edges).
+    FilmRect tile_rect(int tile) const;
     PassStats run_tiles(const std::vector<int>& tiles, int max_spp, int per_pass, int budget_spp);
     /// The samples per active pixel of a pass of `per_pass` over `tiles` cut to what is left
     /// of the budget (render_pass's budget_spp times the film's pixels), deactivating pixels
