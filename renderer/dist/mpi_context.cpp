@@ -8,7 +8,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <fstream>
 #include <functional>
 #include <map>
 #include <optional>
@@ -18,6 +17,7 @@
 
 #include "renderer/core/error.h"
 #include "renderer/core/hash.h"
+#include "renderer/light/image_environment.h"
 
 namespace kdt::dist {
 
@@ -163,16 +163,15 @@ void MpiContext::wait(MPI_Request& request) const {
 
 namespace {
 
-// The content of a file (0 when it cannot be read: the load read it just before).
-uint64_t file_hash(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    uint64_t h = kFnvOffset;
-    std::vector<char> buf(1 << 16);  // whole words per piece: the same hash as in one piece
-    while (in) {
-        in.read(buf.data(), std::streamsize(buf.size()));
-        h = fnv1a(h, buf.data(), size_t(in.gcount()));
-    }
-    return in.bad() ? 0 : h;
+// The texels of an environment map as loaded (0 for a constant colour): what two ranks that
+// read "the same" file must agree on, without reading it again.
+uint64_t environment_hash(const EnvironmentLight* env) {
+    const auto* map = dynamic_cast<const ImageEnvironment*>(env);
+    if (!map) return 0;
+    const ImageRGB& image = map->image();
+    const uint64_t size[2] = {uint64_t(image.width), uint64_t(image.height)};
+    return fnv1a(fnv1a(kFnvOffset, size, sizeof size), image.rgb.data(),
+                 image.rgb.size() * sizeof(float));
 }
 
 }  // namespace
@@ -184,7 +183,8 @@ Fingerprint snapshot_fingerprint(const RenderSnapshot& snap, const std::string& 
                    snap.scene->mesh ? snap.scene->mesh->content_hash() : 0);
     f.emplace_back("kd-tree", snap.scene->tree ? snap.scene->tree->nodes().size() : 0);
     const std::string& env = snap.environment.file;
-    if (!env.empty()) f.emplace_back("environment map " + env, file_hash(env));
+    if (!env.empty())
+        f.emplace_back("environment map " + env, environment_hash(snap.scene->env.get()));
     f.emplace_back("options", std::hash<std::string>{}(options_json));
     return f;
 }

@@ -173,7 +173,7 @@ Prepared prepare_everywhere(const MpiContext& ctx, const RenderOptions& options,
                             const PrepareLog& log, const InjectedFault& fault = {});
 
 /// What must agree across ranks: the merged mesh's content, the tree's size, the
-/// environment map file's content (when the environment is a map) and the options.
+/// environment map's texels as loaded (when the environment is a map) and the options.
 Fingerprint snapshot_fingerprint(const RenderSnapshot& snapshot, const std::string& options_json);
 
 }  // namespace kdt::dist
