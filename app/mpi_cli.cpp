@@ -299,14 +299,6 @@ std::vector<FramePlan> list_frames(const RenderOptions& base, const DistArgs& a)
     return out;
 }
 
-// The same file, however spelt, whether or not it exists yet.
-bool same_file(const std::string& a, const std::string& b) {
-    std::error_code ec1, ec2;
-    const std::filesystem::path pa = std::filesystem::weakly_canonical(a, ec1);
-    const std::filesystem::path pb = std::filesystem::weakly_canonical(b, ec2);
-    return !ec1 && !ec2 && pa == pb;
-}
-
 // --mpi-stats is written after the render: it must be no input and no image of the run, and
 // writable, before anything is loaded.
 void check_stats_output(const std::vector<FramePlan>& frames, const DistArgs& a,

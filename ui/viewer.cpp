@@ -12,8 +12,6 @@
 #include <sstream>
 #include <thread>
 
-#include <sys/stat.h>
-
 #include "renderer/core/error.h"
 #include "renderer/core/open_file.h"
 #include "renderer/core/output_path.h"
@@ -32,15 +30,6 @@ namespace {
 
 double ms_since(Viewer::Clock::time_point t) {
     return std::chrono::duration<double, std::milli>(Viewer::Clock::now() - t).count();
-}
-
-// Two names of one file: the same text, or the same inode.
-bool same_file(const std::string& a, const std::string& b) {
-    if (a == b) return true;
-    struct stat sa {
-    }, sb{};
-    return ::stat(a.c_str(), &sa) == 0 && ::stat(b.c_str(), &sb) == 0 && sa.st_dev == sb.st_dev &&
-           sa.st_ino == sb.st_ino;
 }
 
 double percentile(std::vector<double> v, double p) {

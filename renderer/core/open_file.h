@@ -22,6 +22,10 @@ std::string file_name_problem(const std::string& name);
 /// name (not given) stays empty, and a name the system cannot make absolute stays as it is.
 std::string absolute_file_name(const std::string& name);
 
+/// Whether two names denote one file: the same text, the same inode (links, `..`), or, for
+/// a file that does not exist yet, the same path once made canonical.
+bool same_file(const std::string& a, const std::string& b);
+
 /// Opens path read-only (close-on-exec) and returns the descriptor. The file is opened
 /// non-blocking, so a FIFO without a writer cannot hang the caller, and then checked: a
 /// directory, FIFO, socket or device (/dev/zero would never end) is refused with an Error

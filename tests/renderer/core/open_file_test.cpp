@@ -1,5 +1,6 @@
 #include <sys/stat.h>
 
+#include <filesystem>
 #include <fstream>
 
 #include <gtest/gtest.h>
@@ -64,6 +65,24 @@ TEST(OpenFile, RefusesFifosDevicesAndDirectoriesWithoutBlocking) {
     } catch (const Error& e) {
         EXPECT_NE(std::string(e.what()).find("not a mesh file"), std::string::npos) << e.what();
     }
+}
+
+// same_file(): every spelling and link of one file, and a file yet to be written.
+TEST(SameFile, NamesOfOneFileAndOnlyThose) {
+    const auto dir = test::temp_dir("same_file");
+    const std::string a = (dir / "a.txt").string(), b = (dir / "b.txt").string();
+    std::ofstream(a) << "a";
+    std::ofstream(b) << "b";
+    std::filesystem::create_hard_link(a, dir / "hard.txt");
+    std::filesystem::create_symlink(a, dir / "soft.txt");
+    EXPECT_TRUE(same_file(a, a));
+    EXPECT_TRUE(same_file(a, (dir / "hard.txt").string()));
+    EXPECT_TRUE(same_file((dir / "soft.txt").string(), a));
+    EXPECT_TRUE(same_file(a, (dir / ".." / dir.filename() / "a.txt").string()));
+    EXPECT_FALSE(same_file(a, b));
+    const std::string later = (dir / "later.png").string();
+    EXPECT_TRUE(same_file(later, (dir / "." / "later.png").string()));
+    EXPECT_FALSE(same_file(later, (dir / "other.png").string()));
 }
 
 }  // namespace
