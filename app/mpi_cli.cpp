@@ -111,8 +111,11 @@ void add_dist_options(CLI::App& app, DistArgs& a, RenderOptions& options) {
                    "Test only: RANK:load (the rank cannot open the scene), RANK:hash (the "
                    "rank reports a different tree), RANK:stall (its load never ends), RANK:stop "
                    "(a worker stops itself, SIGSTOP, before its first item), RANK:interrupt (a "
-                   "worker raises SIGTERM just after sending its first result) or 0:write (rank "
-                   "0 cannot write the images)");
+                   "worker raises SIGTERM just after sending its first result), 0:write (rank "
+                   "0 cannot write the images), RANK:result-item|result-header|result-ids|"
+                   "result-short (the worker's first result is malformed) or "
+                   "RANK:work-item|work-repeat|work-count|work-bytes (rank 0's first reply to "
+                   "the worker is)");
 }
 
 int launcher_rank() {
@@ -519,6 +522,13 @@ std::pair<int, std::string> rank_and(const std::string& spec, const char* flag) 
     throw Error(std::string(flag) + " takes RANK:VALUE (got '" + spec + "')");
 }
 
+// The malformed message an --mpi-inject fault names ("result-item"); none for other faults.
+dist::BadMessage bad_message(const std::string& what) {
+    for (size_t i = 1; i < dist::kBadMessageNames.size(); ++i)
+        if (what == dist::kBadMessageNames[i]) return dist::BadMessage(i);
+    return dist::BadMessage::none;
+}
+
 // --mpi-inject RANK:WHAT names a rank of the job and a fault the farm knows; a typo must not
 // make a fault test pass.
 void check_fault(const dist::InjectedFault& fault, const std::string& spec, int ranks) {
@@ -526,13 +536,20 @@ void check_fault(const dist::InjectedFault& fault, const std::string& spec, int 
         throw Error("--mpi-inject " + spec + ": no rank " + std::to_string(fault.rank) + " among " +
                     std::to_string(ranks));
     }
+    const bool message = bad_message(fault.what) != dist::BadMessage::none;
     if (fault.what != "load" && fault.what != "hash" && fault.what != "write" &&
-        fault.what != "stall" && fault.what != "stop" && fault.what != "interrupt") {
+        fault.what != "stall" && fault.what != "stop" && fault.what != "interrupt" && !message) {
         throw Error("--mpi-inject " + spec + ": unknown fault '" + printable(fault.what) +
-                    "' (faults: load, hash, stall, stop, interrupt, write)");
+                    "' (faults: load, hash, stall, stop, interrupt, write, result-item, "
+                    "result-header, result-ids, result-short, work-item, work-repeat, "
+                    "work-count, work-bytes)");
     }
     if (fault.what == "write" && fault.rank != 0)
         throw Error("--mpi-inject " + spec + ": only rank 0 writes images (use 0:write)");
+    if (message && fault.rank == 0) {
+        throw Error("--mpi-inject " + spec + ": only a worker sends results and receives work " +
+                    "(rank 1 or above)");
+    }
     if ((fault.what == "stop" || fault.what == "interrupt") && fault.rank == 0) {
         throw Error("--mpi-inject " + spec + ": only a worker can " + fault.what +
                     " (rank 1 or above)");
@@ -663,6 +680,8 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
             check_fault(fault, a.inject, ctx.size());
             if (fault.what == "stop") params.stop_rank = fault.rank;
             if (fault.what == "interrupt") params.interrupt_rank = fault.rank;
+            params.bad_message = bad_message(fault.what);
+            if (params.bad_message != dist::BadMessage::none) params.bad_message_rank = fault.rank;
         }
         return dist::Fingerprint{
             {"list of frames and their options (views and session files)", plan_hash(frames)}};

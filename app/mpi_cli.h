@@ -23,7 +23,7 @@ struct DistArgs {
     bool turntable = false;  ///< the N frames orbit the camera about its up axis
     std::string stats_file;  ///< rank 0 writes per-rank stats as JSON here
     std::string throttle;    ///< test-only "RANK:FACTOR"
-    std::string inject;      ///< test-only "RANK:load" or "RANK:hash"
+    std::string inject;      ///< test-only "RANK:FAULT" (--mpi-inject)
     /// Set by add_dist_options: the command whose flags a session frame re-applies, and the
     /// options its flags write into.
     CLI::App* command = nullptr;

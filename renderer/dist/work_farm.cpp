@@ -11,6 +11,7 @@
 #include <cstring>
 #include <deque>
 #include <exception>
+#include <limits>
 #include <list>
 #include <set>
 #include <string>
@@ -45,6 +46,9 @@ std::vector<char> pack_result(const std::vector<int>& items, int want,
                     payload.size());
     return msg;
 }
+
+// "1 item", "3 items": for messages.
+std::string items_text(int64_t n) { return std::to_string(n) + (n == 1 ? " item" : " items"); }
 
 double process_cpu_seconds() {
     timespec ts{};
@@ -127,7 +131,7 @@ public:
         if (!items.empty()) done_items(items, buffer_.data() + off, buffer_.size() - off);
         if (!told_done_[size_t(w)]) {
             const std::vector<int> next = take(w, std::max(h.want, 1));
-            MPI_Send(next.data(), int(next.size()), MPI_INT, w, kTagWork, MPI_COMM_WORLD);
+            send_work(w, next, h.want);
             given_[size_t(w)].insert(next.begin(), next.end());
             stats.messages += 1;
             stats.bytes += next.size() * sizeof(int32_t);
@@ -200,6 +204,35 @@ private:
     std::vector<bool> told_done_;
     std::vector<std::set<int>> given_;  // per worker: items sent and not returned
     std::vector<char> buffer_;
+    bool bad_sent_ = false;  // the test-only malformed work message went out
+
+    // Sends `next` to worker `w`, which asked for `want`; the first non-empty reply to
+    // FarmParams::bad_message_rank is malformed as FarmParams::bad_message says.
+    void send_work(int w, std::vector<int> next, int want) {
+        BadMessage bad = params_.bad_message;
+        if (bad_sent_ || w != params_.bad_message_rank || next.empty()) bad = BadMessage::none;
+        if (bad == BadMessage::work_item) next[0] = total_;
+        if (bad == BadMessage::work_repeat) {
+            if (next.size() > 1)
+                next.back() = next[0];  // not one more than asked, if it can
+            else
+                next.push_back(next[0]);
+        }
+        if (bad == BadMessage::work_count) {
+            while (int(next.size()) <= std::max(want, 1)) {
+                const std::vector<int> more = take(w, 1);
+                next.push_back(more.empty() ? next[0] : more[0]);
+            }
+        }
+        if (bad == BadMessage::work_bytes) {
+            std::vector<char> bytes(next.size() * sizeof(int32_t) + 2, 0);
+            std::memcpy(bytes.data(), next.data(), next.size() * sizeof(int32_t));
+            MPI_Send(bytes.data(), int(bytes.size()), MPI_BYTE, w, kTagWork, MPI_COMM_WORLD);
+        } else {
+            MPI_Send(next.data(), int(next.size()), MPI_INT, w, kTagWork, MPI_COMM_WORLD);
+        }
+        bad_sent_ = bad_sent_ || bad != BadMessage::none;
+    }
 
     std::string bad_result(int w) const {
         return "a result from " + rank_list({w}, ctx_.size()) + " is malformed: ";
@@ -217,8 +250,7 @@ private:
         if (h->items < 0 || h->want < 0 ||
             uint64_t(h->items) > (size - sizeof *h) / sizeof(int32_t)) {
             throw Error(bad_result(w) + std::to_string(size) + " bytes, but its header announces " +
-                        std::to_string(h->items) + " items and asks for " +
-                        std::to_string(h->want));
+                        items_text(h->items) + " and asks for " + std::to_string(h->want));
         }
         std::vector<int> items(size_t(h->items));
         if (!items.empty())
@@ -233,7 +265,7 @@ private:
         const size_t want = items.empty() ? 0 : result_size_(items);
         if (bytes != want) {
             throw Error(bad_result(w) + std::to_string(bytes) + " bytes of results for " +
-                        std::to_string(items.size()) + " items, not " + std::to_string(want));
+                        items_text(int64_t(items.size())) + ", not " + std::to_string(want));
         }
         return items;
     }
@@ -299,7 +331,71 @@ struct Scribble {
     }
 };
 
-RankStats run_worker(const MpiContext& ctx, const FarmParams& params, const RenderItems& render) {
+// A worker's view of the work messages from rank 0: each answers its oldest unanswered
+// request with at most the items it asked for (at least one), each an item of [0, items)
+// not given before. Throws Error naming the problem otherwise, before any item is rendered.
+class WorkCheck {
+public:
+    explicit WorkCheck(int items) : given_(size_t(std::max(items, 0)), false) {}
+
+    void asked(int want) { asked_.push_back(std::max(want, 1)); }
+
+    /// The item ids of the work message `st` announces, received; throws before receiving a
+    /// malformed one (a receive into too small a buffer would abort the job).
+    std::vector<int> receive(const MPI_Status& st) {
+        int bytes = 0;
+        MPI_Get_count(&st, MPI_BYTE, &bytes);
+        if (bytes < 0 || bytes % int(sizeof(int32_t)) != 0) {
+            throw Error(bad() + std::to_string(bytes) + " bytes, not a whole number of " +
+                        std::to_string(sizeof(int32_t)) + "-byte item ids");
+        }
+        const int n = bytes / int(sizeof(int32_t));
+        if (asked_.empty()) throw Error(bad() + items_text(n) + ", but no request is unanswered");
+        const int want = asked_.front();
+        asked_.pop_front();
+        if (n > want) {
+            throw Error(bad() + items_text(n) + ", more than the " + std::to_string(want) +
+                        " this rank asked for");
+        }
+        std::vector<int> items(static_cast<size_t>(n));
+        MPI_Recv(items.data(), n, MPI_INT, 0, kTagWork, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+        for (int i : items) {
+            if (i < 0 || size_t(i) >= given_.size()) {
+                throw Error(bad() + "item " + std::to_string(i) + " is outside [0, " +
+                            std::to_string(given_.size()) + ")");
+            }
+            if (given_[size_t(i)])
+                throw Error(bad() + "item " + std::to_string(i) + " was given before");
+            given_[size_t(i)] = true;
+        }
+        return items;
+    }
+
+private:
+    std::vector<bool> given_;
+    std::deque<int> asked_;  // the items asked for by requests not yet answered, oldest first
+
+    static std::string bad() { return "a work message from rank 0 is malformed: "; }
+};
+
+// Test-only (FarmParams::bad_message): `msg`, a packed result of `items` items, made malformed.
+void spoil_result(BadMessage bad, int items, std::vector<char>& msg) {
+    const size_t ids = sizeof(ResultHeader) + size_t(items) * sizeof(int32_t);
+    if (bad == BadMessage::result_item) {
+        const int32_t never = std::numeric_limits<int32_t>::max();  // no farm has that many
+        std::memcpy(msg.data() + sizeof(ResultHeader), &never, sizeof never);
+    } else if (bad == BadMessage::result_header) {
+        msg.resize(sizeof(ResultHeader) - 2);
+    } else if (bad == BadMessage::result_ids) {
+        const int32_t more = int32_t(msg.size() / sizeof(int32_t));
+        std::memcpy(msg.data(), &more, sizeof more);
+    } else if (bad == BadMessage::result_short) {
+        msg.resize(ids + (msg.size() - ids) / 2);
+    }
+}
+
+RankStats run_worker(const MpiContext& ctx, int total, const FarmParams& params,
+                     const RenderItems& render) {
     RankStats stats;
     stats.rank = ctx.rank();
     Timer wall;
@@ -312,7 +408,11 @@ RankStats run_worker(const MpiContext& ctx, const FarmParams& params, const Rend
         if (scribble.on) scribble.sizes.push_back(msg.size());
         sends.send(std::move(msg));
     };
-    send(pack_result({}, batch * std::max(params.batches_in_flight, 1), {}));
+    WorkCheck check(total);
+    const int ahead = batch * std::max(params.batches_in_flight, 1);
+    send(pack_result({}, ahead, {}));
+    check.asked(ahead);
+    bool spoil = ctx.rank() == params.bad_message_rank;  // the first result, when asked to
     std::deque<int> queue;
     bool no_more = false;
     const std::function<void()> no_poll = [] {};
@@ -327,12 +427,9 @@ RankStats run_worker(const MpiContext& ctx, const FarmParams& params, const Rend
                 MPI_Iprobe(0, kTagWork, MPI_COMM_WORLD, &flag, &st);
             }
             if (!flag) break;
-            int n = 0;
-            MPI_Get_count(&st, MPI_INT, &n);
-            std::vector<int> items(static_cast<size_t>(n));
-            MPI_Recv(items.data(), n, MPI_INT, 0, kTagWork, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+            const std::vector<int> items = check.receive(st);
             stats.messages += 1;
-            stats.bytes += uint64_t(n) * sizeof(int32_t);
+            stats.bytes += items.size() * sizeof(int32_t);
             if (items.empty()) no_more = true;
             queue.insert(queue.end(), items.begin(), items.end());
         }
@@ -348,7 +445,11 @@ RankStats run_worker(const MpiContext& ctx, const FarmParams& params, const Rend
         throttle(ctx, params, t.seconds());
         stats.busy_seconds += t.seconds();
         stats.items += int32_t(mine.size());
-        send(pack_result(mine, no_more ? 0 : int(mine.size()), bytes));
+        std::vector<char> msg = pack_result(mine, no_more ? 0 : int(mine.size()), bytes);
+        if (spoil) spoil_result(params.bad_message, int(mine.size()), msg);
+        spoil = false;
+        send(std::move(msg));
+        if (!no_more) check.asked(int(mine.size()));
         if (scribble.on) {
             // As a SIGTERM would, while the result is most likely still unreceived.
             std::raise(SIGTERM);
@@ -396,7 +497,7 @@ std::vector<RankStats> run_farm(const MpiContext& ctx, int items, const FarmPara
         master.run(render);
         mine = master.stats;
     } else {
-        mine = run_worker(ctx, params, render);
+        mine = run_worker(ctx, items, params, render);
     }
     mine.cpu_seconds = process_cpu_seconds() - cpu0;
     // Buffers of the gather: kept if the wait throws (MpiBuffer).

@@ -25,6 +25,27 @@ inline constexpr std::array<const char*, 3> kDistributionNames = {"dynamic", "in
 /// list (the shared queue).
 std::vector<std::vector<int>> assign_items(Distribution d, int items, int columns, int ranks);
 
+/// Test-only malformed messages (FarmParams::bad_message), one kind per check of the farm's
+/// messages. result_*: a worker's first result has an item id it was not given (item), fewer
+/// bytes than its header (header), a header announcing more item ids than it holds (ids), or
+/// half of its result bytes (short). work_*: rank 0's first reply to a worker has an item id
+/// out of range (item), one id twice (repeat), one item more than asked (count), or a size
+/// that is not a whole number of ids (bytes).
+enum class BadMessage {
+    none,
+    result_item,
+    result_header,
+    result_ids,
+    result_short,
+    work_item,
+    work_repeat,
+    work_count,
+    work_bytes
+};
+inline constexpr std::array<const char*, 9> kBadMessageNames = {
+    "none",      "result-item", "result-header", "result-ids", "result-short",
+    "work-item", "work-repeat", "work-count",    "work-bytes"};
+
 struct FarmParams {
     Distribution distribution = Distribution::dynamic;
     int columns = 1;  ///< items per row, for strips
@@ -39,6 +60,9 @@ struct FarmParams {
     /// the farm at once (FarmInterrupted), the send most likely still pending; memory it
     /// frees then is overwritten, so that a pending send whose buffer was freed shows.
     int interrupt_rank = -1;
+    /// Test-only: the worker that sends (result_*) or receives (work_*) a malformed message.
+    int bad_message_rank = -1;
+    BadMessage bad_message = BadMessage::none;
 };
 
 /// What one rank did, gathered on rank 0. idle = wall - busy.
@@ -71,7 +95,9 @@ using FarmProgress = std::function<void(int done, int total)>;
 /// rank 0. Returns every rank's stats on rank 0 (one entry per rank), only the caller's
 /// elsewhere. On rank 0, a message that is not the result of items given to its sender, of
 /// `size` bytes, throws Error "a result from rank R of N is malformed: ..." before any of it
-/// is consumed.
+/// is consumed. On a worker, a work message that is not a whole number of item ids, holds
+/// more than the worker asked for, an id outside [0, items) or an id given before, throws
+/// Error "a work message from rank 0 is malformed: ..." before any of it is rendered.
 std::vector<RankStats> run_farm(const MpiContext& ctx, int items, const FarmParams& params,
                                 const RenderItems& render, const ResultSize& size,
                                 const ConsumeItems& consume, const FarmProgress& progress = {});

@@ -166,6 +166,55 @@ timeout)
     [ $rc -ne 0 ] || fail "a timed-out run gave exit status 0"
     grep -q "kdtrace: error: --timeout 6 s reached: rank 2 of 3 had not returned its work; ending every rank" <<< "$out" ||
         fail "no timeout message naming rank 2" ;;
+bad_result|bad_work)
+    # A malformed message (a test fault: --mpi-inject RANK:result-* makes that worker's first
+    # result malformed, RANK:work-* rank 0's first reply to it) is one error line naming the
+    # rank and the problem: from rank 0 for a result, from the worker for its work. Status 1,
+    # no image, no hang (--timeout would name the ranks instead). Tiles: strips give ranks 1
+    # and 2 a row of 5 tiles each, whatever the timing; frames: frames 1 and 2 go to rank 1,
+    # and frame 0, rendered by rank 0, may be written, as the local render's.
+    from0="rank 0: a result from rank 2 of 3 is malformed"
+    to2="rank 2: a work message from rank 0 is malformed"
+    if [ "$case_name" = bad_result ]; then
+        tiles=("result-item:$from0: item 2147483647 was not given to it or was returned before"
+               "result-header:$from0: 6 bytes, shorter than its 8-byte header"
+               "result-ids:$from0: [0-9]* bytes, but its header announces [0-9]* items and asks for 1"
+               "result-short:$from0: 3072 bytes of results for 1 item, not 6144")  # a 16x8 tile
+        frames=(result-item result-header result-ids result-short)
+    else
+        tiles=("work-item:$to2: item 15 is outside \[0, 15)"
+               "work-repeat:$to2: item 10 was given before"
+               "work-count:$to2: 3 items, more than the 2 this rank asked for"
+               "work-bytes:$to2: 10 bytes, not a whole number of 4-byte item ids")
+        frames=(work-item work-count work-bytes)  # a frame worker asks for one: no repeat
+    fi
+    ended() {  # WHAT RC OUTPUT EXPECTED-ERROR
+        [ "$2" -eq 1 ] || fail "$1: exit status $2, not 1"
+        grep -q "exited on signal\|Segmentation" <<< "$3" && fail "$1: a rank crashed"
+        [ "$(grep -c 'kdtrace: error:' <<< "$3")" -eq 1 ] || fail "$1: not exactly one error line"
+        grep -q "^kdtrace: error: $4$" <<< "$3" || fail "$1: no error line '$4'"
+    }
+    for t in "${tiles[@]}"; do
+        rm -f x.pfm
+        out=$(mpi 3 "${common[@]}" --mpi --distribution strips --timeout 30 \
+            --mpi-inject "2:${t%%:*}" -o x.pfm 2>&1); rc=$?
+        echo "$out"
+        ended "tiles, ${t%%:*}" $rc "$out" "${t#*:}"
+        [ -e x.pfm ] && fail "tiles, ${t%%:*}: an image was written"
+    done
+    "$kdtrace" "${common[@]}" --frames 3 --turntable -o "local_%d.pfm" > /dev/null || fail "local frames"
+    for f in "${frames[@]}"; do
+        rm -f f_*.pfm
+        out=$(mpi 2 "${common[@]}" --mpi --frames 3 --turntable --distribution strips --timeout 30 \
+            --mpi-inject "1:$f" -o "f_%d.pfm" 2>&1); rc=$?
+        echo "$out"
+        [ "$case_name" = bad_result ] && who="rank 0: a result from rank 1 of 2" ||
+            who="rank 1: a work message from rank 0"
+        ended "frames, $f" $rc "$out" "$who is malformed: .*"
+        ls f_1.pfm f_2.pfm 2> /dev/null && fail "frames, $f: rank 1's frames were written"
+        [ ! -e f_0.pfm ] || cmp f_0.pfm local_0.pfm || fail "frames, $f: frame 0 differs"
+    done
+    echo "ok: malformed messages end the job with one error naming the rank" ;;
 timeout_stall)
     # A rank whose load never ends (a test fault, not timing): the others time out in the
     # load check and the job ends with rank 0's message and status 1, not a crash in
@@ -368,7 +417,8 @@ rescue)
 test_flags)
     # The test-only flags name a rank of the job and a known fault, or are errors.
     for flags in "--throttle 5:2" "--throttle -1:2" "--mpi-inject 7:load" "--mpi-inject 1:foo" \
-        "--mpi-inject 1:write" "--mpi-inject 0:stop" "--mpi-inject 0:interrupt"; do
+        "--mpi-inject 1:write" "--mpi-inject 0:stop" "--mpi-inject 0:interrupt" \
+        "--mpi-inject 0:result-item" "--mpi-inject 0:work-bytes"; do
         out=$(mpi 3 "${common[@]}" --mpi $flags -o x.pfm 2>&1); rc=$?
         echo "$out"
         [ $rc -ne 0 ] || fail "$flags: exit status 0"
