@@ -244,6 +244,194 @@ uint32_t read_be32(const uint8_t* p) {
     return (uint32_t(p[0]) << 24) | (uint32_t(p[1]) << 16) | (uint32_t(p[2]) << 8) | p[3];
 }
 
+/// What check_png_pixels() found in the header.
+struct PngHeader {
+    int width = 0;
+    int height = 0;
+    int depth = 0;  ///< bits per sample: 1, 2, 4, 8 or 16
+};
+
+/// Checks a PNG's pixel data as stb_image's decode does, without holding the image: the chunk
+/// order and the header, palette and transparency rules stb_image applies, chunk CRCs, and the
+/// IDAT data streamed through zlib in bounded memory (a complete, valid zlib stream of at
+/// least the bytes the header calls for, every row's filter type in 0..4). Like stb_image, it
+/// accepts bytes after the last row (stb_image issue #276); unlike it, it checks the zlib
+/// stream's Adler-32, so a corrupt stream stb_image would decode to garbage is an error.
+PngHeader check_png_pixels(const std::string& path, const std::vector<uint8_t>& data) {
+    const auto corrupt = [&](const std::string& why, size_t at) {
+        fail(path, "cannot decode PNG: " + why, int64_t(at));
+    };
+    if (data.size() < 8 || std::memcmp(data.data(), kPngSignature, 8) != 0) {
+        fail(path, "not a PNG file", 0);
+    }
+    PngHeader header;
+    int color = 0, channels = 0, interlace = 0;
+    bool have_header = false, have_palette = false, raw_deflate = false;
+    size_t palette_entries = 0;
+    // The rows stb_image decodes: one run per interlace pass (Adam7) or the whole image,
+    // each row a filter byte and then row_bytes bytes.
+    struct Pass {
+        int number = 0;  // Adam7 pass 1-7, 0 without interlace
+        uint64_t rows = 0;
+        uint64_t row_bytes = 0;
+    };
+    std::vector<Pass> passes;
+    size_t pass = 0, last_pass = 0;  // indices into passes
+    uint64_t row = 0, last_row = 0;  // the next row to begin, the last one begun
+    uint64_t to_filter = 0;          // bytes until the next filter byte
+    bool rows_done = false;
+    // Names a row of `pass` for errors: "row 3" or "row 3 of interlace pass 5".
+    const auto row_name = [&](size_t in_pass, uint64_t r) {
+        const int number = passes[in_pass].number;
+        return "row " + std::to_string(r) +
+               (number ? " of interlace pass " + std::to_string(number) : std::string());
+    };
+    z_stream zs{};
+    bool inflating = false, stream_end = false;
+    struct Inflater {
+        z_stream* zs;
+        bool* on;
+        ~Inflater() {
+            if (*on) inflateEnd(zs);
+        }
+    } inflater{&zs, &inflating};
+    std::vector<uint8_t> out(size_t(1) << 16);
+    size_t pos = 8;
+    for (;;) {
+        if (data.size() - pos < 12) fail(path, "truncated PNG: no IEND chunk", int64_t(pos));
+        const uint32_t length = read_be32(&data[pos]);
+        if (length > 0x7fffffffu || data.size() - pos - 12 < length) {
+            fail(path, "truncated PNG chunk", int64_t(pos));
+        }
+        const std::string type(reinterpret_cast<const char*>(&data[pos + 4]), 4);
+        const uint8_t* body = &data[pos + 8];
+        if (uint32_t(crc32(0L, &data[pos + 4], uInt(length + 4))) != read_be32(body + length))
+            fail(path, "CRC mismatch in chunk " + type, int64_t(pos));
+        if (type == "CgBI") {
+            raw_deflate = true;  // Apple's variant: raw deflate, as stb_image reads it
+        } else if (!have_header && type != "IHDR") {
+            corrupt("first chunk is " + type + ", not IHDR", pos);
+        } else if (type == "IHDR") {
+            if (have_header) corrupt("multiple IHDR chunks", pos);
+            have_header = true;
+            if (length != 13) corrupt("IHDR chunk of " + std::to_string(length) + " bytes", pos);
+            const uint32_t w = read_be32(body), h = read_be32(body + 4);
+            header.depth = body[8];
+            color = body[9];
+            interlace = body[12];
+            const int d = header.depth;
+            if (d != 1 && d != 2 && d != 4 && d != 8 && d != 16)
+                corrupt("bit depth " + std::to_string(d) + " (1, 2, 4, 8 or 16 only)", pos);
+            if (color > 6 || (color & 1 && color != 3) || (color == 3 && d == 16))
+                corrupt(
+                    "colour type " + std::to_string(color) + " with bit depth " + std::to_string(d),
+                    pos);
+            if (body[10] != 0) corrupt("unknown compression method", pos);
+            if (body[11] != 0) corrupt("unknown filter method", pos);
+            if (interlace > 1) corrupt("unknown interlace method", pos);
+            check_dimensions(path, w, h);
+            header.width = int(w);
+            header.height = int(h);
+            channels = color == 3 ? 1 : (color & 2 ? 3 : 1) + (color & 4 ? 1 : 0);
+            // Adam7 passes: origin and spacing in x and y (PNG spec, section 8.2).
+            static const int kX0[7] = {0, 4, 0, 2, 0, 1, 0}, kY0[7] = {0, 0, 4, 0, 2, 0, 1};
+            static const int kDx[7] = {8, 8, 4, 4, 2, 2, 1}, kDy[7] = {8, 8, 8, 4, 4, 2, 2};
+            for (int p = 0; p < (interlace ? 7 : 1); ++p) {
+                const uint64_t x0 = interlace ? kX0[p] : 0, dx = interlace ? kDx[p] : 1;
+                const uint64_t y0 = interlace ? kY0[p] : 0, dy = interlace ? kDy[p] : 1;
+                const uint64_t pw = (w + dx - 1 - x0) / dx, ph = (h + dy - 1 - y0) / dy;
+                if (w <= x0 || h <= y0 || pw == 0 || ph == 0) continue;
+                const uint64_t row_bytes = (uint64_t(channels) * pw * uint64_t(d) + 7) / 8;
+                if (d < 8 && row_bytes > pw) corrupt("invalid width", pos);
+                passes.push_back({interlace ? p + 1 : 0, ph, row_bytes});
+            }
+        } else if (type == "PLTE") {
+            if (length > 256 * 3 || length % 3 != 0)
+                corrupt("PLTE chunk of " + std::to_string(length) + " bytes", pos);
+            have_palette = true;
+            palette_entries = length / 3;
+        } else if (type == "tRNS") {
+            if (inflating || stream_end) corrupt("tRNS chunk after IDAT", pos);
+            if (color == 3) {
+                if (!have_palette || palette_entries == 0) corrupt("tRNS chunk before PLTE", pos);
+                if (length > palette_entries) corrupt("tRNS chunk too long for the palette", pos);
+            } else {
+                if (color & 4) corrupt("tRNS chunk in an image with alpha", pos);
+                if (length != uint32_t(channels) * 2) corrupt("bad tRNS chunk length", pos);
+            }
+        } else if (type == "IDAT") {
+            if (color == 3 && !have_palette) corrupt("palette image without PLTE chunk", pos);
+            if (!inflating && !stream_end) {
+                if (inflateInit2(&zs, raw_deflate ? -15 : 15) != Z_OK)
+                    fail(path, "zlib initialisation failed", int64_t(pos));
+                inflating = true;
+                to_filter = 0;
+            }
+            zs.next_in = const_cast<Bytef*>(body);
+            zs.avail_in = uInt(length);
+            // Data after the end of the zlib stream is ignored, as stb_image ignores it.
+            while (inflating && zs.avail_in > 0) {
+                zs.next_out = out.data();
+                zs.avail_out = uInt(out.size());
+                const int ret = inflate(&zs, Z_NO_FLUSH);
+                if (ret != Z_OK && ret != Z_STREAM_END && ret != Z_BUF_ERROR) {
+                    corrupt(std::string("corrupt zlib stream in IDAT: ") +
+                                (zs.msg ? zs.msg : "error " + std::to_string(ret)),
+                            pos);
+                }
+                // Walk the rows: only the filter bytes are checked, the rest skipped.
+                uint64_t have = out.size() - zs.avail_out;
+                const uint8_t* p = out.data();
+                while (have > 0) {
+                    if (to_filter > 0 || rows_done) {
+                        if (to_filter == 0) break;  // bytes after the last row
+                        const uint64_t skip = std::min(have, to_filter);
+                        to_filter -= skip;
+                        have -= skip;
+                        p += skip;
+                        continue;
+                    }
+                    if (*p > 4) {
+                        corrupt(row_name(pass, row) + " has filter type " + std::to_string(*p) +
+                                    " (0-4 allowed)",
+                                pos);
+                    }
+                    ++p;
+                    --have;
+                    to_filter = passes[pass].row_bytes;
+                    last_pass = pass;
+                    last_row = row;
+                    if (++row == passes[pass].rows) {
+                        row = 0;
+                        if (++pass == passes.size()) rows_done = true;
+                    }
+                }
+                if (ret == Z_STREAM_END) {
+                    inflateEnd(&zs);
+                    inflating = false;
+                    stream_end = true;
+                }
+            }
+        } else if (type == "IEND") {
+            if (!inflating && !stream_end) corrupt("no IDAT chunk", pos);
+            if (inflating) corrupt("zlib stream in IDAT ends early (truncated image data)", pos);
+            // The row the data ends in: the one begun last, or the next one.
+            if (to_filter > 0 || !rows_done) {
+                const std::string where =
+                    to_filter > 0 ? row_name(last_pass, last_row) : row_name(pass, row);
+                corrupt("image data ends in " + where + " of " + std::to_string(header.width) +
+                            "x" + std::to_string(header.height),
+                        pos);
+            }
+            break;
+        } else if ((data[pos + 4] & 0x20) == 0) {
+            corrupt("unknown critical chunk " + type, pos);
+        }
+        pos += 12 + size_t(length);
+    }
+    return header;
+}
+
 /// The text metadata of one PNG, all chunks together, inflated: kdtrace writes a few KB, so a
 /// file above this is not ours, and memory stays bounded whatever the file holds.
 constexpr size_t kMaxPngText = size_t(64) << 20;
@@ -702,12 +890,11 @@ ImageInfo read_image_info(const std::string& path) {
     };
     if (starts(reinterpret_cast<const char*>(kPngSignature), 8)) {
         info.metadata = parse_png_metadata(path, data);
-        const ImageRGB image = load_png(path, data);
+        const PngHeader header = check_png_pixels(path, data);
         info.format = "PNG";
-        info.width = image.width;
-        info.height = image.height;
-        const bool deep = stbi_is_16_bit_from_memory(data.data(), int(data.size()));
-        info.encoding = std::string(deep ? "16" : "8") + "-bit sRGB";
+        info.width = header.width;
+        info.height = header.height;
+        info.encoding = std::string(header.depth == 16 ? "16" : "8") + "-bit sRGB";
         return info;
     }
     // PFM and Radiance HDR hold no metadata and are small: decode them to check them whole.

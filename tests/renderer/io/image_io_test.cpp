@@ -11,6 +11,9 @@
 #include <iterator>
 #include <limits>
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <gtest/gtest.h>
 #include <zlib.h>
 
@@ -478,6 +481,172 @@ TEST_F(ImageIoTest, HdrHeaderLineWithNulIsReadAsStbImageReadsIt) {
     ASSERT_EQ(image.width, 2);
     ASSERT_EQ(image.height, 1);
     EXPECT_GT(image.rgb[0], 0.0f);
+}
+
+// A PNG with the given IHDR fields and zlib stream (one IDAT chunk), chunk CRCs correct.
+std::vector<uint8_t> make_png(uint32_t width, uint32_t height, uint8_t depth, uint8_t color,
+                              uint8_t interlace, const std::vector<uint8_t>& zlib_stream) {
+    std::vector<uint8_t> out = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+    auto be32 = [&](uint32_t v) {
+        for (int s = 24; s >= 0; s -= 8) out.push_back(uint8_t(v >> s));
+    };
+    auto chunk = [&](const char* type, const std::vector<uint8_t>& body) {
+        be32(uint32_t(body.size()));
+        const size_t at = out.size();
+        out.insert(out.end(), type, type + 4);
+        out.insert(out.end(), body.begin(), body.end());
+        be32(uint32_t(crc32(0L, &out[at], uInt(body.size() + 4))));
+    };
+    std::vector<uint8_t> ihdr;
+    for (uint32_t v : {width, height})
+        for (int s = 24; s >= 0; s -= 8) ihdr.push_back(uint8_t(v >> s));
+    ihdr.insert(ihdr.end(), {depth, color, 0, 0, interlace});
+    chunk("IHDR", ihdr);
+    chunk("IDAT", zlib_stream);
+    chunk("IEND", {});
+    return out;
+}
+
+std::vector<uint8_t> zlib_of(const std::vector<uint8_t>& raw) {
+    uLongf size = compressBound(uLong(raw.size()));
+    std::vector<uint8_t> packed(size);
+    EXPECT_EQ(compress2(packed.data(), &size, raw.data(), uLong(raw.size()), 6), Z_OK);
+    packed.resize(size);
+    return packed;
+}
+
+// `kdtrace info` checks a PNG's pixel data without decoding it (read_image_info() streams the
+// IDAT data through zlib): broken data is an error as it is for load_image(), with the row or
+// the truncation named; bytes after the last row are accepted as stb_image accepts them.
+TEST_F(ImageIoTest, ImageInfoChecksPngPixelDataAsTheDecodeDoes) {
+    const auto info_error = [&](const std::vector<uint8_t>& png) {
+        write_bytes(path("p.png"), png);
+        return test::error_of_call([&] { read_image_info(path("p.png")); });
+    };
+    const auto load_error = [&](const std::vector<uint8_t>& png) {
+        write_bytes(path("p.png"), png);
+        return test::error_of_call([&] { load_image(path("p.png")); });
+    };
+    // 5x4 RGB 8-bit: rows of 1 + 15 bytes; 3x3 grey 1-bit interlaced: passes 2 and 3 hold no
+    // pixels, 1, 4, 5 and 7 one row of 1 + 1 bytes, 6 two such rows.
+    std::vector<uint8_t> raw(4 * 16, 7);
+    for (size_t y = 0; y < 4; ++y) raw[y * 16] = uint8_t(y);
+    EXPECT_EQ(info_error(make_png(5, 4, 8, 2, 0, zlib_of(raw))), "");
+    const ImageInfo info = read_image_info(path("p.png"));
+    EXPECT_EQ(info.width, 5);
+    EXPECT_EQ(info.height, 4);
+    const std::vector<uint8_t> interlaced(2 * 6, 0);
+    EXPECT_EQ(info_error(make_png(3, 3, 1, 0, 1, zlib_of(interlaced))), "");
+    EXPECT_EQ(load_error(make_png(3, 3, 1, 0, 1, zlib_of(interlaced))), "");
+    EXPECT_NE(info_error(make_png(3, 3, 1, 0, 1, zlib_of({0, 0, 0, 0})))
+                  .find("ends in row 0 of "
+                        "interlace pass 5"),
+              std::string::npos);
+
+    std::vector<uint8_t> bad = raw;
+    bad[2 * 16] = 9;
+    EXPECT_EQ(
+        info_error(make_png(5, 4, 8, 2, 0, zlib_of(bad))),
+        path("p.png") + ": byte 33: cannot decode PNG: row 2 has filter type 9 (0-4 allowed)");
+    EXPECT_NE(load_error(make_png(5, 4, 8, 2, 0, zlib_of(bad))), "");
+    bad.assign(raw.begin(), raw.end() - 1);
+    const std::vector<uint8_t> short_png = make_png(5, 4, 8, 2, 0, zlib_of(bad));
+    EXPECT_EQ(info_error(short_png), path("p.png") + ": byte " +
+                                         std::to_string(short_png.size() - 12) +
+                                         ": cannot decode PNG: image data ends in row 3 of 5x4");
+    EXPECT_NE(load_error(make_png(5, 4, 8, 2, 0, zlib_of(bad))), "");
+    bad = raw;
+    bad.insert(bad.end(), 40, 0);
+    EXPECT_EQ(info_error(make_png(5, 4, 8, 2, 0, zlib_of(bad))), "");
+    EXPECT_EQ(load_error(make_png(5, 4, 8, 2, 0, zlib_of(bad))), "");
+    // A zlib stream cut short, or with a wrong checksum.
+    std::vector<uint8_t> z = zlib_of(raw);
+    z.resize(z.size() - 6);
+    EXPECT_NE(info_error(make_png(5, 4, 8, 2, 0, z)).find("zlib stream in IDAT ends early"),
+              std::string::npos);
+    z = zlib_of(raw);
+    z.back() ^= 1;
+    EXPECT_NE(info_error(make_png(5, 4, 8, 2, 0, z))
+                  .find("cannot decode PNG: corrupt zlib stream in IDAT: incorrect data check"),
+              std::string::npos);
+    EXPECT_NE(info_error(make_png(5, 4, 3, 2, 0, zlib_of(raw))).find("bit depth 3"),
+              std::string::npos);
+    EXPECT_NE(info_error(make_png(5, 4, 8, 3, 0, zlib_of(raw))).find("without PLTE"),
+              std::string::npos);
+    // Whatever read_image_info() accepts, load_image() decodes: corrupted IDAT bytes with
+    // their CRC put right.
+    HashRng rng(7);
+    const std::vector<uint8_t> good = make_png(5, 4, 8, 2, 0, zlib_of(raw));
+    const size_t idat = 8 + 25, idat_size = good.size() - idat - 12 - 12;
+    for (int i = 0; i < 200; ++i) {
+        std::vector<uint8_t> png = good;
+        png[idat + 8 + rng.next_u64() % (idat_size - 8)] ^= uint8_t(1 + rng.next_u64() % 255);
+        const uLong crc = crc32(0L, &png[idat + 4], uInt(idat_size - 8 + 4));
+        for (int k = 0; k < 4; ++k)
+            png[idat + idat_size - 4 + size_t(k)] = uint8_t(crc >> (24 - 8 * k));
+        if (info_error(png).empty()) {
+            EXPECT_EQ(load_error(png), "") << i;
+        }
+    }
+}
+
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define KDT_NO_ADDRESS_LIMIT 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+#define KDT_NO_ADDRESS_LIMIT 1
+#endif
+#endif
+
+#ifndef KDT_NO_ADDRESS_LIMIT
+// Caps the address space at 64 MiB above what the process uses, prints the size and encoding
+// read_image_info() finds (or its error) and exits 0 (2 when the cap cannot be set). For a
+// child process only.
+[[noreturn]] void info_capped(const std::string& file) {
+    long pages = 0;
+    if (FILE* f = std::fopen("/proc/self/statm", "r")) {
+        if (std::fscanf(f, "%ld", &pages) != 1) pages = 0;
+        std::fclose(f);
+    }
+    const rlim_t limit = rlim_t(pages) * rlim_t(::sysconf(_SC_PAGESIZE)) + (64 << 20);
+    const rlimit cap{limit, limit};
+    if (pages == 0 || ::setrlimit(RLIMIT_AS, &cap) != 0) std::_Exit(2);
+    const std::string msg = test::error_of_call([&] {
+        const ImageInfo info = read_image_info(file);
+        std::fprintf(stderr, "%dx%d %s\n", info.width, info.height, info.encoding.c_str());
+    });
+    if (!msg.empty()) std::fprintf(stderr, "%s\n", msg.c_str());
+    std::_Exit(0);
+}
+#endif
+
+// read_image_info() on a 11000x11000 PNG of 350 KB (zero rows) in a child process whose
+// address space is capped 64 MiB above what it uses: decoding it would take 1.8 GB.
+TEST_F(ImageIoTest, ImageInfoOfALargePngHoldsNoImage) {
+#ifdef KDT_NO_ADDRESS_LIMIT
+    GTEST_SKIP() << "sanitizers reserve more address space than any limit allows";
+#else
+    constexpr uint32_t kSide = 11000;
+    const std::vector<uint8_t> row(1 + 3 * size_t(kSide), 0);
+    std::vector<uint8_t> packed(16 << 20);
+    z_stream zs{};
+    ASSERT_EQ(deflateInit(&zs, 1), Z_OK);
+    zs.next_out = packed.data();
+    zs.avail_out = uInt(packed.size());
+    for (uint32_t y = 0; y < kSide; ++y) {
+        zs.next_in = const_cast<Bytef*>(row.data());
+        zs.avail_in = uInt(row.size());
+        ASSERT_EQ(deflate(&zs, y + 1 == kSide ? Z_FINISH : Z_NO_FLUSH),
+                  y + 1 == kSide ? Z_STREAM_END : Z_OK);
+        ASSERT_EQ(zs.avail_in, 0u);
+    }
+    packed.resize(zs.total_out);
+    deflateEnd(&zs);
+    write_bytes(path("big.png"), make_png(kSide, kSide, 8, 2, 0, packed));
+    GTEST_FLAG_SET(death_test_style, "fast");
+    EXPECT_EXIT(info_capped(path("big.png")), ::testing::ExitedWithCode(0),
+                "^11000x11000 8-bit sRGB\n$");
+#endif
 }
 
 }  // namespace
