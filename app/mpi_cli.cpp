@@ -420,9 +420,18 @@ RenderOptions frame_session(const FramePlan& f, const RenderSnapshot& snap) {
     return o;
 }
 
+// The scene a frame renders, for its kdtrace:scene_json: its group's, with the frame's camera.
+Scene frame_scene(const SceneGroups& g, size_t i, const RenderSnapshot& snap) {
+    Scene scene = g.prepared[g.of_frame[i]].scene;  // the meshes are shared, not copied
+    scene.camera = snap.camera_desc;
+    return scene;
+}
+
+// The keys of a single render's image (app/cmd_render.cpp), and the frame's name and the
+// distribution. `passes` < 0: not known (a frame rendered on another rank), not stored.
 // `partial`: the render was interrupted (a local sequence's frame in flight).
 void write_film(const FramePlan& f, const Film& film, const RenderSnapshot& snap,
-                const std::string& how, bool partial = false) {
+                const Scene& scene, const std::string& how, int passes = -1, bool partial = false) {
     RenderOptions o = frame_session(f, snap);
     const double spp = double(film.total_drawn()) / double(film.pixel_count());
     if (partial || o.stop.seconds > 0.0) {
@@ -437,13 +446,16 @@ void write_film(const FramePlan& f, const Film& film, const RenderSnapshot& snap
     image.alpha = film.coverage();
     ImageMetadata meta;
     meta.emplace_back("Software", "kdtrace 0.1.0");
-    const std::string& scene = o.scene.scene_path;
-    meta.emplace_back("kdtrace:scene", scene.empty() ? std::string("builtin:default") : scene);
+    const std::string& scene_path = o.scene.scene_path;
+    meta.emplace_back("kdtrace:scene",
+                      scene_path.empty() ? std::string("builtin:default") : scene_path);
+    meta.emplace_back("kdtrace:scene_json", scene_to_json(scene));
     meta.emplace_back("kdtrace:camera", camera_to_json(snap.camera));
     meta.emplace_back("kdtrace:params", options_to_json(o));
     meta.emplace_back("kdtrace:seed", std::to_string(o.trace.seed));
     // Measured: a farmed frame may be adaptive or stop on an error target.
     meta.emplace_back("kdtrace:spp", std::to_string(spp));
+    if (passes >= 0) meta.emplace_back("kdtrace:passes", std::to_string(passes));
     if (partial) {
         meta.emplace_back("kdtrace:interrupted", std::string(interrupt::signal_name()) + " at " +
                                                      std::to_string(spp) + " spp");
@@ -490,7 +502,8 @@ void run_local_frames(const RenderOptions& base, const std::string& output, bool
             run_render(session, f.options.stop);
         }
         const bool partial = interrupt::requested();
-        write_film(f, session.film(), *snaps[i], "local", partial);
+        write_film(f, session.film(), *snaps[i], frame_scene(scenes, i, *snaps[i]), "local",
+                   session.passes(), partial);
         if (partial) {
             std::fprintf(stderr,
                          "kdtrace: interrupted (%s); kept the %zu of %zu frames written, the last "
@@ -730,7 +743,9 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
         result = dist::render_frame_farm(
             ctx, jobs, params,
             [&](int f, const Film& film) {
-                write_film(frames[size_t(f)], film, *jobs[size_t(f)].snapshot, how);
+                const RenderSnapshot& snap = *jobs[size_t(f)].snapshot;
+                write_film(frames[size_t(f)], film, snap, frame_scene(scenes, size_t(f), snap),
+                           how);
                 ++kept.written;
             },
             progress);
@@ -743,7 +758,8 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
         // after write_or_rescue() has saved the image elsewhere.
         if (root) {
             try {
-                write_film(frames[0], film, *jobs[0].snapshot, how);
+                write_film(frames[0], film, *jobs[0].snapshot,
+                           frame_scene(scenes, 0, *jobs[0].snapshot), how);
                 ++kept.written;
             } catch (const Error& e) {
                 throw dist::FarmError(e.what(), true);

@@ -34,6 +34,22 @@ check views v --frames views:front,top --views views.json --fov 50
 echo '{"scene": {"camera": {"eye": [1.5, 1.2, 3.0], "target": [0, 0.7, 0], "up": [0, 1, 0], "vfov_degrees": 35}}, "trace": {"seed": 3}}' > near.json
 echo '{"scene": {"camera": {"eye": [-3, 2, -5], "target": [0, 0.7, 0], "up": [0, 1, 0], "vfov_degrees": 30}}}' > far.json
 check sessions s --frames sessions:near.json,far.json --target 0,0.5,0
+# A frame image holds the keys of a single render of that frame (and its name and how it was
+# distributed), with the same scene JSON, camera, seed, samples and passes.
+"$kdtrace" "${common[@]}" --view front --views views.json --fov 50 -o single_front.png \
+    > /dev/null || fail "single render of view front"
+keys() { "$kdtrace" info --all "$1" | sed -n -E 's/^([A-Za-z]+(:[a-z_]+)?): .*/\1/p' | sort; }
+values() {  # the lines from kdtrace:scene_json to the next key, and the keys named
+    "$kdtrace" info --all "$1" | awk '/^[^ ]/ { on = 0 }
+        /^kdtrace:(scene_json|camera|seed|spp|passes): / { on = 1 } on'
+}
+[ "$(keys v_front.png | grep -v -x -e kdtrace:frame -e kdtrace:distribution)" = \
+  "$(keys single_front.png)" ] ||
+    fail "v_front.png has the keys $(keys v_front.png | tr '\n' ' '), a single render" \
+         "$(keys single_front.png | tr '\n' ' ')"
+values v_front.png | grep -q '^kdtrace:passes: [1-9]' || fail "v_front.png: no kdtrace:passes"
+[ "$(values v_front.png)" = "$(values single_front.png)" ] ||
+    fail "v_front.png: scene JSON, camera, seed, spp or passes differ from a single render's"
 # The stored command names the image by its absolute path and renders it from anywhere.
 command=$("$kdtrace" info t_2.png | sed -n 's/^kdtrace:command: //p')
 [ "$command" = "kdtrace render --session '$work/t_2.png' --spp 2" ] ||
