@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstring>
 #include <string>
+#include <string_view>
 #include <utility>
 
 #include <nlohmann/json.hpp>
@@ -109,6 +110,87 @@ void check_file_name(const std::string& name, const std::string& where,
     if (std::string why = file_name_problem(name); !why.empty())
         throw Error(ErrorLocation{where, pointer}, why);
 }
+
+// The length of the well-formed UTF-8 sequence at text[i] (RFC 3629: no overlong forms, no
+// surrogates, nothing above U+10FFFF), or 0 when none starts there.
+size_t utf8_sequence(std::string_view text, size_t i) {
+    const auto at = [&](size_t k) { return static_cast<unsigned char>(text[k]); };
+    const unsigned char c = at(i);
+    if (c < 0x80) return 1;
+    size_t n = 0;
+    unsigned char lo = 0x80, hi = 0xbf;  // the second byte's range
+    if (c >= 0xc2 && c <= 0xdf) {
+        n = 2;
+    } else if (c >= 0xe0 && c <= 0xef) {
+        n = 3;
+        if (c == 0xe0) lo = 0xa0;
+        if (c == 0xed) hi = 0x9f;
+    } else if (c >= 0xf0 && c <= 0xf4) {
+        n = 4;
+        if (c == 0xf0) lo = 0x90;
+        if (c == 0xf4) hi = 0x8f;
+    } else {
+        return 0;
+    }
+    if (text.size() - i < n || at(i + 1) < lo || at(i + 1) > hi) return 0;
+    for (size_t k = 2; k < n; ++k) {
+        if (at(i + k) < 0x80 || at(i + k) > 0xbf) return 0;
+    }
+    return n;
+}
+
+bool is_utf8(std::string_view text) {
+    for (size_t i = 0, n = 0; i < text.size(); i += n) {
+        if ((n = utf8_sequence(text, i)) == 0) return false;
+    }
+    return true;
+}
+
+// A file name that is not valid UTF-8 as JSON text: "%" and each byte outside a well-formed
+// UTF-8 sequence become %XX (two upper-case hex digits); all else is kept.
+std::string escape_file_name_bytes(std::string_view name) {
+    static const char kHex[] = "0123456789ABCDEF";
+    std::string out;
+    for (size_t i = 0, n = 0; i < name.size(); i += n) {
+        n = utf8_sequence(name, i);
+        if (n == 0 || name[i] == '%') {
+            const auto b = static_cast<unsigned char>(name[i]);
+            out += {'%', kHex[b >> 4], kHex[b & 15]};
+            n = 1;
+        } else {
+            out.append(name, i, n);
+        }
+    }
+    return out;
+}
+
+// The inverse of escape_file_name_bytes(); a "%" without two hex digits is an error.
+std::string unescape_file_name_bytes(const std::string& text, const std::string& where,
+                                     const std::string& pointer) {
+    const auto hex = [](char c) {
+        return c >= '0' && c <= '9'   ? c - '0'
+               : c >= 'A' && c <= 'F' ? c - 'A' + 10
+               : c >= 'a' && c <= 'f' ? c - 'a' + 10
+                                      : -1;
+    };
+    std::string out;
+    for (size_t i = 0; i < text.size(); ++i) {
+        if (text[i] != '%') {
+            out += text[i];
+            continue;
+        }
+        if (text.size() - i < 3 || hex(text[i + 1]) < 0 || hex(text[i + 2]) < 0) {
+            throw Error(ErrorLocation{where, pointer},
+                        "'%' at byte " + std::to_string(i) + " is not followed by two hex digits");
+        }
+        out += char(hex(text[i + 1]) * 16 + hex(text[i + 2]));
+        i += 2;
+    }
+    return out;
+}
+
+// The suffix of the key that holds a file name escape_file_name_bytes() escaped.
+constexpr std::string_view kBytesSuffix = "_bytes";
 
 // The member named key, or nullptr.
 template <class T, size_t N>
@@ -215,7 +297,17 @@ void scene_from_json(const json& v, SceneOptions& scene, const std::string& wher
             if (!x.is_number()) throw Error(ErrorLocation{where, pointer}, "expected a number");
             return x.get<float>();
         };
-        if (auto text = find_member(kSceneStrings, key)) {
+        const bool bytes = key.size() > kBytesSuffix.size() && key.ends_with(kBytesSuffix);
+        const std::string name = bytes ? key.substr(0, key.size() - kBytesSuffix.size()) : key;
+        if (auto member = name == "env_mapping" ? nullptr : find_member(kSceneStrings, name);
+            bytes && member) {
+            if (!x.is_string()) throw Error(ErrorLocation{where, pointer}, "expected a string");
+            if (v.contains(name))
+                throw Error(ErrorLocation{where, pointer}, "given with /scene/" + name);
+            const std::string file = unescape_file_name_bytes(x.get<std::string>(), where, pointer);
+            check_file_name(file, where, pointer);
+            scene.*member = file;
+        } else if (auto text = find_member(kSceneStrings, key)) {
             if (!x.is_string()) throw Error(ErrorLocation{where, pointer}, "expected a string");
             if (key != "env_mapping") check_file_name(x.get<std::string>(), where, pointer);
             scene.*text = x.get<std::string>();
@@ -308,7 +400,14 @@ std::string options_to_json(const RenderOptions& o) {
     json j;
     json scene = group_json(o.scene, scene_fields());
     for (auto [name, m] : kSceneStrings) {
-        if (!(o.scene.*m).empty()) scene[name] = o.scene.*m;
+        const std::string& text = o.scene.*m;
+        if (text.empty()) continue;
+        // JSON holds UTF-8 only: another file name goes, escaped, under NAME_bytes.
+        if (is_utf8(text)) {
+            scene[name] = text;
+        } else {
+            scene[name + std::string(kBytesSuffix)] = escape_file_name_bytes(text);
+        }
     }
     for (auto [name, m] : kSceneVectors) {
         if (o.scene.*m) scene[name] = vec3_json(*(o.scene.*m));
@@ -332,8 +431,8 @@ std::string options_to_json(const RenderOptions& o) {
     j["trace"] = group_json(o.trace, trace_fields());
     j["film"] = group_json(o.film, film_fields());
     j["stop"] = group_json(o.stop, stop_fields());
-    // File names are bytes, JSON is UTF-8: a name that is not valid UTF-8 is written with
-    // U+FFFD in place of its bad bytes rather than failing the render that stores it.
+    // File names are escaped above; U+FFFD replaces any other bytes that are not UTF-8
+    // (material names, say) rather than failing the render that stores them.
     return j.dump(-1, ' ', false, json::error_handler_t::replace);
 }
 

@@ -90,7 +90,10 @@ void validate(const RenderOptions& options);
 void make_file_names_absolute(SceneOptions& scene);
 
 /// Every tabled field of every group as one JSON object {"tree": {...}, "trace": {...},
-/// "film": {...}, "stop": {...}, "scene": {...}} (one line; strings of the scene too).
+/// "film": {...}, "stop": {...}, "scene": {...}} (one line; strings of the scene too). A file
+/// name (scene_path, env_file, cache_dir, tree_file) that is not valid UTF-8 is written
+/// losslessly as NAME_bytes: the name with "%" and every byte outside a well-formed UTF-8
+/// sequence as %XX (upper-case hex), e.g. "scene_path_bytes": "/m/%9Bq.ply".
 std::string options_to_json(const RenderOptions& options);
 /// Reads options_to_json() output (any subset of groups and keys) into `options`; unknown
 /// groups or keys and invalid values throw kdt::Error naming `where` and the key.

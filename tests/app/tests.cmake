@@ -255,14 +255,18 @@ add_test(NAME smoke.black_emitter_warning COMMAND ${_kdt} render ${_tmp}/black_e
          --no-cache --spp 1 --width 8 --height 6 -o ${_tmp}/black_emitter.png)
 set_tests_properties(smoke.black_emitter_warning PROPERTIES PASS_REGULAR_EXPRESSION
   "kdtrace: warning: [^\n]*black_emitter.json: meshes/1/material: type emissive without \"emission\": it emits no light[^\n]*\nrender: ")
-# A model whose name is not valid UTF-8 renders; its name is stored in the image's JSON
-# metadata with U+FFFD for the bad byte (JSON cannot hold the byte).
+# A model whose name is not valid UTF-8 renders; its name is stored in the image's options
+# with the bad byte escaped (scene_path_bytes, %9B), and the image is a session that renders
+# the same image again.
 add_test(NAME smoke.non_utf8_model_name COMMAND sh -c "m=\"$1/$(printf '\\233')q.ply\"; \
-cp /usr/share/assimp/models/PLY/cube.ply \"$m\" && \"$0\" render \"$m\" --no-cache --spp 1 \
---width 8 --height 6 --quiet -o \"$1/non_utf8.png\" && \"$0\" info --all \"$1/non_utf8.png\""
-         ${_kdt} ${_tmp})
+r() { \"$0\" render \"$@\" --quiet >/dev/null; }; \
+cp /usr/share/assimp/models/PLY/cube.ply \"$m\" && r \"$m\" --no-cache --spp 1 --width 8 \
+--height 6 -o \"$1/non_utf8.png\" && r \"$m\" --no-cache --spp 1 --width 8 --height 6 \
+-o \"$1/non_utf8.pfm\" && r --session \"$1/non_utf8.png\" -o \"$1/non_utf8_session.pfm\" && \
+cmp \"$1/non_utf8.pfm\" \"$1/non_utf8_session.pfm\" && echo SAME && \
+\"$0\" info --all \"$1/non_utf8.png\"" ${_kdt} ${_tmp})
 set_tests_properties(smoke.non_utf8_model_name PROPERTIES PASS_REGULAR_EXPRESSION
-  "scene_path\":\"[^\"]*�q.ply\"")
+  "SAME\n.*scene_path_bytes\":\"[^\"]*/%9Bq.ply\"")
 # Bytes a library quotes from a file (the JSON parser's "last read") reach the terminal escaped.
 add_test(NAME smoke.error_bytes_escaped COMMAND sh -c "printf '{\"scene\": {\"scene_path\": \"/x\\233' \
 > \"$1/bad_bytes.json\"; \"$0\" render --session \"$1/bad_bytes.json\" -o \"$1/bad_bytes.pfm\""

@@ -345,5 +345,41 @@ TEST(RenderOptions, JsonFileNamesRefuseControlCharacters) {
     EXPECT_EQ(o.scene.tree_file, "t \xc3\xbc.kdt");
 }
 
+// File names are bytes: one that is not valid UTF-8 is stored as NAME_bytes with %XX escapes
+// and read back byte for byte (a session image renders the same model again).
+TEST(RenderOptions, JsonKeepsFileNamesThatAreNotUtf8) {
+    RenderOptions o;
+    o.scene.scene_path = "/m/\x9bq%41.ply";                 // a lone continuation byte, a "%"
+    o.scene.env_file = "/e/\xc0\xaf\xed\xa0\x80.hdr";       // overlong "/", a surrogate
+    o.scene.tree_file = "/t/\xf4\x90\x80\x80\xe2\x82.kdt";  // above U+10FFFF, cut short
+    o.scene.cache_dir = "/c/caf\xc3\xa9 %";                 // valid UTF-8 stays as it is
+    const std::string json = options_to_json(o);
+    EXPECT_NE(json.find("\"scene_path_bytes\":\"/m/%9Bq%2541.ply\""), std::string::npos) << json;
+    EXPECT_NE(json.find("\"env_file_bytes\":\"/e/%C0%AF%ED%A0%80.hdr\""), std::string::npos);
+    EXPECT_NE(json.find("\"tree_file_bytes\":\"/t/%F4%90%80%80%E2%82.kdt\""), std::string::npos);
+    EXPECT_NE(json.find("\"cache_dir\":\"/c/caf\xc3\xa9 %\""), std::string::npos) << json;
+    RenderOptions back;
+    options_from_json(json, back, "s.json");
+    EXPECT_EQ(back.scene.scene_path, o.scene.scene_path);
+    EXPECT_EQ(back.scene.env_file, o.scene.env_file);
+    EXPECT_EQ(back.scene.tree_file, o.scene.tree_file);
+    EXPECT_EQ(back.scene.cache_dir, o.scene.cache_dir);
+    EXPECT_EQ(options_to_json(back), json);
+    const auto error = [](const std::string& scene) {
+        RenderOptions r;
+        return test::error_of_call(
+            [&] { options_from_json("{\"scene\": {" + scene + "}}", r, "s.json"); });
+    };
+    EXPECT_EQ(error("\"scene_path_bytes\": \"a%4\""),
+              "s.json: /scene/scene_path_bytes: '%' at byte 1 is not followed by two hex digits");
+    EXPECT_EQ(error("\"scene_path_bytes\": \"a%1B.ply\""),
+              "s.json: /scene/scene_path_bytes: file name contains a control character (byte 0x1b "
+              "at offset 1)");
+    EXPECT_EQ(error("\"tree_file\": \"a\", \"tree_file_bytes\": \"b\""),
+              "s.json: /scene/tree_file_bytes: given with /scene/tree_file");
+    EXPECT_NE(error("\"env_mapping_bytes\": \"x\"").find("env_mapping_bytes: unknown key"),
+              std::string::npos);
+}
+
 }  // namespace
 }  // namespace kdt
