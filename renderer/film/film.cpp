@@ -1,12 +1,25 @@
 #include "renderer/film/film.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include "renderer/core/error.h"
 
 namespace kdt {
+
+namespace {
+
+constexpr uint32_t kNoPassEnd = std::numeric_limits<uint32_t>::max();
+
+// The end of a doubling from `drawn` samples: the next power of two above it.
+uint32_t doubling_end(uint32_t drawn) {
+    return uint32_t(std::min<uint64_t>(std::bit_ceil(uint64_t(drawn) + 1), kNoPassEnd));
+}
+
+}  // namespace
 
 uint8_t linear_to_srgb8(float v) {
     if (!(v > 0.0f)) return 0;
@@ -20,6 +33,7 @@ void Film::resize(int width, int height) {
     height_ = std::max(height, 0);
     pixels_.assign(pixel_count(), Pixel{});
     active_.assign(pixel_count(), 1);
+    pass_end_.assign(pixel_count(), kNoPassEnd);
     error_scratch_.assign(pixel_count(), 0.0f);
     variance_scratch_.assign(pixel_count(), 0.0f);
     open_ = pixel_count();
@@ -29,6 +43,7 @@ void Film::resize(int width, int height) {
 void Film::clear() {
     std::fill(pixels_.begin(), pixels_.end(), Pixel{});
     std::fill(active_.begin(), active_.end(), uint8_t(1));
+    std::fill(pass_end_.begin(), pass_end_.end(), kNoPassEnd);
     open_ = pixel_count();
     std::fill(coverage_.begin(), coverage_.end(), 0.0);
 }
@@ -87,6 +102,7 @@ size_t Film::update_active(const FilmParams& params, const AdaptiveInputs& in) {
     pass_samples_ = std::max(in.samples_per_pass, 1);
     if (!params.adaptive) {
         std::fill(active_.begin(), active_.end(), uint8_t(1));
+        std::fill(pass_end_.begin(), pass_end_.end(), kNoPassEnd);
         open_ = pixel_count();
         return pixel_count();
     }
@@ -113,6 +129,7 @@ size_t Film::update_active(const FilmParams& params, const AdaptiveInputs& in) {
             const size_t i = index(x, y);
             const Pixel& p = pixels_[i];
             active_[i] = 0;
+            pass_end_[i] = kNoPassEnd;
             if ((max_spp > 0 && p.count >= max_spp) ||
                 (in.sample_cap > 0 && p.drawn >= in.sample_cap))
                 continue;
@@ -141,6 +158,7 @@ size_t Film::update_active(const FilmParams& params, const AdaptiveInputs& in) {
             if (e < params.adaptive_threshold) continue;
             if ((p.drawn & (p.drawn - 1)) != 0) {  // a doubling under way runs to its end
                 active_[i] = 1;
+                pass_end_[i] = doubling_end(p.drawn);
                 ++doubling;
                 continue;
             }
@@ -168,7 +186,11 @@ size_t Film::update_active(const FilmParams& params, const AdaptiveInputs& in) {
         std::nth_element(candidates_.begin(), candidates_.begin() + ptrdiff_t(k), candidates_.end(),
                          before);
     }
-    for (size_t j = 0; j < k; ++j) active_[candidates_[j].pixel] = 1;
+    for (size_t j = 0; j < k; ++j) {
+        const uint32_t i = candidates_[j].pixel;
+        active_[i] = 1;
+        pass_end_[i] = doubling_end(pixels_[i].drawn);
+    }
     return warming + doubling + k;
 }
 

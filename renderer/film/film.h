@@ -28,13 +28,15 @@ struct FilmParams {
 
 /// Adaptive sampling grows a pixel's sample count in doublings once it has
 /// adaptive_min_spp samples: the Owen-scrambled Sobol samples of a pixel are best
-/// stratified at power-of-two counts. New doublings start while fewer than this share of
-/// the open pixels are doubling; a smaller share follows the priority order more closely.
+/// stratified at power-of-two counts, so a doubling runs to the next power of two of the
+/// drawn count and no pass draws past it (Film::pass_end). New doublings start while fewer
+/// than this share of the open pixels are doubling; a smaller share follows the priority
+/// order more closely.
 inline constexpr float kAdaptivePassShare = 0.25f;
 /// Samples each active pixel takes in a pass once no open pixel is below adaptive_min_spp
-/// (at least TraceParams::samples_per_pass): 8 divides every power of two from 8 on, so a
-/// doubling from 16 or more ends on one, in passes long enough to pay for their serial
-/// update and parallel region.
+/// (at least TraceParams::samples_per_pass), in passes long enough to pay for their serial
+/// update and parallel region. 8 divides every power of two from 8 on, so with pass sizes
+/// that are powers of two no doubling from 16 or more is cut short by its end.
 inline constexpr int kAdaptivePassSamples = 8;
 
 /// What Film::update_active() needs besides FilmParams (RenderSession fills it in).
@@ -130,9 +132,11 @@ public:
     /// at least adaptive_min_spp samples and the largest relative error in its 3x3
     /// neighbourhood is below adaptive_threshold. Open pixels below adaptive_min_spp are all
     /// active, and so are open pixels whose drawn count is not a power of two (a doubling
-    /// under way). Of the other open pixels the pass starts doublings for those with the
-    /// largest drop of the image's squared error per unit cost, v / (n^2 c), while fewer
-    /// than kAdaptivePassShare of the open pixels are doubling: v the per-sample luminance
+    /// under way: it runs to the next power of two, pass_end(), whatever the pass size; one
+    /// that left adaptive_min_spp between two powers of two first completes to the next).
+    /// Of the other open pixels the pass starts doublings for those with the largest drop
+    /// of the image's squared error per unit cost, v / (n^2 c), while fewer than
+    /// kAdaptivePassShare of the open pixels are doubling: v the per-sample luminance
     /// variance averaged over the 3x3 neighbourhood (one pixel's few samples can agree by
     /// chance), n the pixel's samples, c its in.cost_per_sample. This drives n towards
     /// proportional to sigma / sqrt(c) (within a factor of 2), the allocation that
@@ -147,6 +151,10 @@ public:
     /// adaptive and no open pixel is below adaptive_min_spp, at least kAdaptivePassSamples.
     int pass_samples() const { return pass_samples_; }
     bool active(int x, int y) const { return active_[index(x, y)] != 0; }
+    /// The sample index at which active pixel (x, y) stops drawing in the next pass: the
+    /// end of its doubling while adaptive (a power of two above next_sample_index()), else
+    /// no limit (UINT32_MAX). Set by update_active() for every pixel.
+    uint32_t pass_end(int x, int y) const { return pass_end_[index(x, y)]; }
     void set_active(int x, int y, bool on) { active_[index(x, y)] = on ? 1 : 0; }
 
     /// Adds every pixel's sums and counts of `other` to this film's (the active mask is
@@ -177,6 +185,7 @@ private:
     int width_ = 0, height_ = 0;
     std::vector<Pixel> pixels_;
     std::vector<uint8_t> active_;
+    std::vector<uint32_t> pass_end_;  ///< pass_end(), row-major
     std::vector<float> error_scratch_, variance_scratch_;
     struct Candidate {
         float priority;

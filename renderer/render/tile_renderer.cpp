@@ -141,9 +141,10 @@ size_t render_tile(const TileTarget& t, const FilmRect& tile, PathCounters& coun
             if (!film.active(x, y)) continue;
             // Read once: a chunk traced in the middle of the pixel adds to its count.
             const uint32_t first_index = film.next_sample_index(x, y);
+            const uint32_t end = std::min(t.max_spp, film.pass_end(x, y));
             const uint64_t key = PixelSampler::pixel_key(trace.seed, uint32_t(x), uint32_t(y));
             int k = 0;
-            for (; k < spp && first_index + uint32_t(k) < t.max_spp; ++k) {
+            for (; k < spp && first_index + uint32_t(k) < end; ++k) {
                 s.x.push_back(x);
                 s.y.push_back(y);
                 s.samplers.emplace_back(key, first_index + uint32_t(k));

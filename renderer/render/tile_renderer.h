@@ -42,8 +42,9 @@ struct TileTarget {
 /// the side the ray comes from. World space; `hit` must be valid.
 Vec3f aov_shading_normal(const TraceScene& scene, const Ray& ray, const Hit& hit);
 
-/// Renders trace->samples_per_pass samples (at least 1) for every active pixel of `tile`
-/// and adds the ray counts to `counters`. Returns the number of pixels that took a sample.
+/// Renders trace->samples_per_pass samples (at least 1) for every active pixel of `tile`,
+/// none with a sample index at or past max_spp or the pixel's Film::pass_end(), and adds the
+/// ray counts to `counters`. Returns the number of pixels that took a sample.
 size_t render_tile(const TileTarget& target, const FilmRect& tile, PathCounters& counters);
 
 }  // namespace kdt

@@ -1,6 +1,7 @@
 // Film::update_active's allocation on synthetic films with known per-pixel noise and cost:
 // samples go where sigma / sqrt(cost) is high, the summed variance comes close to the
 // optimum for the cost spent, ties and caps are handled, and converged pixels still stop.
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -186,6 +187,57 @@ TEST(FilmAdaptive, DoublingsRunToTheirEnd) {
     }
     EXPECT_EQ(f.update_active(p), 4u);  // 4 new doublings, the noisiest (highest x)
     for (int x = 0; x < 16; ++x) EXPECT_EQ(f.active(x, 0), x >= 12) << x;
+}
+
+// A film fed in passes that are not a power of two (3 samples while warming up, then the
+// film's pass size, each pixel only up to its pass_end() as the tile renderer does): the
+// doublings still end on powers of two, and pixels that are not doubling rest.
+TEST(FilmAdaptive, DoublingsEndOnPowersOfTwoWhateverThePassSize) {
+    constexpr int kW = 16;
+    Film f(kW, 1);
+    const FilmParams p = adaptive_params(1e-6f, 16);  // nobody stops
+    AdaptiveInputs in;
+    in.samples_per_pass = 3;
+    Pcg32 rng(5);
+    size_t resting_passes = 0;
+    for (int pass = 0; pass < 60; ++pass) {
+        const size_t active = f.update_active(p, in);
+        ASSERT_GT(active, 0u);
+        ASSERT_EQ(f.open_count(), size_t(kW));
+        if (active < f.open_count()) ++resting_passes;
+        for (int x = 0; x < kW; ++x) {
+            if (!f.active(x, 0)) {
+                // At rest only at a power of two.
+                const uint32_t n = f.next_sample_index(x, 0);
+                EXPECT_EQ(n & (n - 1), 0u) << "pixel " << x << " rests at " << n;
+                continue;
+            }
+            const uint32_t end = f.pass_end(x, 0);
+            ASSERT_GT(end, f.next_sample_index(x, 0)) << "pixel " << x;
+            for (int s = 0; s < f.pass_samples() && f.next_sample_index(x, 0) < end; ++s)
+                f.add_sample(x, 0, Vec3f(1.0f + float(x + 1) * rng.next_float()));
+        }
+    }
+    // Warm-up takes 6 passes (18 samples), then a quarter of the pixels doubling at a time.
+    EXPECT_GT(resting_passes, 40u);
+    uint32_t most = 0;
+    for (int x = 0; x < kW; ++x) most = std::max(most, f.next_sample_index(x, 0));
+    EXPECT_GE(most, 64u);
+}
+
+TEST(FilmAdaptive, PassEndsWithoutAdaptivityAreOpen) {
+    Film f(4, 1);
+    for (int s = 0; s < 5; ++s) f.add_sample(0, 0, Vec3f(float(s % 2)));
+    f.update_active(FilmParams{});
+    EXPECT_EQ(f.pass_end(0, 0), 0xffffffffu);
+    FilmParams p = adaptive_params(1e-6f, 2);
+    f.update_active(p);
+    EXPECT_TRUE(f.active(0, 0));  // 5 samples drawn: a doubling under way, to 8
+    EXPECT_EQ(f.pass_end(0, 0), 8u);
+    EXPECT_EQ(f.pass_end(1, 0), 0xffffffffu);  // warming up
+    p.adaptive = false;
+    f.update_active(p);
+    EXPECT_EQ(f.pass_end(0, 0), 0xffffffffu);
 }
 
 TEST(FilmAdaptive, CappedPixelsAreNeverPicked) {

@@ -103,6 +103,40 @@ TEST(RunRender, AdaptivePassesKeepToTheSppBudget) {
     }
 }
 
+// Adaptive sampling with pass sizes that are not powers of two (--spp-per-pass 3, 5, 12):
+// doublings end on powers of two, so once warmed up most open pixels rest in a pass.
+// Without the pass end the drawn counts (18 + 8k, 20 + 8k, 24 + 12k) miss every power of
+// two, a pixel between two powers counts as doubling, and every open pixel samples every
+// pass.
+TEST(RunRender, AdaptivePassesOfAnySizeLetPixelsRest) {
+    for (const int per_pass : {3, 5, 12}) {
+        TraceParams tp;
+        tp.samples_per_pass = per_pass;
+        FilmParams fp;
+        fp.adaptive = true;
+        fp.adaptive_threshold = 1e-6f;  // the allocation decides, not the stopping rule
+        RenderSession s(scene_snapshot(), tp, fp);
+        size_t open = 0, active = 0;  // over the passes after the warm-up's
+        for (int pass = 0; pass < 30; ++pass) {
+            const PassStats ps = s.render_pass(0, per_pass);
+            if (pass * per_pass < fp.adaptive_min_spp) continue;
+            open += ps.open_pixels;
+            active += ps.active_pixels;
+        }
+        // About a quarter of the open pixels doubling at a time.
+        EXPECT_LT(double(active), 0.5 * double(open)) << "--spp-per-pass " << per_pass;
+        const Film& f = s.film();
+        size_t at_powers = 0;
+        for (int y = 0; y < f.height(); ++y) {
+            for (int x = 0; x < f.width(); ++x) {
+                const uint32_t n = f.next_sample_index(x, y);
+                at_powers += (n & (n - 1)) == 0;
+            }
+        }
+        EXPECT_GT(at_powers, f.pixel_count() / 2) << "--spp-per-pass " << per_pass;
+    }
+}
+
 // Less than one sample per active pixel left: one each for the first active pixels in tile
 // order, none for the rest.
 TEST(RunRender, SampleBudgetBelowOnePerPixelGoesToTheFirstPixels) {
