@@ -25,23 +25,32 @@ void check_output(const std::string& output, const std::vector<std::string>& inp
     struct stat link {};
     if (::lstat(output.c_str(), &link) != 0) {
         if (errno != ENOENT) fail(std::string("cannot stat: ") + std::strerror(errno));
-        // A new file: its directory must exist (checked now, not after a long run). A
-        // dangling symlink is caught above (lstat succeeds on it) and handled below.
+        // A new file: its directory must exist (checked now, not after a long run).
         std::error_code ec;
         const fs::path dir = fs::absolute(output, ec).parent_path();
         if (!fs::is_directory(dir, ec)) fail("directory " + dir.string() + " does not exist");
         TempFile probe(output);  // a directory that takes no new file (read-only, /proc)
         return;
     }
-    struct stat target {};
-    const bool resolves = ::stat(output.c_str(), &target) == 0;
+    // A symlink is written through (see write_target()): what counts is the file at the end
+    // of its chain, which a dangling link names too.
     const bool is_link = S_ISLNK(link.st_mode);
+    const std::string real = is_link ? write_target(output) : output;
+    struct stat target {};
+    const bool resolves = ::stat(real.c_str(), &target) == 0;
     if (resolves) {
         if (const char* kind = special_file_kind(target.st_mode)) {
             fail(std::string(is_link ? "is a symlink to " : "is ") + kind +
                  (S_ISDIR(target.st_mode)
                       ? " (give a file name)"
                       : ", not a regular file (refusing to replace it or to write into it)"));
+        }
+    } else if (is_link) {
+        std::error_code ec;
+        const fs::path dir = fs::absolute(real, ec).parent_path();
+        if (!fs::is_directory(dir, ec)) {
+            fail("is a dangling symlink to " + real + ", whose directory " + dir.string() +
+                 " does not exist");
         }
     }
     for (const std::string& input : inputs) {
@@ -57,21 +66,20 @@ void check_output(const std::string& output, const std::vector<std::string>& inp
         }
     }
     // An existing file is replaced by a rename into place, which its own mode does not stop:
-    // honour a write-protected file as `cp` and the shell's `>` do (root may, as with cp). A
-    // symlink is replaced, not written through, so only its directory entry counts.
-    if (!is_link && ::faccessat(AT_FDCWD, output.c_str(), W_OK, AT_EACCESS) != 0) {
-        fail(std::string("the existing file is not writable (") + std::strerror(errno) +
-             "); refusing to replace it");
+    // honour a write-protected file as `cp` and the shell's `>` do (root may, as with cp).
+    if (resolves && ::faccessat(AT_FDCWD, real.c_str(), W_OK, AT_EACCESS) != 0) {
+        fail(std::string(is_link ? "the symlink's target " + real : "the existing file") +
+             " is not writable (" + std::strerror(errno) + "); refusing to replace it");
     }
     // In a sticky directory (like /tmp) only the file's owner, the directory's owner or root
     // may replace it; the rename would fail only after the work.
     const uid_t me = ::geteuid();
-    fs::path dir = fs::path(output).parent_path();
+    fs::path dir = fs::path(real).parent_path();
     if (dir.empty()) dir = ".";
     struct stat d {};
-    if (me != 0 && link.st_uid != me && ::stat(dir.c_str(), &d) == 0 && (d.st_mode & S_ISVTX) &&
-        d.st_uid != me) {
-        fail("it belongs to another user (uid " + std::to_string(link.st_uid) +
+    if (me != 0 && resolves && target.st_uid != me && ::stat(dir.c_str(), &d) == 0 &&
+        (d.st_mode & S_ISVTX) && d.st_uid != me) {
+        fail("it belongs to another user (uid " + std::to_string(target.st_uid) +
              ") in the sticky directory " + dir.string() +
              ", where only its owner may replace it; choose another name");
     }

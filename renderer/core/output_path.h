@@ -1,5 +1,5 @@
 // Output paths that cannot destroy a command's inputs: the check every command that writes a
-// file makes before it starts. Depends on core/error.h.
+// file makes before it starts. Depends on core/error.h and core/temp_file.h.
 #pragma once
 
 #include <string>
@@ -7,17 +7,19 @@
 
 namespace kdt {
 
-/// Throws kdt::Error naming `output` when writing it (a new file renamed over the path) could
-/// destroy an input or cannot do what the user expects:
+/// Throws kdt::Error naming `output` when writing it (a new file renamed over the path, or for
+/// a symlink over the file it leads to: see write_target() in core/temp_file.h) could destroy
+/// an input or cannot do what the user expects:
 ///  - `output` is the same file as one of `inputs`, however it is spelt: the same path, a
 ///    path through `..`, a symlink to it, a hard link (same device and inode) -- the
 ///    message names the input;
 ///  - `output` is (or is a symlink to) a directory, FIFO, socket or device: it would be
 ///    replaced by a regular file, or (written through) never end or hang;
-///  - the directory that would hold it does not exist;
-///  - it exists and the user may not replace it: a regular file not writable by the
-///    effective user (root may, as with `cp`), or another user's file in a sticky directory
-///    such as /tmp (unless the user owns the directory or is root).
+///  - the directory that would hold it (for a dangling symlink, its target) does not exist,
+///    or the symlinks loop;
+///  - it (a symlink's target) exists and the user may not replace it: a regular file not
+///    writable by the effective user (root may, as with `cp`), or another user's file in a
+///    sticky directory such as /tmp (unless the user owns the directory or is root).
 /// A missing output, or an existing regular file that is no input and may be replaced, is fine.
 /// Inputs that do not exist (yet) are skipped; empty strings in `inputs` are ignored. `what` names
 /// the output in messages ("the image", "the tree").

@@ -8,16 +8,35 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 
 #include "renderer/core/error.h"
 #include "renderer/core/interrupt.h"
 
 namespace kdt {
 
-TempFile::TempFile(const std::string& target) : target_(target) {
+std::string write_target(const std::string& path) {
+    namespace fs = std::filesystem;
+    // The kernel's own limit on links followed in one path (Linux MAXSYMLINKS).
+    constexpr int kMaxLinks = 40;
+    fs::path p = path;
+    for (int links = 0;; ++links) {
+        struct stat st {};
+        if (::lstat(p.c_str(), &st) != 0 || !S_ISLNK(st.st_mode)) return p.string();
+        if (links == kMaxLinks) {
+            throw Error(ErrorLocation{path}, "too many levels of symbolic links (a loop?)");
+        }
+        std::error_code ec;
+        const fs::path link = fs::read_symlink(p, ec);
+        if (ec) throw Error(ErrorLocation{path}, "cannot read the symlink " + p.string());
+        p = link.is_absolute() ? link : p.parent_path() / link;
+    }
+}
+
+TempFile::TempFile(const std::string& target) : target_(target), real_(write_target(target)) {
     interrupt::install_handlers();
     static std::atomic<uint64_t> counter{0};
-    path_ = target + ".kdtrace-" + std::to_string(::getpid()) + "-" +
+    path_ = real_ + ".kdtrace-" + std::to_string(::getpid()) + "-" +
             std::to_string(counter.fetch_add(1)) + ".tmp";
     // Registered before it exists, so that no signal can come between creating and
     // registering it (removing a file that does not exist yet is harmless).
@@ -65,7 +84,7 @@ void TempFile::write(const void* data, size_t size) {
 void TempFile::commit() {
     if (fd_ < 0) throw Error(ErrorLocation{target_}, "commit after commit");
     struct stat st {};
-    if (::stat(target_.c_str(), &st) == 0 && S_ISREG(st.st_mode) &&
+    if (::stat(real_.c_str(), &st) == 0 && S_ISREG(st.st_mode) &&
         ::fchmod(fd_, st.st_mode & 07777) != 0) {
         fail("cannot copy the file mode of the existing file");
     }
@@ -81,7 +100,7 @@ void TempFile::commit() {
     // A signal handler on another thread may be removing this file on its way to ending the
     // process: then neither commit nor report an error (the signal is the outcome).
     interrupt::wait_if_dying();
-    if (std::rename(path_.c_str(), target_.c_str()) != 0) {
+    if (std::rename(path_.c_str(), real_.c_str()) != 0) {
         const int err = errno;
         interrupt::wait_if_dying();
         ::unlink(path_.c_str());

@@ -8,9 +8,15 @@
 
 namespace kdt {
 
-/// A temporary file "<target>.kdtrace-<pid>-<n>.tmp" in the target's directory, created
-/// exclusively (mode 0666 less the umask) and registered for removal if a signal ends the
-/// process. Without commit(), the destructor closes and removes it.
+/// The file a write to `path` replaces: `path` itself, or for a symlink the file at the end of
+/// its chain of links (relative links resolved against their own directory), which need not
+/// exist yet (a dangling link). A file is written through a link, as `cp` and the shell's `>`
+/// do, so that the link stays. Throws kdt::Error naming `path` for a loop of links.
+std::string write_target(const std::string& path);
+
+/// A temporary file "<target>.kdtrace-<pid>-<n>.tmp" in the directory of write_target(target),
+/// created exclusively (mode 0666 less the umask) and registered for removal if a signal ends
+/// the process. Without commit(), the destructor closes and removes it.
 class TempFile {
 public:
     /// Throws kdt::Error naming `target` when the file cannot be created.
@@ -23,7 +29,7 @@ public:
     /// Appends bytes; throws kdt::Error naming the target on a write error (a full disk).
     void write(const void* data, size_t size);
     /// Flushes the data to disk, gives the file the mode of an existing regular target (so
-    /// overwriting keeps the user's permissions), and renames it over the target. Throws
+    /// overwriting keeps the user's permissions), and renames it over write_target(target). Throws
     /// kdt::Error naming the target on failure (the temporary file is then removed).
     void commit();
 
@@ -31,7 +37,9 @@ private:
     [[noreturn]] void fail(const std::string& message);
     void discard();
 
-    std::string target_, path_;
+    std::string target_;  // as given, for messages
+    std::string real_;    // write_target(target_): what the rename replaces
+    std::string path_;
     int fd_ = -1;
     int slot_ = -1;
 };

@@ -349,6 +349,13 @@ add_test(NAME smoke.info_image COMMAND sh -c "\"$0\" render --width 16 --height 
 set_tests_properties(smoke.info_image PROPERTIES PASS_REGULAR_EXPRESSION
   "format: +OpenEXR\nsize: +16x12\nencoding: +zip compression[^\n]*\nkdtrace:command: kdtrace render --width 16 --height 12 [^\n]*--spp 2\n")
 
+# -o through a symlink writes the file it leads to, as cp and `>` do; the link stays.
+add_test(NAME smoke.output_symlink COMMAND sh -c "d=\"$1\"; rm -rf \"$d\"; mkdir -p \"$d/real\" \
+&& echo not-an-image >\"$d/real/a.png\" && ln -s real/a.png \"$d/link.png\" && \"$0\" render --width 8 \
+--height 6 --spp 1 --quiet -o \"$d/link.png\" >/dev/null && test -L \"$d/link.png\" && \
+! grep -qx not-an-image \"$d/real/a.png\" && echo written through" ${_kdt} ${_tmp}/output_symlink)
+set_tests_properties(smoke.output_symlink PROPERTIES PASS_REGULAR_EXPRESSION "^written through")
+
 # A tree written by `build -o` is used by `render --tree`, checked against the model like a
 # cache file (its parameters are the file's own).
 add_test(NAME smoke.tree_file_build COMMAND ${_kdt} build /usr/share/assimp/models/PLY/Wuson.ply

@@ -116,8 +116,29 @@ TEST_F(OutputPathTest, AWriteProtectedFileIsRefusedButRootMayReplaceIt) {
                   std::string::npos)
             << msg;
     }
-    // A symlink is replaced, not written through: its target's mode does not matter.
-    EXPECT_EQ(refusal(path("ro_link.png"), {input_}), "");
+    // A symlink is written through: its target's mode counts.
+    const std::string via_link = refusal(path("ro_link.png"), {input_});
+    if (::geteuid() == 0) {
+        EXPECT_EQ(via_link, "");
+    } else {
+        EXPECT_NE(via_link.find(": cannot write the result: the symlink's target " +
+                                path("ro.png") + " is not writable"),
+                  std::string::npos)
+            << via_link;
+    }
+}
+
+TEST_F(OutputPathTest, ABrokenSymlinkChainIsRefused) {
+    fs::create_symlink(path("no_such_dir/x.png"), path("dangling_nowhere.png"));
+    EXPECT_NE(refusal(path("dangling_nowhere.png"), {input_})
+                  .find(": cannot write the result: is a dangling symlink to " +
+                        path("no_such_dir/x.png") + ", whose directory " + path("no_such_dir") +
+                        " does not exist"),
+              std::string::npos);
+    fs::create_symlink("loop_b.png", path("loop_a.png"));
+    fs::create_symlink("loop_a.png", path("loop_b.png"));
+    EXPECT_NE(refusal(path("loop_a.png"), {input_}).find("too many levels of symbolic links"),
+              std::string::npos);
 }
 
 }  // namespace

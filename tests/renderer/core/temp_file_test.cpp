@@ -76,6 +76,41 @@ TEST(TempFile, AnAbandonedFileIsRemovedAndUnregistered) {
     EXPECT_EQ(read_text(target), "keep me");
 }
 
+TEST(TempFile, ASymlinkIsWrittenThroughAndStays) {
+    const fs::path dir = test::temp_dir("temp_file_link");
+    fs::create_directories(dir / "real");
+    std::ofstream(dir / "real" / "a.png") << "old";
+    ASSERT_EQ(::chmod((dir / "real" / "a.png").c_str(), 0640), 0);
+    // A chain: an absolute link to a relative one, resolved against its own directory.
+    fs::create_symlink("real/a.png", dir / "rel.png");
+    fs::create_symlink(dir / "rel.png", dir / "abs.png");
+    write_file_atomically((dir / "abs.png").string(), "new", 3);
+    EXPECT_TRUE(fs::is_symlink(dir / "abs.png"));
+    EXPECT_TRUE(fs::is_symlink(dir / "rel.png"));
+    EXPECT_EQ(read_text(dir / "real" / "a.png"), "new");
+    EXPECT_EQ(mode_of(dir / "real" / "a.png"), 0640);
+    // A dangling link: its target is created, the link stays.
+    fs::create_symlink("real/b.png", dir / "dangling.png");
+    EXPECT_EQ(write_target((dir / "dangling.png").string()), (dir / "real/b.png").string());
+    write_file_atomically((dir / "dangling.png").string(), "made", 4);
+    EXPECT_TRUE(fs::is_symlink(dir / "dangling.png"));
+    EXPECT_EQ(read_text(dir / "real" / "b.png"), "made");
+    EXPECT_EQ(entries(dir), 4u);  // no temporary file left, in either directory
+    EXPECT_EQ(entries(dir / "real"), 2u);
+    // A loop is an error naming the path given.
+    fs::create_symlink("loop2", dir / "loop1");
+    fs::create_symlink("loop1", dir / "loop2");
+    try {
+        write_file_atomically((dir / "loop1").string(), "x", 1);
+        ADD_FAILURE() << "no error";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("loop1: too many levels of symbolic links"),
+                  std::string::npos)
+            << e.what();
+    }
+    EXPECT_EQ(interrupt::registered_temp_count(), 0);
+}
+
 TEST(TempFile, FailuresNameTheTargetAndLeaveNothing) {
     const fs::path dir = test::temp_dir("temp_file_fail");
     fs::create_directories(dir / "d.png" / "inside");
