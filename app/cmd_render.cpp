@@ -239,7 +239,8 @@ void add_render_command(CLI::App& parent) {
                     "Output image: .png (tone-mapped sRGB), .exr, .pfm or .hdr (linear); "
                     "the render settings are stored in .png and .exr")
         ->capture_default_str();
-    sub->add_flag("--quiet", cmd.quiet, "No progress bar or cache messages");
+    sub->add_flag("--quiet", cmd.quiet,
+                  "No progress bar or cache messages (warnings are still printed)");
     add_dist_options(*sub, cmd.dist, cmd.options);
     sub->callback([sub] {
         interrupt::install();

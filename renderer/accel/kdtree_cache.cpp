@@ -760,7 +760,7 @@ std::shared_ptr<const KdTree> get_or_build_kdtree(const std::string& model_path,
         if (&dir == &dirs.back() && !fs::exists(dir, ec)) create_private_directories(dir);
         if (!directory_writable(dir)) {
             if (&dir == &dirs.back() || !cache_dir.empty()) {
-                say("kd-tree cache: cannot write to " + printable(dir.string()) +
+                say("warning: kd-tree cache: cannot write to " + printable(dir.string()) +
                     ": not a writable directory; tree not cached");
             }
             continue;
@@ -773,7 +773,7 @@ std::shared_ptr<const KdTree> get_or_build_kdtree(const std::string& model_path,
             say("kd-tree cache: wrote " + printable(rep.path));
             break;
         } catch (const Error& e) {
-            say("kd-tree cache: " + std::string(e.what()));
+            say("warning: kd-tree cache: " + std::string(e.what()) + "; tree not cached");
         }
     }
     rep.seconds = timer.seconds();

@@ -77,7 +77,9 @@ void reseal_kdtree_cache_image(std::vector<unsigned char>& bytes);
 /// Byte offset of the first node in a cache file (nodes, then indices, follow the header).
 size_t kdtree_cache_payload_offset();
 
-/// Receives one-line messages ("loaded ...", "rebuilding: <reason>", "cannot write ...").
+/// Receives one-line messages ("kd-tree cache: loaded ...", "kd-tree cache: rebuilding:
+/// <reason>"); those the user must see even when progress is silenced start with "warning: "
+/// (a cache that cannot be written, so that every run rebuilds; a degenerate tree).
 using KdCacheLog = std::function<void(const std::string& line)>;
 
 /// What get_or_build_kdtree() did, for reports and tests.

@@ -513,7 +513,7 @@ std::shared_ptr<const EnvironmentLight> make_environment_light(const Environment
     ImageRGB image = load_image(desc.file);
     const std::string warning =
         environment_mapping_warning(desc.mapping, image.width, image.height);
-    if (log && !warning.empty()) log(desc.file + ": " + warning);
+    if (log && !warning.empty()) log("warning: " + desc.file + ": " + warning);
     return make_environment_light(desc, std::move(image));
 }
 

@@ -68,8 +68,8 @@ using EnvLog = std::function<void(const std::string&)>;
 std::shared_ptr<const EnvironmentLight> make_environment_light(const EnvironmentDesc& desc);
 
 /// The same, passing log the mapping warning (environment_mapping_warning) prefixed with
-/// the file name, e.g. "probe.hdr: mapping angular for a 512x256 image, which looks like a
-/// lat-long map (2:1); angular maps are square".
+/// "warning: " and the file name, e.g. "warning: probe.hdr: mapping angular for a 512x256
+/// image, which looks like a lat-long map (2:1); angular maps are square".
 std::shared_ptr<const EnvironmentLight> make_environment_light(const EnvironmentDesc& desc,
                                                                const EnvLog& log);
 

@@ -356,6 +356,19 @@ add_test(NAME smoke.output_symlink COMMAND sh -c "d=\"$1\"; rm -rf \"$d\"; mkdir
 ! grep -qx not-an-image \"$d/real/a.png\" && echo written through" ${_kdt} ${_tmp}/output_symlink)
 set_tests_properties(smoke.output_symlink PROPERTIES PASS_REGULAR_EXPRESSION "^written through")
 
+# --quiet silences progress and cache news, not problems: an environment map whose shape
+# contradicts its mapping, and a cache directory that cannot be written (every run rebuilds).
+add_test(NAME smoke.quiet_env_mapping_warning COMMAND sh -c "\"$0\" render --width 16 --height 8 \
+--spp 1 --quiet -o \"$1\" >/dev/null && \"$0\" render --width 8 --height 6 --spp 1 --quiet \
+--env \"$1\" --env-mapping angular -o \"$1.png\" 2>&1 >/dev/null" ${_kdt} ${_tmp}/quiet_sky.pfm)
+set_tests_properties(smoke.quiet_env_mapping_warning PROPERTIES PASS_REGULAR_EXPRESSION
+  "^kdtrace: warning: [^\n]*quiet_sky.pfm: mapping angular for a 16x8 image, which looks like a lat-long map")
+add_test(NAME smoke.quiet_cache_not_written COMMAND sh -c "touch \"$1\" && \"$0\" render \
+--width 8 --height 6 --spp 1 --quiet --cache-dir \"$1\" -o \"$1.png\" 2>&1 >/dev/null" ${_kdt}
+         ${_tmp}/quiet_cache_file)
+set_tests_properties(smoke.quiet_cache_not_written PROPERTIES PASS_REGULAR_EXPRESSION
+  "^kdtrace: warning: kd-tree cache: cannot write to [^\n]*quiet_cache_file: not a writable directory; tree not cached\n$")
+
 # A tree written by `build -o` is used by `render --tree`, checked against the model like a
 # cache file (its parameters are the file's own).
 add_test(NAME smoke.tree_file_build COMMAND ${_kdt} build /usr/share/assimp/models/PLY/Wuson.ply

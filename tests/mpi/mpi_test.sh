@@ -523,7 +523,7 @@ worker_warnings)
         { echo "$out"; fail "the run failed"; }
     echo "$out"
     [ "$(grep -c 'cannot write to c' <<< "$out")" -eq 1 ] || fail "the workers' warning is not printed once"
-    grep -q "^kdtrace: ranks 1, 2 of 3: kd-tree cache: cannot write to c: not a writable directory; tree not cached$" \
+    grep -q "^kdtrace: ranks 1, 2 of 3: warning: kd-tree cache: cannot write to c: not a writable directory; tree not cached$" \
         <<< "$out" || fail "the workers' warning does not name them"
     # Which rank wrote a cache file and which loaded one is no news: here rank 0 loads what
     # it wrote above and the workers write their own; rank 0's line alone is printed.

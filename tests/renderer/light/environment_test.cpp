@@ -585,7 +585,7 @@ TEST(Environment, MappingThatContradictsTheImageShapeWarns) {
     auto light = make_environment_light(desc, [&](const std::string& l) { lines.push_back(l); });
     EXPECT_NE(light, nullptr);
     ASSERT_EQ(lines.size(), 1u);
-    EXPECT_EQ(lines[0], desc.file +
+    EXPECT_EQ(lines[0], "warning: " + desc.file +
                             ": mapping angular for a 16x8 image, which looks like a lat-long map "
                             "(2:1); angular maps are square");
     desc.mapping = EnvMapping::latlong;
