@@ -396,6 +396,34 @@ ImageInfo read_exr_info(const std::vector<uint8_t>& data, const std::string& pat
     });
 }
 
+void check_exr_pixels(const std::vector<uint8_t>& data, const std::string& path) {
+    guarded(path, "corrupt OpenEXR file", [&] {
+        const Imf::Header checked = read_header(data, path, nullptr);
+        MemoryIStream stream(data, path);
+        Imf::InputFile file(stream, 0);
+        if (file.header().dataWindow() != checked.dataWindow())
+            fail(path, "header read inconsistently");
+        // Every channel, of any name and sampling, into one scratch row (the y stride is 0):
+        // the library reads and decompresses every block, and only a row is allocated.
+        const Imath::Box2i dw = checked.dataWindow();
+        const int64_t w = int64_t(dw.max.x) - dw.min.x + 1;
+        std::vector<float> row(size_t(w) + 1);
+        Imf::FrameBuffer fb;
+        for (auto it = checked.channels().begin(); it != checked.channels().end(); ++it) {
+            const int xs = it.channel().xSampling, ys = it.channel().ySampling;
+            // Pixel x of this channel lands at base + (x / xs) * 4: row[0] for dw.min.x
+            // (which sanityCheck() made a multiple of xs).
+            const uintptr_t base = reinterpret_cast<uintptr_t>(row.data()) -
+                                   uintptr_t(intptr_t(dw.min.x / xs) * intptr_t(sizeof(float)));
+            fb.insert(it.name(), Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(base),
+                                            sizeof(float), 0, xs, ys));
+        }
+        if (fb.begin() == fb.end()) return;
+        file.setFrameBuffer(fb);
+        file.readPixels(dw.min.y, dw.max.y);
+    });
+}
+
 std::vector<uint8_t> encode_exr(const std::string& path, const ImageRGB& image,
                                 const ImageMetadata& metadata, ExrCompression compression) {
     set_library_limits();

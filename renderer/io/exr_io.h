@@ -45,6 +45,10 @@ ImageRGB load_exr(const std::vector<uint8_t>& data, const std::string& path,
 /// Reads an OpenEXR header only: size, compression, channels, string attributes.
 ImageInfo read_exr_info(const std::vector<uint8_t>& data, const std::string& path);
 
+/// Reads and decodes every channel's pixels (of any name, type and sampling) and discards
+/// them; throws kdt::Error naming path, as load_exr() does, for a truncated or corrupt file.
+void check_exr_pixels(const std::vector<uint8_t>& data, const std::string& path);
+
 /// Encodes image as 32-bit float R, G, B scanlines with the given compression and the
 /// metadata as string attributes; path only names errors. Throws kdt::Error for keys that
 /// OpenEXR reserves or cannot store, and for repeated keys.

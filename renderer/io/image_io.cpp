@@ -883,7 +883,11 @@ ImageMetadata read_exr_metadata(const std::string& path) {
 
 ImageInfo read_image_info(const std::string& path) {
     const std::vector<uint8_t> data = read_file(path);
-    if (is_exr(data)) return read_exr_info(data, path);
+    if (is_exr(data)) {
+        ImageInfo info = read_exr_info(data, path);
+        check_exr_pixels(data, path);  // as the other formats are decoded whole below
+        return info;
+    }
     ImageInfo info;
     auto starts = [&](const char* magic, size_t n) {
         return data.size() >= n && std::memcmp(data.data(), magic, n) == 0;

@@ -117,7 +117,8 @@ ImageMetadata read_png_metadata(const std::string& path);
 ImageMetadata read_exr_metadata(const std::string& path);
 
 /// Size, format, encoding and metadata of an image file (.exr, .png, .pfm, .hdr by content).
-/// Throws kdt::Error naming path as load_image() does.
+/// The pixels are decoded too: throws kdt::Error naming path as load_image() does, for a
+/// truncated or corrupt file as well (an EXR of any channels, not only those load_image reads).
 ImageInfo read_image_info(const std::string& path);
 
 }  // namespace kdt

@@ -217,6 +217,59 @@ TEST_F(ExrIoTest, TruncatedAndCorruptedFilesOfEveryCompressionAreErrors) {
     expect_truncated_and_corrupted_fail("tiled_piz.exr", test::exr_variant(tiled_piz));
 }
 
+/// The message of the kdt::Error read_image_info(file) throws, "" when it throws none.
+std::string info_error(const std::string& file) {
+    try {
+        read_image_info(file);
+    } catch (const Error& e) {
+        return e.what();
+    }
+    return "";
+}
+
+// `info` reads an EXR's pixels too: a file cut short behind an intact header (the offset
+// table points past its end) is an error, as load_image() gives, for channels of any name
+// and sampling -- not the header printed as if the file were fine.
+TEST_F(ExrIoTest, InfoOnAFileTruncatedBehindItsHeaderIsAnError) {
+    const ImageRGB img = random_image(40, 36, 5, 10.0f);
+    for (size_t c = 0; c < kExrCompressionNames.size(); ++c) {
+        const std::string file = path(std::string(kExrCompressionNames[c]) + ".exr");
+        write_exr(file, img, {{"kdtrace:seed", "1"}}, ExrCompression(c));
+        EXPECT_EQ(info_error(file), "") << file;
+        const std::vector<uint8_t> good = read_bytes(file);
+        for (const size_t cut : {good.size() - 1, good.size() * 3 / 4}) {
+            write_bytes(file, std::vector<uint8_t>(good.begin(), good.begin() + ptrdiff_t(cut)));
+            EXPECT_EQ(info_error(file).rfind(file + ": corrupt OpenEXR file: ", 0), 0u)
+                << file << " cut at " << cut << ": " << info_error(file);
+        }
+    }
+    // Channels load_image() does not read: a depth channel and 2x2 subsampled chroma.
+    const std::string file = path("zchroma.exr");
+    {
+        const int w = 16, h = 12;
+        Imf::Header header(w, h);
+        header.compression() = Imf::NO_COMPRESSION;
+        header.channels().insert("Z", Imf::Channel(Imf::FLOAT));
+        header.channels().insert("BY", Imf::Channel(Imf::HALF, 2, 2));
+        std::vector<float> z(size_t(w * h), 1.5f);
+        std::vector<half> by(size_t(w * h / 4), half(0.25f));
+        Imf::FrameBuffer fb;
+        fb.insert("Z", Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(z.data()), sizeof(float),
+                                  sizeof(float) * w));
+        fb.insert("BY", Imf::Slice(Imf::HALF, reinterpret_cast<char*>(by.data()), sizeof(half),
+                                   sizeof(half) * (w / 2), 2, 2));
+        Imf::OutputFile out(file.c_str(), header);
+        out.setFrameBuffer(fb);
+        out.writePixels(h);
+    }
+    EXPECT_EQ(info_error(file), "");
+    EXPECT_NE(read_image_info(file).encoding.find("channels BY (half) Z (float)"),
+              std::string::npos);
+    const std::vector<uint8_t> good = read_bytes(file);
+    write_bytes(file, std::vector<uint8_t>(good.begin(), good.end() - 1));
+    EXPECT_EQ(info_error(file).rfind(file + ": corrupt OpenEXR file: ", 0), 0u) << info_error(file);
+}
+
 /// Offset of the value of the header attribute `name` in an EXR file's bytes.
 size_t attribute_value(const std::vector<uint8_t>& bytes, const std::string& name) {
     size_t pos = 8;
