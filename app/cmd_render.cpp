@@ -215,6 +215,11 @@ void run(const RenderCommand& cmd) {
     char error_buf[32];
     std::snprintf(error_buf, sizeof error_buf, "%.4f", p.mean_relative_error);
     const std::string error_text = p.error_known ? error_buf : "unknown (below 2 spp)";
+    // A --tree file is the user's own, not the cache's.
+    const std::string tree_source = !prep.tree_from_cache ? ""
+                                    : o.scene.tree_file.empty()
+                                        ? " (cached)"
+                                        : " (from " + printable(o.scene.tree_file) + ")";
     std::printf(
         "render: %s: %dx%d, %.2f s, %.1f spp, %.2f Mrays/s (%llu rays: %llu camera, %llu bounce, "
         "%llu shadow; %.1f nodes, %.1f triangles per ray), est. rel. error %s, %llu non-finite "
@@ -224,8 +229,8 @@ void run(const RenderCommand& cmd) {
         (unsigned long long)c.bounce_rays, (unsigned long long)c.shadow_rays,
         double(c.nodes_visited) / double(std::max<uint64_t>(c.rays(), 1)),
         double(c.triangles_tested) / double(std::max<uint64_t>(c.rays(), 1)), error_text.c_str(),
-        (unsigned long long)c.nonfinite_dropped, prep.tree_seconds,
-        prep.tree_from_cache ? " (cached)" : "", printable(cmd.output).c_str());
+        (unsigned long long)c.nonfinite_dropped, prep.tree_seconds, tree_source.c_str(),
+        printable(cmd.output).c_str());
 }
 
 }  // namespace

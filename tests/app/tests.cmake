@@ -377,7 +377,7 @@ add_test(NAME smoke.tree_file_render COMMAND ${_kdt} render
          /usr/share/assimp/models/PLY/Wuson.ply --tree ${_tmp}/wuson_thesis.kdt --spp 1 --width 16
          --height 12 -o ${_tmp}/wuson_tree.png)
 set_tests_properties(smoke.tree_file_render PROPERTIES DEPENDS smoke.tree_file_build
-  PASS_REGULAR_EXPRESSION "tree [0-9.]+ s \\(cached\\)")
+  PASS_REGULAR_EXPRESSION "tree [0-9.]+ s \\(from [^)]*/wuson_thesis.kdt\\) -> ")
 # --no-cache (alone or with --tree FILE) leaves the cache directory ($KDT_CACHE_DIR/trees)
 # uncreated; a --tree file used with the cache gets a verified-stamp there.
 add_test(NAME smoke.tree_file_no_stamp COMMAND sh -c "k=\"$0\" t=\"$1\" d=\"$2\"; rm -rf \"$d\"; \
