@@ -74,6 +74,7 @@ void add_build_command(CLI::App& parent) {
                         "--cache-dir");
     cmd->callback([cmd] {
         interrupt::install();
+        interrupt::set_exit_notice("interrupted; no tree written");
         validate(params);
         warn_unused_tree_flags(*cmd, params, false);
         // Fail before a long build, not after it.
@@ -114,6 +115,7 @@ void add_build_command(CLI::App& parent) {
                         report.seconds, report.path.empty() ? "" : ": ",
                         printable(report.path).c_str());
         }
+        interrupt::set_exit_notice(nullptr);  // the tree is written (or was loaded)
         print_stats(*tree);
         std::printf("peak RSS %.1f MB\n", double(peak_rss_bytes()) / (1024.0 * 1024.0));
     });

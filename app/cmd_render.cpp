@@ -249,6 +249,8 @@ void add_render_command(CLI::App& parent) {
     add_dist_options(*sub, cmd.dist, cmd.options);
     sub->callback([sub] {
         interrupt::install();
+        // Until the render starts (which saves what it has); MPI ranks report through rank 0.
+        if (!cmd.dist.mpi) interrupt::set_exit_notice("interrupted while loading; nothing written");
         // Every rank of an --mpi render parses the same flags: rank 0 warns for all.
         if (!(cmd.dist.mpi && launcher_rank() > 0)) {
             warn_unused_tree_flags(*sub, cmd.options.tree, !cmd.options.scene.tree_file.empty());

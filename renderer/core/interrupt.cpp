@@ -22,7 +22,13 @@ Slot g_slots[kMaxTempFiles];
 std::atomic<int> g_signal{0};
 std::atomic<int> g_mode{int(Mode::exit_now)};
 std::atomic<bool> g_dying{false};
-static_assert(std::atomic<int>::is_always_lock_free, "the handler needs lock-free atomics");
+std::atomic<const char*> g_exit_notice{nullptr};
+// Whether stderr was a terminal when the handlers were installed (isatty() is not
+// async-signal-safe): a notice then starts on a new line.
+std::atomic<bool> g_stderr_tty{false};
+static_assert(std::atomic<int>::is_always_lock_free && std::atomic<bool>::is_always_lock_free &&
+                  std::atomic<const char*>::is_always_lock_free,
+              "the handler needs lock-free atomics");
 
 void write_stderr(const char* s) {
     // write(2) is async-signal-safe; a short or failed write of a notice is harmless.
@@ -52,16 +58,28 @@ void remove_registered_temps() {
     ::_exit(128 + sig);  // not reached unless the signal was somehow not fatal
 }
 
+// "kdtrace: SIGINT: <text>" on a line of its own. Only async-signal-safe calls.
+void write_notice(int sig, const char* text) {
+    if (g_stderr_tty.load()) write_stderr("\n");
+    write_stderr(sig == SIGINT ? "kdtrace: SIGINT: " : "kdtrace: SIGTERM: ");
+    write_stderr(text);
+    write_stderr("\n");
+}
+
 void handler(int sig) {
     int none = 0;
     const bool first = g_signal.compare_exchange_strong(none, sig);
     if (first && g_mode.load() == int(Mode::report)) return;
     if (first && g_mode.load() == int(Mode::finish_work)) {
-        write_stderr(sig == SIGINT ? "\nkdtrace: SIGINT: finishing the tiles in flight and saving "
-                                     "(interrupt again to quit at once)\n"
-                                   : "\nkdtrace: SIGTERM: finishing the tiles in flight and "
-                                     "saving (signal again to quit at once)\n");
+        write_notice(sig, sig == SIGINT
+                              ? "finishing the tiles in flight and saving (interrupt again to "
+                                "quit at once)"
+                              : "finishing the tiles in flight and saving (signal again to quit "
+                                "at once)");
         return;
+    }
+    if (first) {
+        if (const char* notice = g_exit_notice.load()) write_notice(sig, notice);
     }
     die(sig);
 }
@@ -73,9 +91,12 @@ void install(Mode mode) {
     install_handlers();
 }
 
+void set_exit_notice(const char* notice) { g_exit_notice.store(notice); }
+
 void install_handlers() {
     static std::once_flag once;
     std::call_once(once, [] {
+        g_stderr_tty.store(::isatty(STDERR_FILENO) == 1);
         for (int sig : {SIGINT, SIGTERM}) {
             struct sigaction old {};
             if (::sigaction(sig, nullptr, &old) == 0 && old.sa_handler == SIG_IGN) continue;

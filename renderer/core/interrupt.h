@@ -14,7 +14,9 @@ enum class Mode {
     /// loading, building, writing).
     exit_now,
     /// Only records the signal (requested() turns true) so that the work in flight can stop
-    /// cleanly and save what it has; a second signal then behaves as exit_now.
+    /// cleanly and save what it has, and says so on stderr (after a line break when stderr is a
+    /// terminal, to end the "^C" echo or a progress bar; none on a pipe or file); a second
+    /// signal then behaves as exit_now.
     finish_work,
     /// As finish_work, without the notice: the caller says what it keeps (an MPI rank, whose
     /// message rank 0 alone prints).
@@ -24,6 +26,11 @@ enum class Mode {
 /// Installs the SIGINT and SIGTERM handlers (install_handlers()) and sets the mode of the
 /// first signal.
 void install(Mode mode = Mode::exit_now);
+/// In exit_now mode, the first signal writes "kdtrace: SIGINT: <notice>" (or SIGTERM) on a
+/// line of its own to stderr before the process dies, e.g. "interrupted while loading; nothing
+/// written"; nullptr (the default) dies without a word. `notice` must stay valid for the
+/// process's life (a string literal).
+void set_exit_notice(const char* notice);
 /// Installs the handlers once, leaving the mode as it is (exit_now unless set). A signal the
 /// process inherited as ignored (nohup, a background job) stays ignored. TempFile calls it,
 /// so that every temporary file is covered even in a command that never calls install().

@@ -3,8 +3,9 @@
 # Cases: render_int, render_term (the first signal saves the image with the samples so far,
 # marked interrupted, exit 130/143), frames_int (a --frames sequence keeps its frames and the
 # one in flight, then stops), render_twice (a second signal quits at once, writing
-# nothing), build_int (a signal while the tree file is written). Every case then checks that
-# no temporary file is left in the output directory.
+# nothing), build_int (a signal while the tree file is written), load_int (a signal while the
+# scene's tree is built: one line says nothing was written). Every case then checks that no
+# temporary file is left in the output directory.
 set -u
 kdt=$1 case=$2 dir=$3
 model=/usr/share/assimp/models/PLY/cube.ply
@@ -63,8 +64,30 @@ render_int | render_term)
     [ -s "$dir/out.png" ] || fail "no image written"
     grep -aq "kdtrace:interrupted.SIG$sig at [0-9.]* spp" "$dir/out.png" ||
         fail "image lacks kdtrace:interrupted = SIG$sig at N spp"
-    grep -q "finishing the tiles in flight" "$dir/log" || fail "no notice printed"
+    grep -q "^kdtrace: SIG$sig: finishing the tiles in flight" "$dir/log" || fail "no notice printed"
     grep -q "render: .* -> $dir/out.png" "$dir/log" || fail "no render summary"
+    # On a file (no terminal, so no progress bar) the notice needs no line break before it.
+    ! grep -qx '' "$dir/log" || fail "an empty line in the output"
+    ;;
+load_int)
+    # The default scene's tree (327682 triangles) built on one thread takes seconds; a signal
+    # that came too late (the render had started) is retried.
+    hit=0
+    for attempt in 1 2 3 4 5; do
+        start render --no-cache --threads 1 --spp 1 --width 8 --height 6 -o "$dir/out.png"
+        sleep 0.3
+        kill -s INT $pid
+        wait $pid
+        rc=$?
+        grep -q "finishing the tiles" "$dir/log" || { hit=1; break; }
+        rm -f "$dir/out.png"
+        echo "attempt $attempt: the render had started; again"
+    done
+    [ $hit -eq 1 ] || fail "never interrupted the load in 5 attempts"
+    [ $rc -eq 130 ] || fail "exit status $rc, expected 130"
+    [ ! -e "$dir/out.png" ] || fail "an image was written"
+    [ "$(cat "$dir/log")" = "kdtrace: SIGINT: interrupted while loading; nothing written" ] ||
+        fail "not the one line expected"
     ;;
 render_twice)
     # Many samples per pass and pixel on one thread: the tile in flight after the first signal
@@ -125,6 +148,7 @@ build_int)
     [ $hit -eq 1 ] || fail "never caught the temporary file in 10 attempts"
     [ $rc -eq 130 ] || fail "exit status $rc, expected 130"
     [ ! -e "$dir/wuson.kdt" ] || fail "a tree file was written"
+    grep -q "^kdtrace: SIGINT: interrupted; no tree written$" "$dir/log" || fail "no notice printed"
     ;;
 *) fail "unknown case $case" ;;
 esac
