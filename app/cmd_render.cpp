@@ -26,6 +26,7 @@
 #include "renderer/render/prepare.h"
 #include "renderer/render/session.h"
 #include "renderer/render/settings.h"
+#include "renderer/scene/views.h"
 
 namespace kdt::app {
 
@@ -40,6 +41,7 @@ struct RenderCommand {
     /// Files the options were read from (--session, --views): inputs the output must not be.
     std::vector<std::string> option_files;
     bool env_rotation_given = false;  // --env-rotation on the command line
+    std::string view, views;          // --view and --views as given (empty: not given)
 };
 
 std::string human_seconds(double s) {
@@ -158,6 +160,14 @@ void run(const RenderCommand& cmd) {
                      "a constant colour, not a map\n");
     }
     check_output(cmd.output, scene_input_files(prep.scene), "the image");
+    if (!cmd.view.empty()) {
+        const std::string views = views_file_path(cmd.views);
+        const std::string scene =
+            o.scene.scene_path.empty() ? "the built-in default scene" : o.scene.scene_path;
+        const std::string w = view_model_warning(views, load_views(views), cmd.view, scene,
+                                                 scene_input_files(prep.scene));
+        if (!w.empty()) std::fprintf(stderr, "kdtrace: warning: %s\n", w.c_str());
+    }
 
     RenderSession session(prep.snapshot, o.trace, o.film);
     session.set_publishing(false);  // nothing reads the image before the render ends
@@ -260,6 +270,8 @@ void add_render_command(CLI::App& parent) {
         // With --mpi or --frames, plan_frames() reads it (with --mpi, in step on every rank).
         if (!dist_requested(cmd.dist)) check_views_file(*sub);
         cmd.env_rotation_given = sub->count("--env-rotation") > 0;
+        cmd.view = sub->count("--view") > 0 ? sub->get_option("--view")->as<std::string>() : "";
+        cmd.views = sub->count("--views") > 0 ? sub->get_option("--views")->as<std::string>() : "";
         cmd.option_files.clear();
         for (const char* flag : {"--session", "--views"}) {
             for (const std::string& file : sub->get_option(flag)->results())

@@ -73,6 +73,10 @@ ViewSet load_views(const std::string& path) {
     check_keys(path, "", doc,
                {"description", "model", "width", "height", "samples_per_pixel", "seed", "views"});
     ViewSet set;
+    if (doc.contains("model")) {
+        if (!doc["model"].is_string()) bad(path, "/model", "expected a string");
+        set.model = doc["model"].get<std::string>();
+    }
     if (doc.contains("width")) set.width = positive_int(path, "/width", doc["width"], 16384);
     if (doc.contains("height")) set.height = positive_int(path, "/height", doc["height"], 16384);
     if (doc.contains("samples_per_pixel")) {
@@ -117,8 +121,30 @@ ViewSet load_views(const std::string& path) {
     return set;
 }
 
+std::string views_file_path(const std::string& views_path) {
+    return views_path.empty() ? find_asset("views/dragon.json") : views_path;
+}
+
+std::string view_model_warning(const std::string& views_path, const ViewSet& set,
+                               const std::string& view, const std::string& scene,
+                               const std::vector<std::string>& files) {
+    // The name up to its first dot: dragon_vrip.ply.gz -> dragon_vrip.
+    auto stem = [](const std::string& file) {
+        const std::string name = fs::path(file).filename().string();
+        return name.substr(0, name.find('.'));
+    };
+    const std::string model = stem(set.model);
+    if (model.empty()) return "";
+    for (const std::string& f : files) {
+        if (stem(f).rfind(model, 0) == 0) return "";
+    }
+    return printable("--view " + view + ": the views file " + views_path +
+                     " places its cameras for " + set.model + ", not for " + scene +
+                     "; the view may not frame it");
+}
+
 CameraDesc find_view(const std::string& views_path, const std::string& name) {
-    const std::string path = views_path.empty() ? find_asset("views/dragon.json") : views_path;
+    const std::string path = views_file_path(views_path);
     const ViewSet set = load_views(path);
     std::string names;
     for (const View& v : set.views) {

