@@ -69,10 +69,9 @@ void draw_progress(const RenderProgress& p, double pixels) {
     std::fflush(stderr);
 }
 
-// A command line that renders the same image again: every option that differs from its
-// default spelled out by its own flag, and the sample count that was reached (exact for
-// non-adaptive renders, whatever stopped them). `skip` names flags not to write (a flag
-// shared by two groups is written once, from the first).
+// Appends to a command line every option of `s` that differs from its default, spelled out
+// by its own flag. `skip` names flags not to write (a flag shared by two groups is written
+// once, from the first).
 template <class S>
 void append_flags(std::string& c, const S& s, std::span<const Field<S>> fields,
                   std::initializer_list<const char*> skip = {}) {
@@ -98,10 +97,36 @@ std::string vec3_text(const Vec3f& v) {
            detail::number_text(v.z);
 }
 
+// The options that render the same image again, as `o` rendered it with `spp` samples per
+// pixel reached: the stop conditions that decided it (exact for non-adaptive renders, whatever
+// stopped them), so that the image's command and its session (kdtrace:params) agree.
+RenderOptions reproducing_options(const RenderOptions& o, double spp) {
+    RenderOptions r = o;
+    StopConditions& stop = r.stop;
+    stop = StopConditions{};
+    stop.max_spp = o.stop.max_spp;  // the per-pixel cap shapes adaptive and --error renders
+    if (o.film.adaptive && o.stop.error > 0.0f) {
+        stop.error = o.stop.error;  // the error target sets the threshold (resolve())
+        stop.spp = o.stop.spp;      // a budget given with it, which may stop the render first
+        // resolve() turns these on again from the target; without it (a session given other
+        // stop flags) the render is not adaptive, as one from the same flags.
+        r.film.adaptive_threshold = FilmParams{}.adaptive_threshold;
+        r.film.adaptive = false;
+    } else if (o.film.adaptive && o.stop.spp > 0 && o.stop.seconds <= 0.0 &&
+               !interrupt::requested()) {
+        stop.spp = o.stop.spp;  // the budget decides an adaptive render, not the mean reached
+    } else {
+        // A time limit or a signal stopped it where the run happened to be.
+        stop.spp = std::max(1, int(std::lround(spp)));
+    }
+    return r;
+}
+
 // `camera` is the camera the image was rendered with: spelled out whenever the options
 // replace any part of the scene's (--view, --eye, ..., a session's camera), since a views
-// file may change and --view is resolved when the options are parsed.
-std::string rerender_command(const RenderOptions& o, const CameraDesc& camera, double spp) {
+// file may change and --view is resolved when the options are parsed. `o` is
+// reproducing_options()'s.
+std::string rerender_command(const RenderOptions& o, const CameraDesc& camera) {
     std::string c = "kdtrace render";
     const SceneOptions& sc = o.scene;
     if (!sc.scene_path.empty()) c += " " + shell_word(sc.scene_path);
@@ -121,22 +146,8 @@ std::string rerender_command(const RenderOptions& o, const CameraDesc& camera, d
         append_flags(c, o.tree, kd_tree_fields(), {"--threads"});
     }
     append_flags(c, o.trace, trace_fields());
-    StopConditions stop;
-    stop.max_spp = o.stop.max_spp;  // the per-pixel cap shapes adaptive and --error renders
-    FilmParams film = o.film;
-    if (film.adaptive && o.stop.error > 0.0f) {
-        stop.error = o.stop.error;  // the error target sets the threshold (resolve())
-        stop.spp = o.stop.spp;      // a budget given with it, which may stop the render first
-        film.adaptive_threshold = FilmParams{}.adaptive_threshold;
-        film.adaptive = false;
-    } else if (film.adaptive && o.stop.spp > 0 && o.stop.seconds <= 0.0 &&
-               !interrupt::requested()) {
-        stop.spp = o.stop.spp;  // the budget decides an adaptive render, not the mean reached
-    } else {
-        stop.spp = int(std::lround(spp));
-    }
-    append_flags(c, film, film_fields());
-    append_flags(c, stop, stop_fields());
+    append_flags(c, o.film, film_fields());
+    append_flags(c, o.stop, stop_fields());
     return c;
 }
 
@@ -205,14 +216,17 @@ void run(const RenderCommand& cmd) {
     meta.emplace_back("kdtrace:camera", camera_to_json(snap.camera));
     // The tree's parameters are those of the tree used: a --tree file's, not the flags'.
     // With absolute file names, the image is a session (`--session IMAGE`) from anywhere.
-    RenderOptions used = o;
+    // Its stop conditions are the command's: a --time render's session asks for the spp
+    // reached, so that `--session IMAGE` renders this image as the command does.
+    const RenderOptions again = reproducing_options(o, spp);
+    RenderOptions used = again;
     used.tree = snap.tree_params;
     make_file_names_absolute(used.scene);
     meta.emplace_back("kdtrace:params", options_to_json(used));
     meta.emplace_back("kdtrace:seed", std::to_string(o.trace.seed));
     meta.emplace_back("kdtrace:spp", std::to_string(spp));
     meta.emplace_back("kdtrace:passes", std::to_string(p.passes));
-    meta.emplace_back("kdtrace:command", rerender_command(o, snap.camera_desc, spp));
+    meta.emplace_back("kdtrace:command", rerender_command(again, snap.camera_desc));
     if (interrupt::requested())
         meta.emplace_back("kdtrace:interrupted", std::string(interrupt::signal_name()) + " at " +
                                                      std::to_string(spp) + " spp");
@@ -261,6 +275,7 @@ void add_render_command(CLI::App& parent) {
         interrupt::install();
         // Until the render starts (which saves what it has); MPI ranks report through rank 0.
         if (!cmd.dist.mpi) interrupt::set_exit_notice("interrupted while loading; nothing written");
+        if (sub->count("--session") > 0) command_line_stop(*sub, cmd.options.stop);
         // Every rank of an --mpi render parses the same flags: rank 0 warns for all.
         if (!(cmd.dist.mpi && launcher_rank() > 0)) {
             warn_unused_tree_flags(*sub, cmd.options.tree, !cmd.options.scene.tree_file.empty());

@@ -242,6 +242,7 @@ RenderOptions session_frame_options(const DistArgs& a, const std::string& path) 
     for (CLI::Option* opt : a.command->get_options()) {
         if (opt->count() > 0) opt->run_callback();
     }
+    command_line_stop(*a.command, target.stop);
     RenderOptions o = resolve(target);
     try {
         validate(o);

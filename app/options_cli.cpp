@@ -265,6 +265,18 @@ void add_render_options(CLI::App& app, RenderOptions& o) {
     add_tree_options(app, o.tree, {"--threads"});
 }
 
+void command_line_stop(const CLI::App& app, StopConditions& stop) {
+    const bool given =
+        app.count("--spp") > 0 || app.count("--time") > 0 || app.count("--error") > 0;
+    if (!given) return;
+    StopConditions replaced;
+    for (const Field<StopConditions>& f : stop_fields()) {
+        if (f.flag && app.count(f.flag) > 0)
+            set_field_number(f.at(replaced), field_number(f.at(stop)));
+    }
+    stop = replaced;
+}
+
 namespace {
 
 template <class S>

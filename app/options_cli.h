@@ -42,6 +42,12 @@ void add_scene_options(CLI::App& app, SceneOptions& scene);
 /// tree the same).
 void add_render_options(CLI::App& app, RenderOptions& options);
 
+/// The stop conditions of a session (--session, --frames sessions:) with `app`'s command
+/// line: when it gives a stop flag (--spp, --time, --error), that replaces the session's whole
+/// stop block, so that `--session IMAGE --spp 200` is not still cut by the image's --time;
+/// the stop fields it does not give take their defaults. Else `stop` is left as it is.
+void command_line_stop(const CLI::App& app, StopConditions& stop);
+
 /// Warns on stderr about kd-tree flags given on `app`'s command line that cannot change the
 /// tree: those of the builder not chosen (kd_tree_field_applies()), and with `tree_file` (a
 /// --tree, whose parameters are the file's) all of them but --threads.

@@ -36,6 +36,19 @@ same tree_and_flags --tree t.kdt --builder sah --q 0.5 --threads 1
 same error_cap --error 0.001 --max-spp 8 --threads 1
 same adaptive_cap --adaptive --max-spp 2 --threads 1
 
+# A --time render stops where the run happens to be: its session asks for the spp it reached,
+# as its command does, so that `--session IMAGE` alone renders the same image as the command.
+"$kdt" render "$model" --width 16 --height 12 --time 0.3 --no-cache --quiet -o timed.exr \
+    >/dev/null || fail "timed: render"
+params=$("$kdt" info --all timed.exr | sed -n 's/^kdtrace:params: //p')
+grep -q '"stop":{[^}]*"seconds":0.0' <<<"$params" || fail "timed: the session keeps --time: $params"
+"$kdt" render --session timed.exr --quiet -o timed_session.pfm >/dev/null ||
+    fail "timed: render --session"
+command=$("$kdt" info timed.exr | sed -n 's/^kdtrace:command: //p')
+eval "${command/#kdtrace /\"\$kdt\" } --quiet -o timed_command.pfm" >/dev/null ||
+    fail "timed: the stored command fails: $command"
+cmp -s timed_session.pfm timed_command.pfm || fail "timed: --session and $command differ"
+
 params=$("$kdt" info --all tree_and_flags.exr | sed -n 's/^kdtrace:params: //p')
 grep -q '"tree":{"builder":"thesis",[^}]*"n0":3,"q":0.7,' <<<"$params" ||
     fail "the metadata does not describe the tree file: $params"

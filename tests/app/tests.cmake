@@ -296,6 +296,18 @@ add_test(NAME smoke.session_bad_key COMMAND ${_kdt} render --session ${_tmp}/ses
 file(WRITE ${_tmp}/session_bad.json "{\"trace\": {\"max_depht\": 2}}")
 set_tests_properties(smoke.session_bad_key PROPERTIES
   PASS_REGULAR_EXPRESSION "session_bad.json: /trace/max_depht: unknown key")
+# A stop flag given with a session replaces its whole stop block: --spp 4 is not cut short by
+# the session's time limit (one pass) nor by its --max-spp 2; the same for --frames sessions:.
+file(WRITE ${_tmp}/session_time.json "{\"stop\": {\"seconds\": 1e-9, \"max_spp\": 2}}\n")
+add_test(NAME smoke.session_stop_replaced COMMAND ${_kdt} render --session ${_tmp}/session_time.json
+         --spp 4 --width 16 --height 12 --quiet -o ${_tmp}/session_time.pfm)
+set_tests_properties(smoke.session_stop_replaced PROPERTIES
+  PASS_REGULAR_EXPRESSION "render: [^\n]*, 4.0 spp,")
+add_test(NAME smoke.session_frames_stop_replaced COMMAND sh -c "\"$0\" render --frames \
+sessions:\"$1/session_time.json\" --spp 4 --width 16 --height 12 --quiet -o \"$1/stop.exr\" && \
+\"$0\" info \"$1/stop_session_time.exr\"" ${_kdt} ${_tmp})
+set_tests_properties(smoke.session_frames_stop_replaced PROPERTIES
+  PASS_REGULAR_EXPRESSION "kdtrace:spp: 4.000000")
 
 # Camera flags override the scene's camera; a malformed one is an error naming the flag.
 add_test(NAME smoke.camera_flags COMMAND ${_kdt} render --eye 0,1,5 --target 0,0,0 --up 0,1,0
