@@ -227,9 +227,17 @@ void run(const RenderCommand& cmd) {
     meta.emplace_back("kdtrace:spp", std::to_string(spp));
     meta.emplace_back("kdtrace:passes", std::to_string(p.passes));
     meta.emplace_back("kdtrace:command", rerender_command(again, snap.camera_desc));
-    if (interrupt::requested())
+    // A signal in the first pass leaves the tiles it did not reach without samples: black.
+    const size_t unsampled = interrupt::requested() ? unsampled_pixels(film) : 0;
+    const std::string unsampled_text = unsampled > 0 ? std::to_string(unsampled) + " of " +
+                                                           std::to_string(film.pixel_count()) +
+                                                           " pixels have no samples (black)"
+                                                     : "";
+    if (interrupt::requested()) {
         meta.emplace_back("kdtrace:interrupted", std::string(interrupt::signal_name()) + " at " +
-                                                     std::to_string(spp) + " spp");
+                                                     std::to_string(spp) + " spp" +
+                                                     (unsampled > 0 ? "; " + unsampled_text : ""));
+    }
     ToneParams tone;
     tone.exposure = o.film.exposure;
     tone.curve = o.film.tonemap;
@@ -247,13 +255,14 @@ void run(const RenderCommand& cmd) {
     std::printf(
         "render: %s: %dx%d, %.2f s, %.1f spp, %.2f Mrays/s (%llu rays: %llu camera, %llu bounce, "
         "%llu shadow; %.1f nodes, %.1f triangles per ray), est. rel. error %s, %llu non-finite "
-        "dropped, tree %.2f s%s -> %s\n",
+        "dropped, tree %.2f s%s%s -> %s\n",
         scene.empty() ? "default scene" : printable(scene).c_str(), film.width(), film.height(),
         p.seconds, spp, mrays, (unsigned long long)c.rays(), (unsigned long long)c.camera_rays,
         (unsigned long long)c.bounce_rays, (unsigned long long)c.shadow_rays,
         double(c.nodes_visited) / double(std::max<uint64_t>(c.rays(), 1)),
         double(c.triangles_tested) / double(std::max<uint64_t>(c.rays(), 1)), error_text.c_str(),
         (unsigned long long)c.nonfinite_dropped, prep.tree_seconds, tree_source.c_str(),
+        unsampled > 0 ? (", interrupted: " + unsampled_text).c_str() : "",
         printable(cmd.output).c_str());
 }
 

@@ -458,8 +458,15 @@ void write_film(const FramePlan& f, const Film& film, const RenderSnapshot& snap
     meta.emplace_back("kdtrace:spp", std::to_string(spp));
     if (passes >= 0) meta.emplace_back("kdtrace:passes", std::to_string(passes));
     if (partial) {
-        meta.emplace_back("kdtrace:interrupted", std::string(interrupt::signal_name()) + " at " +
-                                                     std::to_string(spp) + " spp");
+        // A signal in the first pass leaves the tiles it did not reach black.
+        const size_t unsampled = unsampled_pixels(film);
+        meta.emplace_back(
+            "kdtrace:interrupted",
+            std::string(interrupt::signal_name()) + " at " + std::to_string(spp) + " spp" +
+                (unsampled > 0
+                     ? "; " + std::to_string(unsampled) + " of " +
+                           std::to_string(film.pixel_count()) + " pixels have no samples (black)"
+                     : ""));
     }
     if (!f.name.empty()) meta.emplace_back("kdtrace:frame", f.name);
     meta.emplace_back("kdtrace:distribution", how);

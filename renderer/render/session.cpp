@@ -426,7 +426,17 @@ int auto_samples_per_pass(const StopConditions& stop, int last, double seconds, 
 
 int next_samples_per_pass(const RenderSession& session, const StopConditions& stop, int last,
                           double seconds, const RenderProgress& p) {
-    if (session.trace_params().samples_per_pass != 0) return 0;
+    const int explicit_per_pass = session.trace_params().samples_per_pass;
+    if (explicit_per_pass != 0) {
+        // A pass ends only at its last tile: one larger than the time left would overrun the
+        // limit many times over. The cut pass, like the first one (first_samples_per_pass()),
+        // changes an adaptive image, which a time limit leaves to the run anyway.
+        const double per_sample = seconds / double(last > 0 ? last : explicit_per_pass);
+        if (stop.seconds <= 0.0 || !(per_sample > 0.0)) return 0;
+        const double fits = std::floor(0.5 * (stop.seconds - p.seconds) / per_sample);
+        if (fits >= double(explicit_per_pass)) return 0;
+        return std::max(1, int(fits));
+    }
     const double pixels = double(session.film().pixel_count());
     last = std::max(last, 1);
     if (!session.film_params().adaptive)
@@ -439,6 +449,14 @@ int next_samples_per_pass(const RenderSession& session, const StopConditions& st
     StopConditions warm = stop;
     warm.error = 0.0f;  // the error target is the stopping rule's, not a sample count
     return std::min(auto_samples_per_pass(warm, last, seconds, pixels, p), int(left));
+}
+
+size_t unsampled_pixels(const Film& film) {
+    size_t n = 0;
+    for (int y = 0; y < film.height(); ++y) {
+        for (int x = 0; x < film.width(); ++x) n += film.next_sample_index(x, y) == 0 ? 1 : 0;
+    }
+    return n;
 }
 
 RenderProgress run_render(RenderSession& session, const StopConditions& stop,

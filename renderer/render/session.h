@@ -207,27 +207,35 @@ struct RenderProgress {
 inline constexpr int kMaxAutoSamplesPerPass = 16;
 
 /// The samples per pixel of a render's first pass, as RenderSession::render_pass()'s
-/// per_pass: 1 when samples_per_pass is 0 (automatic), else 0 (the session's own), except
-/// that with adaptive sampling a samples_per_pass above stop.spp is cut to stop.spp: the
-/// first pass samples every pixel, so a larger one would spend the spp budget many times
-/// over before any pixel could stop (--spp 1 --spp-per-pass 65536 drawing 65536 spp).
+/// per_pass: 1 when samples_per_pass is 0 (automatic), without adaptive sampling (the image
+/// does not depend on the pass sizes) and for a time limit; else 0 (the session's own),
+/// except that a samples_per_pass above stop.spp is cut to stop.spp: the first adaptive
+/// pass samples every pixel, so a larger one would spend the spp budget many times over
+/// before any pixel could stop (--spp 1 --spp-per-pass 65536 drawing 65536 spp). A first
+/// pass of 1 spp gives every pixel a sample soon, so that a time limit or an interrupt does
+/// not leave whole tiles unsampled behind a large --spp-per-pass.
 inline int first_samples_per_pass(const RenderSession& session, const StopConditions& stop = {}) {
     const int per_pass = session.trace_params().samples_per_pass;
-    if (per_pass == 0) return 1;
-    if (session.film_params().adaptive && stop.spp > 0 && per_pass > stop.spp) return stop.spp;
+    if (per_pass == 0 || !session.film_params().adaptive || stop.seconds > 0.0) return 1;
+    if (stop.spp > 0 && per_pass > stop.spp) return stop.spp;
     return 0;
 }
 
 /// The per_pass of the next pass after one of `last` samples per pixel that took `seconds`,
-/// with `p` the render's progress after it (samples, seconds, error): 0 unless
-/// samples_per_pass is 0 (automatic). Then, without adaptive sampling, at most
-/// kMaxAutoSamplesPerPass, the samples left to an spp target, about a second of work, half
-/// of the time left to a time target, and for an error target a quarter of the samples the
-/// error's 1/sqrt(n) decay predicts (1 while no error is known); the image does not depend
-/// on the pass sizes. With adaptive sampling, the warm-up to adaptive_min_spp in such passes,
-/// ending exactly at the minimum, then 0 (the film sizes the passes).
+/// with `p` the render's progress after it (samples, seconds, error). With samples_per_pass
+/// 0 (automatic), without adaptive sampling, at most kMaxAutoSamplesPerPass, the samples
+/// left to an spp target, about a second of work, half of the time left to a time target,
+/// and for an error target a quarter of the samples the error's 1/sqrt(n) decay predicts (1
+/// while no error is known); the image does not depend on the pass sizes. With adaptive
+/// sampling, the warm-up to adaptive_min_spp in such passes, ending exactly at the minimum,
+/// then 0 (the film sizes the passes). With an explicit samples_per_pass, 0 (the session's
+/// own), or for a time target at most half of the time left, as automatic passes.
 int next_samples_per_pass(const RenderSession& session, const StopConditions& stop, int last,
                           double seconds, const RenderProgress& p);
+
+/// Pixels of `film` that drew no sample (kept or dropped): after a cancelled first pass, the
+/// tiles it did not reach, written black.
+size_t unsampled_pixels(const Film& film);
 
 /// Runs passes until a stop condition holds (or cancel). Calls progress after each pass.
 /// With samples_per_pass 0 and no adaptive sampling, the first pass takes 1 sample per

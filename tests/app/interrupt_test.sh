@@ -1,7 +1,8 @@
 #!/bin/bash
 # SIGINT and SIGTERM against the real executable: usage interrupt_test.sh KDTRACE CASE WORKDIR.
 # Cases: render_int, render_term (the first signal saves the image with the samples so far,
-# marked interrupted, exit 130/143), frames_int (a --frames sequence keeps its frames and the
+# marked interrupted, exit 130/143), render_int_pass (the same with a huge --spp-per-pass,
+# leaving no pixel unsampled), frames_int (a --frames sequence keeps its frames and the
 # one in flight, then stops), render_twice (a second signal quits at once, writing
 # nothing), build_int (a signal while the tree file is written), load_int (a signal while the
 # scene's tree is built: one line says nothing was written). Every case then checks that no
@@ -93,7 +94,11 @@ render_twice)
     # Many samples per pass and pixel on one thread: the tile in flight after the first signal
     # takes seconds (256M samples; most of the cube's camera rays miss and are cheap), so the
     # second signal arrives while the render is still finishing it.
-    render --spp-per-pass 1000000 --max-spp 1000000
+    # No time limit, which would cut the passes.
+    start render "$model" --spp 1000000 --spp-per-pass 1000000 --max-spp 1000000 \
+        --width 64 --height 48 --threads 1 --cache-dir "$dir/cache" -o "$dir/out.png"
+    wait_for_log "kd-tree cache"
+    sleep 0.5
     kill -s INT $pid
     sleep 0.3
     kill -0 $pid 2>/dev/null || fail "the first signal did not leave the render finishing its tiles"
@@ -102,6 +107,22 @@ render_twice)
     rc=$?
     [ $rc -eq 130 ] || fail "exit status $rc, expected 130"
     [ ! -e "$dir/out.png" ] || fail "the second signal did not quit at once: an image was written"
+    ;;
+render_int_pass)
+    # An explicit pass size far beyond what a signal leaves time for: the first pass still
+    # takes 1 sample per pixel, so no pixel of the image written is left without samples.
+    start render "$model" --spp 1000000 --spp-per-pass 20000 --max-spp 1000000 \
+        --width 64 --height 48 --threads 1 --cache-dir "$dir/cache" -o "$dir/out.exr"
+    wait_for_log "kd-tree cache"
+    sleep 0.5
+    kill -s INT $pid
+    wait $pid
+    rc=$?
+    [ $rc -eq 130 ] || fail "exit status $rc, expected 130"
+    interrupted=$("$kdt" info "$dir/out.exr" | grep '^kdtrace:interrupted: ') ||
+        fail "image lacks kdtrace:interrupted"
+    grep -q "^kdtrace:interrupted: SIGINT at [0-9.]* spp$" <<<"$interrupted" ||
+        fail "pixels were left unsampled: $interrupted"
     ;;
 frames_int)
     # A sequence stops at the first signal: the frame in flight is written with the samples

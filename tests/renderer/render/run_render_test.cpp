@@ -158,6 +158,57 @@ TEST(RunRender, SampleBudgetBelowOnePerPixelGoesToTheFirstPixels) {
     }
 }
 
+// With an explicit pass size and no adaptive sampling the first pass takes 1 sample per pixel:
+// an interrupt or a time limit after it leaves no pixel unsampled (--spp-per-pass 4096 left
+// most tiles black). The image is that of any pass size.
+TEST(RunRender, ExplicitPassSizeStartsWithOneSamplePerPixel) {
+    StopConditions stop;
+    stop.spp = 9;
+    std::vector<float> images[2];
+    for (int k = 0; k < 2; ++k) {
+        TraceParams tp;
+        tp.samples_per_pass = k == 0 ? 4096 : 1;
+        RenderSession s(scene_snapshot(), tp, FilmParams{});
+        EXPECT_EQ(first_samples_per_pass(s, stop), 1);
+        std::vector<RenderProgress> seen;
+        run_render(s, stop, [&](const RenderProgress& p) { seen.push_back(p); });
+        ASSERT_FALSE(seen.empty());
+        EXPECT_EQ(seen.front().samples, 24u * 16u) << "--spp-per-pass " << tp.samples_per_pass;
+        EXPECT_EQ(seen.back().samples, 9u * 24u * 16u);
+        EXPECT_EQ(seen.size(), k == 0 ? 2u : 9u);
+        images[k] = s.film().linear_rgb();
+    }
+    ASSERT_EQ(images[0].size(), images[1].size());
+    EXPECT_EQ(0, std::memcmp(images[0].data(), images[1].data(), images[0].size() * 4));
+}
+
+// A time limit cuts explicit passes to half the time left, as automatic ones: a pass of 1
+// sample that took 0.1 s with 0.3 s left is followed by one of 1, not 4096 (--time 1
+// --spp-per-pass 256 ran 8.7 s). Adaptive passes only under a time limit: their size
+// changes the image.
+TEST(RunRender, TimeLimitCutsExplicitPasses) {
+    for (const bool adaptive : {false, true}) {
+        TraceParams tp;
+        tp.samples_per_pass = 4096;
+        FilmParams fp;
+        fp.adaptive = adaptive;
+        RenderSession s(scene_snapshot(), tp, fp);
+        StopConditions timed;
+        timed.seconds = 1.0;
+        RenderProgress p;
+        p.seconds = 0.7;
+        EXPECT_EQ(first_samples_per_pass(s, timed), 1);
+        EXPECT_EQ(next_samples_per_pass(s, timed, 1, 0.1, p), 1);
+        p.seconds = 0.2;
+        EXPECT_EQ(next_samples_per_pass(s, timed, 1, 0.01, p), 40);
+        EXPECT_EQ(next_samples_per_pass(s, timed, 1, 1e-6, p), 0);  // 4096 fits
+        StopConditions spp;
+        spp.spp = 8192;
+        EXPECT_EQ(first_samples_per_pass(s, spp), adaptive ? 0 : 1);
+        EXPECT_EQ(next_samples_per_pass(s, spp, 1, 100.0, p), 0);
+    }
+}
+
 TEST(RunRender, ErrorTargetWithoutAdaptivityReachesFullOnlyWhenDone) {
     TraceParams tp;
     StopConditions stop;
