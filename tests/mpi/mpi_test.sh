@@ -588,5 +588,23 @@ bench_no_baseline)
     grep -q '^turntable, 3 ranks: [0-9.]* s against the ideal [0-9.]* s (1 rank / 3): [0-9.]*x; ' <<< "$out" ||
         fail "--ranks 3,1: the turntable line"
     echo "ok: bench mpi without a 1-rank run prints no speedup" ;;
+threads_default)
+    # Without --threads each rank takes its share of the node's cores, not all of them (ranks x
+    # cores threads spin-waiting at every pass's end); the image is the same. Unbound, so
+    # that every rank sees every core.
+    "$kdtrace" "${common[@]}" -o ref.pfm > /dev/null || fail "single-process render"
+    args=(render "$model" --no-cache --width 72 --height 40 --spp 5 --spp-per-pass 2 --seed 11)
+    out=$(timeout -k 5 100 "$mpiexec" --oversubscribe --allow-run-as-root --bind-to none -np 3 \
+        "$kdtrace" "${args[@]}" --mpi -o mpi.pfm 2>&1) || { echo "$out"; fail "the run failed"; }
+    echo "$out"
+    cores=$(nproc)
+    each=$((cores / 3 > 0 ? cores / 3 : 1))
+    grep -q "^kdtrace: --mpi: 3 ranks on this node's $cores cores: $each threads\? each" <<< "$out" ||
+        fail "no share of the cores"
+    cmp ref.pfm mpi.pfm || fail "the image differs"
+    out=$(timeout -k 5 100 "$mpiexec" --oversubscribe --allow-run-as-root --bind-to none -np 3 \
+        "$kdtrace" "${args[@]}" --threads 1 --mpi -o mpi.pfm 2>&1) || { echo "$out"; fail "--threads 1"; }
+    grep -q "^kdtrace: --mpi:" <<< "$out" && fail "--threads given, and still shared"
+    echo "ok: the ranks share the cores" ;;
 *) fail "unknown case $case_name" ;;
 esac
