@@ -151,6 +151,30 @@ std::string rerender_command(const RenderOptions& o, const CameraDesc& camera) {
     return c;
 }
 
+// An adaptive render whose spp budget is at or below --adaptive-min-spp never adapts: every
+// pixel samples up to the minimum before any may stop.
+void warn_adaptive_budget(const RenderOptions& given) {
+    const RenderOptions o = resolve(given);
+    if (!o.film.adaptive || o.stop.spp <= 0 || o.stop.spp > o.film.adaptive_min_spp) return;
+    std::fprintf(stderr,
+                 "kdtrace: warning: adaptive sampling has no effect: the budget of %d spp is not "
+                 "above --adaptive-min-spp %d, which every pixel takes first\n",
+                 o.stop.spp, o.film.adaptive_min_spp);
+}
+
+// Pixels that stopped at the per-pixel cap with their error above an --error target.
+size_t capped_above_target(const Film& film, const StopConditions& stop) {
+    size_t n = 0;
+    for (int y = 0; y < film.height(); ++y) {
+        for (int x = 0; x < film.width(); ++x) {
+            if (film.next_sample_index(x, y) >= uint32_t(stop.max_spp) &&
+                film.relative_error(x, y) > stop.error)
+                ++n;
+        }
+    }
+    return n;
+}
+
 void run(const RenderCommand& cmd) {
     const RenderOptions o = resolve(cmd.options);
     // Fail before loading and rendering, not after.
@@ -243,6 +267,16 @@ void run(const RenderCommand& cmd) {
     tone.curve = o.film.tonemap;
     write_or_rescue(cmd.output, image, tone, meta);
 
+    std::string capped_text;
+    if (o.stop.error > 0.0f && !interrupt::requested()) {
+        if (const size_t n = capped_above_target(film, o.stop); n > 0) {
+            char buf[96];
+            std::snprintf(buf, sizeof buf,
+                          ", stopped at --max-spp %d with %zu pixels above --error %g",
+                          o.stop.max_spp, n, double(o.stop.error));
+            capped_text = buf;
+        }
+    }
     const double mrays = p.seconds > 0.0 ? double(c.rays()) / p.seconds * 1e-6 : 0.0;
     char error_buf[32];
     std::snprintf(error_buf, sizeof error_buf, "%.4f", p.mean_relative_error);
@@ -255,14 +289,14 @@ void run(const RenderCommand& cmd) {
     std::printf(
         "render: %s: %dx%d, %.2f s, %.1f spp, %.2f Mrays/s (%llu rays: %llu camera, %llu bounce, "
         "%llu shadow; %.1f nodes, %.1f triangles per ray), est. rel. error %s, %llu non-finite "
-        "dropped, tree %.2f s%s%s -> %s\n",
+        "dropped, tree %.2f s%s%s%s -> %s\n",
         scene.empty() ? "default scene" : printable(scene).c_str(), film.width(), film.height(),
         p.seconds, spp, mrays, (unsigned long long)c.rays(), (unsigned long long)c.camera_rays,
         (unsigned long long)c.bounce_rays, (unsigned long long)c.shadow_rays,
         double(c.nodes_visited) / double(std::max<uint64_t>(c.rays(), 1)),
         double(c.triangles_tested) / double(std::max<uint64_t>(c.rays(), 1)), error_text.c_str(),
         (unsigned long long)c.nonfinite_dropped, prep.tree_seconds, tree_source.c_str(),
-        unsampled > 0 ? (", interrupted: " + unsampled_text).c_str() : "",
+        unsampled > 0 ? (", interrupted: " + unsampled_text).c_str() : "", capped_text.c_str(),
         printable(cmd.output).c_str());
 }
 
@@ -289,6 +323,7 @@ void add_render_command(CLI::App& parent) {
         if (!(cmd.dist.mpi && launcher_rank() > 0)) {
             warn_unused_tree_flags(*sub, cmd.options.tree, !cmd.options.scene.tree_file.empty());
             warn_unused_render_flags(*sub, cmd.options);
+            warn_adaptive_budget(cmd.options);
         }
         check_dist_flags(*sub, cmd.dist);
         // With --mpi or --frames, plan_frames() reads it (with --mpi, in step on every rank).

@@ -296,6 +296,16 @@ add_test(NAME smoke.session_bad_key COMMAND ${_kdt} render --session ${_tmp}/ses
 file(WRITE ${_tmp}/session_bad.json "{\"trace\": {\"max_depht\": 2}}")
 set_tests_properties(smoke.session_bad_key PROPERTIES
   PASS_REGULAR_EXPRESSION "session_bad.json: /trace/max_depht: unknown key")
+# An adaptive budget at or below --adaptive-min-spp never adapts: a warning. An --error render
+# that stops at --max-spp first says so.
+add_test(NAME smoke.adaptive_budget_warning COMMAND ${_kdt} render --adaptive --width 8 --height 6
+         --quiet -o ${_tmp}/adaptive_budget.pfm)
+set_tests_properties(smoke.adaptive_budget_warning PROPERTIES PASS_REGULAR_EXPRESSION
+  "warning: adaptive sampling has no effect: the budget of 16 spp is not above --adaptive-min-spp 16")
+add_test(NAME smoke.error_stopped_at_cap COMMAND ${_kdt} render --error 0.0001 --max-spp 4
+         --width 8 --height 6 --quiet -o ${_tmp}/error_cap.pfm)
+set_tests_properties(smoke.error_stopped_at_cap PROPERTIES PASS_REGULAR_EXPRESSION
+  "render: [^\n]*, stopped at --max-spp 4 with [0-9]+ pixels above --error 0.0001 -> ")
 # A stop flag given with a session replaces its whole stop block: --spp 4 is not cut short by
 # the session's time limit (one pass) nor by its --max-spp 2; the same for --frames sessions:.
 file(WRITE ${_tmp}/session_time.json "{\"stop\": {\"seconds\": 1e-9, \"max_spp\": 2}}\n")
