@@ -789,10 +789,16 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
         result = dist::render_frame_farm(
             ctx, jobs, params,
             [&](int f, const Film& film) {
+                const FramePlan& plan = frames[size_t(f)];
                 const RenderSnapshot& snap = *jobs[size_t(f)].snapshot;
-                write_film(frames[size_t(f)], film, snap, frame_scene(scenes, size_t(f), snap),
-                           how);
+                write_film(plan, film, snap, frame_scene(scenes, size_t(f), snap), how);
                 ++kept.written;
+                // As the local sequence names them (in the order they are written here).
+                if (!quiet) {
+                    if (tty) std::fprintf(stderr, "\r\33[K");  // over the progress bar
+                    std::fprintf(stderr, "kdtrace: frame %d/%zu -> %s\n", f + 1, frames.size(),
+                                 printable(plan.output).c_str());
+                }
             },
             progress);
     } else {
@@ -821,12 +827,19 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
     } catch (const Error& e) {
         throw dist::FarmError(e.what(), true);
     }
+    // A sequence's frames were named as they were written; each has its own size and stop.
+    char what[64];
+    if (sequence) {
+        std::snprintf(what, sizeof what, "%zu frames", frames.size());
+    } else {
+        std::snprintf(what, sizeof what, "%dx%d, %d spp", o.scene.width, o.scene.height,
+                      o.stop.spp);
+    }
     std::printf(
-        "render: %s: %dx%d, %.2f s, %d spp, %.2f Mrays/s over %d ranks (%llu rays, %llu "
+        "render: %s: %s, %.2f s, %.2f Mrays/s over %d ranks (%llu rays, %llu "
         "non-finite dropped) -> %s\n",
-        o.scene.scene_path.empty() ? "default scene" : printable(o.scene.scene_path).c_str(),
-        o.scene.width, o.scene.height, seconds, o.stop.spp,
-        seconds > 0.0 ? double(c.rays()) / seconds * 1e-6 : 0.0, ctx.size(),
+        o.scene.scene_path.empty() ? "default scene" : printable(o.scene.scene_path).c_str(), what,
+        seconds, seconds > 0.0 ? double(c.rays()) / seconds * 1e-6 : 0.0, ctx.size(),
         (unsigned long long)c.rays(), (unsigned long long)c.nonfinite_dropped,
         printable(output).c_str());
 }

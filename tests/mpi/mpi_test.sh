@@ -588,6 +588,19 @@ bench_no_baseline)
     grep -q '^turntable, 3 ranks: [0-9.]* s against the ideal [0-9.]* s (1 rank / 3): [0-9.]*x; ' <<< "$out" ||
         fail "--ranks 3,1: the turntable line"
     echo "ok: bench mpi without a 1-rank run prints no speedup" ;;
+frames_names)
+    # Each frame written is named, as without --mpi; the summary counts the frames.
+    views
+    out=$(mpi 2 render "$model" --no-cache --width 16 --height 8 --spp 1 --threads 1 \
+        --views views.json --frames views:all --mpi -o "$work/d.pfm" 2>&1) ||
+        { echo "$out"; fail "the run failed"; }
+    echo "$out"
+    for v in front side top; do
+        grep -q "^kdtrace: frame [1-3]/3 -> $work/d_$v.pfm$" <<< "$out" || fail "frame $v not named"
+        [ -s "d_$v.pfm" ] || fail "d_$v.pfm not written"
+    done
+    grep -q "^render: [^:]*: 3 frames, " <<< "$out" || fail "the summary does not count the frames"
+    echo "ok: the frames are named" ;;
 threads_default)
     # Without --threads each rank takes its share of the node's cores, not all of them (ranks x
     # cores threads spin-waiting at every pass's end); the image is the same. Unbound, so
