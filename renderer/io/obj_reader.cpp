@@ -231,6 +231,9 @@ bool ObjParser::next_line(const char*& b, const char*& e) {
             if (pos_ == end_) return false;
             b = base + pos_;
             e = base + end_;  // the last line has no line end
+            // A '\' ending the data continues the statement onto nothing, as one before a
+            // final line end does (a comment line, which it would not continue, is dropped).
+            if (e[-1] == '\\') --e;
             pos_ = scan_ = end_;
             break;
         }
@@ -317,6 +320,11 @@ void ObjParser::long_statement() {
     auto eol_length = [](const char* p, const char* end) {
         return size_t(1) + size_t(*p == '\r' && p + 1 < end && p[1] == '\n');
     };
+    // A '\' at q continues the line: one before a line end, or one ending the data (onto
+    // nothing, as next_line() reads it). Before lim, q + 1 < end unless the data has ended.
+    auto continues_at = [this](const char* q, const char* end) {
+        return *q == '\\' && (q + 1 < end ? is_eol(q[1]) : eof_);
+    };
     bool done = false;
     while (!done) {
         const char* base = buf_.data();
@@ -350,9 +358,13 @@ void ObjParser::long_statement() {
             const char c = *p;
             if (is_blank(c)) {
                 ++p;
-            } else if (c == '\\' && p + 1 < end && is_eol(p[1])) {  // continued: a blank
-                p += 1 + eol_length(p + 1, end);
-                ++next_line_;
+            } else if (continues_at(p, end)) {  // continued: a blank
+                if (p + 1 < end) {
+                    p += 1 + eol_length(p + 1, end);
+                    ++next_line_;
+                } else {
+                    ++p;
+                }
             } else if (is_eol(c)) {
                 p += eol_length(p, end);
                 ++next_line_;
@@ -362,9 +374,7 @@ void ObjParser::long_statement() {
                 comment = true;
             } else {
                 const char* t = p;
-                while (t < lim && !is_blank(*t) && !is_eol(*t) &&
-                       !(*t == '\\' && t + 1 < end && is_eol(t[1])))
-                    ++t;
+                while (t < lim && !is_blank(*t) && !is_eol(*t) && !continues_at(t, end)) ++t;
                 // A token reaching lim may go on; a keyword of over 40 bytes is none we read.
                 if (t == lim && !eof_ && (kind != Kind::kKeyword || t - p <= 40)) break;
                 if (kind == Kind::kKeyword) {

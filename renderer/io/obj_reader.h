@@ -19,10 +19,11 @@ namespace kdt {
 /// `fo`) with corners `v`, `v/vt`, `v//vn` or `v/vt/vn`; indices are 1-based, negative ones
 /// count back from the last vertex or normal defined so far, positive ones may point ahead.
 /// Polygons become fans (v0, vi, vi+1); faces with repeated indices are kept and counted in
-/// info->degenerate_faces. Comments (`#`, also after a statement), `\` line continuation,
-/// LF, CRLF and CR line endings (mixed too), a missing final newline and a UTF-8 byte order
-/// mark are accepted. Other statements starting with a letter (vt, vp, l, p, o, g, s, usemtl,
-/// mtllib, ...) are ignored: materials are not used and no other file is ever opened.
+/// info->degenerate_faces. Comments (`#`, also after a statement), `\` line continuation (a
+/// `\` ending the file continues onto nothing), LF, CRLF and CR line endings (mixed too), a
+/// missing final newline and a UTF-8 byte order mark are accepted. Other statements starting with a
+/// letter (vt, vp, l, p, o, g, s, usemtl, mtllib, ...) are ignored: materials are not used and no
+/// other file is ever opened.
 ///
 /// The file is read in 1 MiB blocks. A line longer than a block is read in pieces, holding
 /// one value or corner at a time, so comments and skipped statements of any length cost no

@@ -126,6 +126,10 @@ TEST(ObjLongLines, LongStatementsReadAsShortOnes) {
     EXPECT_EQ(error_of(pad + "\x01" + pad),
               "t.obj: line 1: not an OBJ statement: '\\x01' "
               "(binary data or UTF-16 text?)");
+    // A '\' ending the data continues a long statement onto nothing, as a short one.
+    EXPECT_EQ(load(kTri + "f 1 2" + pad + "3\\").triangle_count(), 2u);
+    EXPECT_EQ(error_of(kTri + "v" + pad + "\\"),
+              "t.obj: line 5: vertex 4: has 0 coordinates (x y z needed)");
     // A value or corner is held whole; one of a block or more is refused.
     EXPECT_EQ(error_of(kTri + "v 1 2 " + std::string(2 * kMiB, '3') + "\n"),
               "t.obj: line 5: vertex 4: value '3333333333333333333333333333333333333333...' "

@@ -224,6 +224,29 @@ TEST_F(ObjReader, LfCrlfAndCrLineEndingsReadAlike) {
     EXPECT_EQ(load("v 0 0 0\rv 1 0 0\rv 0 1 0\rf 1 2 3\r").triangle_count(), 1u);
 }
 
+// A '\' ending the file continues the statement onto nothing: each text reads as it does
+// with a line end after the '\' (the same mesh or the same message).
+TEST_F(ObjReader, ContinuationAtTheEndOfTheFile) {
+    const std::string tri = kTriangle;
+    EXPECT_EQ(load(tri + "f 1 2 3\\").triangle_count(), 1u);
+    EXPECT_EQ(load(tri + "f 1 2 \\\n3\\").triangle_count(), 1u);
+    const std::vector<std::string> texts = {
+        tri + "f 1 2 3\\", tri + "f 1 2 \\\r\n3 \\",   tri + "f 1 2 3\\\\",
+        tri + "v\\",       tri + "f 1 2 3\n\\",        tri + "f 1 2 3 # c\\",
+        tri + "vn 0 0\\",  tri + "# c \\\nf 1 2 3 \\", "\xef\xbb\xbf\\",
+    };
+    for (const std::string& text : texts) {
+        for (const char* eol : {"\n", "\r\n", "\r"}) {
+            SCOPED_TRACE(printable(text) + " " + printable(eol));
+            EXPECT_EQ(error_of(text), error_of(text + eol));
+            if (error_of(text).empty()) {
+                EXPECT_EQ(load(text).triangles, load(text + eol).triangles);
+            }
+        }
+    }
+    EXPECT_EQ(error_of(tri + "v\\"), "t.obj: line 4: vertex 4: has 0 coordinates (x y z needed)");
+}
+
 TEST_F(ObjReader, LongLines) {
     // Lines longer than the 1 MiB read block: a comment, then a polygon of 400000 corners.
     std::string text = "#" + std::string(3u << 20, 'c') + "\n" + kTriangle + "f";

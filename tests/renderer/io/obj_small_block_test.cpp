@@ -68,6 +68,11 @@ TEST(ObjSmallBlock, TrickyInputsReadAsWithTheDefaultBlock) {
         // ... and a first token whose '\' ends a block, its line end unread.
         "\f\f\f\xa9" + nul + std::string(37, '\xff') + "?" + nul + "\\\n" +
             std::string(99, '\x9f') + "\nv 5\n",
+        // A '\' ending the data, in a value, alone or after a continued line.
+        kTri + "f 1 2 3\\",
+        kTri + "f 1 2\\\r\n 3\\",
+        kTri + "v\\",
+        kTri + "\\",
         // Errors and their lines.
         kTri + "f 1 2 9\n",
         kTri + "v 1 2\n",
