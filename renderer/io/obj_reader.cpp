@@ -153,6 +153,8 @@ private:
     [[gnu::always_inline]] inline void normal_end(const Values& s);
     [[gnu::always_inline]] inline void face_corner(uint64_t& n, const char* tb, const char* te);
     [[gnu::always_inline]] inline void face_end(uint64_t n);
+    [[noreturn, gnu::noinline]] void too_long(const char* element, uint64_t index, const char* what,
+                                              const char* b, const char* e) const;
     void corner(const char* b, const char* e, int64_t face);
     uint32_t index(const char* b, const char* e, uint64_t count, const char* what,
                    const char* plural, Farthest& farthest, int64_t face);
@@ -375,8 +377,12 @@ void ObjParser::long_statement() {
             } else {
                 const char* t = p;
                 while (t < lim && !is_blank(*t) && !is_eol(*t) && !continues_at(t, end)) ++t;
-                // A token reaching lim may go on; a keyword of over 40 bytes is none we read.
-                if (t == lim && !eof_ && (kind != Kind::kKeyword || t - p <= 40)) break;
+                // A token reaching lim may go on; a keyword of over 40 bytes is none we read,
+                // and a value or corner of kMaxTokenBytes is refused by the *_value() call
+                // (deferred as any value's error; the rest is dropped as read).
+                if (t == lim && !eof_ &&
+                    (kind == Kind::kKeyword ? t - p <= 40 : size_t(t - p) < kMaxTokenBytes))
+                    break;
                 if (kind == Kind::kKeyword) {
                     if (!is_letter(*p))
                         fail("", -1,
@@ -408,15 +414,7 @@ void ObjParser::long_statement() {
         }
         pos_ = scan_ = size_t(p - base);
         if (done || (eof_ && pos_ == end_)) break;
-        // Only a token that may go on is kept.
-        if (end_ - pos_ >= kMaxTokenBytes) {
-            if (kind == Kind::kFace)
-                fail("face", int64_t(face_sizes_.size()),
-                     "corner " + quoted(p, end) + " longer than 1 MiB");
-            fail(kind == Kind::kVertex ? "vertex" : "normal",
-                 int64_t(kind == Kind::kVertex ? positions_.size() : normal_count_),
-                 "value " + quoted(p, end) + " longer than 1 MiB");
-        }
+        // Only a token that may go on is kept: under kMaxTokenBytes plus the look-ahead.
         refill();
     }
     if (deferred) std::rethrow_exception(deferred);
@@ -437,8 +435,8 @@ void ObjParser::refill() {
         buf_.resize(size_t(std::min<uint64_t>(block_, in_.size_bound() + 1)));
     } else if (end_ == buf_.size()) {
         // A line longer than the buffer (only before long_line() takes it, for a small
-        // buffer) or a value longer than a small block: grow it, doubling, so that it costs
-        // linear time.
+        // buffer) or a value that does not fit with its look-ahead (up to kMaxTokenBytes + 2
+        // bytes): grow it, doubling, so that it costs linear time.
         buf_.resize(2 * buf_.size());
     }
     const size_t got = in_.read(buf_.data() + end_, buf_.size() - end_);
@@ -486,8 +484,17 @@ void ObjParser::vertex(const char* b, const char* e) {
     vertex_end(s);
 }
 
+// A value or corner of kMaxTokenBytes or more, whichever way it was read: in a line
+// statement() takes whole or piece by piece in long_statement(), at any block size.
+void ObjParser::too_long(const char* element, uint64_t i, const char* what, const char* b,
+                         const char* e) const {
+    fail(element, int64_t(i), std::string(what) + " " + quoted(b, e) + " longer than 1 MiB");
+}
+
 void ObjParser::vertex_value(Values& s, const char* tb, const char* te) {
     const uint64_t i = positions_.size();
+    if (size_t(te - tb) >= kMaxTokenBytes) [[unlikely]]
+        too_long("vertex", i, "value", tb, te);
     if (s.count == 7)
         fail("vertex", int64_t(i), "more than 7 values (x y z [w] or x y z r g b [a])");
     const float x = number(tb, te, "vertex", i);
@@ -525,6 +532,8 @@ void ObjParser::normal(const char* b, const char* e) {
 }
 
 void ObjParser::normal_value(Values& s, const char* tb, const char* te) {
+    if (size_t(te - tb) >= kMaxTokenBytes) [[unlikely]]
+        too_long("normal", normal_count_, "value", tb, te);
     if (s.count == 3) fail("normal", int64_t(normal_count_), "more than 3 values (x y z)");
     s.v[s.count++] = number(tb, te, "normal", normal_count_);
 }
@@ -547,6 +556,8 @@ void ObjParser::face(const char* b, const char* e) {
 
 void ObjParser::face_corner(uint64_t& n, const char* tb, const char* te) {
     const int64_t f = int64_t(face_sizes_.size());
+    if (size_t(te - tb) >= kMaxTokenBytes) [[unlikely]]
+        too_long("face", uint64_t(f), "corner", tb, te);
     if (n == kMaxElements) fail("face", f, "more than 2^32-1 vertices");
     corner(tb, te, f);
     ++n;

@@ -139,6 +139,54 @@ TEST(ObjLongLines, LongStatementsReadAsShortOnes) {
               "longer than 1 MiB");
 }
 
+// The error of reading `text` with blocks of `block` bytes (obj::set_block_bytes).
+std::string error_with_block(const std::string& text, size_t block) {
+    const size_t old = obj::set_block_bytes(block);
+    std::string msg = error_of(text);
+    obj::set_block_bytes(old);
+    return msg;
+}
+
+// A value or corner is refused from kMaxTokenBytes (1 MiB) on, exactly, wherever it ends
+// relative to a block end, whatever the block size: one of 1 MiB - 2 bytes ending at or just
+// before a block end was refused with the default block (the 2 bytes of look-ahead after it
+// were counted), and accepted with a block of 3 bytes.
+TEST(ObjLongLines, ValuesUpTo1MiBLoadAtAnyBlockEnd) {
+    for (const size_t len : {kMiB - 3, kMiB - 2, kMiB - 1, kMiB}) {
+        for (const std::string kind : {"f", "v"}) {
+            for (int shift = -3; shift <= 3; ++shift) {
+                // The corner (an index 3) or value (0) ends `shift` bytes from the end of the
+                // second block.
+                const std::string head = kTri + kind + " 1 2 ";
+                std::string text(head);
+                text.append(2 * kMiB + size_t(shift) - len - head.size(), ' ');
+                text.append(len - 1, '0');
+                text += kind == "f" ? "3" : "0";
+                ASSERT_EQ(text.size(), 2 * kMiB + size_t(shift));
+                text += "\nv 0 0 0\nv x\n";
+                const std::string accepted = "t.obj: line 7: vertex " +
+                                             std::string(kind == "f" ? "5" : "6") +
+                                             ": invalid number 'x'";
+                const std::string refused =
+                    "t.obj: line 5: " +
+                    std::string(kind == "f" ? "face 2: corner" : "vertex 4: value") +
+                    " '0000000000000000000000000000000000000000...' longer than 1 MiB";
+                for (const size_t block : {kMiB, size_t(1), size_t(3), kMiB / 2}) {
+                    EXPECT_EQ(error_with_block(text, block), len < kMiB ? accepted : refused)
+                        << kind << " " << len << " " << shift << " block " << block;
+                }
+            }
+        }
+    }
+    // A line read whole (not in pieces), from a buffer grown past a block by a long value: a
+    // long comment is dropped from the buffer, which then holds all of the next line.
+    const std::string grown =
+        kTri + "v 0 0 " + std::string(kMiB - 2, '0') + "\n#" + std::string(kMiB + 100, 'c') + "\n";
+    EXPECT_EQ(error_of(grown + "f 1 2 " + std::string(kMiB + 5, '0') + "3\n"),
+              "t.obj: line 7: face 2: corner '0000000000000000000000000000000000000000...' "
+              "longer than 1 MiB");
+}
+
 // A line end split between two blocks: CRLF read as one line end, CR alone as one, after
 // short lines, long comments and long statements alike (a continued one in `vt`).
 TEST(ObjLongLines, LineEndsBetweenBlocks) {
