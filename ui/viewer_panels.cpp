@@ -221,14 +221,15 @@ void material_panel(Viewer& v) {
         m.type = MaterialType(type);
         changed = true;
     }
-    if (m.type != MaterialType::emissive)
+    // The fields the type uses: the others would change nothing (and are not saved).
+    if (material_uses(m.type, MaterialField::albedo))
         changed |= ImGui::ColorEdit3("albedo", &m.albedo.x, ImGuiColorEditFlags_Float);
-    if (m.type == MaterialType::dielectric)
+    if (material_uses(m.type, MaterialField::ior))
         changed |= ImGui::DragFloat("ior", &m.ior, 0.005f, 1.0f, 10.0f, "%.3f");
-    if (m.type == MaterialType::conductor)
+    if (material_uses(m.type, MaterialField::roughness))
         changed |= ImGui::DragFloat("roughness", &m.roughness, 0.005f, kMinRoughness, 1.0f, "%.3f",
                                     ImGuiSliderFlags_AlwaysClamp);
-    if (m.type == MaterialType::emissive) {
+    if (material_uses(m.type, MaterialField::emission)) {
         changed |= ImGui::ColorEdit3("emission", &m.emission.x,
                                      ImGuiColorEditFlags_Float | ImGuiColorEditFlags_HDR);
     }

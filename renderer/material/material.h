@@ -17,7 +17,7 @@ inline constexpr std::array<const char*, 5> kMaterialTypeNames = {"diffuse", "mi
                                                                   "emissive", "conductor"};
 
 /// A material as a scene file gives it (the editable form). Every material is two-sided.
-/// Unused fields are ignored by the type.
+/// Unused fields are ignored by the type (material_uses()).
 struct MaterialDesc {
     MaterialType type = MaterialType::diffuse;
     Vec3f albedo{0.8f};      ///< diffuse reflectance; tint of mirror and conductor
@@ -27,6 +27,28 @@ struct MaterialDesc {
 
     bool operator==(const MaterialDesc&) const = default;
 };
+
+/// The fields of a MaterialDesc besides its type, as scene files name them.
+enum class MaterialField : uint8_t { albedo, ior, emission, roughness };
+inline constexpr std::array<const char*, 4> kMaterialFieldNames = {"albedo", "ior", "emission",
+                                                                   "roughness"};
+
+/// True when materials of `type` use `field`; the others ignore it (a scene file giving it
+/// gets a warning, and scene writers leave it out).
+constexpr bool material_uses(MaterialType type, MaterialField field) {
+    switch (field) {
+        case MaterialField::albedo:
+            return type == MaterialType::diffuse || type == MaterialType::mirror ||
+                   type == MaterialType::conductor;
+        case MaterialField::ior:
+            return type == MaterialType::dielectric;
+        case MaterialField::emission:
+            return type == MaterialType::emissive;
+        case MaterialField::roughness:
+            return type == MaterialType::conductor;
+    }
+    return false;
+}
 
 /// How the diffuse BSDF samples directions: cosine-weighted (default) or uniform over the
 /// hemisphere (the naive baseline of `kdtrace bench converge`).

@@ -234,14 +234,44 @@ MaterialDesc read_material(const Reader& r) {
     return m;
 }
 
+// "diffuse, mirror and conductor use it": the types that use `field`.
+std::string users_of(MaterialField field) {
+    std::vector<std::string> names;
+    for (size_t t = 0; t < kMaterialTypeNames.size(); ++t)
+        if (material_uses(MaterialType(t), field)) names.push_back(kMaterialTypeNames[t]);
+    std::string text;
+    for (size_t i = 0; i < names.size(); ++i)
+        text += (i == 0 ? "" : i + 1 == names.size() ? " and " : ", ") + names[i];
+    return text + (names.size() > 1 ? " use it" : " uses it");
+}
+
+// One warning per field the material's type ignores (material_uses()): a user who typed it
+// expects it to matter. A zero emission is what a type that does not emit emits, and what
+// earlier writers wrote for every material: no warning (a non-zero one is an error).
+void warn_ignored_fields(const SceneLoadOptions& options, const Reader& r, const MaterialDesc& m) {
+    const std::string type = kMaterialTypeNames[size_t(m.type)];
+    for (size_t f = 0; f < kMaterialFieldNames.size(); ++f) {
+        const MaterialField field = MaterialField(f);
+        const char* key = kMaterialFieldNames[f];
+        if (!r.has(key) || material_uses(m.type, field)) continue;
+        if (field == MaterialField::emission && m.emission == Vec3f(0.0f)) continue;
+        warn(options, r, key,
+             "'" + std::string(key) + "' is ignored by " +
+                 (m.type == MaterialType::emissive ? "an " : "a ") + type + " material" +
+                 (r.has("type") ? "" : " (type defaults to diffuse)") + "; " + users_of(field));
+    }
+}
+
+// Only the fields the material's type uses (material_uses()): the viewer keeps the others
+// when the type changes, and the reader would warn about them.
 json material_json(const MaterialDesc& m) {
-    return {{"type", kMaterialTypeNames[size_t(m.type)]},
-            {"albedo", vec3_json(m.albedo)},
-            {"ior", float_for_text(m.ior)},
-            // What the type emits: the viewer keeps an emissive material's emission when
-            // its type changes, which the reader would refuse on another type.
-            {"emission", vec3_json(m.type == MaterialType::emissive ? m.emission : Vec3f(0.0f))},
-            {"roughness", float_for_text(m.roughness)}};
+    json j = {{"type", kMaterialTypeNames[size_t(m.type)]}};
+    if (material_uses(m.type, MaterialField::albedo)) j["albedo"] = vec3_json(m.albedo);
+    if (material_uses(m.type, MaterialField::ior)) j["ior"] = float_for_text(m.ior);
+    if (material_uses(m.type, MaterialField::emission)) j["emission"] = vec3_json(m.emission);
+    if (material_uses(m.type, MaterialField::roughness))
+        j["roughness"] = float_for_text(m.roughness);
+    return j;
 }
 
 CameraDesc read_camera(const Reader& r) {
@@ -425,6 +455,7 @@ Scene load_scene_text(const std::string& text, const std::string& path,
         if (m.has("material")) {
             const Reader mr = m.object("material");
             inst.material = read_material(mr);
+            warn_ignored_fields(options, mr, inst.material);
             if (inst.material.type == MaterialType::emissive &&
                 inst.material.emission == Vec3f(0.0f)) {
                 warn(options, mr, mr.has("emission") ? "emission" : "",

@@ -248,6 +248,89 @@ TEST(Scene, EmissiveWithoutEmissionIsAWarning) {
               "it emits no light, and the mesh (builtin:icosphere) renders black");
 }
 
+// A field the material's type ignores is a warning naming the file, the material and the
+// field (a user who typed it expects it to matter); the fields a type uses, a zero emission
+// and unknown keys (errors) give none.
+TEST(Scene, FieldsTheMaterialTypeIgnoresAreWarnings) {
+    std::vector<std::string> warnings;
+    SceneLoadOptions options;
+    options.warn = [&](const std::string& line) { warnings.push_back(line); };
+    auto load = [&](const std::string& material) {
+        warnings.clear();
+        load_scene_text(
+            R"({"meshes": [{"file": "builtin:icosphere", "material": )" + material + "}]}",
+            "dir/s.json", options);
+        return warnings;
+    };
+    using Lines = std::vector<std::string>;
+    EXPECT_EQ(load(R"({"type": "diffuse", "albedo": [0.5, 0.5, 0.5], "ior": 1.5})"),
+              Lines{"warning: dir/s.json: meshes/0/material/ior: 'ior' is ignored by a diffuse "
+                    "material; dielectric uses it"});
+    EXPECT_EQ(load(R"({"albedo": 0.5, "roughness": 0.3})"),
+              Lines{"warning: dir/s.json: meshes/0/material/roughness: 'roughness' is ignored by "
+                    "a diffuse material (type defaults to diffuse); conductor uses it"});
+    EXPECT_EQ(load(R"({"type": "dielectric", "ior": 1.33, "roughness": 0.1, "albedo": 1})"),
+              (Lines{"warning: dir/s.json: meshes/0/material/albedo: 'albedo' is ignored by a "
+                     "dielectric material; diffuse, mirror and conductor use it",
+                     "warning: dir/s.json: meshes/0/material/roughness: 'roughness' is ignored "
+                     "by a dielectric material; conductor uses it"}));
+    EXPECT_EQ(load(R"({"type": "emissive", "emission": 2, "albedo": 1, "ior": 2})"),
+              (Lines{"warning: dir/s.json: meshes/0/material/albedo: 'albedo' is ignored by an "
+                     "emissive material; diffuse, mirror and conductor use it",
+                     "warning: dir/s.json: meshes/0/material/ior: 'ior' is ignored by an emissive "
+                     "material; dielectric uses it"}));
+    EXPECT_EQ(load(R"({"type": "mirror", "ior": 1.5, "roughness": 0.5, "emission": 0})").size(),
+              2u);
+    // Each type with the fields it uses, and a zero emission anywhere: no warning.
+    EXPECT_EQ(load(R"({"type": "diffuse", "albedo": 0.5, "emission": [0, 0, 0]})"), Lines{});
+    EXPECT_EQ(load(R"({"type": "mirror", "albedo": 0.5})"), Lines{});
+    EXPECT_EQ(load(R"({"type": "dielectric", "ior": 1.5, "emission": 0})"), Lines{});
+    EXPECT_EQ(load(R"({"type": "emissive", "emission": 3})"), Lines{});
+    EXPECT_EQ(load(R"({"type": "conductor", "albedo": 0.9, "roughness": 0.1})"), Lines{});
+    // Unknown keys stay errors, as do values out of range on an ignored field.
+    EXPECT_THROW(load(R"({"type": "diffuse", "iorr": 1.5})"), Error);
+    EXPECT_THROW(load(R"({"type": "diffuse", "roughness": 2})"), Error);
+}
+
+// What the writers write (scene files, the materials of option and session files) holds the
+// fields of the material's type only, also when the viewer kept others across a type change:
+// it reads back as the same material for rendering, without warnings.
+TEST(Scene, WrittenMaterialsHoldTheirTypesFieldsOnly) {
+    std::vector<std::string> warnings;
+    SceneLoadOptions options;
+    options.check_files = false;
+    options.warn = [&](const std::string& line) { warnings.push_back(line); };
+    Scene scene = make_default_scene();
+    scene.meshes.resize(1);
+    for (size_t t = 0; t < kMaterialTypeNames.size(); ++t) {
+        MaterialDesc m;  // every field edited, as a viewer user switching types leaves them
+        m.type = MaterialType(t);
+        m.albedo = Vec3f(0.25f, 0.5f, 0.75f);
+        m.ior = 1.33f;
+        m.emission = m.type == MaterialType::emissive ? Vec3f(2.0f) : Vec3f(0.0f);
+        m.roughness = 0.4f;
+        scene.meshes.push_back(scene.meshes[0]);
+        scene.meshes.back().material = m;
+        const std::string text = material_to_json(m);
+        for (size_t f = 0; f < kMaterialFieldNames.size(); ++f) {
+            const bool written =
+                text.find("\"" + std::string(kMaterialFieldNames[f]) + "\"") != std::string::npos;
+            EXPECT_EQ(written, material_uses(m.type, MaterialField(f))) << text;
+        }
+        // The used fields read back; the others take their defaults.
+        MaterialDesc expected;
+        expected.type = m.type;
+        if (material_uses(m.type, MaterialField::albedo)) expected.albedo = m.albedo;
+        if (material_uses(m.type, MaterialField::ior)) expected.ior = m.ior;
+        if (material_uses(m.type, MaterialField::emission)) expected.emission = m.emission;
+        if (material_uses(m.type, MaterialField::roughness)) expected.roughness = m.roughness;
+        EXPECT_TRUE(material_from_json(text, "m.json", "m") == expected) << text;
+    }
+    const Scene back = load_scene_text(scene_to_json(scene), "back.json", options);
+    EXPECT_EQ(back.meshes.size(), scene.meshes.size());
+    EXPECT_EQ(warnings, std::vector<std::string>{});
+}
+
 // Singularity does not depend on scale: a uniform scale of 1e-20 (or a strong anisotropic
 // one) is an invertible transform, and its normals stay finite unit vectors.
 TEST(Scene, TinyAndAnisotropicScalesAreNotSingular) {
