@@ -29,6 +29,15 @@ namespace kdt::ui {
 inline constexpr const char* kSidebarName = "kdtrace##sidebar";
 inline constexpr float kSidebarWidth = 370.0f;
 
+/// The ior the viewer edits (its slider and `set material.ior`): glasses and crystals, inside
+/// what scene files accept (kIorRange), so that a saved session loads. Other material fields
+/// are edited in the scene file's ranges themselves (kAlbedoRange, ...).
+inline constexpr MaterialRange kIorEditRange{1.0f, 10.0f};
+static_assert(kIorRange.contains(kIorEditRange.lo) && kIorRange.contains(kIorEditRange.hi));
+/// The roughness slider's lower end (scene files require roughness > 0).
+inline constexpr float kMinRoughness = 0.001f;
+static_assert(kRoughnessRange.contains(kMinRoughness));
+
 enum class ViewMode : int { radiance, heat_nodes, heat_triangles, normals, depth };
 
 /// The debug layer a view mode shows; nullopt for radiance.

@@ -215,27 +215,28 @@ void Viewer::apply_materials() {
 
 void Viewer::set_material(const std::string& name, const std::string& value) {
     if (materials_.empty()) throw Error("material: no scene is loaded");
-    // The scene file's limits (renderer/scene/scene.cpp), so that a saved session loads.
-    const auto number = [&](double lo, double hi, bool open_low = false) {
+    // A number in `range`, checked as the float the material holds: the scene file's ranges
+    // (renderer/scene/scene.h), or the viewer's narrower ior range, so that a saved session
+    // loads.
+    const auto number = [&](const MaterialRange& range) {
         double v = 0.0;
-        if (!detail::parse_number(value, v) || !((open_low ? v > lo : v >= lo) && v <= hi)) {
-            throw Error("material." + name + " must be a number in " + (open_low ? "(" : "[") +
-                        detail::number_text(lo) + ", " + detail::number_text(hi) + "] (got '" +
+        if (!detail::parse_number(value, v) || !range.contains_as_float(v)) {
+            throw Error("material." + name + " must be a number in " + range.text() + " (got '" +
                         value + "')");
         }
-        return v;
+        return float(v);
     };
-    const auto colour = [&](double hi) {
+    const auto colour = [&](const MaterialRange& range) {
         Vec3f c{0.0f};
         size_t at = 0;
         for (int i = 0; i < 3; ++i) {
             const size_t comma = i < 2 ? value.find(',', at) : value.size();
             double v = 0.0;
             if (comma == std::string::npos ||
-                !detail::parse_number(value.substr(at, comma - at), v) || !(v >= 0.0 && v <= hi) ||
-                (i == 2 && value.find(',', at) != value.npos)) {
-                throw Error("material." + name + " must be R,G,B with each in [0, " +
-                            detail::number_text(hi) + "] (got '" + value + "')");
+                !detail::parse_number(value.substr(at, comma - at), v) ||
+                !range.contains_as_float(v) || (i == 2 && value.find(',', at) != value.npos)) {
+                throw Error("material." + name + " must be R,G,B with each in " + range.text() +
+                            " (got '" + value + "')");
             }
             c[i] = float(v);
             at = comma + 1;
@@ -243,20 +244,26 @@ void Viewer::set_material(const std::string& name, const std::string& value) {
         return c;
     };
     if (name == "instance") {
-        material_instance_ = int(number(0, double(materials_.size() - 1)));
+        double v = 0.0;
+        const double last = double(materials_.size() - 1);
+        if (!detail::parse_number(value, v) || !(v >= 0.0 && v <= last)) {
+            throw Error("material.instance must be a number in [0, " + detail::number_text(last) +
+                        "] (got '" + value + "')");
+        }
+        material_instance_ = int(v);
         return;
     }
     MaterialDesc& m = materials_[size_t(material_instance_)];
     if (name == "type") {
         m.type = MaterialType(parse_name(kMaterialTypeNames, value, "material.type"));
     } else if (name == "albedo") {
-        m.albedo = colour(1.0);
+        m.albedo = colour(kAlbedoRange);
     } else if (name == "emission") {
-        m.emission = colour(3e38);
+        m.emission = colour(kEmissionRange);
     } else if (name == "ior") {
-        m.ior = float(number(1.0, 10.0));
+        m.ior = number(kIorEditRange);
     } else if (name == "roughness") {
-        m.roughness = float(number(0.0, 1.0, true));
+        m.roughness = number(kRoughnessRange);
     } else {
         throw Error("no option material." + name +
                     " (material has instance, type, albedo, emission, ior and roughness)");

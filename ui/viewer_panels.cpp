@@ -204,9 +204,6 @@ void split_panel(Viewer& v) {
     ImGui::EndTable();
 }
 
-// The roughness slider's lower end: scene files require roughness > 0.
-constexpr float kMinRoughness = 0.001f;
-
 // The material of one instance (the model's, for a model file), applied live.
 void material_panel(Viewer& v) {
     if (v.materials_.empty()) return;
@@ -225,20 +222,21 @@ void material_panel(Viewer& v) {
     if (material_uses(m.type, MaterialField::albedo))
         changed |= ImGui::ColorEdit3("albedo", &m.albedo.x, ImGuiColorEditFlags_Float);
     if (material_uses(m.type, MaterialField::ior))
-        changed |= ImGui::DragFloat("ior", &m.ior, 0.005f, 1.0f, 10.0f, "%.3f");
+        changed |=
+            ImGui::DragFloat("ior", &m.ior, 0.005f, kIorEditRange.lo, kIorEditRange.hi, "%.3f");
     if (material_uses(m.type, MaterialField::roughness))
-        changed |= ImGui::DragFloat("roughness", &m.roughness, 0.005f, kMinRoughness, 1.0f, "%.3f",
-                                    ImGuiSliderFlags_AlwaysClamp);
+        changed |= ImGui::DragFloat("roughness", &m.roughness, 0.005f, kMinRoughness,
+                                    kRoughnessRange.hi, "%.3f", ImGuiSliderFlags_AlwaysClamp);
     if (material_uses(m.type, MaterialField::emission)) {
         changed |= ImGui::ColorEdit3("emission", &m.emission.x,
                                      ImGuiColorEditFlags_Float | ImGuiColorEditFlags_HDR);
     }
     if (changed) {
-        // The scene file's limits (typed values may be outside): albedo in [0, 1], roughness
-        // in (0, 1], emission >= 0.
-        m.albedo = glm::clamp(m.albedo, Vec3f(0.0f), Vec3f(1.0f));
-        if (!(m.roughness > 0.0f)) m.roughness = kMinRoughness;
-        m.emission = glm::max(m.emission, Vec3f(0.0f));
+        // The scene file's ranges (renderer/scene/scene.h; typed values may be outside).
+        m.albedo = glm::clamp(m.albedo, Vec3f(kAlbedoRange.lo), Vec3f(kAlbedoRange.hi));
+        if (!kRoughnessRange.contains(m.roughness))
+            m.roughness = m.roughness > kRoughnessRange.hi ? kRoughnessRange.hi : kMinRoughness;
+        m.emission = glm::clamp(m.emission, Vec3f(kEmissionRange.lo), Vec3f(kEmissionRange.hi));
         v.apply_materials();
     }
 }

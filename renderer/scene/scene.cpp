@@ -215,11 +215,11 @@ MaterialDesc read_material(const Reader& r) {
     m.ior = r.number("ior", m.ior);
     m.emission = r.vec3("emission", m.emission, true);
     m.roughness = r.number("roughness", m.roughness);
-    if (glm::any(glm::lessThan(m.albedo, Vec3f(0.0f))) ||
-        glm::any(glm::greaterThan(m.albedo, Vec3f(1.0f))))
-        r.fail_key("albedo", "albedo must lie in [0, 1]");
-    if (!(m.ior > 0.0f)) r.fail_key("ior", "ior must be positive");
-    if (glm::any(glm::lessThan(m.emission, Vec3f(0.0f))))
+    // The ranges the viewer's edits check too (scene.h).
+    if (!kAlbedoRange.contains(m.albedo))
+        r.fail_key("albedo", "albedo must lie in " + kAlbedoRange.text());
+    if (!kIorRange.contains(m.ior)) r.fail_key("ior", "ior must be positive");
+    if (!kEmissionRange.contains(m.emission))
         r.fail_key("emission", "emission must be non-negative");
     // Only the emissive type emits; elsewhere a non-zero emission would be dropped unseen.
     // Zero is accepted on any type: the scene and session writers of earlier versions wrote it.
@@ -229,8 +229,8 @@ MaterialDesc read_material(const Reader& r) {
                                    (r.has("type") ? "" : " (type defaults to diffuse)") +
                                    "; emission needs type emissive");
     }
-    if (!(m.roughness > 0.0f && m.roughness <= 1.0f))
-        r.fail_key("roughness", "roughness must lie in (0, 1]");
+    if (!kRoughnessRange.contains(m.roughness))
+        r.fail_key("roughness", "roughness must lie in " + kRoughnessRange.text());
     return m;
 }
 
@@ -381,6 +381,10 @@ std::string read_text_file(const std::string& path) {
 }
 
 }  // namespace
+
+std::string MaterialRange::text() const {
+    return detail::range_text(double(lo), double(hi), open_low, false);
+}
 
 Scene load_scene(const std::string& path, const SceneLoadOptions& options) {
     return load_scene_text(read_text_file(path), path, options);

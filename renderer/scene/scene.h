@@ -4,7 +4,9 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -109,6 +111,27 @@ std::vector<std::string> scene_input_files(const Scene& scene);
 
 /// Writes a scene as JSON that load_scene() reads back (generated meshes as "builtin:" names).
 std::string scene_to_json(const Scene& scene);
+
+/// The values a scene file accepts in a material field (in each component of a colour),
+/// compared as the float the field holds: [lo, hi], or (lo, hi] when open_low. The viewer's
+/// material edits check through these too, so that every session it saves loads.
+struct MaterialRange {
+    float lo = 0.0f, hi = 0.0f;
+    bool open_low = false;
+    constexpr bool contains(float v) const { return (open_low ? v > lo : v >= lo) && v <= hi; }
+    bool contains(const Vec3f& c) const { return contains(c.x) && contains(c.y) && contains(c.z); }
+    /// For a number typed or parsed as a double: whether the float it becomes lies in the
+    /// range (a double beyond float's range does not).
+    bool contains_as_float(double v) const {
+        return std::fabs(v) <= double(std::numeric_limits<float>::max()) && contains(float(v));
+    }
+    /// "[0, 1]", "(0, 1]".
+    std::string text() const;
+};
+inline constexpr MaterialRange kAlbedoRange{0.0f, 1.0f};
+inline constexpr MaterialRange kRoughnessRange{0.0f, 1.0f, true};
+inline constexpr MaterialRange kIorRange{0.0f, 3e38f, true};  ///< positive
+inline constexpr MaterialRange kEmissionRange{0.0f, 3e38f};   ///< non-negative
 
 /// One material as a scene file's mesh "material" object (JSON text), and back: the reader
 /// checks keys and ranges as scene files do, errors naming `file` and the JSON `where`.

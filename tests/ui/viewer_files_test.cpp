@@ -133,6 +133,15 @@ TEST(ViewerFiles, ProbeAndMaterialEdits) {
     EXPECT_NE(error("material.ior", "0.5").find("material.ior must be a number in [1, 10]"),
               std::string::npos);
     EXPECT_EQ(error("material.emission", "5,5,5"), "");
+    // Checked through the scene reader's ranges, on the float the material holds: 1e-50 is a
+    // roughness of 0, which a saved session could not load; 1.00000001 an albedo of 1, which
+    // it can; 4e38 an infinite emission.
+    EXPECT_NE(error("material.roughness", "1e-50")
+                  .find("material.roughness must be a number in (0, 1] (got '1e-50')"),
+              std::string::npos);
+    EXPECT_EQ(error("material.albedo", "1.00000001,0,0"), "");
+    EXPECT_NE(error("material.emission", "4e38,0,0").find("material.emission must be R,G,B"),
+              std::string::npos);
     EXPECT_NE(error("material.instance", "7").find("material.instance"), std::string::npos);
     EXPECT_NE(error("material.shine", "1").find("no option material.shine"), std::string::npos);
 
