@@ -84,14 +84,14 @@ void RenderWorker::set_environment(const EnvironmentDesc& desc) {
 }
 
 void RenderWorker::apply_scene_changes() {
-    std::shared_ptr<const RenderSnapshot> snap;
+    std::shared_ptr<const RenderSnapshot> snap, base;
     std::optional<EnvironmentDesc> request;
     std::shared_ptr<const EnvironmentLight> env;
     EnvironmentDesc desc;
     {
         std::lock_guard<std::mutex> lock(mutex_);
         if (!snapshot_changed_ && !env_request_) return;
-        snap = snapshot_;
+        snap = base = snapshot_;
         request = env_request_;
         env_request_.reset();
         env = env_;
@@ -109,6 +109,12 @@ void RenderWorker::apply_scene_changes() {
     // A snapshot from a tree rebuild started before the environment changed gets it too.
     if (env && snap->scene->env != env) snap = with_environment(*snap, env, desc);
     std::lock_guard<std::mutex> lock(mutex_);
+    // A newer snapshot (a scene or tree swapped in while the environment loaded) is kept and
+    // given the environment; the one read above is out of date.
+    if (snapshot_ != base) {
+        snap = snapshot_;
+        if (env && snap->scene->env != env) snap = with_environment(*snap, env, desc);
+    }
     snapshot_ = snap;
     snapshot_changed_ = false;
     env_ = env;

@@ -7,8 +7,10 @@
 
 #include <gtest/gtest.h>
 
+#include "renderer/io/image_io.h"
 #include "renderer/render/snapshot.h"
 #include "tests/renderer/integrator/test_scenes.h"
+#include "tests/test_util.h"
 #include "ui/camera_control.h"
 #include "ui/render_worker.h"
 #include "ui/tree_rebuild.h"
@@ -104,6 +106,45 @@ TEST(ViewerThreads, HundredChangesWhileRenderingAndRebuilding) {
     const CameraDesc now = worker.camera();
     EXPECT_EQ(now.eye, camera.eye);
     EXPECT_GT(worker.stats().mrays_per_second, 0.0);
+}
+
+// A scene swapped in while the render thread loads a probe file (outside its lock) is the one
+// it renders with that probe; it once put the snapshot it had read before the load back.
+TEST(ViewerThreads, ASceneSwappedInWhileAProbeLoadsIsKept) {
+    const auto dir = test::temp_dir("ui_probe_swap");
+    // Probes large enough that building their light takes a while.
+    std::vector<std::string> probes;
+    for (int k = 0; k < 2; ++k) {
+        ImageRGB map(2048, 1024);
+        for (size_t i = 0; i < map.rgb.size(); ++i) map.rgb[i] = float((i * 7 + size_t(k)) % 13);
+        probes.push_back((dir / ("probe" + std::to_string(k) + ".pfm")).string());
+        write_image(probes.back(), map);
+    }
+    const auto first = stress_snapshot();
+    const auto second = compile_snapshot(
+        test::make_scene(
+            {{test::make_box({-1, -1, -1}, {1, 0, 1}), test::flat(test::diffuse(0.5f))}},
+            std::make_shared<test::GradientEnv>()),
+        make_camera({2, 2, 3}, {0, 0, 0}, {0, 1, 0}, 40.0f, 48, 32));
+    TraceParams tp;
+    tp.threads = 2;
+    RenderWorker worker(first, tp, FilmParams{}, StopConditions{}, 4);
+    for (int round = 0; round < 12; ++round) {
+        EnvironmentDesc env;
+        env.file = probes[size_t(round % 2)];
+        worker.set_environment(env);
+        std::this_thread::sleep_for(std::chrono::milliseconds(round * 3));
+        const auto& scene = round % 2 == 0 ? second : first;
+        worker.set_snapshot(scene);
+        const auto taken = [&] {
+            const auto s = worker.snapshot();
+            return s->environment.file == env.file && s->scene->mesh == scene->scene->mesh &&
+                   worker.stats().full_passes >= 1;
+        };
+        ASSERT_TRUE(wait_for(taken, 60.0))
+            << "round " << round << ": the render thread lost the scene or the probe";
+    }
+    EXPECT_EQ(worker.stats().error, "");
 }
 
 TEST(ViewerThreads, ATreeSwapAloneSkipsThePreviewACameraMoveDoesNot) {

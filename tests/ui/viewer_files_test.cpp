@@ -316,8 +316,14 @@ TEST(ViewerFiles, EnvironmentEditsWhileAModelLoadsApplyToIt) {
     EXPECT_EQ(v.opts_.scene.env_file, probe);
     EXPECT_EQ(v.env_intensity_, 0.25f);
     EXPECT_EQ(v.opts_.scene.env_rotation_degrees, 45.0f);
-    // The render thread has the new scene with the edited environment.
-    for (int i = 0; i < 60000 && v.worker_->snapshot()->environment.file != probe; ++i)
+    // The render thread has the new scene with the edited environment. It may first take the
+    // probe with the old scene (the probe swaps in first), so wait for both.
+    const auto taken = [&] {
+        const auto snap = v.worker_->snapshot();
+        return snap->environment.file == probe &&
+               snap->scene->mesh == v.prep_.snapshot->scene->mesh;
+    };
+    for (int i = 0; i < 60000 && !taken(); ++i)
         std::this_thread::sleep_for(std::chrono::milliseconds(1));
     const EnvironmentDesc env = v.worker_->snapshot()->environment;
     EXPECT_EQ(env.file, probe);
