@@ -74,12 +74,19 @@ std::string choices_text(std::span<const char* const> names) {
 std::string check_number(double v, double min, double max, bool min_open, bool integral,
                          bool as_float) {
     const std::string range = range_text(min, max, min_open, integral);
+    // A whole number as typed (100000, not 1e+05) where the option takes whole numbers.
+    const auto shown = [integral](double x) {
+        if (!integral || x != std::trunc(x) || !(std::fabs(x) < 1e18)) return number_text(x);
+        char buf[32];
+        std::snprintf(buf, sizeof buf, "%.0f", x);
+        return std::string(buf);
+    };
     if (!std::isfinite(v))
         return "must be a finite number in " + range + " (got " + number_text(v) + ")";
     // A float field holds its bounds rounded to float (3e38 is 3.0000000055e38 there).
     const double lo = as_float ? double(float(min)) : min, hi = as_float ? double(float(max)) : max;
     const bool below = min_open ? !(v > lo) : !(v >= lo);
-    if (below || !(v <= hi)) return "must be in " + range + " (got " + number_text(v) + ")";
+    if (below || !(v <= hi)) return "must be in " + range + " (got " + shown(v) + ")";
     if (integral && v != std::trunc(v))
         return "must be a whole number in " + range + " (got " + number_text(v) + ")";
     return {};

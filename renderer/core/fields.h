@@ -70,8 +70,8 @@ double field_number(const FieldRef& ref);
 /// Sets a numeric, bool or choice field from a double (rounded toward zero for integers;
 /// the caller has range-checked it).
 void set_field_number(const FieldRef& ref, double value);
-/// The value as text: numbers in the shortest form that reads back the same, choices by name,
-/// bools as true/false.
+/// The value as text: whole-number fields in digits, other numbers in the shortest form that
+/// reads back the same, choices by name, bools as true/false.
 template <class S>
 std::string field_text(const Field<S>& f, const S& s);
 /// "[0, 1024]", "(0, 1]", "one of: box, tent".
@@ -121,6 +121,7 @@ std::string field_text(const Field<S>& f, const S& s) {
         return i < f.choices.size() ? f.choices[i] : std::to_string(i);
     }
     if (auto* u = std::get_if<uint64_t*>(&r)) return std::to_string(**u);
+    if (auto* i = std::get_if<int*>(&r)) return std::to_string(**i);  // 100000, never 1e+05
     return detail::number_text(field_number(r));
 }
 

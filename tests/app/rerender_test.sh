@@ -35,6 +35,10 @@ same tree_and_flags --tree t.kdt --builder sah --q 0.5 --threads 1
 # The per-pixel cap and an adaptive budget decide where these stop: the command keeps them.
 same error_cap --error 0.001 --max-spp 8 --threads 1
 same adaptive_cap --adaptive --max-spp 2 --threads 1
+# Whole-number options are written in digits (--max-spp 100000, not 1e+05).
+same integers --max-spp 100000 --threads 1
+grep -q -- " --max-spp 100000\( \|$\)" <<<"$command" ||
+    fail "whole numbers not written as such: $command"
 
 # A --time render stops where the run happens to be: its session asks for the spp it reached,
 # as its command does, so that `--session IMAGE` alone renders the same image as the command.

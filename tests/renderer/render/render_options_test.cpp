@@ -84,6 +84,17 @@ TEST(RenderOptions, ErrorsNameTheField) {
     EXPECT_EQ(test::error_of_call([&] { validate(o); }),
               "trace.max_depth must be in [0, 1024] (got -1)");
     o = RenderOptions{};
+    o.trace.max_depth = 100000;  // a whole number in digits, not 1e+05
+    EXPECT_EQ(test::error_of_call([&] { validate(o); }),
+              "trace.max_depth must be in [0, 1024] (got 100000)");
+    o = RenderOptions{};
+    o.stop.max_spp = 100000;
+    for (const Field<StopConditions>& f : stop_fields()) {
+        if (std::string(f.name) == "max_spp") {
+            EXPECT_EQ(field_text(f, o.stop), "100000");
+        }
+    }
+    o = RenderOptions{};
     o.tree.q = 1.5f;
     EXPECT_EQ(test::error_of_call([&] { validate(o); }), "tree.q must be in (0, 1] (got 1.5)");
     o = RenderOptions{};
