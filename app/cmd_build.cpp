@@ -63,7 +63,7 @@ void add_build_command(CLI::App& parent) {
         ->required();
     add_tree_options(*cmd, params);
     cmd->add_option("--subdivide", subdivide, "Split every triangle into 4^K first")
-        ->check(CLI::Range(0, 4));
+        ->check(in_range(0, 4));
     static bool quiet = false;
     cmd->add_flag("--quiet", quiet, "No cache messages (warnings are still printed)");
     cmd->add_option("-o,--output", output,

@@ -151,7 +151,7 @@ void add_info_command(CLI::App& parent) {
         "Drop faces that use non-finite vertices instead of failing (and report how many)");
     cmd->add_option("--threads", args->threads,
                     "Threads for ascii PLY parsing (1 = one core, 2 = two, 0 = auto)")
-        ->check(CLI::Range(0, 64));
+        ->check(in_range(0, 1024));
     cmd->callback([args] { run_info(*args); });
 }
 

@@ -18,13 +18,13 @@ void add_view_command(CLI::App& parent) {
     add_render_options(*sub, vo.options);
     sub->add_option("--frames", vo.frames,
                     "Exit after N frames once the script has run (tests; 0 = until closed)")
-        ->check(CLI::NonNegativeNumber);
+        ->check(in_range(0, 2147483647));
     sub->add_option("--screenshot", vo.screenshot, "PNG of the window at exit (with --frames)");
     sub->add_option("--script", vo.script,
                     "Commands separated by ';', e.g. \"orbit 30 0; set tree.q 0.9; rebuild\"");
     sub->add_option("--preview-divisor", vo.preview_divisor,
                     "Resolution divisor of the preview pass after a change (1 = none)")
-        ->check(CLI::Range(1, 64));
+        ->check(in_range(1, 64));
     sub->callback([sub] {
         warn_unused_tree_flags(*sub, vo.options.tree, !vo.options.scene.tree_file.empty());
         warn_unused_render_flags(*sub, vo.options);

@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <chrono>
 #include <cstdint>
@@ -80,6 +81,46 @@ int finish_stdout(int status) {
     return status ? status : 1;
 }
 
+// A CLI11 parse error in kdtrace's words: one line, lower case, with where to look for the
+// options or commands of the (sub)command that was being parsed.
+std::string parse_error_message(const CLI::App& app, const CLI::ParseError& e) {
+    std::string command = "kdtrace";
+    const CLI::App* level = &app;
+    for (bool deeper = true; deeper;) {
+        deeper = false;
+        for (const CLI::App* sub : level->get_subcommands()) {
+            command += " " + sub->get_name();
+            level = sub;
+            deeper = true;
+            break;
+        }
+    }
+    std::string m = e.what();
+    const size_t colon = m.find(": ");
+    if (m == "A subcommand is required") {
+        m = "a command is required (`" + command + " --help` lists them)";
+    } else if (const size_t at = m.find(" not expected: "); at != std::string::npos) {
+        // "The following argument was not expected: --bogus" (an unknown option or an extra
+        // argument).
+        const bool several = m.find("arguments were") != std::string::npos;
+        m = std::string("unexpected argument") + (several ? "s " : " ") + m.substr(at + 15) +
+            " (`" + command + " --help` lists the options)";
+    } else if (colon != std::string::npos && m.size() > 8 &&
+               m.compare(m.size() - 8, 8, " missing") == 0 &&
+               m.find(" required ", colon) != std::string::npos) {
+        m = m.substr(0, colon) + " needs a value";  // "--spp: 1 required INT missing"
+    } else if (colon != std::string::npos && m.compare(colon, 10, ": must be ") == 0) {
+        m.erase(colon, 1);  // in_range()'s check: "--subdivide must be in [0, 4] (got 5)"
+    } else if (m.size() > 1 && std::isupper(static_cast<unsigned char>(m[0])) &&
+               std::islower(static_cast<unsigned char>(m[1]))) {
+        m[0] = char(std::tolower(static_cast<unsigned char>(m[0])));
+    }
+    for (char& c : m) {
+        if (c == '\n') c = ' ';
+    }
+    return kdt::printable(m);
+}
+
 int run(int argc, char** argv);
 int report_error();
 
@@ -106,6 +147,9 @@ int run(int argc, char** argv) {
     CLI::App app{"kdtrace: a kd-tree path tracer for big scanned meshes"};
     app.set_version_flag("--version", "kdtrace 0.1.0");
     app.require_subcommand(1);
+    // A repeated single-value option takes its last value, as in pbrt and Blender: a script
+    // may append an override to a command line. Options that take lists keep every value.
+    app.option_defaults()->multi_option_policy(CLI::MultiOptionPolicy::TakeLast);
     kdt::app::add_info_command(app);
     kdt::app::add_build_command(app);
     kdt::app::add_render_command(app);
@@ -138,8 +182,11 @@ int run(int argc, char** argv) {
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
-        if (worker) return exit_quietly(e.get_exit_code());
-        return app.exit(e);
+        // --help and --version are "errors" with status 0: CLI11 prints them.
+        if (e.get_exit_code() == 0) return worker ? 0 : app.exit(e);
+        if (worker) return exit_quietly(1);
+        std::fprintf(stderr, "kdtrace: error: %s\n", parse_error_message(app, e).c_str());
+        return 1;
     } catch (...) {
         if (worker) return exit_quietly(1);
         return report_error();

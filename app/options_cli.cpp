@@ -104,6 +104,16 @@ std::string flag_range_help(double min, double max, bool integral) {
     return " " + detail::range_text(min, max, false, integral);
 }
 
+CLI::Validator in_range(double min, double max, bool integral) {
+    return CLI::Validator(
+        [min, max, integral](std::string& text) -> std::string {
+            double v = 0.0;
+            if (!detail::parse_number(text, v)) return "must be a number " + detail::got(text);
+            return detail::check_number(v, min, max, false, integral);
+        },
+        detail::range_text(min, max, false, integral));
+}
+
 void add_tree_options(CLI::App& app, KdTreeParams& tree, SkipFlags skip) {
     add_fields(app, tree, kd_tree_fields(), skip);
 }

@@ -30,6 +30,10 @@ double parse_flag_number(const std::string& flag, const std::string& text, doubl
                          bool integral);
 /// " [min, max]", for the help of such a flag.
 std::string flag_range_help(double min, double max, bool integral);
+/// A CLI11 check of a number option against [min, max] (a whole number when `integral`),
+/// refusing in the tables' words; main() prints CLI11's "--repeat: must be in [1, 1000] (got
+/// 0)" as "--repeat must be in ...". The help shows the range.
+CLI::Validator in_range(double min, double max, bool integral = true);
 
 void add_tree_options(CLI::App& app, KdTreeParams& tree, SkipFlags skip = {});
 void add_trace_options(CLI::App& app, TraceParams& trace, SkipFlags skip = {});

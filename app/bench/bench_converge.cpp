@@ -460,23 +460,23 @@ void add_bench_converge_command(CLI::App& parent) {
         "--reference");
     cmd->add_option("--reference-spp", a.reference_spp, "Samples per pixel of a new reference")
         ->capture_default_str()
-        ->check(CLI::Range(1, 1 << 20));
+        ->check(in_range(1, 1 << 20));
     cmd->add_option("--max-spp", a.max_spp, "Largest N of the 1, 2, 4 ... N spp series")
         ->capture_default_str()
-        ->check(CLI::Range(1, 65536));
+        ->check(in_range(1, 65536));
     cmd->add_option("--width", a.width, "Image width")
         ->capture_default_str()
-        ->check(CLI::Range(1, 65536));
+        ->check(in_range(1, 65536));
     cmd->add_option("--height", a.height, "Image height")
         ->capture_default_str()
-        ->check(CLI::Range(1, 65536));
+        ->check(in_range(1, 65536));
     cmd->add_option("--threads", a.threads, "OpenMP threads (0 = all)")
         ->capture_default_str()
-        ->check(CLI::Range(0, 1024));
+        ->check(in_range(0, 1024));
     cmd->add_option("--seed", a.seed, "Seed")->capture_default_str();
     cmd->add_option("--path-depth", a.path_depth, "Maximum bounces")
         ->capture_default_str()
-        ->check(CLI::Range(0, 1024));
+        ->check(in_range(0, 1024));
     cmd->add_option(
            "--configs", a.configs,
            "Comma-separated: uniform, bsdf, nee, mis-uniform-env, mis, mis+adaptive; the first "
@@ -493,7 +493,7 @@ void add_bench_converge_command(CLI::App& parent) {
                   "Instead: path tracer rays/s against raw traversal of the same rays");
     cmd->add_option("--repeats", a.repeats, "--throughput: runs (median)")
         ->capture_default_str()
-        ->check(CLI::Range(1, 1000));
+        ->check(in_range(1, 1000));
     cmd->callback([] { run(a); });
 }
 

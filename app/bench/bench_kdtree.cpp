@@ -158,32 +158,32 @@ void add_bench_kdtree_command(CLI::App& bench) {
     cmd->add_option("--views", opt.views, "Views file (default: assets/views/dragon.json)");
     cmd->add_option("--repeat", opt.repeat, "Repeats; medians are reported")
         ->capture_default_str()
-        ->check(CLI::Range(1, 1000));
+        ->check(in_range(1, 1000));
     cmd->add_option("--threads", opt.threads, "Threads for both engines, 0 = all")
         ->capture_default_str()
-        ->check(CLI::Range(0, 1024));
+        ->check(in_range(0, 1024));
     cmd->add_option("--subdivide", opt.subdivide, "Split every triangle into 4^K first")
-        ->check(CLI::Range(0, 3));
+        ->check(in_range(0, 3));
     cmd->add_option("--rows", opt.rows, "Rows of table 6.1 to run (1-7, sah), comma-separated")
         ->capture_default_str();
     cmd->add_option("--depth", opt.depth,
                     "Thesis rows: maximum depth instead of 20 (the thesis's 10M-triangle table "
                     "uses 24)")
-        ->check(CLI::Range(1, 64));
+        ->check(in_range(1, 64));
     cmd->add_option("--n0", opt.n0, "Thesis rows: n0 instead of 5 (the 10M table uses 4)")
-        ->check(CLI::Range(0, 1000));
+        ->check(in_range(0, 1000));
     cmd->add_option("--sah-traversal-cost", opt.sah_traversal_cost,
                     "SAH row: cost of an inner node relative to a triangle test (default 4)")
-        ->check(CLI::Range(0.01f, 1000.0f));
+        ->check(in_range(0.01f, 1000.0f, false));
     cmd->add_option("--sah-intersect-cost", opt.sah_intersect_cost,
                     "SAH row: cost of a triangle test (default 1)")
-        ->check(CLI::Range(0.01f, 1000.0f));
+        ->check(in_range(0.01f, 1000.0f, false));
     cmd->add_option("--sah-empty-bonus", opt.sah_empty_bonus,
                     "SAH row: cost reduction for cutting off empty space (default 0.2)")
-        ->check(CLI::Range(0.0f, 1.0f));
+        ->check(in_range(0.0f, 1.0f, false));
     cmd->add_option("--sah-depth", opt.sah_depth,
                     "SAH row: maximum depth instead of the automatic 8 + 1.3 log2 N")
-        ->check(CLI::Range(1, 64));
+        ->check(in_range(1, 64));
     cmd->add_option("--leaf-vertex-indices", opt.leaf_vertex_indices,
                     "Every row's trees store each leaf reference's vertex indices (on), or not "
                     "(off), instead of only within 32 bytes per triangle (auto): rows then "
@@ -191,7 +191,7 @@ void add_bench_kdtree_command(CLI::App& bench) {
         ->capture_default_str()
         ->check(CLI::IsMember({"auto", "on", "off"}));
     cmd->add_option("--spp", opt.spp, "Primary rays per pixel (default: the views file's)")
-        ->check(CLI::Range(1, 4096));
+        ->check(in_range(1, 4096));
     non_empty_file_name(cmd->add_option("--csv", opt.csv, "Also write all tables as CSV"), "--csv");
     non_empty_file_name(
         cmd->add_option("--md", opt.md, "Write the Markdown here instead of stdout"), "--md");
@@ -213,7 +213,7 @@ void add_bench_kdtree_command(CLI::App& bench) {
         ->capture_default_str();
     cmd->add_option("--robust-rays", opt.robust_rays, "Vertex- and edge-aimed rays each")
         ->capture_default_str()
-        ->check(CLI::Range(1, 100000000));
+        ->check(in_range(1, 100000000));
     cmd->callback([] { kdtree_bench::run(opt); });
 }
 

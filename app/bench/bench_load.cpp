@@ -14,6 +14,7 @@
 
 #include "app/bench/bench_table.h"
 #include "app/commands.h"
+#include "app/options_cli.h"
 #include "renderer/core/error.h"
 #include "renderer/core/output_path.h"
 #include "renderer/core/temp_file.h"
@@ -233,7 +234,7 @@ void add_bench_load_command(CLI::App& bench) {
         bench.add_subcommand("load", "PLY load time: ours against Assimp (Markdown table)");
     cmd->add_option("files", args->files, "PLY/OBJ files")->required();
     cmd->add_option("--repeat", args->repeat, "Runs per file and reader (median reported)")
-        ->check(CLI::Range(1, 1000));
+        ->check(in_range(1, 1000));
     cmd->add_option("--csv", args->csv, "Also write the table as CSV");
     cmd->add_option(
         "--make-binary", args->make_binary,
@@ -246,7 +247,7 @@ void add_bench_load_command(CLI::App& bench) {
     cmd->add_option("--threads", args->threads,
                     "Threads for our ascii PLY parsing (1 = one core, 2 = two, 0 = two when "
                     "the machine has them; default: load_mesh's default)")
-        ->check(CLI::Range(0, 64));
+        ->check(in_range(0, 64));
     cmd->callback([args] { run_bench_load(*args); });
 }
 

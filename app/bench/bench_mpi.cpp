@@ -22,6 +22,7 @@
 #include "app/bench/run_program.h"
 #include "app/commands.h"
 #include "app/mpi_cli.h"
+#include "app/options_cli.h"
 #include "renderer/core/error.h"
 #include "renderer/core/shell_word.h"
 
@@ -228,7 +229,7 @@ void add_bench_mpi_command(CLI::App& parent) {
     // typo cannot start thousands of processes.
     sub->add_option("--ranks", args.ranks, "Rank counts")
         ->delimiter(',')
-        ->check(CLI::Range(1, 4096))
+        ->check(in_range(1, 4096))
         ->capture_default_str();
     sub->add_option_function<std::vector<std::string>>(
            "--distributions",
@@ -238,26 +239,26 @@ void add_bench_mpi_command(CLI::App& parent) {
            },
            "dynamic, strips, interleaved")
         ->delimiter(',');
-    sub->add_option("--width", args.width)->check(CLI::Range(1, 1 << 14))->capture_default_str();
-    sub->add_option("--height", args.height)->check(CLI::Range(1, 1 << 14))->capture_default_str();
-    sub->add_option("--spp", args.spp)->check(CLI::Range(1, 1 << 20))->capture_default_str();
-    sub->add_option("--repeat", args.repeat)->check(CLI::Range(1, 100))->capture_default_str();
+    sub->add_option("--width", args.width)->check(in_range(1, 1 << 14))->capture_default_str();
+    sub->add_option("--height", args.height)->check(in_range(1, 1 << 14))->capture_default_str();
+    sub->add_option("--spp", args.spp)->check(in_range(1, 1 << 20))->capture_default_str();
+    sub->add_option("--repeat", args.repeat)->check(in_range(1, 100))->capture_default_str();
     sub->add_option("--frames", args.frames,
                     "Also farm a turntable of this many frames (dynamic, each rank count)")
-        ->check(CLI::Range(0, 1 << 16));
+        ->check(in_range(0, 1 << 16));
     sub->add_option("--frame-width", args.frame_width, "Turntable width (0 = --width)")
-        ->check(CLI::Range(0, 1 << 14));
+        ->check(in_range(0, 1 << 14));
     sub->add_option("--frame-height", args.frame_height, "Turntable height (0 = --height)")
-        ->check(CLI::Range(0, 1 << 14));
+        ->check(in_range(0, 1 << 14));
     sub->add_option("--frame-spp", args.frame_spp, "Turntable spp (0 = --spp)")
-        ->check(CLI::Range(0, 1 << 20));
+        ->check(in_range(0, 1 << 20));
     sub->add_flag("--tiles,!--no-tiles", args.tiles, "The tile rows (default on)");
     sub->add_option(
         "--launcher-flags", args.launcher_flags,
         "Extra flags for the launcher, words separated by blanks (no shell quoting), e.g. "
         "'--mca mpi_yield_when_idle 1'");
     sub->add_option("--throttle", args.throttle, "Slowdown of rank 1 in throttled runs (1 = off)")
-        ->check(CLI::Range(1.0, 1000.0))
+        ->check(in_range(1.0, 1000.0, false))
         ->capture_default_str();
     sub->add_option("--mpiexec", args.mpiexec, "The MPI launcher")->capture_default_str();
     sub->add_option("--work-dir", args.work_dir, "Images, stats and logs")->capture_default_str();
