@@ -66,8 +66,11 @@ void add_build_command(CLI::App& parent) {
         ->check(in_range(0, 4));
     static bool quiet = false;
     cmd->add_flag("--quiet", quiet, "No cache messages (warnings are still printed)");
-    cmd->add_option("-o,--output", output,
-                    "Write the tree to this file (always rebuilt) instead of the automatic cache");
+    non_empty_file_name(
+        cmd->add_option("-o,--output", output,
+                        "Write the tree to this file (always rebuilt) instead of the automatic "
+                        "cache"),
+        "-o");
     non_empty_file_name(cmd->add_option("--cache-dir", cache_dir,
                                         "Cache directory (default: $KDT_CACHE_DIR/trees, "
                                         "$XDG_CACHE_HOME/kdtrace/trees or ~/.cache/kdtrace/trees)"),

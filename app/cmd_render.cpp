@@ -180,7 +180,7 @@ void run(const RenderCommand& cmd) {
     // Fail before loading and rendering, not after.
     validate(o);
     if (dist_requested(cmd.dist)) return run_dist_render(o, cmd.output, cmd.quiet, cmd.dist);
-    check_image_output(cmd.output, o.film.transparent);
+    check_image_output_flag(cmd.output, o.film.transparent);
     std::vector<std::string> inputs = {o.scene.scene_path, o.scene.env_file, o.scene.tree_file};
     inputs.insert(inputs.end(), cmd.option_files.begin(), cmd.option_files.end());
     check_output(cmd.output, inputs, "the image");
@@ -307,10 +307,12 @@ void add_render_command(CLI::App& parent) {
     auto* sub =
         parent.add_subcommand("render", "Render a scene, a model or the built-in default scene");
     add_render_options(*sub, cmd.options);
-    sub->add_option("-o,--output", cmd.output,
-                    "Output image: .png (tone-mapped sRGB), .exr, .pfm or .hdr (linear); "
-                    "the render settings are stored in .png and .exr")
-        ->capture_default_str();
+    non_empty_file_name(sub->add_option("-o,--output", cmd.output,
+                                        "Output image: .png (tone-mapped sRGB), .exr, .pfm or "
+                                        ".hdr (linear); the render settings are stored in .png "
+                                        "and .exr")
+                            ->capture_default_str(),
+                        "-o");
     sub->add_flag("--quiet", cmd.quiet,
                   "No progress bar or cache messages (warnings are still printed)");
     add_dist_options(*sub, cmd.dist, cmd.options);

@@ -22,7 +22,8 @@ void add_scene_command(CLI::App& parent) {
                                         "Scene (.json) or model file; omitted = the built-in "
                                         "default scene"),
                         "SCENE", " (omit SCENE for the built-in scene)");
-    cmd->add_option("-o,--output", output, "Write the scene as JSON to this file");
+    non_empty_file_name(
+        cmd->add_option("-o,--output", output, "Write the scene as JSON to this file"), "-o");
     cmd->add_flag("--drop-invalid", drop_invalid, "Drop faces with non-finite vertices");
     static uint64_t max_triangles = kDefaultMaxSceneTriangles;
     cmd->add_option("--max-triangles", max_triangles,

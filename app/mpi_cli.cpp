@@ -54,6 +54,13 @@ static_assert(std::string_view(kDistributions[0]) == dist::kDistributionNames[0]
               std::string_view(kDistributions[2]) == dist::kDistributionNames[2]);
 #endif
 
+// Why --frames SPEC names no frames.
+std::string frames_spec_error(const std::string& spec) {
+    return "--frames takes N (with --turntable), views:A,B,..., views:all or "
+           "sessions:a.json,b.json,... (got '" +
+           printable(spec) + "')";
+}
+
 }  // namespace
 
 void check_distribution_name(const std::string& option, const std::string& text) {
@@ -100,7 +107,10 @@ void add_dist_options(CLI::App& app, DistArgs& a, RenderOptions& options) {
                    "of the --views file), sessions:a.json,b.json,... (each as --session FILE "
                    "with the other flags). -o is a pattern such as frame_%03d.png (position "
                    "from 0), or for views and sessions a name that gets _VIEW or _STEM")
-        ->type_name("SPEC");
+        ->type_name("SPEC")
+        ->each([](const std::string& spec) {
+            if (spec.empty()) throw Error(frames_spec_error(spec));  // "" is not "not given"
+        });
     app.add_flag("--turntable", a.turntable,
                  "The --frames N orbit the camera about its up axis through its target");
     non_empty_file_name(app.add_option("--mpi-stats", a.stats_file,
@@ -330,10 +340,7 @@ std::vector<FramePlan> list_frames(const RenderOptions& base, const DistArgs& a)
     }
     double n = 0.0;
     if (!detail::parse_number(spec, n) || n != std::floor(n) || n < 1 || n > double(1 << 20)) {
-        throw Error(
-            "--frames takes N (with --turntable), views:A,B,..., views:all or "
-            "sessions:a.json,b.json,... (got '" +
-            printable(spec) + "')");
+        throw Error(frames_spec_error(spec));
     }
     if (!a.turntable)
         throw Error("--frames N needs --turntable (or list views: or sessions: instead)");
@@ -377,7 +384,7 @@ std::vector<FramePlan> plan_frames(const RenderOptions& base, const std::string&
                         "; give -o a pattern such as frame_%03d.png");
         }
         if (!check_outputs) continue;
-        check_image_output(f.output, f.options.film.transparent);
+        check_image_output_flag(f.output, f.options.film.transparent);
         const SceneOptions& sc = f.options.scene;
         check_output(f.output,
                      {sc.scene_path, sc.env_file, sc.tree_file, f.session, views, session},

@@ -10,6 +10,8 @@
 #include <utility>
 
 #include "renderer/core/error.h"
+#include "renderer/io/image_io.h"
+#include "renderer/light/environment.h"
 #include "renderer/scene/scene.h"
 #include "renderer/scene/views.h"
 
@@ -88,6 +90,14 @@ CLI::Option* non_empty_file_name(CLI::Option* opt, const std::string& name,
     return opt->each([name, hint](const std::string& text) {
         if (text.empty()) throw Error(name + ": empty file name" + hint);
     });
+}
+
+void check_image_output_flag(const std::string& output, bool with_alpha) {
+    try {
+        check_image_output(output, with_alpha);
+    } catch (const Error& e) {
+        throw Error(std::string("-o ") + e.what());
+    }
 }
 
 double parse_flag_number(const std::string& flag, const std::string& text, double min, double max,
@@ -199,7 +209,13 @@ void add_scene_options(CLI::App& app, SceneOptions& scene) {
     non_empty_file_name(app.add_option("--env", scene.env_file,
                                        "Environment map (.hdr, .exr, .pfm) replacing the scene's"),
                         "--env");
-    app.add_option("--env-mapping", scene.env_mapping, "Mapping of --env: latlong or angular");
+    // Empty is "not given" in SceneOptions; on the command line it is a mistake.
+    app.add_option("--env-mapping", scene.env_mapping, "Mapping of --env: latlong or angular")
+        ->each([](const std::string& text) {
+            if (text.empty())
+                throw Error("--env-mapping must be " + detail::choices_text(kEnvMappingNames) +
+                            " " + detail::got(text));
+        });
     app.add_option_function<std::string>(
            "--env-intensity",
            [&scene](const std::string& text) {

@@ -23,6 +23,10 @@ using SkipFlags = std::initializer_list<const char*>;
 CLI::Option* non_empty_file_name(CLI::Option* opt, const std::string& name,
                                  const std::string& hint = "");
 
+/// check_image_output() of the -o of a render, its errors naming the flag: "-o /tmp: is a
+/// directory, not an image file name".
+void check_image_output_flag(const std::string& output, bool with_alpha);
+
 /// `text` as a number in [min, max] (a whole one when `integral`) for flags outside the
 /// option structs' tables, refused in the tables' words: "--timeout must be a number (got
 /// 'x')", "--timeout must be in [0, 1000000000] (got -1)".

@@ -859,13 +859,14 @@ void write_image(const std::string& path, const ImageRGB& image, const ToneParam
 }
 
 void check_image_output(const std::string& path, bool with_alpha) {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    // Before the extension: a directory has none, and "unknown image format ''" hides why.
+    if (fs::is_directory(fs::path(path), ec)) fail(path, "is a directory, not an image file name");
     const std::string ext = lower_extension(path);
     check_image_extension(path, ext);
     if (with_alpha && ext != ".png" && ext != ".exr")
         fail(path, "film.transparent needs an alpha channel: write .png or .exr");
-    namespace fs = std::filesystem;
-    std::error_code ec;
-    if (fs::is_directory(fs::path(path), ec)) fail(path, "is a directory");
     fs::path dir = fs::path(path).parent_path();
     if (dir.empty()) dir = ".";
     if (!fs::is_directory(dir, ec)) fail(path, "no directory " + dir.string() + " to write into");

@@ -58,6 +58,24 @@ add_test(NAME smoke.empty_name_scene COMMAND ${_kdt} render "" --spp 1 --width 8
          --quiet -o ${_tmp}/empty_name.png)
 set_tests_properties(smoke.empty_name_scene PROPERTIES
   PASS_REGULAR_EXPRESSION "error: SCENE: empty file name \\(omit SCENE for the built-in scene\\)")
+foreach(_case "render_o;render --spp 1 --width 8 --height 6 -o;-o: empty file name"
+              "build_o;build /usr/share/assimp/models/PLY/cube.ply -o;-o: empty file name"
+              "scene_o;scene -o;-o: empty file name"
+              "frames;render --spp 1 --width 8 --height 6 -o ${_tmp}/empty_frames.png --frames;--frames takes N [^\n]* \\(got ''\\)"
+              "env_mapping;render --spp 1 --width 8 --height 6 -o ${_tmp}/empty_mapping.png --env-mapping;--env-mapping must be one of: latlong, angular \\(got ''\\)")
+  list(GET _case 0 _id)
+  list(GET _case 1 _args)
+  list(GET _case 2 _why)
+  separate_arguments(_args)
+  add_test(NAME smoke.empty_value_${_id} COMMAND ${_kdt} ${_args} "")
+  set_tests_properties(smoke.empty_value_${_id} PROPERTIES
+    PASS_REGULAR_EXPRESSION "^kdtrace: error: ${_why}\n$")
+endforeach()
+# A directory given as the output image is named as such, with the flag.
+add_test(NAME smoke.output_is_directory COMMAND ${_kdt} render --spp 1 --width 8 --height 6
+         -o ${_tmp})
+set_tests_properties(smoke.output_is_directory PROPERTIES
+  PASS_REGULAR_EXPRESSION "^kdtrace: error: -o [^\n]*smoke: is a directory, not an image file name\n$")
 add_test(NAME smoke.empty_name_info COMMAND ${_kdt} info "")
 set_tests_properties(smoke.empty_name_info PROPERTIES
   PASS_REGULAR_EXPRESSION "error: info: empty file name")
