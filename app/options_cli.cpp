@@ -71,7 +71,9 @@ void add_fields(CLI::App& app, S& s, std::span<const Field<S>> fields, SkipFlags
             std::holds_alternative<ChoiceRef>(ref)
                 ? std::string(f->help)
                 : std::string(f->help) + " " + field_range_text(*f));
-        opt->default_str(field_text(*f, s));
+        // A stop condition's 0 is "off", which its range refuses: "unset", not "=0".
+        const bool off = f->zero_is_off && field_number(ref) == 0.0;
+        opt->default_str(off ? "unset" : field_text(*f, s));
         if (std::holds_alternative<ChoiceRef>(ref)) {
             opt->type_name("NAME");
         } else if (field_is_integral(ref)) {

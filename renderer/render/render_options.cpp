@@ -11,6 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "renderer/camera/camera.h"
 #include "renderer/core/error.h"
 #include "renderer/core/open_file.h"
 #include "renderer/io/image_io.h"
@@ -30,8 +31,10 @@ using SC = StopConditions;
 constexpr double kMaxSeed = 18446744073709551615.0;  // 2^64 - 1 as a double (rounds to 2^64)
 
 const Field<SO> kSceneFields[] = {
-    KDT_FIELD(SO, width, "--width", "Image width in pixels", 1, 16384),
-    KDT_FIELD(SO, height, "--height", "Image height in pixels", 1, 16384),
+    KDT_FIELD(SO, width, "--width", "Image width in pixels (width x height at most 134217728)", 1,
+              16384),
+    KDT_FIELD(SO, height, "--height", "Image height in pixels (width x height at most 134217728)",
+              1, 16384),
     KDT_FIELD(SO, env_rotation_degrees, "--env-rotation",
               "Extra rotation of the environment about +y, degrees", -36000.0, 36000.0),
     KDT_FIELD(SO, use_cache, "--no-cache", "Build the kd-tree without the tree cache"),
@@ -81,8 +84,10 @@ const Field<FP> kFilmFields[] = {
 };
 
 const Field<SC> kStopFields[] = {
-    KDT_FIELD(SC, spp, "--spp", "Stop at N samples per pixel (adaptive: N x pixels in all)", 0,
-              1 << 30, true, {}, true),
+    KDT_FIELD(SC, spp, "--spp",
+              "Stop at N samples per pixel (adaptive: N x pixels in all; 16 when no --spp, "
+              "--time or --error is given)",
+              0, 1 << 30, true, {}, true),
     KDT_FIELD(SC, seconds, "--time", "Stop after S seconds of rendering", 0.0, 1e9, true, {}, true),
     KDT_FIELD(SC, error, "--error",
               "Stop when every pixel's relative error is below E (turns on adaptive sampling)", 0.0,
@@ -350,8 +355,17 @@ RenderOptions resolve(RenderOptions o) {
     return o;
 }
 
+static_assert(kMaxCameraPixels == 134217728, "the help of --width and --height states the limit");
+
 void validate(const SceneOptions& s) {
     validate_fields(s, scene_fields(), "scene");
+    // Each side within its range can still make an image the film and the files cannot hold.
+    if (int64_t(s.width) * s.height > kMaxCameraPixels) {
+        throw Error("scene.width x scene.height: " + std::to_string(s.width) + "x" +
+                    std::to_string(s.height) + " is " +
+                    std::to_string(int64_t(s.width) * s.height) + " pixels, more than " +
+                    std::to_string(kMaxCameraPixels));
+    }
     if (s.env_intensity) {
         const std::string why =
             detail::check_number(*s.env_intensity, 0.0, 3.0e38, false, false, true);

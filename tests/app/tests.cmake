@@ -114,6 +114,15 @@ set_tests_properties(smoke.distribution_bogus PROPERTIES PASS_REGULAR_EXPRESSION
 add_test(NAME smoke.render_help_formats COMMAND ${_kdt} render --help)
 set_tests_properties(smoke.render_help_formats PROPERTIES
   PASS_REGULAR_EXPRESSION "Output image: \\.png [^\n]*\\.exr[^\n]*\\.pfm[^\n]*\\.hdr")
+# render --help shows a stop condition that is off as unset (its 0 is refused), the default
+# spp, and the pixel limit that the error of a too large image names with the flags.
+add_test(NAME smoke.render_help_defaults COMMAND ${_kdt} render --help)
+set_tests_properties(smoke.render_help_defaults PROPERTIES PASS_REGULAR_EXPRESSION
+  "--width INT=640 +Image width in pixels \\(width x height at most 134217728\\) \\[1, 16384\\]\n[^\n]*\n[^$]*--spp INT=unset +[^\n]*16 when no --spp, --time or --error is given\\) \\(0, 1073741824\\]\n +--time FLOAT=unset [^\n]*\n +--error FLOAT=unset ")
+add_test(NAME smoke.image_too_many_pixels COMMAND ${_kdt} render --width 16384 --height 16384
+         -o ${_tmp}/too_many_pixels.png)
+set_tests_properties(smoke.image_too_many_pixels PROPERTIES PASS_REGULAR_EXPRESSION
+  "^kdtrace: error: scene.width \\(--width\\) x scene.height \\(--height\\): 16384x16384 is 268435456 pixels, more than 134217728\n$")
 # Success lines show file names as errors do (printable()): an escape sequence or a newline in
 # a name reaches the terminal as \x1b or \n, never raw.
 add_test(NAME smoke.summary_names_escaped COMMAND sh -c "d=\"$1\"; rm -rf \"$d\"; mkdir -p \"$d\" \
