@@ -1,6 +1,8 @@
 // `kdtrace scene`: checks a scene file (or model) and prints what it holds, or writes the
 // built-in default scene as JSON so it can be edited and rendered elsewhere.
+#include <cstdint>
 #include <cstdio>
+#include <string>
 
 #include "app/commands.h"
 #include "app/options_cli.h"
@@ -27,10 +29,10 @@ void add_scene_command(CLI::App& parent) {
     cmd->add_flag("--drop-invalid", drop_invalid, "Drop faces with non-finite vertices");
     static uint64_t max_triangles = kDefaultMaxSceneTriangles;
     cmd->add_option("--max-triangles", max_triangles,
-                    "Refuse scenes whose instances add up to more triangles (also bounded by "
-                    "the memory available)")
+                    "Refuse a scene (its instances counted), model or built-in scene of more "
+                    "triangles (also bounded by the memory available)")
         ->capture_default_str()
-        ->check(CLI::PositiveNumber);
+        ->check(in_range(1.0, 18446744073709551615.0));
     cmd->callback([] {
         interrupt::install();
         // Fail before loading, not after; the files the scene references are checked below.
@@ -39,6 +41,16 @@ void add_scene_command(CLI::App& parent) {
         opts.drop_invalid = drop_invalid;
         opts.max_triangles = max_triangles;
         Scene scene = input.empty() ? make_default_scene() : load_scene_or_model(input, opts);
+        // A scene file's instances are bounded as it is read; a model and the built-in scene
+        // are bounded here, by the same budget.
+        const uint64_t instanced = instanced_triangle_count(scene);
+        if (const uint64_t budget = scene_triangle_budget(max_triangles); instanced > budget) {
+            throw Error((input.empty() ? std::string("the built-in scene") : input) + ": " +
+                        std::to_string(instanced) + " triangles, more than " +
+                        (budget < max_triangles
+                             ? "the " + std::to_string(budget) + " that fit the memory available"
+                             : "--max-triangles " + std::to_string(max_triangles)));
+        }
         // The environment map is decoded as `render` would (the meshes were read above).
         if (!scene.environment.file.empty()) {
             try {

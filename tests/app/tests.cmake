@@ -11,6 +11,24 @@ add_test(NAME smoke.scene_roundtrip COMMAND ${_kdt} scene ${_tmp}/default.json)
 set_tests_properties(smoke.scene_roundtrip PROPERTIES DEPENDS smoke.scene_default
   PASS_REGULAR_EXPRESSION "327682 triangles")
 
+# scene --max-triangles bounds every input, a model and the built-in scene too, and its range
+# error is the tables' one.
+foreach(_case "model;/usr/share/assimp/models/PLY/cube.ply --max-triangles 11;[^\n]*cube.ply: 12 triangles, more than --max-triangles 11"
+              "builtin;--max-triangles 100;the built-in scene: 327682 triangles, more than --max-triangles 100"
+              "zero;/usr/share/assimp/models/PLY/cube.ply --max-triangles 0;--max-triangles must be in \\[1, 18446744073709551615\\] \\(got 0\\)")
+  list(GET _case 0 _id)
+  list(GET _case 1 _args)
+  list(GET _case 2 _why)
+  separate_arguments(_args)
+  add_test(NAME smoke.scene_max_triangles_${_id} COMMAND ${_kdt} scene ${_args})
+  set_tests_properties(smoke.scene_max_triangles_${_id} PROPERTIES
+    PASS_REGULAR_EXPRESSION "^kdtrace: error: ${_why}\n$")
+endforeach()
+add_test(NAME smoke.scene_max_triangles_exact COMMAND ${_kdt} scene
+         /usr/share/assimp/models/PLY/cube.ply --max-triangles 12)
+set_tests_properties(smoke.scene_max_triangles_exact PROPERTIES
+  PASS_REGULAR_EXPRESSION "1 meshes, 8 vertices, 12 triangles")
+
 add_test(NAME smoke.info_cube COMMAND ${_kdt} info /usr/share/assimp/models/PLY/cube.ply)
 set_tests_properties(smoke.info_cube PROPERTIES PASS_REGULAR_EXPRESSION "triangles: +12")
 
