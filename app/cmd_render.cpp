@@ -326,6 +326,7 @@ void add_render_command(CLI::App& parent) {
             warn_unused_tree_flags(*sub, cmd.options.tree, !cmd.options.scene.tree_file.empty());
             warn_unused_render_flags(*sub, cmd.options);
             warn_adaptive_budget(cmd.options);
+            warn_unused_output_flags(*sub, cmd.output);
         }
         check_dist_flags(*sub, cmd.dist);
         // With --mpi or --frames, plan_frames() reads it (with --mpi, in step on every rank).

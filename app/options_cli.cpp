@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <new>
 #include <optional>
 #include <tuple>
@@ -179,6 +180,19 @@ void warn_unused_render_flags(const CLI::App& app, const RenderOptions& given) {
                      "kdtrace: warning: --spp %d is above --max-spp %d: the render stops at %d "
                      "samples per pixel\n",
                      o.stop.spp, o.stop.max_spp, o.stop.max_spp);
+    }
+}
+
+void warn_unused_output_flags(const CLI::App& app, const std::string& output) {
+    std::string ext = std::filesystem::path(output).extension().string();
+    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    if (ext != ".exr" && ext != ".pfm" && ext != ".hdr") return;
+    for (const char* flag : {"--exposure", "--tonemap"}) {
+        if (app.count(flag) == 0) continue;
+        std::fprintf(stderr,
+                     "kdtrace: warning: %s has no effect on %s output, which stays linear (it "
+                     "applies to .png)\n",
+                     flag, ext.c_str());
     }
 }
 

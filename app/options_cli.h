@@ -72,6 +72,11 @@ void check_views_file(const CLI::App& app);
 /// of a render without a stop condition is not the user's, and not warned about).
 void warn_unused_render_flags(const CLI::App& app, const RenderOptions& options);
 
+/// Warns on stderr about --exposure and --tonemap given on `app`'s command line when `output`
+/// (an image name or a --frames pattern) is linear (.exr, .pfm, .hdr): only PNG output is
+/// tone-mapped.
+void warn_unused_output_flags(const CLI::App& app, const std::string& output);
+
 /// Refuses --subdivide LEVELS of a mesh of `triangles` when the result would not fit in the
 /// memory available (scene_triangle_budget()) or the kd-tree, before the minutes of work.
 void check_subdivide(uint64_t triangles, int levels);

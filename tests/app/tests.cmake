@@ -141,6 +141,15 @@ add_test(NAME smoke.image_too_many_pixels COMMAND ${_kdt} render --width 16384 -
          -o ${_tmp}/too_many_pixels.png)
 set_tests_properties(smoke.image_too_many_pixels PROPERTIES PASS_REGULAR_EXPRESSION
   "^kdtrace: error: scene.width \\(--width\\) x scene.height \\(--height\\): 16384x16384 is 268435456 pixels, more than 134217728\n$")
+# --exposure and --tonemap warn where they do nothing (linear output), and only there.
+add_test(NAME smoke.tone_flags_linear_output COMMAND ${_kdt} render --spp 1 --width 8 --height 6
+         --quiet --exposure 3 --tonemap aces -o ${_tmp}/tone_flags.EXR)
+set_tests_properties(smoke.tone_flags_linear_output PROPERTIES PASS_REGULAR_EXPRESSION
+  "kdtrace: warning: --exposure has no effect on .exr output, which stays linear \\(it applies to .png\\)\nkdtrace: warning: --tonemap has no effect on .exr output")
+add_test(NAME smoke.tone_flags_png_output COMMAND ${_kdt} render --spp 1 --width 8 --height 6
+         --quiet --exposure 3 --tonemap aces -o ${_tmp}/tone_flags.png)
+set_tests_properties(smoke.tone_flags_png_output PROPERTIES PASS_REGULAR_EXPRESSION " -> "
+  FAIL_REGULAR_EXPRESSION "warning")
 # Success lines show file names as errors do (printable()): an escape sequence or a newline in
 # a name reaches the terminal as \x1b or \n, never raw.
 add_test(NAME smoke.summary_names_escaped COMMAND sh -c "d=\"$1\"; rm -rf \"$d\"; mkdir -p \"$d\" \
