@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -490,7 +491,8 @@ void make_file_names_absolute(SceneOptions& scene) {
 
 namespace {
 
-// "PNG" or "OpenEXR" by the file's first bytes, else nullptr (a short file is not an image).
+// "PNG", "OpenEXR", "PFM" or "Radiance HDR" by the file's first bytes, else nullptr (a short
+// file is not an image).
 const char* image_kind(const std::string& path) {
     const int fd = open_regular_file(path, "a session file");
     unsigned char head[4] = {};
@@ -500,6 +502,9 @@ const char* image_kind(const std::string& path) {
     static const unsigned char kPng[4] = {0x89, 'P', 'N', 'G'}, kExr[4] = {0x76, 0x2f, 0x31, 0x01};
     if (std::memcmp(head, kPng, 4) == 0) return "PNG";
     if (std::memcmp(head, kExr, 4) == 0) return "OpenEXR";
+    if (head[0] == 'P' && (head[1] == 'F' || head[1] == 'f') && std::isspace(head[2])) return "PFM";
+    if (std::memcmp(head, "#?RA", 4) == 0 || std::memcmp(head, "#?RG", 4) == 0)
+        return "Radiance HDR";  // #?RADIANCE or #?RGBE
     return nullptr;
 }
 
@@ -507,6 +512,12 @@ const char* image_kind(const std::string& path) {
 
 void options_from_session_file(const std::string& path, RenderOptions& o) {
     if (const char* kind = image_kind(path)) {
+        const std::string k = kind;
+        if (k == "PFM" || k == "Radiance HDR") {
+            throw Error(path + ": a " + kind +
+                        " image carries no kdtrace settings; give the PNG or EXR kdtrace wrote, "
+                        "or a session .json");
+        }
         // The metadata alone: the pixels are never decoded.
         const ImageMetadata meta =
             kind[0] == 'P' ? read_png_metadata(path) : read_exr_metadata(path);

@@ -295,6 +295,17 @@ TEST(RenderOptions, ImagesWrittenByKdtraceAreSessions) {
                   }).find(plain + ": no kdtrace:params text in this"),
                   std::string::npos);
     }
+    // PFM and HDR have no place for settings: said so, not "malformed JSON".
+    for (const char* ext : {".pfm", ".hdr"}) {
+        const std::string path = (dir / (std::string("linear") + ext)).string();
+        write_image(path, img);
+        RenderOptions o;
+        EXPECT_NE(test::error_of_call([&] { options_from_session_file(path, o); })
+                      .find(path + ": a " + (ext[1] == 'p' ? "PFM" : "Radiance HDR") +
+                            " image carries no kdtrace settings; give the PNG or EXR"),
+                  std::string::npos)
+            << ext;
+    }
     const std::string twice = (dir / "twice.png").string();
     write_image(twice, img, {}, {{"kdtrace:params", "{}"}, {"kdtrace:params", "{}"}});
     RenderOptions o;
