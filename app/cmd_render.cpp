@@ -342,7 +342,7 @@ void add_render_command(CLI::App& parent) {
         try {
             run(cmd);
         } catch (const Error& e) {
-            throw Error(with_flags(e.what()));
+            throw Error(with_camera_flags(*sub, with_flags(e.what())));
         }
         if (interrupt::requested()) interrupt::exit_interrupted();  // 130 or 143
     });

@@ -360,6 +360,28 @@ std::string with_flags(const std::string& message) {
     return m;
 }
 
+std::string with_camera_flags(const CLI::App& app, const std::string& message) {
+    if (message.rfind("camera: ", 0) != 0) return message;
+    if (message.find("eye") == std::string::npos && message.find("target") == std::string::npos &&
+        message.find("up vector") == std::string::npos && message.find("up (") == std::string::npos)
+        return message;  // the image size or the field of view: named by their own checks
+    std::string given, others;
+    for (const char* part : {"eye", "target", "up"}) {
+        const std::string flag = std::string("--") + part;
+        const CLI::Option* opt = app.get_option_no_throw(flag);
+        if (opt && opt->count() > 0) {
+            given += (given.empty() ? "" : ", ") + flag + " " + printable(opt->results().back());
+        } else {
+            others += (others.empty() ? "" : " and ") + std::string(part);
+        }
+    }
+    if (given.empty()) return message;
+    std::string from = "the scene's";
+    if (const CLI::Option* view = app.get_option_no_throw("--view"); view && view->count() > 0)
+        from = "--view " + printable(view->results().back()) + "'s";
+    return message + " (" + given + (others.empty() ? "" : " with " + from + " " + others) + ")";
+}
+
 bool is_warning(const std::string& line) {
     return line.rfind("warning: ", 0) == 0 || line.find(": warning: ") != std::string::npos;
 }

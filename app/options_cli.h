@@ -87,6 +87,11 @@ void check_subdivide(uint64_t triangles, int levels);
 /// --subdivide 3: out of memory making 55770496 triangles", not main()'s bare "out of memory".
 void subdivide_model(const std::string& model, TriangleMesh& mesh, int levels);
 
+/// A camera error ("camera: up vector is zero") followed by the camera flags given on `app`'s
+/// command line, and where the other parts came from: "camera: up vector is parallel to the
+/// viewing direction (--eye 0,0,0 with the scene's target and up)". Other messages unchanged.
+std::string with_camera_flags(const CLI::App& app, const std::string& message);
+
 /// Whether a line of prepare_render()'s log (or a worker's, "ranks 1, 2 of 3: ...") is a
 /// warning: shown under --quiet, which silences progress and cache messages, not problems.
 bool is_warning(const std::string& line);

@@ -150,6 +150,19 @@ add_test(NAME smoke.tone_flags_png_output COMMAND ${_kdt} render --spp 1 --width
          --quiet --exposure 3 --tonemap aces -o ${_tmp}/tone_flags.png)
 set_tests_properties(smoke.tone_flags_png_output PROPERTIES PASS_REGULAR_EXPRESSION " -> "
   FAIL_REGULAR_EXPRESSION "warning")
+# A camera error names the camera flags given, and where the other parts came from.
+foreach(_case "eye;--eye 0,0,0;up vector is parallel to the viewing direction \\(--eye 0,0,0 with the scene's target and up\\)"
+              "up;--up 0,0,0;up vector is zero \\(--up 0,0,0 with the scene's eye and target\\)"
+              "view;--up 0,0,0 --view A;up vector is zero \\(--up 0,0,0 with --view A's eye and target\\)")
+  list(GET _case 0 _id)
+  list(GET _case 1 _args)
+  list(GET _case 2 _why)
+  separate_arguments(_args)
+  add_test(NAME smoke.camera_error_flags_${_id} COMMAND ${_kdt} render ${_args} --spp 1 --width 8
+           --height 6 --quiet -o ${_tmp}/camera_error.pfm)
+  set_tests_properties(smoke.camera_error_flags_${_id} PROPERTIES
+    PASS_REGULAR_EXPRESSION "^kdtrace: error: camera: ${_why}\n$")
+endforeach()
 # Success lines show file names as errors do (printable()): an escape sequence or a newline in
 # a name reaches the terminal as \x1b or \n, never raw.
 add_test(NAME smoke.summary_names_escaped COMMAND sh -c "d=\"$1\"; rm -rf \"$d\"; mkdir -p \"$d\" \
