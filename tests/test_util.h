@@ -1,7 +1,12 @@
 // Helpers shared by the test executables: paths to the source tree, shared data, assets.
 #pragma once
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <cstdint>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -39,6 +44,33 @@ std::string error_of_call(F&& f) {
         return e.what();
     }
     return "";
+}
+
+// Sanitizers reserve more address space than any RLIMIT_AS allows: tests that cap it skip.
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define KDT_NO_ADDRESS_LIMIT 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+#define KDT_NO_ADDRESS_LIMIT 1
+#endif
+#endif
+
+/// For a child process only (EXPECT_EXIT): caps the address space at `extra` bytes above what
+/// the process uses, runs f(), prints the message of the kdt::Error it throws, if any, to
+/// stderr and exits 0; exits 2 when the cap cannot be set.
+template <class F>
+[[noreturn]] void run_capped(size_t extra, F&& f) {
+    long pages = 0;
+    if (FILE* file = std::fopen("/proc/self/statm", "r")) {
+        if (std::fscanf(file, "%ld", &pages) != 1) pages = 0;
+        std::fclose(file);
+    }
+    const rlim_t limit = rlim_t(pages) * rlim_t(::sysconf(_SC_PAGESIZE)) + rlim_t(extra);
+    const rlimit cap{limit, limit};
+    if (pages == 0 || ::setrlimit(RLIMIT_AS, &cap) != 0) std::_Exit(2);
+    const std::string msg = error_of_call(f);
+    if (!msg.empty()) std::fprintf(stderr, "%s\n", msg.c_str());
+    std::_Exit(0);
 }
 
 /// Seeded SplitMix64 stream for test inputs (not the renderer's sampler): fixed seeds only.

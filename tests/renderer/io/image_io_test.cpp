@@ -11,9 +11,6 @@
 #include <iterator>
 #include <limits>
 
-#include <sys/resource.h>
-#include <unistd.h>
-
 #include <gtest/gtest.h>
 #include <zlib.h>
 
@@ -590,33 +587,14 @@ TEST_F(ImageIoTest, ImageInfoChecksPngPixelDataAsTheDecodeDoes) {
     }
 }
 
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-#define KDT_NO_ADDRESS_LIMIT 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
-#define KDT_NO_ADDRESS_LIMIT 1
-#endif
-#endif
-
 #ifndef KDT_NO_ADDRESS_LIMIT
-// Caps the address space at 64 MiB above what the process uses, prints the size and encoding
-// read_image_info() finds (or its error) and exits 0 (2 when the cap cannot be set). For a
-// child process only.
+// Prints the size and encoding read_image_info() finds (or its error) under
+// test::run_capped() with 64 MiB to spare. For a child process only.
 [[noreturn]] void info_capped(const std::string& file) {
-    long pages = 0;
-    if (FILE* f = std::fopen("/proc/self/statm", "r")) {
-        if (std::fscanf(f, "%ld", &pages) != 1) pages = 0;
-        std::fclose(f);
-    }
-    const rlim_t limit = rlim_t(pages) * rlim_t(::sysconf(_SC_PAGESIZE)) + (64 << 20);
-    const rlimit cap{limit, limit};
-    if (pages == 0 || ::setrlimit(RLIMIT_AS, &cap) != 0) std::_Exit(2);
-    const std::string msg = test::error_of_call([&] {
+    test::run_capped(size_t(64) << 20, [&] {
         const ImageInfo info = read_image_info(file);
         std::fprintf(stderr, "%dx%d %s\n", info.width, info.height, info.encoding.c_str());
     });
-    if (!msg.empty()) std::fprintf(stderr, "%s\n", msg.c_str());
-    std::_Exit(0);
 }
 #endif
 

@@ -2,9 +2,6 @@
 // message the whole line would give, long comments and statements are read in pieces without
 // holding them (results and line numbers as for short ones, also with CR line ends split
 // between blocks), and running out of memory names the file.
-#include <sys/resource.h>
-#include <unistd.h>
-
 #include <cstdio>
 #include <fstream>
 #include <string>
@@ -215,34 +212,15 @@ TEST(ObjLongLines, LineEndsBetweenBlocks) {
     }
 }
 
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-#define KDT_NO_ADDRESS_LIMIT 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
-#define KDT_NO_ADDRESS_LIMIT 1
-#endif
-#endif
-
 #ifndef KDT_NO_ADDRESS_LIMIT
-// Caps the address space at 64 MiB above what the process uses, reads `text`, prints the
-// error (or "loaded V vertices, T triangles") and exits 0 (2 when the cap cannot be set). For
-// a child process only.
+// Reads `text` under test::run_capped() with 64 MiB to spare, printing the error (or "loaded V
+// vertices, T triangles"). For a child process only.
 [[noreturn]] void read_capped(const std::string& text) {
-    long pages = 0;
-    if (FILE* f = std::fopen("/proc/self/statm", "r")) {
-        if (std::fscanf(f, "%ld", &pages) != 1) pages = 0;
-        std::fclose(f);
-    }
-    const rlim_t limit = rlim_t(pages) * rlim_t(::sysconf(_SC_PAGESIZE)) + 64 * kMiB;
-    const rlimit cap{limit, limit};
-    if (pages == 0 || ::setrlimit(RLIMIT_AS, &cap) != 0) std::_Exit(2);
-    std::string msg = test::error_of_call([&] {
+    test::run_capped(64 * kMiB, [&] {
         const TriangleMesh mesh = load(text);
         std::fprintf(stderr, "loaded %zu vertices, %zu triangles\n", size_t(mesh.vertex_count()),
                      size_t(mesh.triangle_count()));
     });
-    if (!msg.empty()) std::fprintf(stderr, "%s\n", msg.c_str());
-    std::_Exit(0);
 }
 #endif
 
