@@ -282,10 +282,7 @@ void run(const RenderCommand& cmd) {
     std::snprintf(error_buf, sizeof error_buf, "%.4f", p.mean_relative_error);
     const std::string error_text = p.error_known ? error_buf : "unknown (below 2 spp)";
     // A --tree file is the user's own, not the cache's.
-    const std::string tree_source = !prep.tree_from_cache ? ""
-                                    : o.scene.tree_file.empty()
-                                        ? " (cached)"
-                                        : " (from " + printable(o.scene.tree_file) + ")";
+    const std::string tree_source = tree_source_text(prep, o.scene);
     std::printf(
         "render: %s: %dx%d, %.2f s, %.1f spp, %.2f Mrays/s (%llu rays: %llu camera, %llu bounce, "
         "%llu shadow; %.1f nodes, %.1f triangles per ray), est. rel. error %s, %llu non-finite "

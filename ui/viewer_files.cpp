@@ -170,7 +170,7 @@ void Viewer::poll_load() {
     std::snprintf(buf, sizeof buf, "%s: %zu triangles; read %.2f s, tree %.2f s%s",
                   shown(r->what.path).c_str(),
                   size_t(prep_.snapshot->scene->mesh->triangle_count()), prep_.load_seconds,
-                  prep_.tree_seconds, prep_.tree_from_cache ? " (cache)" : "");
+                  prep_.tree_seconds, tree_source_text(prep_, opts_.scene).c_str());
     status_ = buf;
     std::printf("view: loaded %s\n", status_.c_str());
     std::fflush(stdout);

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "renderer/accel/kdtree_cache.h"
+#include "renderer/core/error.h"
 #include "renderer/core/timer.h"
 #include "renderer/render/settings.h"
 
@@ -102,6 +103,12 @@ Prepared prepare_render(const RenderOptions& o, const PrepareLog& log, const Pre
     snap->build_seconds = timer.seconds();
     out.snapshot = std::move(snap);
     return out;
+}
+
+std::string tree_source_text(const Prepared& prepared, const SceneOptions& options) {
+    if (!prepared.tree_from_cache) return "";
+    if (options.tree_file.empty()) return " (cached)";
+    return " (from " + printable(options.tree_file) + ")";
 }
 
 }  // namespace kdt

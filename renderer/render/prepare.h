@@ -21,6 +21,10 @@ struct Prepared {
     bool tree_from_cache = false;
 };
 
+/// Where a prepared tree came from, for summary lines: " (cached)", " (from FILE)" for a tree
+/// file given by options (scene.tree_file), or "" for a tree built now.
+std::string tree_source_text(const Prepared& prepared, const SceneOptions& options);
+
 /// One-line messages (cache hits and writes, the scene file's warnings); empty = stderr.
 using PrepareLog = std::function<void(const std::string&)>;
 

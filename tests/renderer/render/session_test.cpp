@@ -565,6 +565,20 @@ TEST(RenderSnapshot, BadCameraFailsBeforeTheTreeIsBuilt) {
     EXPECT_EQ(trees(), 1);
 }
 
+// The summary lines' word for where the tree came from (render's last line, the viewer's
+// status): built, the cache, or a tree file given by --tree.
+TEST(PrepareRender, TreeSourceNamesATreeFileGiven) {
+    Prepared p;
+    SceneOptions o;
+    EXPECT_EQ(tree_source_text(p, o), "");
+    p.tree_from_cache = true;
+    EXPECT_EQ(tree_source_text(p, o), " (cached)");
+    o.tree_file = "/t/dragon.kdt";
+    EXPECT_EQ(tree_source_text(p, o), " (from /t/dragon.kdt)");
+    o.tree_file = "/t/\x1b.kdt";
+    EXPECT_EQ(tree_source_text(p, o).find('\x1b'), std::string::npos);
+}
+
 // A mirrored glass sphere is the same sphere: the sphere is symmetric under each axis flip,
 // so scale (-1, 1, 1) and (-1, -1, -1) must render it as without the transform, flat and
 // smooth. Without reversing the winding, the dielectric saw the inside as the outside
