@@ -222,9 +222,10 @@ void add_scene_options(CLI::App& app, SceneOptions& scene) {
         app.add_option("SCENE", scene.scene_path,
                        "Scene (.json) or model (.ply, .ply.gz, .obj); omitted = built-in scene"),
         "SCENE", " (omit SCENE for the built-in scene)");
-    non_empty_file_name(app.add_option("--env", scene.env_file,
-                                       "Environment map (.hdr, .exr, .pfm) replacing the scene's"),
-                        "--env");
+    non_empty_file_name(
+        app.add_option("--env", scene.env_file,
+                       "Environment map (.hdr, .exr, .pfm; .png as sRGB) replacing the scene's"),
+        "--env");
     // Empty is "not given" in SceneOptions; on the command line it is a mistake.
     app.add_option("--env-mapping", scene.env_mapping, "Mapping of --env: latlong or angular")
         ->each([](const std::string& text) {

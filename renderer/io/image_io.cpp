@@ -215,31 +215,6 @@ ImageRGB load_hdr(const std::string& path, const std::vector<uint8_t>& data) {
 
 constexpr uint8_t kPngSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
 
-ImageRGB load_png(const std::string& path, const std::vector<uint8_t>& data) {
-    if (data.size() > size_t(std::numeric_limits<int>::max())) fail(path, "file too large");
-    int w = 0, h = 0, comp = 0;
-    if (!stbi_info_from_memory(data.data(), int(data.size()), &w, &h, &comp)) {
-        fail(path, std::string("cannot decode PNG: ") + stbi_failure_reason());
-    }
-    check_dimensions(path, w, h);
-    ImageRGB image(w, h);
-    if (stbi_is_16_bit_from_memory(data.data(), int(data.size()))) {
-        stbi_us* p = stbi_load_16_from_memory(data.data(), int(data.size()), &w, &h, &comp, 3);
-        if (!p) fail(path, std::string("cannot decode PNG: ") + stbi_failure_reason());
-        std::unique_ptr<stbi_us, void (*)(void*)> owner(p, stbi_image_free);
-        for (size_t i = 0; i < image.rgb.size(); ++i)
-            image.rgb[i] = srgb_to_linear(p[i] / 65535.0f);
-    } else {
-        stbi_uc* p = stbi_load_from_memory(data.data(), int(data.size()), &w, &h, &comp, 3);
-        if (!p) fail(path, std::string("cannot decode PNG: ") + stbi_failure_reason());
-        std::unique_ptr<stbi_uc, void (*)(void*)> owner(p, stbi_image_free);
-        float table[256];
-        for (int i = 0; i < 256; ++i) table[i] = srgb_to_linear(float(i) / 255.0f);
-        for (size_t i = 0; i < image.rgb.size(); ++i) image.rgb[i] = table[p[i]];
-    }
-    return image;
-}
-
 uint32_t read_be32(const uint8_t* p) {
     return (uint32_t(p[0]) << 24) | (uint32_t(p[1]) << 16) | (uint32_t(p[2]) << 8) | p[3];
 }
@@ -249,14 +224,36 @@ struct PngHeader {
     int width = 0;
     int height = 0;
     int depth = 0;  ///< bits per sample: 1, 2, 4, 8 or 16
+    int color = 0;  ///< PNG colour type: 0 grey, 2 RGB, 3 palette, 4 grey + alpha, 6 RGBA
 };
 
-/// Checks a PNG's pixel data as stb_image's decode does, without holding the image: the chunk
-/// order and the header, palette and transparency rules stb_image applies, chunk CRCs, and the
-/// IDAT data streamed through zlib in bounded memory (a complete, valid zlib stream of at
-/// least the bytes the header calls for, every row's filter type in 0..4). Like stb_image, it
-/// accepts bytes after the last row (stb_image issue #276); unlike it, it checks the zlib
-/// stream's Adler-32, so a corrupt stream stb_image would decode to garbage is an error.
+/// Undoes a PNG row filter (PNG spec, section 9) on `row` for one byte per complete pixel (a
+/// palette image's indices), `prev` the row above unfiltered (zeros for a pass's first row).
+void unfilter_png_row(int filter, std::vector<uint8_t>& row, const std::vector<uint8_t>& prev) {
+    const auto paeth = [](int a, int b, int c) {
+        const int p = a + b - c, pa = std::abs(p - a), pb = std::abs(p - b), pc = std::abs(p - c);
+        return pa <= pb && pa <= pc ? a : pb <= pc ? b : c;
+    };
+    for (size_t i = 0; i < row.size(); ++i) {
+        const int left = i > 0 ? row[i - 1] : 0, up = prev[i], up_left = i > 0 ? prev[i - 1] : 0;
+        const int add = filter == 1   ? left
+                        : filter == 2 ? up
+                        : filter == 3 ? (left + up) >> 1
+                        : filter == 4 ? paeth(left, up, up_left)
+                                      : 0;
+        row[i] = uint8_t(row[i] + add);
+    }
+}
+
+/// Checks a PNG's pixel data without holding the image: the chunk order and the header,
+/// palette and transparency rules, the colour type and bit depth pairs the PNG spec allows,
+/// chunk CRCs, and the IDAT data streamed through zlib in bounded memory (a complete, valid
+/// zlib stream of at least the bytes the header calls for, every row's filter type in 0..4,
+/// and in a palette image every index within the palette). Like stb_image, it accepts bytes
+/// after the last row (stb_image issue #276); unlike it, it checks the zlib stream's Adler-32,
+/// refuses Apple's CgBI variant, and refuses palette indices past the palette, which
+/// stb_image reads from memory it never set. load_png() runs it before decoding, so `info`
+/// and loading accept the same files.
 PngHeader check_png_pixels(const std::string& path, const std::vector<uint8_t>& data) {
     const auto corrupt = [&](const std::string& why, size_t at) {
         fail(path, "cannot decode PNG: " + why, int64_t(at));
@@ -266,7 +263,7 @@ PngHeader check_png_pixels(const std::string& path, const std::vector<uint8_t>& 
     }
     PngHeader header;
     int color = 0, channels = 0, interlace = 0;
-    bool have_header = false, have_palette = false, raw_deflate = false;
+    bool have_header = false, have_palette = false;
     size_t palette_entries = 0;
     // The rows stb_image decodes: one run per interlace pass (Adam7) or the whole image,
     // each row a filter byte and then row_bytes bytes.
@@ -274,6 +271,7 @@ PngHeader check_png_pixels(const std::string& path, const std::vector<uint8_t>& 
         int number = 0;  // Adam7 pass 1-7, 0 without interlace
         uint64_t rows = 0;
         uint64_t row_bytes = 0;
+        uint64_t pixels = 0;  // per row
     };
     std::vector<Pass> passes;
     size_t pass = 0, last_pass = 0;  // indices into passes
@@ -285,6 +283,25 @@ PngHeader check_png_pixels(const std::string& path, const std::vector<uint8_t>& 
         const int number = passes[in_pass].number;
         return "row " + std::to_string(r) +
                (number ? " of interlace pass " + std::to_string(number) : std::string());
+    };
+    // A palette image's rows are unfiltered to check every index against the palette: the
+    // row being read and the one above it, unfiltered.
+    std::vector<uint8_t> row_data, row_above;
+    int row_filter = 0;
+    const auto check_indices = [&](size_t at) {
+        unfilter_png_row(row_filter, row_data, row_above);
+        const Pass& in = passes[last_pass];
+        const int d = header.depth;
+        for (uint64_t x = 0; x < in.pixels; ++x) {
+            const uint64_t bit = x * uint64_t(d);
+            const int index = (row_data[bit / 8] >> (8 - d - int(bit % 8))) & ((1 << d) - 1);
+            if (size_t(index) >= palette_entries) {
+                corrupt(row_name(last_pass, last_row) + ": palette index " + std::to_string(index) +
+                            " past the palette's " + std::to_string(palette_entries) + " entries",
+                        at);
+            }
+        }
+        row_above.swap(row_data);
     };
     z_stream zs{};
     bool inflating = false, stream_end = false;
@@ -308,7 +325,7 @@ PngHeader check_png_pixels(const std::string& path, const std::vector<uint8_t>& 
         if (uint32_t(crc32(0L, &data[pos + 4], uInt(length + 4))) != read_be32(body + length))
             fail(path, "CRC mismatch in chunk " + type, int64_t(pos));
         if (type == "CgBI") {
-            raw_deflate = true;  // Apple's variant: raw deflate, as stb_image reads it
+            corrupt("Apple CgBI chunk (an iOS variant, not a standard PNG)", pos);
         } else if (!have_header && type != "IHDR") {
             corrupt("first chunk is " + type + ", not IHDR", pos);
         } else if (type == "IHDR") {
@@ -317,12 +334,14 @@ PngHeader check_png_pixels(const std::string& path, const std::vector<uint8_t>& 
             if (length != 13) corrupt("IHDR chunk of " + std::to_string(length) + " bytes", pos);
             const uint32_t w = read_be32(body), h = read_be32(body + 4);
             header.depth = body[8];
-            color = body[9];
+            header.color = color = body[9];
             interlace = body[12];
             const int d = header.depth;
             if (d != 1 && d != 2 && d != 4 && d != 8 && d != 16)
                 corrupt("bit depth " + std::to_string(d) + " (1, 2, 4, 8 or 16 only)", pos);
-            if (color > 6 || (color & 1 && color != 3) || (color == 3 && d == 16))
+            // PNG spec, table 11.1: grey any depth, palette up to 8, the others 8 or 16.
+            if (!(color == 0 || (color == 3 && d <= 8) ||
+                  ((color == 2 || color == 4 || color == 6) && d >= 8)))
                 corrupt(
                     "colour type " + std::to_string(color) + " with bit depth " + std::to_string(d),
                     pos);
@@ -343,10 +362,10 @@ PngHeader check_png_pixels(const std::string& path, const std::vector<uint8_t>& 
                 if (w <= x0 || h <= y0 || pw == 0 || ph == 0) continue;
                 const uint64_t row_bytes = (uint64_t(channels) * pw * uint64_t(d) + 7) / 8;
                 if (d < 8 && row_bytes > pw) corrupt("invalid width", pos);
-                passes.push_back({interlace ? p + 1 : 0, ph, row_bytes});
+                passes.push_back({interlace ? p + 1 : 0, ph, row_bytes, pw});
             }
         } else if (type == "PLTE") {
-            if (length > 256 * 3 || length % 3 != 0)
+            if (length == 0 || length > 256 * 3 || length % 3 != 0)
                 corrupt("PLTE chunk of " + std::to_string(length) + " bytes", pos);
             have_palette = true;
             palette_entries = length / 3;
@@ -362,7 +381,7 @@ PngHeader check_png_pixels(const std::string& path, const std::vector<uint8_t>& 
         } else if (type == "IDAT") {
             if (color == 3 && !have_palette) corrupt("palette image without PLTE chunk", pos);
             if (!inflating && !stream_end) {
-                if (inflateInit2(&zs, raw_deflate ? -15 : 15) != Z_OK)
+                if (inflateInit2(&zs, 15) != Z_OK)
                     fail(path, "zlib initialisation failed", int64_t(pos));
                 inflating = true;
                 to_filter = 0;
@@ -383,22 +402,32 @@ PngHeader check_png_pixels(const std::string& path, const std::vector<uint8_t>& 
                 uint64_t have = out.size() - zs.avail_out;
                 const uint8_t* p = out.data();
                 while (have > 0) {
-                    if (to_filter > 0 || rows_done) {
-                        if (to_filter == 0) break;  // bytes after the last row
-                        const uint64_t skip = std::min(have, to_filter);
-                        to_filter -= skip;
-                        have -= skip;
-                        p += skip;
+                    if (to_filter > 0) {
+                        const uint64_t take = std::min(have, to_filter);
+                        if (color == 3) {
+                            std::memcpy(row_data.data() + (row_data.size() - to_filter), p,
+                                        size_t(take));
+                        }
+                        to_filter -= take;
+                        have -= take;
+                        p += take;
+                        if (to_filter == 0 && color == 3) check_indices(pos);
                         continue;
                     }
+                    if (rows_done) break;  // bytes after the last row
                     if (*p > 4) {
                         corrupt(row_name(pass, row) + " has filter type " + std::to_string(*p) +
                                     " (0-4 allowed)",
                                 pos);
                     }
+                    row_filter = *p;
                     ++p;
                     --have;
                     to_filter = passes[pass].row_bytes;
+                    if (color == 3) {
+                        row_data.assign(size_t(to_filter), 0);
+                        if (row == 0) row_above.assign(size_t(to_filter), 0);
+                    }
                     last_pass = pass;
                     last_row = row;
                     if (++row == passes[pass].rows) {
@@ -430,6 +459,32 @@ PngHeader check_png_pixels(const std::string& path, const std::vector<uint8_t>& 
         pos += 12 + size_t(length);
     }
     return header;
+}
+
+ImageRGB load_png(const std::string& path, const std::vector<uint8_t>& data) {
+    if (data.size() > size_t(std::numeric_limits<int>::max())) fail(path, "file too large");
+    check_png_pixels(path, data);  // what stb_image lets through (palette indices, ...)
+    int w = 0, h = 0, comp = 0;
+    if (!stbi_info_from_memory(data.data(), int(data.size()), &w, &h, &comp)) {
+        fail(path, std::string("cannot decode PNG: ") + stbi_failure_reason());
+    }
+    check_dimensions(path, w, h);
+    ImageRGB image(w, h);
+    if (stbi_is_16_bit_from_memory(data.data(), int(data.size()))) {
+        stbi_us* p = stbi_load_16_from_memory(data.data(), int(data.size()), &w, &h, &comp, 3);
+        if (!p) fail(path, std::string("cannot decode PNG: ") + stbi_failure_reason());
+        std::unique_ptr<stbi_us, void (*)(void*)> owner(p, stbi_image_free);
+        for (size_t i = 0; i < image.rgb.size(); ++i)
+            image.rgb[i] = srgb_to_linear(p[i] / 65535.0f);
+    } else {
+        stbi_uc* p = stbi_load_from_memory(data.data(), int(data.size()), &w, &h, &comp, 3);
+        if (!p) fail(path, std::string("cannot decode PNG: ") + stbi_failure_reason());
+        std::unique_ptr<stbi_uc, void (*)(void*)> owner(p, stbi_image_free);
+        float table[256];
+        for (int i = 0; i < 256; ++i) table[i] = srgb_to_linear(float(i) / 255.0f);
+        for (size_t i = 0; i < image.rgb.size(); ++i) image.rgb[i] = table[p[i]];
+    }
+    return image;
 }
 
 /// The text metadata of one PNG, all chunks together, inflated: kdtrace writes a few KB, so a
@@ -899,7 +954,9 @@ ImageInfo read_image_info(const std::string& path) {
         info.format = "PNG";
         info.width = header.width;
         info.height = header.height;
-        info.encoding = std::string(header.depth == 16 ? "16" : "8") + "-bit sRGB";
+        info.encoding = header.color == 3 ? "8-bit sRGB, palette of " +
+                                                std::to_string(header.depth) + "-bit indices"
+                                          : std::to_string(header.depth) + "-bit sRGB";
         return info;
     }
     // PFM and Radiance HDR hold no metadata and are small: decode them to check them whole.

@@ -482,7 +482,8 @@ TEST_F(ImageIoTest, HdrHeaderLineWithNulIsReadAsStbImageReadsIt) {
 
 // A PNG with the given IHDR fields and zlib stream (one IDAT chunk), chunk CRCs correct.
 std::vector<uint8_t> make_png(uint32_t width, uint32_t height, uint8_t depth, uint8_t color,
-                              uint8_t interlace, const std::vector<uint8_t>& zlib_stream) {
+                              uint8_t interlace, const std::vector<uint8_t>& zlib_stream,
+                              const std::vector<uint8_t>& palette = {}) {
     std::vector<uint8_t> out = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
     auto be32 = [&](uint32_t v) {
         for (int s = 24; s >= 0; s -= 8) out.push_back(uint8_t(v >> s));
@@ -499,6 +500,7 @@ std::vector<uint8_t> make_png(uint32_t width, uint32_t height, uint8_t depth, ui
         for (int s = 24; s >= 0; s -= 8) ihdr.push_back(uint8_t(v >> s));
     ihdr.insert(ihdr.end(), {depth, color, 0, 0, interlace});
     chunk("IHDR", ihdr);
+    if (!palette.empty()) chunk("PLTE", palette);
     chunk("IDAT", zlib_stream);
     chunk("IEND", {});
     return out;
@@ -585,6 +587,40 @@ TEST_F(ImageIoTest, ImageInfoChecksPngPixelDataAsTheDecodeDoes) {
             EXPECT_EQ(load_error(png), "") << i;
         }
     }
+}
+
+// A palette image's indices are checked once the row filters are undone, by info and by
+// loading alike: stb_image reads an index past the palette from memory it never set.
+TEST_F(ImageIoTest, PaletteIndicesPastThePaletteAreRefused) {
+    const auto info_error = [&](const std::vector<uint8_t>& png) {
+        write_bytes(path("p.png"), png);
+        return test::error_of_call([&] { read_image_info(path("p.png")); });
+    };
+    const auto load_error = [&](const std::vector<uint8_t>& png) {
+        write_bytes(path("p.png"), png);
+        return test::error_of_call([&] { load_image(path("p.png")); });
+    };
+    const std::vector<uint8_t> two = {255, 0, 0, 0, 0, 255};  // 2 entries
+    // 3x2, 8-bit indices. Row 0, Sub: 1, 0, 255 -> 1, 1, 0; row 1, Up: 0, 255, 1 -> 1, 0, 1.
+    const std::vector<uint8_t> good = {1, 1, 0, 255, 2, 0, 255, 1};
+    EXPECT_EQ(info_error(make_png(3, 2, 8, 3, 0, zlib_of(good), two)), "");
+    EXPECT_EQ(load_error(make_png(3, 2, 8, 3, 0, zlib_of(good), two)), "");
+    // Row 1, Up: 0, 1, 1 -> 1, 2, 1: index 2.
+    const std::vector<uint8_t> bad = {1, 1, 0, 255, 2, 0, 1, 1};
+    EXPECT_NE(info_error(make_png(3, 2, 8, 3, 0, zlib_of(bad), two))
+                  .find("row 1: palette index 2 past the palette's 2 entries"),
+              std::string::npos);
+    EXPECT_NE(load_error(make_png(3, 2, 8, 3, 0, zlib_of(bad), two)).find("palette index 2"),
+              std::string::npos);
+    // 2-bit indices 1, 0, 1 and two padding bits set: the padding is no index.
+    EXPECT_EQ(info_error(make_png(3, 1, 2, 3, 0, zlib_of({0, 0x47}), two)), "");
+    EXPECT_NE(info_error(make_png(3, 1, 2, 3, 0, zlib_of({0, 0x4b}), two)).find("palette index 2"),
+              std::string::npos);
+    // A palette image without entries, and a depth its colour type does not allow.
+    EXPECT_NE(load_error(make_png(3, 1, 2, 3, 0, zlib_of({0, 0x47}))).find("without PLTE"),
+              std::string::npos);
+    EXPECT_NE(load_error(make_png(3, 1, 1, 2, 0, zlib_of({0, 0}))).find("bit depth 1"),
+              std::string::npos);
 }
 
 #ifndef KDT_NO_ADDRESS_LIMIT
