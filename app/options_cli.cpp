@@ -72,6 +72,13 @@ void add_fields(CLI::App& app, S& s, std::span<const Field<S>> fields, SkipFlags
             std::holds_alternative<ChoiceRef>(ref)
                 ? std::string(f->help)
                 : std::string(f->help) + " " + field_range_text(*f));
+        // A repeated option takes its last value (TakeLast), and only that one reaches the
+        // callback: every value is still checked, so that a bad one is never silently passed over.
+        opt->each([&s, f, flag](const std::string& text) {
+            S scratch = s;
+            if (std::string why = parse_field(*f, scratch, text); !why.empty())
+                throw Error(flag + " " + why);
+        });
         // A stop condition's 0 is "off", which its range refuses: "unset", not "=0".
         const bool off = f->zero_is_off && field_number(ref) == 0.0;
         opt->default_str(off ? "unset" : field_text(*f, s));

@@ -64,6 +64,18 @@ add_test(NAME smoke.repeated_option_last COMMAND ${_kdt} render --spp 1 --spp 3 
          --width 4 --height 3 --quiet -o ${_tmp}/repeated.pfm)
 set_tests_properties(smoke.repeated_option_last PROPERTIES
   PASS_REGULAR_EXPRESSION "render: default scene: 4x3, [^\n]*, 3.0 spp")
+# ... and a bad value before it is still an error, not passed over.
+foreach(_case "spp;--spp abc --spp 2;--spp must be a number \\(got 'abc'\\)"
+              "tonemap;--tonemap foo --tonemap clamp;--tonemap must be one of: [^\n]* \\(got 'foo'\\)")
+  list(GET _case 0 _id)
+  list(GET _case 1 _args)
+  list(GET _case 2 _why)
+  separate_arguments(_args)
+  add_test(NAME smoke.repeated_option_bad_first_${_id} COMMAND ${_kdt} render ${_args} --width 8
+           --height 6 --quiet -o ${_tmp}/repeated_bad.png)
+  set_tests_properties(smoke.repeated_option_bad_first_${_id} PROPERTIES
+    PASS_REGULAR_EXPRESSION "^kdtrace: error: ${_why}\n$")
+endforeach()
 
 # An empty file name on the command line is an error naming the option, never "not given".
 foreach(_flag --env --tree --views --session --cache-dir)
