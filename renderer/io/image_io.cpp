@@ -223,8 +223,9 @@ uint32_t read_be32(const uint8_t* p) {
 struct PngHeader {
     int width = 0;
     int height = 0;
-    int depth = 0;  ///< bits per sample: 1, 2, 4, 8 or 16
-    int color = 0;  ///< PNG colour type: 0 grey, 2 RGB, 3 palette, 4 grey + alpha, 6 RGBA
+    int depth = 0;            ///< bits per sample: 1, 2, 4, 8 or 16
+    int color = 0;            ///< PNG colour type: 0 grey, 2 RGB, 3 palette, 4 grey + alpha, 6 RGBA
+    bool empty_idat = false;  ///< an IDAT chunk of 0 bytes (valid, but see load_png())
 };
 
 /// Undoes a PNG row filter (PNG spec, section 9) on `row` for one byte per complete pixel (a
@@ -379,6 +380,7 @@ PngHeader check_png_pixels(const std::string& path, const std::vector<uint8_t>& 
                 if (length != uint32_t(channels) * 2) corrupt("bad tRNS chunk length", pos);
             }
         } else if (type == "IDAT") {
+            header.empty_idat = header.empty_idat || length == 0;
             if (color == 3 && !have_palette) corrupt("palette image without PLTE chunk", pos);
             if (!inflating && !stream_end) {
                 if (inflateInit2(&zs, 15) != Z_OK)
@@ -463,7 +465,22 @@ PngHeader check_png_pixels(const std::string& path, const std::vector<uint8_t>& 
 
 ImageRGB load_png(const std::string& path, const std::vector<uint8_t>& data) {
     if (data.size() > size_t(std::numeric_limits<int>::max())) fail(path, "file too large");
-    check_png_pixels(path, data);  // what stb_image lets through (palette indices, ...)
+    const PngHeader header = check_png_pixels(path, data);  // what stb_image lets through
+    if (header.empty_idat) {
+        // stb_image copies an empty first IDAT from a null pointer (undefined behaviour): the
+        // same file without its empty IDAT chunks, which hold nothing.
+        std::vector<uint8_t> kept(data.begin(), data.begin() + 8);
+        for (size_t pos = 8; pos + 12 <= data.size();) {
+            const uint32_t length = read_be32(&data[pos]);
+            const size_t end = pos + 12 + size_t(length);  // checked: IEND comes first
+            if (length != 0 || std::memcmp(&data[pos + 4], "IDAT", 4) != 0)
+                kept.insert(kept.end(), data.begin() + ptrdiff_t(pos),
+                            data.begin() + ptrdiff_t(end));
+            if (std::memcmp(&data[pos + 4], "IEND", 4) == 0) break;
+            pos = end;
+        }
+        return load_png(path, kept);
+    }
     int w = 0, h = 0, comp = 0;
     if (!stbi_info_from_memory(data.data(), int(data.size()), &w, &h, &comp)) {
         fail(path, std::string("cannot decode PNG: ") + stbi_failure_reason());

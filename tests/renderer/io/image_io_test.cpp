@@ -623,6 +623,24 @@ TEST_F(ImageIoTest, PaletteIndicesPastThePaletteAreRefused) {
               std::string::npos);
 }
 
+// An empty IDAT chunk before the data is valid PNG; stb_image would copy it from a null
+// pointer (UBSan reports it), so it is dropped before decoding: the same image.
+TEST_F(ImageIoTest, EmptyFirstIdatLoadsAsWithout) {
+    const std::vector<uint8_t> raw = {0, 10, 20, 30, 40, 50, 60, 0, 70, 80, 90, 100, 110, 120};
+    const std::vector<uint8_t> plain = make_png(2, 2, 8, 2, 0, zlib_of(raw));
+    std::vector<uint8_t> with_empty = plain;
+    const size_t idat = 8 + 12 + 13;  // after the signature and IHDR
+    std::vector<uint8_t> empty = {0, 0, 0, 0, 'I', 'D', 'A', 'T'};
+    const uint32_t crc = uint32_t(crc32(0L, &empty[4], 4));
+    for (int k = 0; k < 4; ++k) empty.push_back(uint8_t(crc >> (24 - 8 * k)));
+    with_empty.insert(with_empty.begin() + ptrdiff_t(idat), empty.begin(), empty.end());
+    write_bytes(path("plain.png"), plain);
+    write_bytes(path("empty.png"), with_empty);
+    const ImageRGB a = load_image(path("plain.png")), b = load_image(path("empty.png"));
+    EXPECT_EQ(a.rgb, b.rgb);
+    EXPECT_EQ(b.width, 2);
+}
+
 #ifndef KDT_NO_ADDRESS_LIMIT
 // Prints the size and encoding read_image_info() finds (or its error) under
 // test::run_capped() with 64 MiB to spare. For a child process only.
