@@ -339,8 +339,10 @@ std::vector<FramePlan> list_frames(const RenderOptions& base, const DistArgs& a)
         return out;
     }
     double n = 0.0;
-    if (!detail::parse_number(spec, n) || n != std::floor(n) || n < 1 || n > double(1 << 20)) {
-        throw Error(frames_spec_error(spec));
+    if (!detail::parse_number(spec, n) || n != std::floor(n)) throw Error(frames_spec_error(spec));
+    if (n < 1 || n > double(1 << 20)) {
+        throw Error("--frames N must be in [1, " + std::to_string(1 << 20) + "] " +
+                    detail::got(spec));
     }
     if (!a.turntable)
         throw Error("--frames N needs --turntable (or list views: or sessions: instead)");

@@ -77,6 +77,12 @@ foreach(_case "spp;--spp abc --spp 2;--spp must be a number \\(got 'abc'\\)"
     PASS_REGULAR_EXPRESSION "^kdtrace: error: ${_why}\n$")
 endforeach()
 
+# A frame count out of range names the range.
+add_test(NAME smoke.frames_count_range COMMAND ${_kdt} render --frames 100000000 --turntable
+         --spp 1 --width 8 --height 6 -o ${_tmp}/frames_range_%d.png)
+set_tests_properties(smoke.frames_count_range PROPERTIES PASS_REGULAR_EXPRESSION
+  "^kdtrace: error: --frames N must be in \\[1, 1048576\\] \\(got '100000000'\\)\n$")
+
 # An empty file name on the command line is an error naming the option, never "not given".
 foreach(_flag --env --tree --views --session --cache-dir)
   add_test(NAME smoke.empty_name_${_flag} COMMAND ${_kdt} render ${_flag} "" --spp 1 --width 8
