@@ -59,6 +59,12 @@ std::string format(const ErrorLocation& w, const std::string& message) {
 
 }  // namespace
 
+size_t utf8_length_at(std::string_view text, size_t i) {
+    if (static_cast<unsigned char>(text[i]) < 0x80) return 1;
+    uint32_t cp = 0;
+    return utf8_sequence(text, i, cp);
+}
+
 std::string printable(std::string_view text) {
     std::string out;
     out.reserve(text.size());

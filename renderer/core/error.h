@@ -16,6 +16,10 @@ namespace kdt {
 /// from a file can neither drive a terminal nor hide or cut short the rest of the message.
 std::string printable(std::string_view text);
 
+/// The length of the well-formed UTF-8 sequence at text[i] (1 for ASCII; RFC 3629: no
+/// overlong forms, no surrogates, nothing above U+10FFFF), or 0 when none starts there.
+size_t utf8_length_at(std::string_view text, size_t i);
+
 /// Where in a file an error was found; unset fields are left out of the message. The path
 /// and element are shown through printable().
 struct ErrorLocation {

@@ -117,37 +117,9 @@ void check_file_name(const std::string& name, const std::string& where,
         throw Error(ErrorLocation{where, pointer}, why);
 }
 
-// The length of the well-formed UTF-8 sequence at text[i] (RFC 3629: no overlong forms, no
-// surrogates, nothing above U+10FFFF), or 0 when none starts there.
-size_t utf8_sequence(std::string_view text, size_t i) {
-    const auto at = [&](size_t k) { return static_cast<unsigned char>(text[k]); };
-    const unsigned char c = at(i);
-    if (c < 0x80) return 1;
-    size_t n = 0;
-    unsigned char lo = 0x80, hi = 0xbf;  // the second byte's range
-    if (c >= 0xc2 && c <= 0xdf) {
-        n = 2;
-    } else if (c >= 0xe0 && c <= 0xef) {
-        n = 3;
-        if (c == 0xe0) lo = 0xa0;
-        if (c == 0xed) hi = 0x9f;
-    } else if (c >= 0xf0 && c <= 0xf4) {
-        n = 4;
-        if (c == 0xf0) lo = 0x90;
-        if (c == 0xf4) hi = 0x8f;
-    } else {
-        return 0;
-    }
-    if (text.size() - i < n || at(i + 1) < lo || at(i + 1) > hi) return 0;
-    for (size_t k = 2; k < n; ++k) {
-        if (at(i + k) < 0x80 || at(i + k) > 0xbf) return 0;
-    }
-    return n;
-}
-
 bool is_utf8(std::string_view text) {
     for (size_t i = 0, n = 0; i < text.size(); i += n) {
-        if ((n = utf8_sequence(text, i)) == 0) return false;
+        if ((n = utf8_length_at(text, i)) == 0) return false;
     }
     return true;
 }
@@ -158,7 +130,7 @@ std::string escape_file_name_bytes(std::string_view name) {
     static const char kHex[] = "0123456789ABCDEF";
     std::string out;
     for (size_t i = 0, n = 0; i < name.size(); i += n) {
-        n = utf8_sequence(name, i);
+        n = utf8_length_at(name, i);
         if (n == 0 || name[i] == '%') {
             const auto b = static_cast<unsigned char>(name[i]);
             out += {'%', kHex[b >> 4], kHex[b & 15]};
