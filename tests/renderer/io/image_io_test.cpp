@@ -37,6 +37,15 @@ protected:
     void SetUp() override { dir_ = test::temp_dir("image_io"); }
     void TearDown() override { std::filesystem::remove_all(dir_); }
     std::string path(const std::string& name) const { return (dir_ / name).string(); }
+    // The error of read_image_info() / load_image() on `png` written to a file, or "".
+    std::string info_error(const std::vector<uint8_t>& png) const {
+        write_bytes(path("p.png"), png);
+        return test::error_of_call([&] { read_image_info(path("p.png")); });
+    }
+    std::string load_error(const std::vector<uint8_t>& png) const {
+        write_bytes(path("p.png"), png);
+        return test::error_of_call([&] { load_image(path("p.png")); });
+    }
     std::filesystem::path dir_;
 };
 
@@ -518,14 +527,6 @@ std::vector<uint8_t> zlib_of(const std::vector<uint8_t>& raw) {
 // IDAT data through zlib): broken data is an error as it is for load_image(), with the row or
 // the truncation named; bytes after the last row are accepted as stb_image accepts them.
 TEST_F(ImageIoTest, ImageInfoChecksPngPixelDataAsTheDecodeDoes) {
-    const auto info_error = [&](const std::vector<uint8_t>& png) {
-        write_bytes(path("p.png"), png);
-        return test::error_of_call([&] { read_image_info(path("p.png")); });
-    };
-    const auto load_error = [&](const std::vector<uint8_t>& png) {
-        write_bytes(path("p.png"), png);
-        return test::error_of_call([&] { load_image(path("p.png")); });
-    };
     // 5x4 RGB 8-bit: rows of 1 + 15 bytes; 3x3 grey 1-bit interlaced: passes 2 and 3 hold no
     // pixels, 1, 4, 5 and 7 one row of 1 + 1 bytes, 6 two such rows.
     std::vector<uint8_t> raw(4 * 16, 7);
@@ -592,14 +593,6 @@ TEST_F(ImageIoTest, ImageInfoChecksPngPixelDataAsTheDecodeDoes) {
 // A palette image's indices are checked once the row filters are undone, by info and by
 // loading alike: stb_image reads an index past the palette from memory it never set.
 TEST_F(ImageIoTest, PaletteIndicesPastThePaletteAreRefused) {
-    const auto info_error = [&](const std::vector<uint8_t>& png) {
-        write_bytes(path("p.png"), png);
-        return test::error_of_call([&] { read_image_info(path("p.png")); });
-    };
-    const auto load_error = [&](const std::vector<uint8_t>& png) {
-        write_bytes(path("p.png"), png);
-        return test::error_of_call([&] { load_image(path("p.png")); });
-    };
     const std::vector<uint8_t> two = {255, 0, 0, 0, 0, 255};  // 2 entries
     // 3x2, 8-bit indices. Row 0, Sub: 1, 0, 255 -> 1, 1, 0; row 1, Up: 0, 255, 1 -> 1, 0, 1.
     const std::vector<uint8_t> good = {1, 1, 0, 255, 2, 0, 255, 1};
