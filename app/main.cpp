@@ -102,9 +102,17 @@ std::string parse_error_message(const CLI::App& app, const CLI::ParseError& e) {
     } else if (const size_t at = m.find(" not expected: "); at != std::string::npos) {
         // "The following argument was not expected: --bogus" (an unknown option or an extra
         // argument).
-        const bool several = m.find("arguments were") != std::string::npos;
-        m = std::string("unexpected argument") + (several ? "s " : " ") + m.substr(at + 15) +
-            " (`" + command + " --help` lists the options)";
+        // CLI11 lists extras last first and counts a "--" among them; the command's own
+        // remaining() has them in the order given.
+        std::string extras;
+        int count = 0;
+        for (const std::string& arg : level->remaining()) {
+            if (arg == "--") continue;
+            extras += (count++ > 0 ? " " : "") + arg;
+        }
+        if (count == 0) extras = m.substr(at + 15);
+        m = std::string("unexpected argument") + (count > 1 ? "s " : " ") + extras + " (`" +
+            command + " --help` lists the options)";
     } else if (colon != std::string::npos && m.size() > 8 &&
                m.compare(m.size() - 8, 8, " missing") == 0 &&
                m.find(" required ", colon) != std::string::npos) {

@@ -45,6 +45,8 @@ foreach(_case "bad_option;render --bogus;unexpected argument --bogus \\(`kdtrace
               "missing_value;render --spp;--spp needs a value"
               "missing_model;build;MODEL is required"
               "extra_model;build a.ply b.ply;unexpected argument b\\.ply \\(`kdtrace build --help` lists the options\\)"
+              "extras_in_order;render --spp 2 a b c;unexpected arguments b c \\(`kdtrace render --help` lists the options\\)"
+              "extras_after_dashes;render -- a --spp 2;unexpected arguments --spp 2 \\(`kdtrace render --help` lists the options\\)"
               "subdivide_range;build a.ply --subdivide 5;--subdivide must be in \\[0, 4\\] \\(got 5\\)"
               "info_threads;info a.ply --threads 1025;--threads must be in \\[0, 1024\\] \\(got 1025\\)")
   list(GET _case 0 _id)
