@@ -143,15 +143,18 @@ TEST(ViewerScript, EveryWaitEndsOrFailsTheScript) {
     EXPECT_EQ(run({"set stop.spp 1", "wait_passes 5"}), "");
     EXPECT_TRUE(v.worker_->stats().done);
     EXPECT_EQ(run({"set stop.spp 100000", "wait_rebuild", "wait_split"}), "");  // nothing pending
+    // Paused before the change, so that neither the rebuilt tree's first image nor the split
+    // view's first pass can come in before the wait (on a slow machine a frame takes long
+    // enough for both).
     for (const char* wait : {"wait_passes 1000", "wait_done", "wait_rebuild"}) {
-        const std::vector<std::string> script = {"set tree.max_depth 12", "pause", wait};
+        const std::vector<std::string> script = {"pause", "set tree.max_depth 12", wait};
         const std::string e = run(script);
         EXPECT_NE(e.find("'" + std::string(wait) + "': cannot end while the render is paused"),
                   std::string::npos)
             << e;
         EXPECT_EQ(run({"resume", "wait_rebuild", "set tree.max_depth 0"}), "");
     }
-    const std::string e = run({"split on", "pause", "wait_split"});
+    const std::string e = run({"pause", "split on", "wait_split"});
     EXPECT_NE(e.find("'wait_split': cannot end while the render is paused"), std::string::npos)
         << e;
     EXPECT_EQ(run({"resume", "wait_split", "split off", "wait_passes 1"}), "");
