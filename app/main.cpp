@@ -49,7 +49,7 @@ std::string unknown_subcommand(const CLI::App& app, const std::string& word) {
         const size_t d = edit_distance(word, name);
         if (d < best_distance) best_distance = d, best = name;
     }
-    std::string message = "unknown command '" + kdt::printable(word) + "'";
+    std::string message = "unknown command '" + kdt::excerpt(word) + "'";
     if (best_distance <= std::max<size_t>(2, word.size() / 3)) {
         message += " (did you mean '" + best + "'?)";
     } else {
@@ -126,7 +126,7 @@ std::string parse_error_message(const CLI::App& app, const CLI::ParseError& e) {
     for (char& c : m) {
         if (c == '\n') c = ' ';
     }
-    return kdt::printable(m);
+    return kdt::printable_line(m);
 }
 
 int run(int argc, char** argv);
@@ -209,13 +209,13 @@ int report_error() {
     } catch (const kdt::Error& e) {
         // printable(): a message may quote bytes from a file through a library (a JSON
         // parser's "last read"); none may reach the terminal raw. Escaped text stays as it is.
-        std::fprintf(stderr, "kdtrace: error: %s\n", kdt::printable(e.what()).c_str());
+        std::fprintf(stderr, "kdtrace: error: %s\n", kdt::printable_line(e.what()).c_str());
         return 1;
     } catch (const std::bad_alloc&) {
         std::fprintf(stderr, "kdtrace: error: out of memory\n");
         return 1;
     } catch (const std::exception& e) {
-        std::fprintf(stderr, "kdtrace: error: %s\n", kdt::printable(e.what()).c_str());
+        std::fprintf(stderr, "kdtrace: error: %s\n", kdt::printable_line(e.what()).c_str());
     }
     return 1;
 }

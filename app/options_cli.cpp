@@ -28,13 +28,12 @@ Vec3f parse_vec3(const std::string& flag, const std::string& text) {
         const size_t comma = text.find(',', start);
         const bool last = i == 2;
         if ((comma == std::string::npos) != last) {
-            throw Error(flag + " must be three numbers X,Y,Z (got '" + printable(text) + "')");
+            throw Error(flag + " must be three numbers X,Y,Z (got '" + excerpt(text) + "')");
         }
         const std::string part = text.substr(start, last ? std::string::npos : comma - start);
         double d = 0.0;
         if (!detail::parse_number(part, d) || !std::isfinite(float(d))) {
-            throw Error(flag + " must be three finite numbers X,Y,Z (got '" + printable(text) +
-                        "')");
+            throw Error(flag + " must be three finite numbers X,Y,Z (got '" + excerpt(text) + "')");
         }
         v[i] = float(d);
         start = comma + 1;
@@ -278,7 +277,7 @@ void add_scene_options(CLI::App& app, SceneOptions& scene) {
                double v = 0.0;
                if (!detail::parse_number(text, v) || !(v > 0.0 && v < 180.0))
                    throw Error("--fov must be a vertical field of view in (0, 180) degrees (got '" +
-                               printable(text) + "')");
+                               excerpt(text) + "')");
                scene.vfov_degrees = float(v);
            },
            "Vertical field of view in degrees, (0, 180)")
@@ -378,7 +377,7 @@ std::string with_camera_flags(const CLI::App& app, const std::string& message) {
         const std::string flag = std::string("--") + part;
         const CLI::Option* opt = app.get_option_no_throw(flag);
         if (opt && opt->count() > 0) {
-            given += (given.empty() ? "" : ", ") + flag + " " + printable(opt->results().back());
+            given += (given.empty() ? "" : ", ") + flag + " " + excerpt(opt->results().back());
         } else {
             others += (others.empty() ? "" : " and ") + std::string(part);
         }
@@ -386,7 +385,7 @@ std::string with_camera_flags(const CLI::App& app, const std::string& message) {
     if (given.empty()) return message;
     std::string from = "the scene's";
     if (const CLI::Option* view = app.get_option_no_throw("--view"); view && view->count() > 0)
-        from = "--view " + printable(view->results().back()) + "'s";
+        from = "--view " + excerpt(view->results().back()) + "'s";
     return message + " (" + given + (others.empty() ? "" : " with " + from + " " + others) + ")";
 }
 

@@ -1,5 +1,6 @@
 #include "renderer/core/error.h"
 
+#include <algorithm>
 #include <cstdio>
 
 namespace kdt {
@@ -50,7 +51,7 @@ std::string format(const ErrorLocation& w, const std::string& message) {
     if (w.line >= 0) s += "line " + std::to_string(w.line) + ": ";
     if (w.offset >= 0) s += "byte " + std::to_string(w.offset) + ": ";
     if (!w.element.empty()) {
-        s += printable(w.element);
+        s += excerpt(w.element, 240);
         if (w.index >= 0) s += " " + std::to_string(w.index);
         s += ": ";
     }
@@ -96,6 +97,32 @@ std::string printable(std::string_view text) {
         }
     }
     return out;
+}
+
+namespace {
+
+// The largest cut <= at that does not fall inside a UTF-8 sequence of text.
+size_t sequence_boundary(std::string_view text, size_t at) {
+    at = std::min(at, text.size());
+    while (at > 0 && at < text.size() && (static_cast<unsigned char>(text[at]) & 0xc0) == 0x80)
+        --at;
+    return at;
+}
+
+}  // namespace
+
+std::string excerpt(std::string_view text, size_t max_bytes) {
+    if (text.size() <= max_bytes) return printable(text);
+    return printable(text.substr(0, sequence_boundary(text, max_bytes))) + "... [" +
+           std::to_string(text.size()) + " bytes]";
+}
+
+std::string printable_line(std::string_view message, size_t max_bytes) {
+    if (message.size() <= max_bytes) return printable(message);
+    const size_t head = sequence_boundary(message, max_bytes / 2);
+    const size_t tail = sequence_boundary(message, message.size() - max_bytes / 4);
+    return printable(message.substr(0, head)) + " ... [" + std::to_string(tail - head) +
+           " bytes left out] ... " + printable(message.substr(tail));
 }
 
 Error::Error(ErrorLocation where, const std::string& message)

@@ -16,6 +16,15 @@ namespace kdt {
 /// from a file can neither drive a terminal nor hide or cut short the rest of the message.
 std::string printable(std::string_view text);
 
+/// printable(text) for quoting a value in a message: when text is longer than max_bytes,
+/// its first bytes (up to max_bytes, not splitting a UTF-8 sequence) followed by
+/// "... [N bytes]", so a megabyte key or value cannot flood the terminal.
+std::string excerpt(std::string_view text, size_t max_bytes = 120);
+
+/// printable(message) for a whole message line: when longer than max_bytes, its head and
+/// tail (where the reason usually is) around "... [N bytes left out] ...".
+std::string printable_line(std::string_view message, size_t max_bytes = 4096);
+
 /// The length of the well-formed UTF-8 sequence at text[i] (1 for ASCII; RFC 3629: no
 /// overlong forms, no surrogates, nothing above U+10FFFF), or 0 when none starts there.
 size_t utf8_length_at(std::string_view text, size_t i);

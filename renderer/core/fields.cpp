@@ -105,7 +105,7 @@ void throw_field_error(const char* group, const char* name, const std::string& r
     throw Error(std::string(group) + "." + name + " " + reason);
 }
 
-std::string got(const std::string& text) { return "(got '" + printable(text) + "')"; }
+std::string got(const std::string& text) { return "(got '" + excerpt(text) + "')"; }
 
 }  // namespace detail
 

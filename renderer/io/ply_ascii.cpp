@@ -417,14 +417,14 @@ void PlyParser::read_ascii_line(Element& el, uint64_t i, float* v) {
     if (!next_data_line(b, e))
         fail_data(el, i, line_ + 1, -1,
                   "unexpected end of data (file truncated? the header declares " +
-                      std::to_string(el.count) + " " + printable(el.name) + " elements)");
+                      std::to_string(el.count) + " " + excerpt(el.name) + " elements)");
     const char* p = b;
     bool have_face = false;
     for (const Property& prop : el.props) {
         p = skip_blanks(p, e);
         if (p == e)
             fail_at(el, i,
-                    "missing value for property " + printable(prop.name) + " (line too short)");
+                    "missing value for property " + excerpt(prop.name) + " (line too short)");
         if (!prop.is_list()) {
             if (prop.slot < 0) {
                 p = skip_token(p, e);
@@ -444,14 +444,14 @@ void PlyParser::read_ascii_line(Element& el, uint64_t i, float* v) {
                 ok = r == IntResult::ok;
                 if (ok && (x < type_min(prop.type) || x > type_max(prop.type)))
                     fail_at(el, i,
-                            "value " + token_text(start, e) + " of property " +
-                                printable(prop.name) + " out of range for its type");
+                            "value " + token_text(start, e) + " of property " + excerpt(prop.name) +
+                                " out of range for its type");
                 v[prop.slot] = float(x) * prop.scale;
             }
             if (!ok)
-                fail_at(el, i,
-                        "invalid number '" + token_text(p, e) + "' for property " +
-                            printable(prop.name));
+                fail_at(
+                    el, i,
+                    "invalid number '" + token_text(p, e) + "' for property " + excerpt(prop.name));
             continue;
         }
         int64_t count = 0;
@@ -459,18 +459,17 @@ void PlyParser::read_ascii_line(Element& el, uint64_t i, float* v) {
         IntResult r = parse_int(p, e, count);
         if (r != IntResult::ok || count > type_max(prop.count_type) ||
             count < type_min(prop.count_type))
-            fail_at(
-                el, i,
-                "invalid list count '" + token_text(start, e) + "' for " + printable(prop.name));
+            fail_at(el, i,
+                    "invalid list count '" + token_text(start, e) + "' for " + excerpt(prop.name));
         if (count < 0)
             fail_at(el, i,
-                    "negative list count " + std::to_string(count) + " in " + printable(prop.name));
+                    "negative list count " + std::to_string(count) + " in " + excerpt(prop.name));
         if (prop.slot != kIndices) {
             for (int64_t k = 0; k < count; ++k) {
                 p = skip_blanks(p, e);
                 if (p == e)
                     fail_at(el, i,
-                            "list " + printable(prop.name) + " has " + std::to_string(k) + " of " +
+                            "list " + excerpt(prop.name) + " has " + std::to_string(k) + " of " +
                                 std::to_string(count) + " values");
                 p = skip_token(p, e);
             }

@@ -95,7 +95,7 @@ void PlyParser::read_binary_record(Element& el, uint64_t i) {
         in_.advance(csz);
         if (count < 0)
             fail_at(el, i,
-                    "negative list count " + std::to_string(count) + " in " + printable(p.name));
+                    "negative list count " + std::to_string(count) + " in " + excerpt(p.name));
         if (p.slot != kIndices) {
             if (!in_.skip(uint64_t(count) * isz))
                 fail_data(el, i, -1, int64_t(in_.offset()),

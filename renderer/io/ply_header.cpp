@@ -52,7 +52,7 @@ void PlyParser::parse_header() {
             if (have_format) fail_header("second format line");
             if (tok.size() != 3 || (tok[2] != "1.0" && tok[2] != "1"))
                 fail_header(
-                    "unknown format line '" + printable(std::string_view(b, size_t(e - b))) +
+                    "unknown format line '" + excerpt(std::string_view(b, size_t(e - b))) +
                     "' (expected 'format ascii|binary_little_endian|binary_big_endian 1.0')");
             if (tok[1] == "ascii")
                 encoding_ = PlyEncoding::ascii;
@@ -61,7 +61,7 @@ void PlyParser::parse_header() {
             else if (tok[1] == "binary_big_endian")
                 encoding_ = PlyEncoding::binary_big_endian;
             else
-                fail_header("unknown format '" + printable(tok[1]) + "'");
+                fail_header("unknown format '" + excerpt(tok[1]) + "'");
             have_format = true;
         } else if (kw == "element") {
             if (tok.size() != 3)
@@ -73,18 +73,18 @@ void PlyParser::parse_header() {
             int64_t count = 0;
             IntResult r = parse_int(p, tok[2].data() + tok[2].size(), count);
             if (r == IntResult::invalid)
-                fail_header("element " + printable(el.name) + ": count '" + printable(tok[2]) +
+                fail_header("element " + excerpt(el.name) + ": count '" + excerpt(tok[2]) +
                             "' is not an integer");
             if (r == IntResult::overflow || count > int64_t(1) << 48)
-                fail_header("element " + printable(el.name) + ": count " + printable(tok[2]) +
+                fail_header("element " + excerpt(el.name) + ": count " + excerpt(tok[2]) +
                             " is too large");
             if (count < 0)
-                fail_header("element " + printable(el.name) + ": negative count " +
+                fail_header("element " + excerpt(el.name) + ": negative count " +
                             std::to_string(count));
             el.count = uint64_t(count);
             for (const Element& other : elements_)
                 if (other.name == el.name)
-                    fail_header("second element named '" + printable(el.name) + "'");
+                    fail_header("second element named '" + excerpt(el.name) + "'");
             elements_.push_back(std::move(el));
         } else if (kw == "property") {
             if (elements_.empty()) fail_header("property before any element");
@@ -98,12 +98,11 @@ void PlyParser::parse_header() {
                 prop.count_type = parse_type(tok[2]);
                 prop.type = parse_type(tok[3]);
                 if (prop.count_type == PlyType::none)
-                    fail_header("unknown property type '" + printable(tok[2]) + "'");
+                    fail_header("unknown property type '" + excerpt(tok[2]) + "'");
                 if (prop.type == PlyType::none)
-                    fail_header("unknown property type '" + printable(tok[3]) + "'");
+                    fail_header("unknown property type '" + excerpt(tok[3]) + "'");
                 if (!is_integer(prop.count_type))
-                    fail_header("list count type '" + printable(tok[2]) +
-                                "' is not an integer type");
+                    fail_header("list count type '" + excerpt(tok[2]) + "' is not an integer type");
                 prop.name = std::string(tok[4]);
                 el.has_lists = true;
             } else {
@@ -111,14 +110,14 @@ void PlyParser::parse_header() {
                     fail_header("malformed property line (expected 'property TYPE NAME')");
                 prop.type = parse_type(tok[1]);
                 if (prop.type == PlyType::none)
-                    fail_header("unknown property type '" + printable(tok[1]) + "'");
+                    fail_header("unknown property type '" + excerpt(tok[1]) + "'");
                 prop.name = std::string(tok[2]);
                 el.scalar_bytes += type_size(prop.type);
             }
             for (const Property& other : el.props)
                 if (other.name == prop.name)
-                    fail_header("element " + printable(el.name) + ": second property named '" +
-                                printable(prop.name) + "'");
+                    fail_header("element " + excerpt(el.name) + ": second property named '" +
+                                excerpt(prop.name) + "'");
             el.props.push_back(std::move(prop));
         } else if (kw == "end_header") {
             have_end = true;
@@ -257,7 +256,7 @@ void PlyParser::check_counts() {
             // Name the running total when earlier elements took part of the file.
             const std::string with_before =
                 total == need ? "" : " (" + bytes(total) + " with the elements before it)";
-            fail_header("element " + printable(el.name) + ": count " + std::to_string(el.count) +
+            fail_header("element " + excerpt(el.name) + ": count " + std::to_string(el.count) +
                         " needs at least " + bytes(need) + " bytes" + with_before +
                         ", more than the " + std::to_string(remaining - (ascii_ ? 1 : 0)) +
                         (reader_.gzip() ? " bytes this compressed file may inflate to (gzip "

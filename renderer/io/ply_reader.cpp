@@ -154,7 +154,7 @@ void PlyParser::out_of_memory(const Element& el, uint64_t elements, size_t eleme
     w.element = el.name;
     throw Error(w, "out of memory growing an array to " + std::to_string(elements) +
                        " elements of " + std::to_string(element_bytes) + " bytes (the header " +
-                       "declares " + std::to_string(el.count) + " " + printable(el.name) +
+                       "declares " + std::to_string(el.count) + " " + excerpt(el.name) +
                        " elements)");
 }
 
@@ -266,7 +266,7 @@ void PlyParser::read_elements() {
             w.path = reader_.path();
             w.element = el.name;
             throw Error(w, "out of memory while reading the " + std::to_string(el.count) + " " +
-                               printable(el.name) + " elements the header declares");
+                               excerpt(el.name) + " elements the header declares");
         }
     }
     if (ascii_) check_trailing_text();

@@ -46,8 +46,9 @@ public:
             if (!ok.count(it.key())) {
                 std::string list;
                 for (const auto& k : ok) list += (list.empty() ? "" : ", ") + k;
-                throw Error(ErrorLocation{file_, child_path(it.key())},
-                            "unknown key \"" + it.key() + "\" (expected one of: " + list + ")");
+                throw Error(
+                    ErrorLocation{file_, child_path(it.key())},
+                    "unknown key \"" + excerpt(it.key()) + "\" (expected one of: " + list + ")");
             }
         }
     }
@@ -199,7 +200,7 @@ Mat4f read_transform(const Reader& r) {
 void warn(const SceneLoadOptions& options, const Reader& r, const char* key,
           const std::string& message) {
     const std::string line = "warning: " + printable(r.file()) + ": " +
-                             printable(*key ? r.child_path(key) : r.where()) + ": " + message;
+                             excerpt(*key ? r.child_path(key) : r.where(), 240) + ": " + message;
     if (options.warn) {
         options.warn(line);
     } else {

@@ -58,6 +58,12 @@ foreach(_case "bad_option;render --bogus;unexpected argument --bogus \\(`kdtrace
   set_tests_properties(smoke.parse_error_${_id} PROPERTIES
     PASS_REGULAR_EXPRESSION "^kdtrace: error: ${_why}\nstatus 1\n$")
 endforeach()
+# A huge value is quoted by its head and size, not echoed whole.
+string(REPEAT "z" 5000 _long_value)
+add_test(NAME smoke.long_value_quoted_short COMMAND sh -c "\"$@\" 2>&1; echo \"status $?\"" sh
+         ${_kdt} render --tonemap ${_long_value})
+set_tests_properties(smoke.long_value_quoted_short PROPERTIES PASS_REGULAR_EXPRESSION
+  "^kdtrace: error: --tonemap must be one of: [^\n]* \\(got 'z+\\.\\.\\. \\[5000 bytes\\]'\\)\nstatus 1\n$")
 add_test(NAME smoke.help_status COMMAND sh -c "\"$0\" render --help >/dev/null && \"$0\" --version"
          ${_kdt})
 set_tests_properties(smoke.help_status PROPERTIES PASS_REGULAR_EXPRESSION "^kdtrace 0.1.0\n$")

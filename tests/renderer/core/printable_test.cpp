@@ -1,6 +1,6 @@
 // Tests of kdt::printable (renderer/core/error.h): every byte value alone, seeded random
 // byte strings, and the UTF-8 forms that must be kept or escaped; and Error's location
-// fields shown through it.
+// fields shown through it; excerpt() and printable_line() for long values and lines.
 #include <cstdint>
 #include <string>
 
@@ -108,6 +108,36 @@ TEST(Printable, ErrorLocationFieldsAreShownThroughIt) {
     const Error e(w, "bad");
     EXPECT_EQ(std::string(e.what()), "m\\x1b]0;x\\x07.ply: fa\\x00ce 3: bad");
     EXPECT_EQ(e.where().path, w.path);  // the location itself is kept as given
+}
+
+TEST(Excerpt, ShortTextIsPrintableUnchanged) {
+    EXPECT_EQ(excerpt("ab\x01c"), printable("ab\x01c"));
+    EXPECT_EQ(excerpt(std::string(120, 'x')), std::string(120, 'x'));
+}
+
+TEST(Excerpt, LongTextKeepsItsHeadAndSize) {
+    EXPECT_EQ(excerpt(std::string(100000, 'k')), std::string(120, 'k') + "... [100000 bytes]");
+    // A cut never splits a UTF-8 sequence: "\xc3\xa9" straddles byte 120 here.
+    const std::string e = std::string(119, 'a') + "\xc3\xa9" + std::string(50, 'b');
+    const std::string out = excerpt(e);
+    EXPECT_EQ(out, std::string(119, 'a') + "... [171 bytes]");
+    EXPECT_TRUE(safe_to_print(out)) << out;
+}
+
+TEST(Excerpt, WholeLinesKeepHeadAndTail) {
+    const std::string m = "f.json: " + std::string(50000, 'v') + ": unknown key";
+    const std::string out = printable_line(m, 4096);
+    EXPECT_LT(out.size(), 4200u);
+    EXPECT_EQ(out.rfind("f.json: ", 0), 0u);
+    EXPECT_EQ(out.substr(out.size() - 13), ": unknown key");
+    EXPECT_NE(out.find(" bytes left out] ... "), std::string::npos);
+    EXPECT_EQ(printable_line("short \x07"), printable("short \x07"));
+}
+
+TEST(Excerpt, ErrorElementsAreShortened) {
+    const Error e(ErrorLocation{"s.json", "meshes/0/" + std::string(100000, 'k')}, "unknown key");
+    EXPECT_LT(std::string(e.what()).size(), 400u);
+    EXPECT_NE(std::string(e.what()).find("[100009 bytes]: unknown key"), std::string::npos);
 }
 
 }  // namespace
