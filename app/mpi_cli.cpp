@@ -142,6 +142,7 @@ int launcher_rank() {
 
 namespace {
 
+#ifdef KDT_HAVE_MPI
 // The ranks the launcher started on this node (Open MPI, MPICH's Hydra); 1 when unknown.
 int local_ranks() {
     for (const char* name : {"OMPI_COMM_WORLD_LOCAL_SIZE", "MPI_LOCALNRANKS"}) {
@@ -174,6 +175,7 @@ int share_cores_among_ranks(bool quiet, bool root) {
     }
     return threads;
 }
+#endif
 
 }  // namespace
 

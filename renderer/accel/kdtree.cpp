@@ -201,6 +201,13 @@ std::string kdtree_leaf_warning(const KdTree& tree) {
             ": --sah-traversal-cost %g exceeds its leaf cost; try a lower --sah-traversal-cost "
             "or a higher --sah-intersect-cost",
             double(p.traversal_cost));
+    } else if (root_leaf && p.builder == KdBuilder::thesis && !p.thesis_all_axes) {
+        // The thesis builder tries one axis per level, x at the root: a model whose every
+        // triangle spans its whole x extent (a tube along x) cannot be split there.
+        std::snprintf(cause, sizeof(cause),
+                      ": no split plane along x separates them, the one axis the thesis "
+                      "builder tries at the root (it alternates x, y, z by depth); --all-axes "
+                      "tries all three, --builder sah chooses among them");
     } else if (root_leaf) {
         std::snprintf(cause, sizeof(cause),
                       ": no split plane separates them (coincident or overlapping triangles?)");

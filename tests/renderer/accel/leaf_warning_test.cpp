@@ -70,6 +70,27 @@ TEST(LeafWarning, NamesTheCause) {
     EXPECT_EQ(warning_of(same, KdTreeParams{}),
               "the kd-tree's largest leaf holds 100 triangles (the root is a leaf): no split "
               "plane separates them (coincident or overlapping triangles?)");
+    // A tube along x: every triangle spans the whole x extent, so the thesis builder, which
+    // tries x alone at the root, leaves it whole, and the warning says so; with all axes it
+    // splits.
+    TriangleMesh tube;
+    for (int i = 0; i < 200; ++i) {
+        const float a = float(i) * 0.0314159f, b = float(i + 1) * 0.0314159f;
+        const uint32_t k = uint32_t(tube.positions.size());
+        tube.positions.insert(tube.positions.end(),
+                              {Vec3f(0, std::cos(a), std::sin(a)), Vec3f(10, std::cos(a), std::sin(a)),
+                               Vec3f(10, std::cos(b), std::sin(b))});
+        tube.triangles.emplace_back(k, k + 1, k + 2);
+    }
+    KdTreeParams thesis = with_builder(KdBuilder::thesis);
+    EXPECT_EQ(warning_of(tube, thesis),
+              "the kd-tree's largest leaf holds 200 triangles (the root is a leaf): no split "
+              "plane along x separates them, the one axis the thesis builder tries at the root "
+              "(it alternates x, y, z by depth); --all-axes tries all three, --builder sah "
+              "chooses among them");
+    thesis.thesis_all_axes = true;
+    EXPECT_EQ(warning_of(tube, thesis), "");
+    EXPECT_EQ(warning_of(tube, with_builder(KdBuilder::sah)), "");
     // n0 raises the bounds: leaves of up to n0 triangles are what it asks for.
     p = KdTreeParams{};
     p.n0 = 200;
