@@ -1,6 +1,7 @@
 // kdtree_leaf_warning(): silent for the builders' defaults, one line naming the cause (q,
 // the depth limit, the SAH traversal cost, inseparable triangles) when a leaf holds far more
 // triangles than the parameters intend.
+#include <cmath>
 #include <memory>
 #include <string>
 
@@ -77,9 +78,9 @@ TEST(LeafWarning, NamesTheCause) {
     for (int i = 0; i < 200; ++i) {
         const float a = float(i) * 0.0314159f, b = float(i + 1) * 0.0314159f;
         const uint32_t k = uint32_t(tube.positions.size());
-        tube.positions.insert(tube.positions.end(),
-                              {Vec3f(0, std::cos(a), std::sin(a)), Vec3f(10, std::cos(a), std::sin(a)),
-                               Vec3f(10, std::cos(b), std::sin(b))});
+        tube.positions.insert(tube.positions.end(), {Vec3f(0, std::cos(a), std::sin(a)),
+                                                     Vec3f(10, std::cos(a), std::sin(a)),
+                                                     Vec3f(10, std::cos(b), std::sin(b))});
         tube.triangles.emplace_back(k, k + 1, k + 2);
     }
     KdTreeParams thesis = with_builder(KdBuilder::thesis);
