@@ -124,9 +124,10 @@ void add_dist_options(CLI::App& app, DistArgs& a, RenderOptions& options) {
                    "(a worker stops itself, SIGSTOP, before its first item), RANK:interrupt (a "
                    "worker raises SIGTERM just after sending its first result), 0:write (rank "
                    "0 cannot write the images), RANK:result-item|result-header|result-ids|"
-                   "result-short (the worker's first result is malformed) or "
+                   "result-short (the worker's first result is malformed), "
                    "RANK:work-item|work-repeat|work-count|work-bytes (rank 0's first reply to "
-                   "the worker is)");
+                   "the worker is) or RANK:options-header|options-short|options-long|"
+                   "options-huge (rank 0's options message to the worker is)");
 }
 
 int launcher_rank() {
@@ -599,6 +600,14 @@ dist::BadMessage bad_message(const std::string& what) {
     return dist::BadMessage::none;
 }
 
+// The malformed options message an --mpi-inject fault names ("options-short"); none for other
+// faults.
+dist::BadBroadcast bad_broadcast(const std::string& what) {
+    for (size_t i = 1; i < dist::kBadBroadcastNames.size(); ++i)
+        if (what == dist::kBadBroadcastNames[i]) return dist::BadBroadcast(i);
+    return dist::BadBroadcast::none;
+}
+
 // --mpi-inject RANK:WHAT names a rank of the job and a fault the farm knows; a typo must not
 // make a fault test pass.
 void check_fault(const dist::InjectedFault& fault, const std::string& spec, int ranks) {
@@ -606,19 +615,22 @@ void check_fault(const dist::InjectedFault& fault, const std::string& spec, int 
         throw Error("--mpi-inject " + spec + ": no rank " + std::to_string(fault.rank) + " among " +
                     std::to_string(ranks));
     }
-    const bool message = bad_message(fault.what) != dist::BadMessage::none;
+    const bool message = bad_message(fault.what) != dist::BadMessage::none ||
+                         bad_broadcast(fault.what) != dist::BadBroadcast::none;
     if (fault.what != "load" && fault.what != "hash" && fault.what != "write" &&
         fault.what != "stall" && fault.what != "stop" && fault.what != "interrupt" && !message) {
         throw Error("--mpi-inject " + spec + ": unknown fault '" + printable(fault.what) +
                     "' (faults: load, hash, stall, stop, interrupt, write, result-item, "
                     "result-header, result-ids, result-short, work-item, work-repeat, "
-                    "work-count, work-bytes)");
+                    "work-count, work-bytes, options-header, options-short, options-long, "
+                    "options-huge)");
     }
     if (fault.what == "write" && fault.rank != 0)
         throw Error("--mpi-inject " + spec + ": only rank 0 writes images (use 0:write)");
     if (message && fault.rank == 0) {
-        throw Error("--mpi-inject " + spec + ": only a worker sends results and receives work " +
-                    "(rank 1 or above)");
+        throw Error("--mpi-inject " + spec +
+                    ": only a worker sends results and receives work and options (rank 1 or "
+                    "above)");
     }
     if ((fault.what == "stop" || fault.what == "interrupt") && fault.rank == 0) {
         throw Error("--mpi-inject " + spec + ": only a worker can " + fault.what +
@@ -724,11 +736,29 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
     // Rank 0's options are everyone's; the checks are collective, so that a bad flag or a bad
     // listed file stops every rank with one message instead of leaving some waiting. Every
     // rank reads the listed files itself, and all must agree on the frames.
-    const std::string json = ctx.broadcast(options_to_json(o));
+    // A malformed options message fails the receiving worker in the check below, so that
+    // every rank stops with one message naming it. The test fault is checked there too.
+    int bad_rank = -1;
+    dist::BadBroadcast bad = dist::BadBroadcast::none;
+    if (!a.inject.empty()) {
+        try {
+            const auto [rank, what] = rank_and(a.inject, "--mpi-inject");
+            bad_rank = rank;
+            bad = bad_broadcast(what);
+        } catch (const Error&) {
+        }
+    }
+    std::string json, received;
+    try {
+        json = ctx.broadcast(options_to_json(o), bad_rank, bad);
+    } catch (const Error& e) {
+        received = e.what();
+    }
     dist::FarmParams params;
     dist::InjectedFault fault;
     std::vector<FramePlan> frames;
     dist::check_every_rank(ctx, "start", [&]() -> dist::Fingerprint {
+        if (!received.empty()) throw Error(received);
         options_from_json(json, o, "rank 0's options");
         frames = plan_frames(o, output, a, root);  // only rank 0 writes
         for (const FramePlan& f : frames) {

@@ -21,6 +21,19 @@
 
 namespace kdt::dist {
 
+namespace {
+
+// The tags of the messages outside the work farm (renderer/dist/work_farm.cpp uses 1 and 2).
+// A worker tells rank 0 that it finished a check's step, so that a timeout can name the ranks
+// that did not (the all-gather itself does not say who is missing).
+constexpr int kTagArrived = 7;
+constexpr int kTagBroadcast = 8;  // 0 -> worker: MpiContext::broadcast()'s header and text
+
+// "12 bytes", for messages.
+std::string bytes_text(uint64_t n) { return std::to_string(n) + (n == 1 ? " byte" : " bytes"); }
+
+}  // namespace
+
 MpiContext::MpiContext() {
     int provided = 0;
     // Only the main thread calls MPI (OpenMP threads render, the watchdog sets a flag).
@@ -121,12 +134,71 @@ void MpiContext::stop_watchdog() {
     if (watchdog_.joinable()) watchdog_.join();
 }
 
-std::string MpiContext::broadcast(const std::string& text) const {
-    uint64_t n = text.size();
-    MPI_Bcast(&n, 1, MPI_UINT64_T, 0, MPI_COMM_WORLD);
-    std::string out = rank_ == 0 ? text : std::string(n, '\0');
-    MPI_Bcast(out.data(), int(n), MPI_CHAR, 0, MPI_COMM_WORLD);
-    return out;
+std::string MpiContext::broadcast(const std::string& text, int bad_rank, BadBroadcast bad) const {
+    constexpr size_t kHeader = sizeof(uint64_t);  // the text's length
+    if (rank_ == 0) {
+        // A text too long for the workers still sends its header: they fail on it and say
+        // so, instead of waiting for a message that never comes.
+        const bool fits = text.size() <= kMaxBroadcastBytes;
+        // Buffers of the sends below: kept if a wait throws (MpiBuffer).
+        MpiBuffer<std::vector<std::vector<char>>> messages(static_cast<size_t>(size_));
+        MpiBuffer<std::vector<MPI_Request>> requests(static_cast<size_t>(size_), MPI_REQUEST_NULL);
+        for (int r = 1; r < size_; ++r) {
+            std::vector<char>& m = (*messages)[size_t(r)];
+            uint64_t length = text.size();
+            size_t sent = fits ? text.size() : 0;
+            const BadBroadcast fault = r == bad_rank ? bad : BadBroadcast::none;
+            if (fault == BadBroadcast::short_text) sent /= 2;
+            if (fault == BadBroadcast::huge_length) length = uint64_t(1) << 60;
+            m.assign(kHeader + sent + (fault == BadBroadcast::long_text ? 8 : 0), '\0');
+            std::memcpy(m.data(), &length, kHeader);
+            if (sent > 0) std::memcpy(m.data() + kHeader, text.data(), sent);
+            if (fault == BadBroadcast::header) m.resize(kHeader - 2);
+            MPI_Isend(m.data(), int(m.size()), MPI_BYTE, r, kTagBroadcast, MPI_COMM_WORLD,
+                      &(*requests)[size_t(r)]);
+        }
+        for (MPI_Request& request : *requests) wait(request);
+        if (!fits) {
+            throw Error("the options are " + bytes_text(text.size()) + ", more than the " +
+                        bytes_text(kMaxBroadcastBytes) + " a rank accepts");
+        }
+        return text;
+    }
+    MPI_Status st;
+    poll_until([&] {
+        int flag = 0;
+        MPI_Iprobe(0, kTagBroadcast, MPI_COMM_WORLD, &flag, &st);
+        return flag != 0;
+    });
+    const std::string malformed = "the options from rank 0 are malformed: ";
+    int count = 0;
+    MPI_Get_count(&st, MPI_BYTE, &count);
+    // Rank 0 never sends more (see above): a larger message is not received, and not
+    // allocated for.
+    if (count < 0 || uint64_t(count) > kHeader + kMaxBroadcastBytes) {
+        throw Error(malformed + "a message of " +
+                    (count < 0 ? std::string("unknown size") : bytes_text(uint64_t(count))) +
+                    ", more than the " + bytes_text(kHeader + kMaxBroadcastBytes) +
+                    " a rank accepts");
+    }
+    std::vector<char> message(static_cast<size_t>(count));
+    MPI_Recv(message.data(), count, MPI_BYTE, 0, kTagBroadcast, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    if (message.size() < kHeader) {
+        throw Error(malformed + bytes_text(message.size()) + ", shorter than its " +
+                    std::to_string(kHeader) + "-byte header");
+    }
+    uint64_t length = 0;
+    std::memcpy(&length, message.data(), kHeader);
+    if (length > kMaxBroadcastBytes) {
+        throw Error(malformed + "its header announces " + bytes_text(length) + ", more than the " +
+                    bytes_text(kMaxBroadcastBytes) + " a rank accepts");
+    }
+    const size_t follow = message.size() - kHeader;
+    if (length != follow) {
+        throw Error(malformed + "its header announces " + bytes_text(length) + ", but " +
+                    bytes_text(follow) + (follow == 1 ? " follows" : " follow") + " it");
+    }
+    return std::string(message.data() + kHeader, follow);
 }
 
 void MpiContext::check_timeout() const {
@@ -196,10 +268,6 @@ std::string rank_list(const std::vector<int>& ranks, int size) {
 }
 
 namespace {
-
-// A worker tells rank 0 that it finished a check's step, so that a timeout can name the
-// ranks that did not (the all-gather itself does not say who is missing).
-constexpr int kTagArrived = 7;
 
 // What every rank reports after loading, gathered on all ranks as bytes.
 struct LoadStatus {
@@ -295,6 +363,8 @@ void check_every_rank(const MpiContext& ctx, const std::string& what,
     } else {
         ctx.wait(sent);
     }
+    // Another rank's message is text only up to its last byte, whatever it sent.
+    for (LoadStatus& s : *all) s.message[sizeof s.message - 1] = '\0';
     const std::string of = " of " + std::to_string(ctx.size());
     int failed = 0, first = -1;
     for (int r = 0; r < ctx.size(); ++r) {

@@ -4,6 +4,7 @@
 // Compiled only with MPI (KDT_WITH_MPI). Depends on render.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
@@ -48,6 +49,26 @@ public:
 /// MpiContext::watch_interrupts() is on). Such a rank must not finalize either (the other
 /// ranks are being ended, and MPI_Finalize waits for them); end_after_interrupt() ends it.
 class FarmInterrupted : public FarmError {
+public:
+    using FarmError::FarmError;
+};
+
+/// The largest text MpiContext::broadcast() sends or accepts: rank 0's options are a few
+/// kilobytes (file names, not their contents).
+inline constexpr uint64_t kMaxBroadcastBytes = uint64_t(1) << 24;
+
+/// Test-only malformed options messages (--mpi-inject RANK:options-*), one kind per check of
+/// MpiContext::broadcast(): a message shorter than its header (header), a text half as long
+/// as announced (short), 8 bytes more than announced (long), a header announcing 2^60 bytes
+/// (huge).
+enum class BadBroadcast { none, header, short_text, long_text, huge_length };
+inline constexpr std::array<const char*, 5> kBadBroadcastNames = {
+    "none", "options-header", "options-short", "options-long", "options-huge"};
+
+/// A worker failed alone after the collective checks (MpiContext::end_after_failure() on
+/// that worker), thrown by MpiContext::check_timeout() on rank 0: what() is the worker's line,
+/// "rank R: <reason>". Rank 0 must not finalize either; end_after_failure() ends it.
+class FarmRankFailed : public FarmError {
 public:
     using FarmError::FarmError;
 };
@@ -102,8 +123,17 @@ public:
     /// watch_interrupts() says. Never returns; never finalizes.
     [[noreturn]] void end_after_interrupt();
 
-    /// Rank 0's string on every rank.
-    std::string broadcast(const std::string& text) const;
+    /// Rank 0's `text` on every rank: one message to each worker, an 8-byte header holding
+    /// the text's length, then the text. A worker trusts nothing in it: a message shorter than
+    /// its header, a header announcing more than kMaxBroadcastBytes, or a text of another
+    /// length than announced (shorter or longer) throws Error "the options from rank 0 are
+    /// malformed: <problem>" before anything is allocated from the header, and a message over
+    /// kMaxBroadcastBytes is not even received. On rank 0 a text over kMaxBroadcastBytes
+    /// throws Error after its header went out (so that the workers fail too rather than
+    /// wait). Test-only: rank `bad_rank` gets the malformed message `bad` says. Waits as
+    /// wait() does.
+    std::string broadcast(const std::string& text, int bad_rank = -1,
+                          BadBroadcast bad = BadBroadcast::none) const;
 
     /// Waits for a non-blocking MPI operation without taking a core: a short spin, then
     /// MPI_Test every 50 us with sleeps in between (Open MPI's blocking calls poll at full

@@ -215,6 +215,32 @@ bad_result|bad_work)
         [ ! -e f_0.pfm ] || cmp f_0.pfm local_0.pfm || fail "frames, $f: frame 0 differs"
     done
     echo "ok: malformed messages end the job with one error naming the rank" ;;
+bad_options)
+    # Rank 0's options message to rank 2 is malformed (a test fault, --mpi-inject
+    # 2:options-*): shorter than its header, a text shorter or longer than its header
+    # announces, an absurd announced length. Rank 2 checks it before it trusts or allocates
+    # anything, and every rank stops with one error line naming rank 2: status 1, no crash,
+    # no image, no hang (--timeout would name the ranks instead).
+    malformed="rank 2 of 3 could not start: the options from rank 0 are malformed"
+    for t in "options-header:6 bytes, shorter than its 8-byte header" \
+        "options-short:its header announces [0-9]* bytes, but [0-9]* bytes follow it" \
+        "options-long:its header announces [0-9]* bytes, but [0-9]* bytes follow it" \
+        "options-huge:its header announces 1152921504606846976 bytes, more than the 16777216 bytes a rank accepts"; do
+        rm -f x.pfm
+        out=$(mpi 3 "${common[@]}" --mpi --timeout 30 --mpi-inject "2:${t%%:*}" -o x.pfm 2>&1); rc=$?
+        echo "$out"
+        [ $rc -eq 1 ] || fail "${t%%:*}: exit status $rc, not 1"
+        grep -q "exited on signal\|Segmentation\|terminate called" <<< "$out" && fail "${t%%:*}: a rank crashed"
+        [ "$(grep -c 'kdtrace: error:' <<< "$out")" -eq 1 ] || fail "${t%%:*}: not exactly one error line"
+        grep -q "^kdtrace: error: $malformed: ${t#*:}$" <<< "$out" || fail "${t%%:*}: no error line naming rank 2"
+        grep -q "interrupted" <<< "$out" && fail "${t%%:*}: an interrupt was reported"
+        [ -e x.pfm ] && fail "${t%%:*}: an image was written"
+    done
+    # The lengths in the short and long messages: the header's is the text's, the others not.
+    out=$(mpi 2 "${common[@]}" --mpi --mpi-inject 1:options-long -o x.pfm 2>&1)
+    n=$(sed -n 's/.*announces \([0-9]*\) bytes, but \([0-9]*\) bytes follow.*/\1 \2/p' <<< "$out")
+    [ -n "$n" ] && [ $((${n#* } - ${n% *})) -eq 8 ] || { echo "$out"; fail "options-long: not 8 bytes more"; }
+    echo "ok: malformed options messages end the job with one error naming the rank" ;;
 timeout_stall)
     # A rank whose load never ends (a test fault, not timing): the others time out in the
     # load check and the job ends with rank 0's message and status 1, not a crash in
@@ -418,7 +444,7 @@ test_flags)
     # The test-only flags name a rank of the job and a known fault, or are errors.
     for flags in "--throttle 5:2" "--throttle -1:2" "--mpi-inject 7:load" "--mpi-inject 1:foo" \
         "--mpi-inject 1:write" "--mpi-inject 0:stop" "--mpi-inject 0:interrupt" \
-        "--mpi-inject 0:result-item" "--mpi-inject 0:work-bytes"; do
+        "--mpi-inject 0:result-item" "--mpi-inject 0:work-bytes" "--mpi-inject 0:options-short"; do
         out=$(mpi 3 "${common[@]}" --mpi $flags -o x.pfm 2>&1); rc=$?
         echo "$out"
         [ $rc -ne 0 ] || fail "$flags: exit status 0"
