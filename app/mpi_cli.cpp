@@ -914,12 +914,15 @@ void run_dist_render(const RenderOptions& options, const std::string& output, bo
             if (interrupt::requested()) ctx.end_after_interrupt();
         } catch (const dist::FarmInterrupted&) {
             ctx.end_after_interrupt();  // never finalizes: see FarmInterrupted
+        } catch (const dist::FarmRankFailed& e) {
+            ctx.end_after_failure(e.what());  // rank 0: a worker's failure, its one line
         } catch (const dist::FarmTimeout& e) {
             // Never finalizes: see FarmTimeout.
             ctx.end_after_timeout(with_flags(e.what()));
         } catch (const dist::FarmError& e) {
             // A signal may have ended the others mid-step: it, not their absence, is the news.
             if (interrupt::requested()) ctx.end_after_interrupt();
+            ctx.note_failure();  // a signal from now on is the job's end, not the news
             // Printed before MPI_Finalize: mpirun ends the job once any rank has exited
             // non-zero, which could otherwise cut rank 0 off before its message.
             if (e.report())
@@ -929,16 +932,10 @@ void run_dist_render(const RenderOptions& options, const std::string& output, bo
             failed = true;
         } catch (const std::exception& e) {
             // A failure of this rank alone after the collective checks: the others may be
-            // waiting for it, so the whole job ends here: mpirun ends every rank once one
-            // exits non-zero. Not MPI_Abort (Open MPI 4.1.4's mpirun hung in
-            // PMIx_server_finalize after it, 2 runs in 7), not MPI_Finalize (the others
-            // never reach it).
+            // waiting for it, so the whole job ends (end_after_failure: through rank 0, which
+            // prints this rank's line).
             if (interrupt::requested()) ctx.end_after_interrupt();
-            std::fprintf(stderr, "kdtrace: error: rank %d: %s\n", ctx.rank(),
-                         printable(e.what()).c_str());
-            std::fflush(stderr);
-            std::fflush(stdout);
-            std::_Exit(1);
+            ctx.end_after_failure("rank " + std::to_string(ctx.rank()) + ": " + e.what());
         }
     }
     if (failed) std::exit(1);

@@ -28,6 +28,9 @@ namespace {
 // that did not (the all-gather itself does not say who is missing).
 constexpr int kTagArrived = 7;
 constexpr int kTagBroadcast = 8;  // 0 -> worker: MpiContext::broadcast()'s header and text
+constexpr int kTagFailed = 9;     // worker -> 0: the line of end_after_failure()
+// The longest line end_after_failure() sends, and the longest rank 0 receives.
+constexpr size_t kMaxFailureLine = 1024;
 
 // "12 bytes", for messages.
 std::string bytes_text(uint64_t n) { return std::to_string(n) + (n == 1 ? " byte" : " bytes"); }
@@ -80,6 +83,7 @@ void MpiContext::start_watchdog(double seconds, double grace_seconds) {
 }
 
 void MpiContext::end_after_timeout(const std::string& message) {
+    failed_.store(true);  // mpirun's signals that end the job are no interrupt
     if (rank_ == 0) {
         if (!reported_.exchange(true))
             std::fprintf(stderr, "kdtrace: error: %s\n", message.c_str());
@@ -108,9 +112,40 @@ void MpiContext::end_after_interrupt() {
     for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));
 }
 
+void MpiContext::end_after_failure(const std::string& line) {
+    failed_.store(true);
+    const std::string text = line.substr(0, kMaxFailureLine);
+    if (rank_ != 0) {
+        stop_watchdog();  // the grace below, not --timeout, ends a rank 0 that never answers
+        MPI_Request sent = MPI_REQUEST_NULL;
+        MPI_Isend(text.data(), int(text.size()), MPI_CHAR, 0, kTagFailed, MPI_COMM_WORLD, &sent);
+        // Rank 0 ends the job once it has the line (mpirun then ends this rank). The send's
+        // buffer lives until this process ends.
+        const auto until =
+            std::chrono::steady_clock::now() + std::chrono::duration<double>(kFailureGraceSeconds);
+        while (std::chrono::steady_clock::now() < until) {
+            int done = 0;
+            if (sent != MPI_REQUEST_NULL) MPI_Test(&sent, &done, MPI_STATUS_IGNORE);
+            std::this_thread::sleep_for(std::chrono::milliseconds(10));
+        }
+    }
+    std::fprintf(stderr, "kdtrace: error: %s\n", printable(text).c_str());
+    std::fflush(stderr);
+    std::fflush(stdout);
+    std::_Exit(1);
+}
+
 void MpiContext::die_interrupted() {
     if (dying_.exchange(true)) {
         for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));  // the other thread ends it
+    }
+    if (failed_.load()) {
+        // mpirun ending the job after a failure: the failure was the news. The temporary
+        // files go as for any signal; the status is the failure's.
+        interrupt::die_now([] {
+            std::fflush(stderr);
+            std::_Exit(1);
+        });
     }
     interrupt::die_now([this] {
         if (rank_ == 0) {
@@ -202,6 +237,23 @@ std::string MpiContext::broadcast(const std::string& text, int bad_rank, BadBroa
 }
 
 void MpiContext::check_timeout() const {
+    if (rank_ == 0 && size_ > 1) {
+        int flag = 0;
+        MPI_Status st;
+        MPI_Iprobe(MPI_ANY_SOURCE, kTagFailed, MPI_COMM_WORLD, &flag, &st);
+        if (flag) {
+            int count = 0;
+            MPI_Get_count(&st, MPI_CHAR, &count);
+            // The line is the worker's; its length is checked before anything is allocated.
+            std::string line = "rank " + std::to_string(st.MPI_SOURCE) + " failed";
+            if (count >= 0 && size_t(count) <= kMaxFailureLine) {
+                line.assign(size_t(count), '\0');
+                MPI_Recv(line.data(), count, MPI_CHAR, st.MPI_SOURCE, kTagFailed, MPI_COMM_WORLD,
+                         MPI_STATUS_IGNORE);
+            }
+            throw FarmRankFailed(line, true);
+        }
+    }
     if (interrupt_watcher_ && interrupt::requested())
         throw FarmInterrupted(std::string("interrupted (") + interrupt::signal_name() + ")",
                               rank_ == 0);

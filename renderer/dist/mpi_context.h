@@ -95,9 +95,11 @@ public:
     /// reached ..." and ends with status 3.
     void start_watchdog(double seconds, double grace_seconds = 5.0);
     bool expired() const { return expired_.load(std::memory_order_relaxed); }
-    /// Throws FarmTimeout "--timeout S s reached: <pending>; ending every rank" once
-    /// expired(), with what set_pending() describes on rank 0, and FarmInterrupted once a
-    /// signal arrived under watch_interrupts().
+    /// Throws FarmRankFailed on rank 0 once a worker reported its failure
+    /// (end_after_failure()), FarmInterrupted once a signal arrived under watch_interrupts(),
+    /// and FarmTimeout "--timeout S s reached: <pending>; ending every rank" once expired(),
+    /// with what set_pending() describes on rank 0; in that order, so that a worker's failure
+    /// is the news rather than the signals mpirun then sends.
     void check_timeout() const;
     /// Rank 0: what the farm is waiting for, for the timeout message ("rank 2 of 3 had not
     /// answered"); empty = not known. Cleared with an empty function.
@@ -122,6 +124,23 @@ public:
     /// After a FarmInterrupted, or once interrupt::requested(): ends the rank as
     /// watch_interrupts() says. Never returns; never finalizes.
     [[noreturn]] void end_after_interrupt();
+
+    /// Ends the job after a failure of this rank alone, when the others may be waiting for it
+    /// (mid-farm): they never reach MPI_Finalize, so this rank does not call it either, nor
+    /// MPI_Abort (see start_watchdog()). Rank 0 prints "kdtrace: error: <line>" (printable())
+    /// and exits with status 1; mpirun then ends the workers. A worker sends `line` to rank 0,
+    /// which prints it at its next poll (check_timeout() throws FarmRankFailed) and ends the job,
+    /// so that the one line on the terminal is the cause, not rank 0's "interrupted
+    /// (SIGTERM)" after mpirun ends it for this worker's exit; the worker prints `line`
+    /// itself and exits with status 1 only when it is still running kFailureGraceSeconds
+    /// later (rank 0 stuck). From this call on a signal ends the rank silently with status 1.
+    /// Never returns; never finalizes.
+    [[noreturn]] void end_after_failure(const std::string& line);
+    static constexpr double kFailureGraceSeconds = 10.0;
+    /// The job ends with a failure every rank knows of (a FarmError, printed by rank 0): from
+    /// this call on a signal ends the rank silently with status 1, for it is mpirun ending a
+    /// rank that is still finalizing after another one exited with status 1, no interrupt.
+    void note_failure() { failed_.store(true); }
 
     /// Rank 0's `text` on every rank: one message to each worker, an 8-byte header holding
     /// the text's length, then the text. A worker trusts nothing in it: a message shorter than
@@ -155,7 +174,8 @@ private:
     mutable std::function<std::string()> pending_;
     std::atomic<bool> reported_{false};  // rank 0 printed the timeout message
     std::function<std::string()> kept_;
-    std::atomic<bool> dying_{false};  // a thread is ending the process after a signal
+    std::atomic<bool> dying_{false};   // a thread is ending the process after a signal
+    std::atomic<bool> failed_{false};  // the job fails (note_failure()): a signal is no news
     std::unique_ptr<interrupt::Watcher> interrupt_watcher_;  // after kept_: joined first
 
     [[noreturn]] void die_interrupted();

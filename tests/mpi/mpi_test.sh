@@ -109,7 +109,9 @@ fail_load)
     [ $rc -ne 0 ] || fail "a rank that cannot load gave exit status 0"
     [ "$(grep -c 'kdtrace: error:' <<< "$out")" -eq 1 ] || fail "not exactly one error message"
     grep -q "kdtrace: error: rank 1 of 3 could not load the scene: .*kdtrace-injected-fault.*cannot open" <<< "$out" ||
-        fail "message does not name rank 1 and the reason" ;;
+        fail "message does not name rank 1 and the reason"
+    # Nothing else: mpirun's SIGTERM to ranks still finalizing is no interrupt.
+    [ "$(grep -c '^kdtrace: ' <<< "$out")" -eq 1 ] || fail "a line besides the error" ;;
 fail_hash)
     out=$(mpi 3 "${common[@]}" --mpi --mpi-inject 2:hash -o x.pfm 2>&1); rc=$?
     echo "$out"
@@ -193,6 +195,9 @@ bad_result|bad_work)
         grep -q "exited on signal\|Segmentation" <<< "$3" && fail "$1: a rank crashed"
         [ "$(grep -c 'kdtrace: error:' <<< "$3")" -eq 1 ] || fail "$1: not exactly one error line"
         grep -q "^kdtrace: error: $4$" <<< "$3" || fail "$1: no error line '$4'"
+        # The cause alone: not also an "interrupted (SIGTERM)" from the SIGTERM mpirun sends
+        # the other ranks once one has exited with status 1.
+        [ "$(grep -c '^kdtrace: ' <<< "$3")" -eq 1 ] || fail "$1: a line besides the error"
     }
     for t in "${tiles[@]}"; do
         rm -f x.pfm
