@@ -479,7 +479,8 @@ Scene frame_scene(const SceneGroups& g, size_t i, const RenderSnapshot& snap) {
 }
 
 // The keys of a single render's image (app/cmd_render.cpp), and the frame's name and the
-// distribution. `passes` < 0: not known (a frame rendered on another rank), not stored.
+// distribution. `passes` < 0: not known (a tiled --mpi render's tiles each have their own
+// passes), not stored.
 // `partial`: the render was interrupted (a local sequence's frame in flight).
 void write_film(const FramePlan& f, const Film& film, const RenderSnapshot& snap,
                 const Scene& scene, const std::string& how, int passes = -1, bool partial = false) {
@@ -829,10 +830,10 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
         items = int(jobs.size());
         result = dist::render_frame_farm(
             ctx, jobs, params,
-            [&](int f, const Film& film) {
+            [&](int f, const Film& film, int passes) {
                 const FramePlan& plan = frames[size_t(f)];
                 const RenderSnapshot& snap = *jobs[size_t(f)].snapshot;
-                write_film(plan, film, snap, frame_scene(scenes, size_t(f), snap), how);
+                write_film(plan, film, snap, frame_scene(scenes, size_t(f), snap), how, passes);
                 ++kept.written;
                 // As the local sequence names them (in the order they are written here).
                 if (!quiet) {

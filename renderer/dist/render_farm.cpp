@@ -59,23 +59,35 @@ void render_tiles_to_spp(RenderSession& session, const std::vector<int>& tiles, 
     }
 }
 
-void render_frame(RenderSession& session, const StopConditions& stop,
-                  const std::function<void()>& poll, int tiles_per_part) {
+std::vector<int> fixed_pass_sizes(int samples_per_pass, int spp) {
+    const int per_pass = samples_per_pass > 0 ? samples_per_pass : kMaxAutoSamplesPerPass;
+    std::vector<int> sizes;
+    for (int drawn = 0; drawn < spp; drawn += sizes.back())
+        sizes.push_back(std::min(drawn == 0 ? 1 : per_pass, spp - drawn));
+    return sizes;
+}
+
+int render_frame(RenderSession& session, const StopConditions& stop,
+                 const std::function<void()>& poll, int tiles_per_part) {
     if (decides_per_pass(session.film_params(), stop)) {
         // Passes decide over the whole film (active pixels, budget, mean error): a pass is
         // the smallest part that leaves the render as run_render's.
-        run_render(session, stop, [&poll](const RenderProgress&) { poll(); });
-        return;
+        return run_render(session, stop, [&poll](const RenderProgress&) { poll(); }).passes;
     }
+    // Every part in run_render's passes, so that the frame's pass count is the local
+    // render's; the image does not depend on the pass sizes.
+    const std::vector<int> sizes =
+        fixed_pass_sizes(session.trace_params().samples_per_pass, stop.spp);
     std::vector<int> all(size_t(session.tile_count()));
     for (size_t i = 0; i < all.size(); ++i) all[i] = int(i);
     const size_t step = size_t(std::max(tiles_per_part, 1));
     for (size_t i = 0; i < all.size(); i += step) {
         const std::vector<int> part(all.begin() + long(i),
                                     all.begin() + long(std::min(i + step, all.size())));
-        render_tiles_to_spp(session, part, stop.spp);
+        for (int n : sizes) session.render_pass(part, stop.spp, n);
         poll();
     }
+    return int(sizes.size());
 }
 
 void check_tile_farm_options(const RenderOptions& o) {
@@ -178,13 +190,15 @@ FarmResult render_frame_farm(const MpiContext& ctx, const std::vector<FrameJob>&
             // elsewhere); two tiles per thread keep the parts short.
             const int threads =
                 job.options.trace.threads > 0 ? job.options.trace.threads : omp_get_max_threads();
-            render_frame(session, job.options.stop, poll, 2 * std::max(threads, 1));
+            const int32_t passes =
+                render_frame(session, job.options.stop, poll, 2 * std::max(threads, 1));
             mine += session.totals();
             const Film& f = session.film();
             const std::vector<FilmPixel> px = f.export_tile(FilmRect{0, 0, f.width(), f.height()});
-            const size_t at = bytes.size();
-            bytes.resize(at + px.size() * sizeof(FilmPixel));
-            std::memcpy(bytes.data() + at, px.data(), px.size() * sizeof(FilmPixel));
+            const size_t at = bytes.size(), pixels = px.size() * sizeof(FilmPixel);
+            bytes.resize(at + pixels + sizeof passes);
+            std::memcpy(bytes.data() + at, px.data(), pixels);
+            std::memcpy(bytes.data() + at + pixels, &passes, sizeof passes);
         }
         return bytes;
     };
@@ -194,13 +208,20 @@ FarmResult render_frame_farm(const MpiContext& ctx, const std::vector<FrameJob>&
         for (int frame : items) {
             const Camera& c = frames[size_t(frame)].snapshot->camera;
             Film film(c.width, c.height);
-            const size_t each = film.pixel_count() * sizeof(FilmPixel);
-            if (off + each > size) throw Error("frame farm: result of the wrong size");
+            const size_t pixels = film.pixel_count() * sizeof(FilmPixel);
+            int32_t passes = 0;
+            if (off + pixels + sizeof passes > size)
+                throw Error("frame farm: result of the wrong size");
             std::vector<FilmPixel> px(film.pixel_count());
-            std::memcpy(px.data(), bytes + off, each);
+            std::memcpy(px.data(), bytes + off, pixels);
+            std::memcpy(&passes, bytes + off + pixels, sizeof passes);
+            if (passes < 1) {
+                throw Error("frame farm: frame " + std::to_string(frame) + " came with " +
+                            std::to_string(passes) + " passes");
+            }
             film.import_tile(FilmRect{0, 0, film.width(), film.height()}, px);
-            done(frame, film);
-            off += each;
+            done(frame, film, passes);
+            off += pixels + sizeof passes;
         }
         if (off != size) throw Error("frame farm: result of the wrong size");
     };
@@ -210,7 +231,7 @@ FarmResult render_frame_farm(const MpiContext& ctx, const std::vector<FrameJob>&
             const Camera& c = frames[size_t(frame)].snapshot->camera;
             pixels += size_t(c.width) * size_t(c.height);
         }
-        return pixels * sizeof(FilmPixel);
+        return pixels * sizeof(FilmPixel) + items.size() * sizeof(int32_t);  // and the passes
     };
     FarmResult out;
     out.ranks = run_farm(ctx, int(frames.size()), params, render, size, consume, progress);

@@ -23,9 +23,17 @@ void render_tiles_to_spp(RenderSession& session, const std::vector<int>& tiles, 
 
 /// Renders the session's whole frame as run_render(session, stop) does, bitwise, calling
 /// `poll` between parts: between batches of `tiles_per_part` tiles for a fixed stop.spp
-/// without adaptive sampling, after every pass otherwise.
-void render_frame(RenderSession& session, const StopConditions& stop,
-                  const std::function<void()>& poll, int tiles_per_part);
+/// without adaptive sampling, after every pass otherwise. Returns the passes each pixel got:
+/// for a fixed stop.spp without adaptive sampling those of fixed_pass_sizes() (every batch
+/// gets all of them), else run_render's count.
+int render_frame(RenderSession& session, const StopConditions& stop,
+                 const std::function<void()>& poll, int tiles_per_part);
+
+/// The samples per pixel of each pass of a render to a fixed `spp` without adaptive sampling,
+/// as run_render() sizes them when no automatic pass meets its time bound (about a second,
+/// next_samples_per_pass()): 1 first, then `samples_per_pass` (kMaxAutoSamplesPerPass when
+/// 0, automatic), the last one cut to reach `spp`. Empty for spp <= 0.
+std::vector<int> fixed_pass_sizes(int samples_per_pass, int spp);
 
 /// Throws kdt::Error unless `options` (resolved) is a tiled render (one frame split over
 /// the ranks) that the farm reproduces exactly: a fixed stop.spp without adaptive sampling,
@@ -57,13 +65,14 @@ struct FrameJob {
     std::shared_ptr<const RenderSnapshot> snapshot;
     RenderOptions options;  ///< resolved; check_frame_farm_options() holds
 };
-/// Rank 0: a finished frame, as RenderSession::film() leaves it.
-using FrameDone = std::function<void(int frame, const Film& film)>;
+/// Rank 0: a finished frame, as RenderSession::film() leaves it, and the passes it took
+/// (render_frame()'s count, on whichever rank drew it).
+using FrameDone = std::function<void(int frame, const Film& film, int passes)>;
 
 /// Collective: whole frames (every rank holds the same list), one at a time per rank, handed
 /// out by `params`' distribution (strips: consecutive frames per rank); results are films
-/// sent to rank 0 and passed to `done`. Each frame is rendered by render_frame(); rank 0
-/// serves workers between its parts.
+/// and their passes, sent to rank 0 and passed to `done`. Each frame is rendered by
+/// render_frame(); rank 0 serves workers between its parts.
 FarmResult render_frame_farm(const MpiContext& ctx, const std::vector<FrameJob>& frames,
                              FarmParams params, const FrameDone& done,
                              const FarmProgress& progress = {});

@@ -516,6 +516,31 @@ frames_session)
         done
     done
     echo "ok: farmed frames render again through --session" ;;
+frames_passes)
+    # A farmed frame carries kdtrace:passes as the frame rendered without --mpi does, with the
+    # same value: explicit passes (1 + 2 + 2 for --spp 5 --spp-per-pass 2), automatic ones
+    # (1 + 16 + 16 + 7 for --spp 40) and adaptive ones (run_render's count). The frames are
+    # small, so no automatic pass meets its one-second bound and the local counts are fixed.
+    views
+    passes_of() { "$kdtrace" info "$1" | sed -n 's/^kdtrace:passes: //p'; }
+    for run in "explicit:--spp 5 --spp-per-pass 2:3" "auto:--spp 40:4" \
+        "adaptive:--spp 8 --error 0.3 --adaptive-min-spp 2:"; do
+        tag=${run%%:*} rest=${run#*:}
+        flags=${rest%:*} expect=${rest##*:}
+        args=(render "$model" --no-cache --width 24 --height 16 --threads 1 --quiet $flags
+              --views views.json --frames views:front,top)
+        rm -f "l_$tag"_*.png "m_$tag"_*.png
+        "$kdtrace" "${args[@]}" -o "l_$tag.png" > /dev/null || fail "$tag: local frames"
+        mpi 2 "${args[@]}" --mpi --distribution strips -o "m_$tag.png" > log.txt 2>&1 ||
+            { cat log.txt; fail "$tag: frames over 2 ranks"; }
+        for v in front top; do
+            l=$(passes_of "l_${tag}_$v.png") m=$(passes_of "m_${tag}_$v.png")
+            [ -n "$l" ] || fail "$tag, $v: the local frame has no kdtrace:passes"
+            [ -z "$expect" ] || [ "$l" = "$expect" ] || fail "$tag, $v: $l local passes, not $expect"
+            [ "$m" = "$l" ] || fail "$tag, $v: kdtrace:passes '$m' over 2 ranks, '$l' without --mpi"
+        done
+    done
+    echo "ok: farmed frames carry the local frames' kdtrace:passes" ;;
 interrupt_worker)
     # A worker signalled while its result is on the way (--mpi-inject 1:interrupt: rank 1
     # raises SIGTERM just after sending its first frame and leaves the farm; the memory it
