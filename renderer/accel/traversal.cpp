@@ -24,124 +24,19 @@
 namespace kdt {
 namespace {
 
+using detail::BestHit;
+using detail::descend;
 using detail::kStackSize;
 using detail::lower_slack;
+using detail::PathRecord;
+using detail::pop;
 using detail::RayState;
 using detail::setup_ray;
 using detail::StackItem;
+using detail::test_leaf;
 using detail::TreeView;
 using detail::upper_slack;
 using detail::view_of;
-
-// The path of the current node while a query records one (kPath): nodes[0..depth]. A stack
-// entry keeps its node's depth, so a pop restores it; the entries above that depth are still
-// the popped node's ancestors, since the stack is last in, first out.
-struct PathRecord {
-    uint32_t depth;
-    uint32_t nodes[KdPath::kMaxLength];
-};
-
-// Descends from node idx to a leaf, pushing far children; returns the leaf and leaves idx
-// at it, or an empty leaf when no child is left to enter. At each inner node: visit_near =
-// !(ts < lower_slack(t0)), visit_far = !(ts > upper_slack(t1)), and a child that is an
-// empty leaf is not visited at all (the node's word flags such children, so neither is
-// read; on the dragon 7.4 of the 9.7 leaves a diffuse ray reaches are empty). Both: push
-// the far child with [max(ts, t0), t1] and go near with t1 = min(ts, t1); near only: t1 =
-// min(ts, t1); far only: t0 = max(ts, t0). A ray lying in the plane (origin on it, d = 0:
-// t = 0 * inf = NaN) visits both sides, since a builder may reference a triangle that only
-// touches the plane from either side: comparisons are written so that NaN means "visit",
-// and max/min are SSE's maxss/minss, which return the second operand on NaN (so the
-// interval stays [t0, t1]). The push is branch-free (the far child is always written, kept
-// only when both sides are visited); the choice of the next node stays a branch, whose
-// prediction lets the next fetch start before ts is known. The stack cannot overflow: a
-// tree is checked to be at most 64 deep when it is made, and each level pushes at most one
-// entry.
-template <bool kCount, bool kPath = false>
-inline KdNode descend(const KdNode* nodes, uint32_t& idx, const RayState& rs, float t0, float& t1,
-                      StackItem*& top, uint64_t& visited, PathRecord* rec = nullptr) {
-    KdNode node = nodes[idx];
-    if (kCount) ++visited;
-    __m128 vt0 = _mm_set_ss(t0);
-    __m128 lo0 = _mm_set_ss(lower_slack(t0));
-    __m128 vt1 = _mm_set_ss(t1);
-    const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
-    const __m128 slack = _mm_set_ss(kIntervalSlack);
-    const uint32_t neg_bits = rs.neg_bits;
-    while (!node.is_leaf()) {
-        const int axis = node.axis();
-        const __m128 ts =
-            _mm_mul_ss(_mm_sub_ss(_mm_load_ss(&node.split), _mm_load_ss(&rs.org[axis])),
-                       _mm_load_ss(&rs.inv[axis]));
-        // t1 + k |t1|: k is a power of two, so the product is exact and an FMA rounds alike.
-        const __m128 hi1 = _mm_add_ss(vt1, _mm_mul_ss(slack, _mm_and_ps(vt1, abs_mask)));
-        // The sign bit and the empty-child bits come from registers, so the next node's
-        // address waits on no other load.
-        const uint32_t first = node.child();
-        const uint32_t neg = (neg_bits >> axis) & 1u;
-        const uint32_t empty = node.empty_children();
-        const uint32_t near_idx = first + neg;
-        const uint32_t far_idx = first + 1u - neg;
-        const bool visit_near = _mm_cvtsi128_si32(_mm_castps_si128(_mm_cmpnlt_ss(ts, lo0))) != 0;
-        const bool go_near = visit_near & !((empty >> neg) & 1u);
-        const bool go_far = !_mm_comigt_ss(ts, hi1) & !((empty >> (1u - neg)) & 1u);
-        top->node = far_idx;
-        const __m128 far_t0 = _mm_max_ss(ts, vt0);
-        _mm_store_ss(&top->t0, far_t0);
-        _mm_store_ss(&top->t1, vt1);
-        if (kPath) top->pad = rec->depth + 1;
-        top += int(go_near & go_far);
-        if (go_near) {
-            vt1 = _mm_min_ss(ts, vt1);
-            idx = near_idx;
-        } else if (go_far) {
-            vt0 = far_t0;
-            lo0 = _mm_sub_ss(vt0, _mm_mul_ss(slack, _mm_and_ps(vt0, abs_mask)));
-            idx = far_idx;
-        } else {
-            return KdNode{};
-        }
-        if (kPath) rec->nodes[++rec->depth] = idx;
-        node = nodes[idx];
-        if (kCount) ++visited;
-    }
-    t1 = _mm_cvtss_f32(vt1);
-    return node;
-}
-
-// Closest hit so far (the caller's tmax until something is hit).
-struct BestHit {
-    float t, u = 0.0f, v = 0.0f;
-    uint32_t prim = Hit::kNoHit;
-};
-
-// detail::test_leaf() on the query's closest hit.
-template <bool kAnyHit, bool kDirect>
-inline bool test_leaf(const KdNode node, const TreeView& tv, const RayState& rs, BestHit& best,
-                      uint64_t& tested) {
-    return detail::test_leaf<kAnyHit, kDirect>(node, tv, rs, best.t, best.u, best.v, best.prim,
-                                               tested);
-}
-
-// Next node front to back, skipping those that start beyond the closest hit. A hit beyond
-// the current leaf does not end the search (the thesis's figure 3). False when none is left.
-template <bool kPath = false>
-inline bool pop(const StackItem* stack, StackItem*& top, float best_t, uint32_t& idx, float& t0,
-                float& t1, PathRecord* rec = nullptr) {
-    while (top > stack) {
-        const StackItem& s = *--top;
-        if (lower_slack(s.t0) <= best_t) {
-            idx = s.node;
-            t0 = s.t0;
-            t1 = std::min(s.t1, best_t);
-            if (kPath) {
-                rec->depth = s.pad;
-                rec->nodes[s.pad] = s.node;
-            }
-            return true;
-        }
-    }
-    return false;
-}
 
 // What walk_path() found.
 enum class Walk { invalid, reached, missed };

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "renderer/accel/kdtree.h"
+#include "renderer/accel/traversal_partition.h"
 #include "tests/renderer/accel/kd_test_meshes.h"
 #include "tests/test_util.h"
 
@@ -48,6 +49,26 @@ size_t expect_stream_equals_single(const KdTree& tree, const std::vector<Ray>& r
                 << single[i].prim << " t " << single[i].t << ", stream prim " << stream[i].prim
                 << " t " << stream[i].t;
             EXPECT_EQ(single_occ[i], occ[i]) << what << ", " << lanes << " lanes: ray " << i;
+            if (::testing::Test::HasFailure()) return hits;
+        }
+    }
+    // Partition queries: fully breadth-first (1), the default, and single-ray throughout.
+    for (int min_rays : {1, kPartitionMinRays, 1 << 30}) {
+        std::vector<Hit> part(rays.size(), Hit{1.0f, 0.5f, 0.5f, 3});
+        std::vector<uint8_t> occ(rays.size(), 7);
+        TraversalCounters closest, any;
+        intersect_partition(tree, rays.data(), rays.size(), part.data(), &closest, min_rays);
+        occluded_partition(tree, rays.data(), rays.size(), occ.data(), &any, min_rays);
+        const std::string how = what + ", partition " + std::to_string(min_rays);
+        EXPECT_EQ(closest.nodes_visited, single_closest.nodes_visited) << how;
+        EXPECT_EQ(closest.triangles_tested, single_closest.triangles_tested) << how;
+        EXPECT_EQ(any.nodes_visited, single_any.nodes_visited) << how;
+        EXPECT_EQ(any.triangles_tested, single_any.triangles_tested) << how;
+        for (size_t i = 0; i < rays.size(); ++i) {
+            EXPECT_TRUE(test::bitwise_equal(single[i], part[i]))
+                << how << ": ray " << i << ": single prim " << single[i].prim << " t "
+                << single[i].t << ", partition prim " << part[i].prim << " t " << part[i].t;
+            EXPECT_EQ(single_occ[i], occ[i]) << how << ": ray " << i;
             if (::testing::Test::HasFailure()) return hits;
         }
     }
@@ -108,6 +129,20 @@ std::vector<Ray> surface_rays(const TriangleMesh& mesh, size_t n, uint32_t seed)
         rays.push_back(r);
     }
     return rays;
+}
+
+// A render tile's bounce and shadow rays: surface_rays() from the triangles near one point
+// of the mesh (the tile's primary hits), so that the rays of a batch share the top of the tree.
+std::vector<Ray> tile_rays(const TriangleMesh& mesh, size_t n, uint32_t seed) {
+    const Bounds3f b = mesh.bounds();
+    const Vec3f centre = mesh.positions[mesh.triangles[mesh.triangle_count() / 3].x];
+    const float radius = 0.05f * glm::length(b.extent());
+    TriangleMesh near = mesh;
+    near.triangles.clear();
+    for (const Vec3u& t : mesh.triangles)
+        if (glm::length(mesh.positions[t.x] - centre) < radius) near.triangles.push_back(t);
+    if (near.triangles.empty()) near.triangles.push_back(mesh.triangles[0]);
+    return surface_rays(near, n, seed);
 }
 
 class Stream : public ::testing::TestWithParam<KdBuilder> {
@@ -193,6 +228,20 @@ TEST_P(Stream, BadAndExtremeRaysAmongOrdinaryOnes) {
     occluded_stream(*tree, nullptr, 0, nullptr);
 }
 
+// Batches of a tile's rays as the renderer hands them over (1, 7 and 4096 rays, and none),
+// and the same batches with bad rays among them.
+TEST_P(Stream, PartitionOnTileBatches) {
+    auto tree = build(test::make_blob(7, 1.0f, 31));
+    for (size_t n : {size_t(1), size_t(7), size_t(4096)}) {
+        auto rays = tile_rays(tree->mesh(), n, uint32_t(n));
+        EXPECT_GT(expect_stream_equals_single(*tree, rays, "tile " + std::to_string(n)), 0u);
+        test::spoil_rays(rays, 3, 8);
+        expect_stream_equals_single(*tree, rays, "spoilt tile " + std::to_string(n));
+    }
+    intersect_partition(*tree, nullptr, 0, nullptr);  // an empty batch
+    occluded_partition(*tree, nullptr, 0, nullptr);
+}
+
 TEST(StreamEmpty, EmptyMeshAndEmptyTreeMissEverything) {
     const auto rays = random_rays(test::make_blob(2, 1.0f, 1), 50, 2);
     const KdTree no_tree;
@@ -205,6 +254,14 @@ TEST(StreamEmpty, EmptyMeshAndEmptyTreeMissEverything) {
         for (size_t i = 0; i < rays.size(); ++i) {
             EXPECT_FALSE(hits[i].valid());
             EXPECT_EQ(occ[i], 0);
+        }
+        std::vector<Hit> part(rays.size(), Hit{1.0f, 0.0f, 0.0f, 5});
+        std::vector<uint8_t> part_occ(rays.size(), 1);
+        intersect_partition(*tree, rays.data(), rays.size(), part.data());
+        occluded_partition(*tree, rays.data(), rays.size(), part_occ.data());
+        for (size_t i = 0; i < rays.size(); ++i) {
+            EXPECT_FALSE(part[i].valid());
+            EXPECT_EQ(part_occ[i], 0);
         }
     }
 }
