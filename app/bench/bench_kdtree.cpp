@@ -121,6 +121,7 @@ void write_output(const Context& ctx, const std::vector<Table>& tables) {
 void run(const Options& opt) {
     bench_clock() = opt.cpu_time ? BenchClock::cpu : BenchClock::wall;
     stream_lane_counts(opt.stream_lanes);  // a bad --stream-lanes fails before any work
+    partition_min_rays(opt.partition_min_rays);
     const Context ctx = load_context(opt);
     RaySets rays;
     rays.views = make_view_rays(ctx);
@@ -138,8 +139,9 @@ void run(const Options& opt) {
     rays.diffuse_reference.clear();
     rays.diffuse_reference.shrink_to_fit();
     EngineSet set = make_engines(ctx, best);
+    const TileBatches tiles = make_tile_batches(ctx, rays);
     const LeafPaths paths = make_leaf_paths(*best.tree, rays);
-    time_engines(ctx, rays, paths, set.engines);
+    time_engines(ctx, rays, paths, tiles, set.engines);
     tables.push_back(embree_table(ctx, best, rays, set.engines));
     tables.push_back(work_table(ctx, best, rays, paths, set.engines));
     if (opt.robustness) tables.push_back(robustness_table(ctx, rays.primary, set.engines));
@@ -210,6 +212,10 @@ void add_bench_kdtree_command(CLI::App& bench) {
     cmd->add_option("--stream-lanes", opt.stream_lanes,
                     "Lane counts of the stream engines (1, 4, 8, 16, 24, 32), comma-separated; "
                     "empty = none")
+        ->capture_default_str();
+    cmd->add_option("--partition-min-rays", opt.partition_min_rays,
+                    "min_rays of the partition engines on 16x16-tile batches of the diffuse "
+                    "rays, comma-separated; empty = none")
         ->capture_default_str();
     cmd->add_option("--robust-rays", opt.robust_rays, "Vertex- and edge-aimed rays each")
         ->capture_default_str()

@@ -38,7 +38,9 @@ struct Options {
     bool robustness = true;
     int robust_rays = 100000;
     std::string stream_lanes = "16";  // lane counts of the stream engines; "" = none
-    bool cpu_time = false;            // time tracing by CPU seconds (bench_rays.h BenchClock)
+    // min_rays of the partition engines (traversal_partition.h) on tile batches; "" = none
+    std::string partition_min_rays = "16";
+    bool cpu_time = false;  // time tracing by CPU seconds (bench_rays.h BenchClock)
 };
 
 /// One configuration of table 6.1.
@@ -140,6 +142,11 @@ struct Engine {
     bool from_leaf = false;
     /// Ours, stream queries (traversal_stream.h) with this many lanes; 0 = not a stream.
     int stream_lanes = 0;
+    /// Ours, partition queries (traversal_partition.h) with this min_rays; 0 = not one.
+    int partition_min_rays = 0;
+    /// Diffuse and shadow rays in the renderer's batches (TileBatches): streams and
+    /// partitions query one batch at a time, single rays go in the batches' order.
+    bool tiled = false;
     double build_seconds = 0.0, bytes_per_triangle = 0.0, peak_mb = 0.0;
     std::vector<double> primary_s, diffuse_s, shadow_s;
     std::vector<Hit> primary_hits, diffuse_hits;
@@ -169,6 +176,23 @@ struct LeafPaths {
     }
 };
 
+/// The diffuse rays regrouped as the renderer's wavefront hands them over: by the 16x16-pixel
+/// tile of the primary ray they leave from (every sample of the tile), at most kMaxRays per
+/// batch. rays[first[k], first[k + 1]) is batch k; rays[j] is diffuse ray index[j].
+struct TileBatches {
+    static constexpr size_t kTile = 16, kMaxRays = 4096;
+    std::vector<Ray> rays;
+    std::vector<uint32_t> index;
+    std::vector<size_t> first;
+};
+
+/// Groups rays.diffuse by rays.diffuse_sources (call before make_leaf_paths()).
+TileBatches make_tile_batches(const Context& ctx, const RaySets& rays);
+
+/// The min_rays of "--partition-min-rays 8,16"; throws Error naming the flag on a value
+/// that is not a whole number in [1, 1000000].
+std::vector<int> partition_min_rays(const std::string& list);
+
 /// The lane counts of "--stream-lanes 4,8,16"; throws Error naming the flag on a count
 /// that is not one of kStreamLaneChoices.
 std::vector<int> stream_lane_counts(const std::string& list);
@@ -183,7 +207,7 @@ LeafPaths make_leaf_paths(const KdTree& tree, RaySets& rays);
 /// Times every engine on the primary, diffuse and diffuse any-hit rays (engines
 /// interleaved within each repeat), keeping each engine's hits.
 void time_engines(const Context& ctx, const RaySets& rays, const LeafPaths& paths,
-                  std::vector<Engine>& engines);
+                  const TileBatches& tiles, std::vector<Engine>& engines);
 Table embree_table(const Context& ctx, const RowResult& best, const RaySets& rays,
                    const std::vector<Engine>& engines);
 /// Work per ray of the best tree from its traversal counters, with the ray anatomy
