@@ -178,38 +178,44 @@ void trace_batch(const TreeView& tv, const Ray* rays, size_t count, Hit* hits, u
         const uint32_t empty = node.empty_children();
         const uint32_t cont = top, push = top + task.count;
         uint32_t cl = cont, cr = push, pl = push, pr = push + task.count;
+        // Branch-free: the decisions of rays whose directions differ are as good as random,
+        // so each entry is written to both candidate slots of its lists and only the
+        // pointers move (the writes stay inside the free middle of each region).
         for (uint32_t j = task.begin; j < task.begin + task.count; ++j) {
-            float t0, t1;
-            if (!take(e[j], t0, t1)) continue;
-            ++visited;
             const uint32_t r = e[j].ray;
+            const float t0 = e[j].t0;
+            float t1 = e[j].t1;
+            bool valid = true;
+            if (kAnyHit) valid = !done[r];
+            if (task.pushed) {  // pop()'s rule
+                const float bt = best[r].t;
+                valid &= lower_slack(t0) <= bt;
+                t1 = std::min(t1, bt);
+            }
+            visited += valid;
             const Slab& s = slab[r];
             const float ts = _mm_cvtss_f32(_mm_mul_ss(
                 _mm_sub_ss(_mm_set_ss(split), _mm_set_ss(s.org[axis])), _mm_set_ss(s.inv[axis])));
             const uint32_t neg = (s.neg_bits >> axis) & 1u;
-            const bool go_near = !(ts < lower_slack(t0)) & !((empty >> neg) & 1u);
-            const bool go_far = !(ts > detail::upper_slack(t1)) & !((empty >> (1u - neg)) & 1u);
+            const bool go_near = valid & !(ts < lower_slack(t0)) & !((empty >> neg) & 1u);
+            const bool go_far =
+                valid & !(ts > detail::upper_slack(t1)) & !((empty >> (1u - neg)) & 1u);
             const float far_t0 = max_ss(ts, t0);
-            if (go_near) {
-                const Entry c{r, t0, min_ss(ts, t1)};
-                if (neg)
-                    e[--cr] = c;
-                else
-                    e[cl++] = c;
-                if (go_far) {
-                    const Entry f{r, far_t0, t1};
-                    if (neg)
-                        e[pl++] = f;  // far is the left child
-                    else
-                        e[--pr] = f;
-                }
-            } else if (go_far) {
-                const Entry c{r, far_t0, t1};
-                if (neg)
-                    e[cl++] = c;
-                else
-                    e[--cr] = c;
-            }
+            // The ray goes on into the near child (t1 clipped) or, far only, into the far one.
+            const Entry c = go_near ? Entry{r, t0, min_ss(ts, t1)} : Entry{r, far_t0, t1};
+            const uint32_t cont_right = neg ^ uint32_t(!go_near);
+            const uint32_t moves = uint32_t(go_near | go_far);
+            e[cl] = c;
+            e[cr - 1] = c;
+            cl += moves & (cont_right ^ 1u);
+            cr -= moves & cont_right;
+            // Both: the far child is pushed (it is the left one when neg).
+            const Entry f{r, far_t0, t1};
+            const uint32_t both = uint32_t(go_near & go_far);
+            e[pl] = f;
+            e[pr - 1] = f;
+            pl += both & neg;
+            pr -= both & (neg ^ 1u);
         }
         const uint32_t reserve_end = push + task.count;
         if (pl > push) w.tasks.push_back(Task{first, push, pl - push, reserve_end, true});
