@@ -39,7 +39,7 @@ struct Options {
     int robust_rays = 100000;
     std::string stream_lanes = "16";  // lane counts of the stream engines; "" = none
     // min_rays of the partition engines (traversal_partition.h) on tile batches; "" = none
-    std::string partition_min_rays = "16";
+    std::string partition_min_rays = "4";
     bool cpu_time = false;  // time tracing by CPU seconds (bench_rays.h BenchClock)
 };
 

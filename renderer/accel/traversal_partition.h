@@ -15,7 +15,7 @@ namespace kdt {
 
 /// Below this many rays at a node, each ray finishes that node's subtree alone with the
 /// single-ray loop.
-inline constexpr int kPartitionMinRays = 16;
+inline constexpr int kPartitionMinRays = 4;
 
 /// Closest hits of rays[0, count): hits[i] is bit for bit what tree.intersect(rays[i],
 /// hits[i]) gives (same t, triangle, u, v), for any min_rays >= 1. counters, when set, gets
