@@ -49,6 +49,9 @@ struct TraceParams {
     /// streams (integrator/wavefront.h), else one path at a time; the image and the counters
     /// are the same bit for bit. Tiles with a heat map take the one-path route.
     bool wavefront = true;
+    /// The wavefront traces each bounce's rays with the partition traversal
+    /// (accel/traversal_partition.h) instead of 32-lane streams; same image and counters.
+    bool partition = false;
 };
 
 /// Per-thread counters, summed at the end of a pass.

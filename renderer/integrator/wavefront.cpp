@@ -1,5 +1,6 @@
 #include "renderer/integrator/wavefront.h"
 
+#include "renderer/accel/traversal_partition.h"
 #include "renderer/accel/traversal_stream.h"
 
 namespace kdt {
@@ -65,8 +66,11 @@ void trace_camera_hits(const TraceScene& scene, const TraceParams& params, const
         // Each path's shadow rays are resolved in the order it emitted them, before its
         // next step, as the one-path loop does.
         if (shadows > 0) {
-            occluded_stream(tree, w.shadows.data(), shadows, w.occluded.data(), kWavefrontLanes,
-                            tcp);
+            if (params.partition)
+                occluded_partition(tree, w.shadows.data(), shadows, w.occluded.data(), tcp);
+            else
+                occluded_stream(tree, w.shadows.data(), shadows, w.occluded.data(), kWavefrontLanes,
+                                tcp);
             int k = 0;
             for (size_t j = 0; j < shadows; ++j) {
                 k = j > 0 && w.shadow_path[j] == w.shadow_path[j - 1] ? k + 1 : 0;
@@ -84,7 +88,9 @@ void trace_camera_hits(const TraceScene& scene, const TraceParams& params, const
             w.active[alive++] = i;
         }
         w.active.resize(alive);
-        if (alive > 0)
+        if (alive > 0 && params.partition)
+            intersect_partition(tree, w.rays.data(), alive, w.hits.data(), tcp);
+        else if (alive > 0)
             intersect_stream(tree, w.rays.data(), alive, w.hits.data(), kWavefrontLanes, tcp);
     }
     counters.nodes_visited += tc.nodes_visited;

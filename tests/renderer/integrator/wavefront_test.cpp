@@ -125,6 +125,18 @@ TEST(Wavefront, MatchesOnePathWithShadowRaysEmittersAndGlass) {
     EXPECT_EQ(c.nodes_visited, 0u);
 }
 
+// The wavefront with the partition traversal (TraceParams::partition) instead of streams.
+TEST(Wavefront, PartitionTraversalMatchesOnePath) {
+    const TraceScene scene = test::make_mixed_scene(std::make_shared<test::GradientEnv>());
+    for (TraceParams tp : strategies()) {
+        tp.partition = true;
+        for (size_t batch : {size_t(1), size_t(7), size_t(1000)}) {
+            const std::string what = describe(tp) + ", partition, batch " + std::to_string(batch);
+            expect_wavefront_equals_one_path(scene, tp, what, batch);
+        }
+    }
+}
+
 TEST(Wavefront, MatchesOnePathUnderTheGraceProbe) {
     const auto grace = test::grace_probe();
     if (grace.empty()) GTEST_SKIP() << test::kNoGraceProbe;
