@@ -269,6 +269,9 @@ Table robustness_table(const Context& ctx, const std::vector<Ray>& primary,
     for (const Engine& e : engines) {
         if (e.from_leaf) continue;     // aimed rays leave from no hit
         if (e.stream_lanes) continue;  // the unit tests check streams on such rays, bitwise
+        // Partitions likewise; tile-batch rows differ from their engine only in the diffuse
+        // rays' order, which this table does not trace.
+        if (e.partition_min_rays || e.tiled) continue;
         t3.rows.push_back(robustness_row(ctx, e, rays));
     }
     return t3;
