@@ -145,12 +145,15 @@ void add_info_command(CLI::App& parent) {
         "settings and command stored in it (PNG, EXR, PFM, HDR)");
     non_empty_file_name(cmd->add_option("file", args->file, "Mesh or image file"), "info")
         ->required();
-    cmd->add_flag("--all", args->all, "Images: print the stored scene JSON in full");
+    cmd->add_flag("--all", args->all,
+                  "Images: print the stored scene JSON and any value over 16 KiB in full");
     cmd->add_flag(
         "--drop-invalid", args->drop_invalid,
         "Drop faces that use non-finite vertices instead of failing (and report how many)");
-    cmd->add_option("--threads", args->threads,
-                    "Threads for ascii PLY parsing (1 = one core, 2 = two, 0 = auto)")
+    cmd->add_option(
+           "--threads", args->threads,
+           "Threads for ascii PLY parsing: 1 (the default), 2 or more = two, 0 = two when the "
+           "machine has them")
         ->check(in_range(0, 1024));
     cmd->callback([args] { run_info(*args); });
 }

@@ -473,7 +473,7 @@ void add_bench_converge_command(CLI::App& parent) {
     cmd->add_option("--threads", a.threads, "OpenMP threads (0 = all)")
         ->capture_default_str()
         ->check(in_range(0, 1024));
-    cmd->add_option("--seed", a.seed, "Seed")->capture_default_str();
+    cmd->add_option("--seed", a.seed, "Seed of all randomness")->capture_default_str();
     cmd->add_option("--path-depth", a.path_depth, "Maximum bounces")
         ->capture_default_str()
         ->check(in_range(0, 1024));

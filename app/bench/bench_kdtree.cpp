@@ -187,9 +187,9 @@ void add_bench_kdtree_command(CLI::App& bench) {
                     "SAH row: maximum depth instead of the automatic 8 + 1.3 log2 N")
         ->check(in_range(1, 64));
     cmd->add_option("--leaf-vertex-indices", opt.leaf_vertex_indices,
-                    "Every row's trees store each leaf reference's vertex indices (on), or not "
-                    "(off), instead of only within 32 bytes per triangle (auto): rows then "
-                    "differ in time only by their splits")
+                    "Leaf data of every row's tree: each reference's vertex indices stored "
+                    "(on) or not (off), so that rows differ in time only by their splits; auto "
+                    "stores them when the tree stays within 32 bytes per triangle, as render does")
         ->capture_default_str()
         ->check(CLI::IsMember({"auto", "on", "off"}));
     cmd->add_option("--spp", opt.spp, "Primary rays per pixel (default: the views file's)")
@@ -197,15 +197,18 @@ void add_bench_kdtree_command(CLI::App& bench) {
     non_empty_file_name(cmd->add_option("--csv", opt.csv, "Also write all tables as CSV"), "--csv");
     non_empty_file_name(
         cmd->add_option("--md", opt.md, "Write the Markdown here instead of stdout"), "--md");
-    cmd->add_flag("!--no-embree", opt.embree, "Skip the Embree comparison");
+    // Callbacks rather than "!--no-..." flags, which --help would list as "--no-embree{false}".
+    cmd->add_flag_callback(
+        "--no-embree", [] { opt.embree = false; }, "Skip the Embree comparison");
     cmd->add_flag("--embree-robust", opt.embree_robust,
-                  "Add an Embree row with RTC_SCENE_FLAG_ROBUST");
+                  "Add Embree rows with RTC_SCENE_FLAG_ROBUST (not with --no-embree)");
     cmd->add_flag("--use-cache", opt.use_cache,
                   "Take trees from the cache (build s = the cached build's time) instead of "
                   "building each row --repeat times");
     cmd->add_option("--save-views", opt.save_views,
                     "Write a PGM picture of each view's first-sample hits into this directory");
-    cmd->add_flag("!--no-robustness", opt.robustness, "Skip the aimed and NaN/Inf ray table");
+    cmd->add_flag_callback(
+        "--no-robustness", [] { opt.robustness = false; }, "Skip the aimed and NaN/Inf ray table");
     cmd->add_flag("--cpu-time", opt.cpu_time,
                   "Time tracing by the process's CPU seconds per thread instead of wall "
                   "seconds (an oversubscribed machine; use with --threads 1)");

@@ -234,6 +234,7 @@ void add_bench_load_command(CLI::App& bench) {
         bench.add_subcommand("load", "PLY load time: ours against Assimp (Markdown table)");
     cmd->add_option("files", args->files, "PLY/OBJ files")->required();
     cmd->add_option("--repeat", args->repeat, "Runs per file and reader (median reported)")
+        ->capture_default_str()
         ->check(in_range(1, 1000));
     cmd->add_option("--csv", args->csv, "Also write the table as CSV");
     cmd->add_option(
@@ -245,8 +246,8 @@ void add_bench_load_command(CLI::App& bench) {
                   "Let each load reuse the heap earlier loads grew (faster, but the peak RSS "
                   "column then undercounts)");
     cmd->add_option("--threads", args->threads,
-                    "Threads for our ascii PLY parsing (1 = one core, 2 = two, 0 = two when "
-                    "the machine has them; default: load_mesh's default)")
+                    "Threads for our ascii PLY parsing: 1 (the default), 2 or more = two, 0 = two "
+                    "when the machine has them")
         ->check(in_range(0, 64));
     cmd->callback([args] { run_bench_load(*args); });
 }

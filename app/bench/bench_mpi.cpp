@@ -239,10 +239,18 @@ void add_bench_mpi_command(CLI::App& parent) {
            },
            "dynamic, strips, interleaved")
         ->delimiter(',');
-    sub->add_option("--width", args.width)->check(in_range(1, 1 << 14))->capture_default_str();
-    sub->add_option("--height", args.height)->check(in_range(1, 1 << 14))->capture_default_str();
-    sub->add_option("--spp", args.spp)->check(in_range(1, 1 << 20))->capture_default_str();
-    sub->add_option("--repeat", args.repeat)->check(in_range(1, 100))->capture_default_str();
+    sub->add_option("--width", args.width, "Image width of the tile rows")
+        ->check(in_range(1, 1 << 14))
+        ->capture_default_str();
+    sub->add_option("--height", args.height, "Image height of the tile rows")
+        ->check(in_range(1, 1 << 14))
+        ->capture_default_str();
+    sub->add_option("--spp", args.spp, "Samples per pixel of the tile rows")
+        ->check(in_range(1, 1 << 20))
+        ->capture_default_str();
+    sub->add_option("--repeat", args.repeat, "Runs of each configuration (median reported)")
+        ->check(in_range(1, 100))
+        ->capture_default_str();
     sub->add_option("--frames", args.frames,
                     "Also farm a turntable of this many frames (dynamic, each rank count)")
         ->check(in_range(0, 1 << 16));
