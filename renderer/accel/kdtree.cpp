@@ -185,7 +185,15 @@ std::string kdtree_leaf_warning(const KdTree& tree) {
     std::snprintf(head, sizeof(head), "the kd-tree's largest leaf holds %u triangles%s", largest,
                   root_leaf ? " (the root is a leaf)" : "");
     char cause[320];
-    if (p.q < 0.9f) {
+    if (p.builder == KdBuilder::thesis && !p.use_median_split && !p.use_center_split) {
+        // Cut-off planes alone split nothing once a node's box is tight around its triangles.
+        std::snprintf(cause, sizeof(cause), "%s",
+                      p.use_cutoff_split
+                          ? ": --no-median and --no-center leave the thesis builder only planes "
+                            "that cut off empty space; drop one of them"
+                          : ": --no-median, --no-center and --no-cutoff leave the thesis builder "
+                            "no split candidates; drop one of them");
+    } else if (p.q < 0.9f) {
         std::snprintf(cause, sizeof(cause),
                       ": --q %g makes the leaf cost f(n) grow as n^%.2f, so splitting %s pays; "
                       "try --q 0.9 or more (default 0.98)",

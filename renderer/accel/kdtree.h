@@ -236,10 +236,11 @@ inline constexpr uint32_t kLargeLeafTriangles = 128;
 /// A one-line warning when the largest leaf of `tree` holds far more triangles than its
 /// parameters intend, else empty: when the root is a leaf of more than kRootLeafTriangles
 /// (whatever the cause), or a leaf holds more than kLargeLeafTriangles for a cause the user
-/// can change. The causes, checked in this order: q below 0.9 (f(n) then grows as
-/// n^(1 + log2 q), so a split rarely pays; at q 0.5 never), the depth limit reached, an SAH
-/// traversal cost above the leaf's cost; for a root leaf without any of these, triangles that
-/// no plane separates. The message says what to try.
+/// can change. The causes, checked in this order: a thesis builder with neither median nor
+/// spatial-middle split candidates (cut-off planes alone stop at a tight box), q below 0.9 (f(n)
+/// then grows as n^(1 + log2 q), so a split rarely pays; at q 0.5 never), the depth limit reached,
+/// an SAH traversal cost above the leaf's cost; for a root leaf without any of these, triangles
+/// that no plane separates. The message says what to try.
 std::string kdtree_leaf_warning(const KdTree& tree);
 
 /// The depth limit of KdTreeParams::max_depth = 0 for a tree over `triangles` triangles:

@@ -1,6 +1,7 @@
-// kdtree_leaf_warning(): silent for the builders' defaults, one line naming the cause (q,
-// the depth limit, the SAH traversal cost, inseparable triangles) when a leaf holds far more
-// triangles than the parameters intend.
+// kdtree_leaf_warning(): silent for the builders' defaults, one line naming the cause (no
+// split candidates, q, the depth limit, the SAH traversal cost, the thesis builder's one axis
+// at the root, inseparable triangles) when a leaf holds far more triangles than the parameters
+// intend.
 #include <cmath>
 #include <memory>
 #include <string>
@@ -92,6 +93,23 @@ TEST(LeafWarning, NamesTheCause) {
     thesis.thesis_all_axes = true;
     EXPECT_EQ(warning_of(tube, thesis), "");
     EXPECT_EQ(warning_of(tube, with_builder(KdBuilder::sah)), "");
+    // No split candidates left: the flags are the cause, not the mesh.
+    p = with_builder(KdBuilder::thesis);
+    p.use_median_split = p.use_center_split = p.use_cutoff_split = false;
+    EXPECT_EQ(warning_of(blob, p),
+              "the kd-tree's largest leaf holds 8192 triangles (the root is a leaf): --no-median, "
+              "--no-center and --no-cutoff leave the thesis builder no split candidates; drop one "
+              "of them");
+    p.use_cutoff_split = true;
+    EXPECT_NE(warning_of(blob, p).find("(the root is a leaf): --no-median and --no-center leave "
+                                       "the thesis builder only planes that cut off empty space"),
+              std::string::npos)
+        << warning_of(blob, p);
+    for (bool median : {false, true}) {
+        p.use_median_split = median;
+        p.use_center_split = !median;
+        EXPECT_EQ(warning_of(blob, p), "") << "median " << median;
+    }
     // n0 raises the bounds: leaves of up to n0 triangles are what it asks for.
     p = KdTreeParams{};
     p.n0 = 200;
