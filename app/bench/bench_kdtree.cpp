@@ -65,6 +65,15 @@ Context load_context(const Options& opt) {
             fs::weakly_canonical(opt.csv, ec) == fs::weakly_canonical(opt.md, ec))
             throw Error("--csv " + opt.csv + " is also --md; give them different files");
     }
+    if (!opt.save_views.empty()) {
+        std::error_code ec;
+        fs::create_directories(opt.save_views, ec);
+        if (!fs::is_directory(opt.save_views))
+            throw Error("--save-views " + opt.save_views + ": cannot make the directory" +
+                        (ec ? " (" + ec.message() + ")" : ""));
+        for (const View& v : ctx.views.views)
+            check_output(save_view_path(opt.save_views, v.name), inputs, "a --save-views picture");
+    }
 
     std::fprintf(stderr, "loading %s\n", ctx.model.c_str());
     MeshLoadInfo info;
@@ -205,8 +214,11 @@ void add_bench_kdtree_command(CLI::App& bench) {
     cmd->add_flag("--use-cache", opt.use_cache,
                   "Take trees from the cache (build s = the cached build's time) instead of "
                   "building each row --repeat times");
-    cmd->add_option("--save-views", opt.save_views,
-                    "Write a PGM picture of each view's first-sample hits into this directory");
+    non_empty_file_name(
+        cmd->add_option("--save-views", opt.save_views,
+                        "Write a PGM picture of each view's first-sample hits into this directory "
+                        "(made if missing)"),
+        "--save-views");
     cmd->add_flag_callback(
         "--no-robustness", [] { opt.robustness = false; }, "Skip the aimed and NaN/Inf ray table");
     cmd->add_flag("--cpu-time", opt.cpu_time,

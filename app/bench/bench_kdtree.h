@@ -43,6 +43,11 @@ struct Options {
     bool cpu_time = false;  // time tracing by CPU seconds (bench_rays.h BenchClock)
 };
 
+/// The --save-views picture of view `name` in directory `dir`.
+inline std::string save_view_path(const std::string& dir, const std::string& name) {
+    return dir + "/view_" + name + ".pgm";
+}
+
 /// One configuration of table 6.1.
 struct Config {
     std::string id, remark;

@@ -7,7 +7,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 #include <sstream>
 #include <string>
@@ -19,6 +18,7 @@
 #include "app/bench/bench_rays.h"
 #include "renderer/accel/kdtree_cache.h"
 #include "renderer/core/error.h"
+#include "renderer/core/temp_file.h"
 #include "renderer/core/timer.h"
 
 namespace kdt::app::kdtree_bench {
@@ -88,10 +88,9 @@ void save_view_image(const std::string& path, const ViewSet& set, const Triangle
             }
         }
     }
-    std::ofstream out(path, std::ios::binary);
-    out << "P5\n" << w << " " << h << "\n255\n";
-    out.write(reinterpret_cast<const char*>(img.data()), std::streamsize(img.size()));
-    if (!out) throw Error(ErrorLocation{path}, "cannot write image");
+    const std::string header = "P5\n" + std::to_string(w) + " " + std::to_string(h) + "\n255\n";
+    img.insert(img.begin(), header.begin(), header.end());
+    write_file_atomically(path, img.data(), img.size());
 }
 
 /// The row's parameters with the command line's overrides for its builder.
@@ -258,7 +257,7 @@ void trace_references(const Context& ctx, const KdTree& tree, RaySets& rays) {
         trace_closest(vr.rays, vr.reference, ctx.threads,
                       [&](const Ray& ray, Hit& h) { tree.intersect(ray, h); });
         if (!ctx.opt.save_views.empty()) {
-            save_view_image(ctx.opt.save_views + "/view_" + vr.name + ".pgm", ctx.views, *ctx.mesh,
+            save_view_image(save_view_path(ctx.opt.save_views, vr.name), ctx.views, *ctx.mesh,
                             vr.rays, vr.reference);
         }
         vr.hits = uint64_t(std::count_if(vr.reference.begin(), vr.reference.end(),

@@ -688,3 +688,21 @@ add_test(NAME smoke.frames_session COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/frames
          ${_kdt} ${_tmp}/frames_session /usr/share/assimp/models/PLY/Wuson.ply)
 set_tests_properties(smoke.frames_session PROPERTIES PASS_REGULAR_EXPRESSION "PASS: frames_session"
                      FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)
+
+# bench kdtree --save-views: checked and its directory made before any work, never "".
+add_test(NAME smoke.bench_kdtree_save_views_empty COMMAND ${_kdt} bench kdtree
+         --model /usr/share/assimp/models/PLY/cube.ply --save-views "")
+set_tests_properties(smoke.bench_kdtree_save_views_empty PROPERTIES
+  PASS_REGULAR_EXPRESSION "^kdtrace: error: --save-views[^\n]*empty")
+add_test(NAME smoke.bench_kdtree_save_views_file COMMAND ${_kdt} bench kdtree
+         --model /usr/share/assimp/models/PLY/cube.ply --save-views
+         /usr/share/assimp/models/PLY/cube.ply)
+set_tests_properties(smoke.bench_kdtree_save_views_file PROPERTIES PASS_REGULAR_EXPRESSION
+  "kdtrace: error: --save-views /usr/share/assimp/models/PLY/cube.ply: cannot make the directory"
+  FAIL_REGULAR_EXPRESSION "row 1")
+add_test(NAME smoke.bench_kdtree_save_views COMMAND sh -c "rm -rf \"$1\" && \"$0\" bench kdtree \
+         --model /usr/share/assimp/models/PLY/cube.ply --rows 1 --repeat 1 --no-embree \
+         --no-robustness --stream-lanes '' --spp 1 --save-views \"$1/new\" >/dev/null 2>&1 && \
+         ls \"$1/new\"" ${_kdt} ${_tmp}/save_views)
+set_tests_properties(smoke.bench_kdtree_save_views PROPERTIES
+  PASS_REGULAR_EXPRESSION "^view_A.pgm\nview_B.pgm\nview_C.pgm\nview_D.pgm\n$")
