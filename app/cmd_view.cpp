@@ -29,6 +29,10 @@ void add_view_command(CLI::App& parent) {
         warn_unused_tree_flags(*sub, vo.options.tree, !vo.options.scene.tree_file.empty());
         warn_unused_render_flags(*sub, vo.options);
         check_views_file(*sub);
+        // The screenshot is taken in the last frame of a --frames run; a window the user
+        // closes would exit without it.
+        if (!vo.screenshot.empty() && vo.frames == 0)
+            throw Error("--screenshot needs --frames N (it is taken N frames after the script)");
         try {
             ui::run_viewer(vo);
         } catch (const Error& e) {

@@ -706,3 +706,12 @@ add_test(NAME smoke.bench_kdtree_save_views COMMAND sh -c "rm -rf \"$1\" && \"$0
          ls \"$1/new\"" ${_kdt} ${_tmp}/save_views)
 set_tests_properties(smoke.bench_kdtree_save_views PROPERTIES
   PASS_REGULAR_EXPRESSION "^view_A.pgm\nview_B.pgm\nview_C.pgm\nview_D.pgm\n$")
+
+# view --screenshot is taken in the last frame of a --frames run: alone it is refused before
+# any window opens.
+if(TARGET kdt_ui_core)
+  add_test(NAME smoke.view_screenshot_needs_frames COMMAND ${_kdt} view --screenshot
+           ${_tmp}/never.png)
+  set_tests_properties(smoke.view_screenshot_needs_frames PROPERTIES PASS_REGULAR_EXPRESSION
+    "^kdtrace: error: --screenshot needs --frames N")
+endif()
