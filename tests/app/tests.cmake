@@ -715,3 +715,11 @@ if(TARGET kdt_ui_core)
   set_tests_properties(smoke.view_screenshot_needs_frames PROPERTIES PASS_REGULAR_EXPRESSION
     "^kdtrace: error: --screenshot needs --frames N")
 endif()
+
+# Every long option of every command's --help is described in docs/usage.md
+# (options_documented_test.sh names those that are not).
+add_test(NAME docs.every_option_documented COMMAND bash
+         ${CMAKE_CURRENT_LIST_DIR}/options_documented_test.sh ${_kdt}
+         ${CMAKE_SOURCE_DIR}/docs/usage.md)
+set_tests_properties(docs.every_option_documented PROPERTIES
+  PASS_REGULAR_EXPRESSION "PASS: all [0-9]+ options" FAIL_REGULAR_EXPRESSION "FAIL: ")
