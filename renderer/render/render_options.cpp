@@ -17,6 +17,7 @@
 #include "renderer/core/open_file.h"
 #include "renderer/io/image_io.h"
 #include "renderer/render/settings.h"
+#include "renderer/scene/json_parse.h"
 #include "renderer/scene/json_vec.h"
 
 namespace kdt {
@@ -454,7 +455,18 @@ void options_from_json(const std::string& text, RenderOptions& o, const std::str
     } catch (const json::exception& e) {
         throw Error(ErrorLocation{where}, std::string("bad value: ") + e.what());
     }
-    validate(o);
+    // Value errors found once every key is read (ranges, a camera that spans no frame) name
+    // `where` too: the user must know which file to fix. The camera's rules are make_camera's,
+    // which the render applies later; a 1x1 film leaves out only the image size it checks.
+    try {
+        validate(o);
+        if (o.scene.camera) {
+            const CameraDesc& c = *o.scene.camera;
+            make_camera(c.eye, c.target, c.up, c.vfov_degrees, 1, 1);
+        }
+    } catch (const Error& e) {
+        throw Error(ErrorLocation{where}, e.what());
+    }
 }
 
 void make_file_names_absolute(SceneOptions& scene) {

@@ -20,6 +20,7 @@
 #include "renderer/core/fields.h"
 #include "renderer/core/open_file.h"
 #include "renderer/io/mesh_io.h"
+#include "renderer/scene/json_parse.h"
 #include "renderer/scene/json_vec.h"
 
 namespace kdt {
@@ -395,7 +396,7 @@ Scene load_scene_text(const std::string& text, const std::string& path,
                       const SceneLoadOptions& options) {
     json root;
     try {
-        root = json::parse(text);
+        root = parse_json_without_repeats(text, path, "");
     } catch (const json::parse_error& e) {
         // nlohmann's message already names the line and column.
         ErrorLocation where{path};

@@ -3,12 +3,14 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <map>
 #include <set>
 
 #include <nlohmann/json.hpp>
 
 #include "renderer/core/error.h"
 #include "renderer/core/open_file.h"
+#include "renderer/scene/json_parse.h"
 
 namespace kdt {
 namespace {
@@ -63,7 +65,8 @@ ViewSet load_views(const std::string& path) {
     const std::vector<uint8_t> text = read_regular_file(path, uint64_t(16) << 20, "a views file");
     json doc;
     try {
-        doc = json::parse(text.begin(), text.end());
+        doc = parse_json_without_repeats(
+            std::string_view(reinterpret_cast<const char*>(text.data()), text.size()), path, "/");
     } catch (const json::parse_error& e) {
         throw Error(ErrorLocation{path, "", -1, -1, int64_t(e.byte)}, "invalid JSON");
     } catch (const json::exception& e) {
@@ -89,6 +92,8 @@ ViewSet load_views(const std::string& path) {
     }
     const json& views = need(path, "", doc, "views");
     if (!views.is_array() || views.empty()) bad(path, "/views", "expected a non-empty array");
+    // --view NAME picks by name, so a name given twice would leave one view unreachable.
+    std::map<std::string, size_t> first_with_name;
     for (size_t i = 0; i < views.size(); ++i) {
         const std::string ptr = "/views/" + std::to_string(i);
         const json& v = views[i];
@@ -99,6 +104,12 @@ ViewSet load_views(const std::string& path) {
             bad(path, ptr + "/name", "expected a non-empty string");
         }
         view.name = name.get<std::string>();
+        const auto [seen, fresh] = first_with_name.emplace(view.name, i);
+        if (!fresh) {
+            bad(path, ptr + "/name",
+                "view name \"" + excerpt(view.name) + "\" repeated (also /views/" +
+                    std::to_string(seen->second) + "/name)");
+        }
         if (v.contains("label")) {
             if (!v["label"].is_string()) bad(path, ptr + "/label", "expected a string");
             view.label = v["label"].get<std::string>();

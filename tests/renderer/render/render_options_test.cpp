@@ -202,6 +202,24 @@ TEST(RenderOptions, JsonRefusesWhatItCannotHonour) {
     EXPECT_NE(bad("{\"scene\": {\"width\": 1.5}}").find("whole number"), std::string::npos);
     EXPECT_NE(bad("[1, 2]"), "");
     EXPECT_NE(bad("{"), "");
+    // A repeated key or group would replace the first silently.
+    EXPECT_EQ(bad("{\"stop\": {\"spp\": 1}, \"stop\": {\"spp\": 2}}"),
+              "s.json: /stop: repeated key");
+    EXPECT_EQ(bad("{\"scene\": {\"camera\": {\"vfov_degrees\": 40, \"vfov_degrees\": 90}}}"),
+              "s.json: /scene/camera/vfov_degrees: repeated key");
+    EXPECT_EQ(bad("{\"scene\": {\"materials\": [{}, {\"albedo\": 0.5, \"albedo\": 1}]}}"),
+              "s.json: /scene/materials/1/albedo: repeated key");
+    // Errors found after the keys are read name the file too.
+    const char* cam = R"({"scene": {"camera": {"eye": [0, 0, 0], "target": [0, 0, 0],
+        "up": [0, 1, 0], "vfov_degrees": 40}}})";
+    EXPECT_EQ(bad(cam), "s.json: camera: eye and target coincide");
+    const char* vfov = R"({"scene": {"camera": {"eye": [0, 0, 5], "target": [0, 0, 0],
+        "up": [0, 1, 0], "vfov_degrees": 1e39}}})";
+    EXPECT_EQ(bad(vfov).rfind("s.json: camera: vertical field of view must be in (0, 180)", 0), 0u)
+        << bad(vfov);
+    EXPECT_EQ(bad(R"({"scene": {"width": 16384, "height": 16384}})")
+                  .rfind("s.json: scene.width x scene.height: 16384x16384", 0),
+              0u);
 }
 
 }  // namespace

@@ -156,6 +156,14 @@ TEST(Scene, ErrorsNameFileAndKey) {
          "meshes/0/material/albdo: unknown key \"albdo\" (expected one of: albedo,"},
         {R"({"meshes": [{"file": "cube.ply"}] )", "invalid JSON"},
         {R"([1, 2])", "expected an object"},
+        // nlohmann keeps a repeated key's last value without a word.
+        {R"({"meshes": [{"file": "cube.ply"}], "camera": {"vfov_degrees": 40,
+            "vfov_degrees": 170}})",
+         "camera/vfov_degrees: repeated key"},
+        {R"({"name": "a", "meshes": [{"file": "cube.ply"}], "name": "b"})", ": name: repeated key"},
+        {R"({"meshes": [{"file": "cube.ply"}, {"file": "cube.ply", "material": {"albedo": 0.5},
+            "file": "cube.ply"}]})",
+         "meshes/1/file: repeated key"},
     };
     int i = 0;
     for (const Case& c : cases) {
