@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -267,7 +268,28 @@ CameraDesc camera_from_json(const json& x, const std::string& where, const std::
 }
 
 // The scene group: its strings, optionals and camera here, the tabled fields by the table.
-void scene_from_json(const json& v, SceneOptions& scene, const std::string& where) {
+// A file name read from a session file: relative to the session's folder, as a scene file's
+// names are to the scene's. An input file (not cache_dir, which may not exist yet) must exist
+// there, so that a wrong name is reported with the session and its key, not later by the
+// loader as a bare name. Absolute names, as kdtrace writes them, are kept as they are.
+std::string session_file_name(const std::string& name, const std::string& key,
+                              const std::string& relative_to, const std::string& where,
+                              const std::string& pointer) {
+    if (relative_to.empty() || name.empty() || !std::filesystem::path(name).is_relative())
+        return name;
+    const std::string resolved =
+        (std::filesystem::path(relative_to) / name).lexically_normal().string();
+    std::error_code ec;
+    if (key != "cache_dir" && !std::filesystem::exists(resolved, ec) && !ec) {
+        throw Error(ErrorLocation{where, pointer},
+                    "no such file: " + printable(resolved) +
+                        " (relative names in a session are relative to its folder)");
+    }
+    return resolved;
+}
+
+void scene_from_json(const json& v, SceneOptions& scene, const std::string& where,
+                     const std::string& relative_to) {
     if (!v.is_object()) throw Error(ErrorLocation{where, "/scene"}, "expected an object");
     json rest = json::object();
     for (auto s = v.begin(); s != v.end(); ++s) {
@@ -287,11 +309,16 @@ void scene_from_json(const json& v, SceneOptions& scene, const std::string& wher
                 throw Error(ErrorLocation{where, pointer}, "given with /scene/" + name);
             const std::string file = unescape_file_name_bytes(x.get<std::string>(), where, pointer);
             check_file_name(file, where, pointer);
-            scene.*member = file;
+            scene.*member = session_file_name(file, name, relative_to, where, pointer);
         } else if (auto text = find_member(kSceneStrings, key)) {
             if (!x.is_string()) throw Error(ErrorLocation{where, pointer}, "expected a string");
-            if (key != "env_mapping") check_file_name(x.get<std::string>(), where, pointer);
-            scene.*text = x.get<std::string>();
+            if (key == "env_mapping") {
+                scene.*text = x.get<std::string>();
+            } else {
+                check_file_name(x.get<std::string>(), where, pointer);
+                scene.*text =
+                    session_file_name(x.get<std::string>(), key, relative_to, where, pointer);
+            }
         } else if (auto part = find_member(kSceneVectors, key)) {
             scene.*part = vec_from_json(x, where, pointer);
         } else if (key == "env_intensity") {
@@ -426,10 +453,11 @@ std::string options_to_json(const RenderOptions& o) {
     return j.dump(-1, ' ', false, json::error_handler_t::replace);
 }
 
-void options_from_json(const std::string& text, RenderOptions& o, const std::string& where) {
+void options_from_json(const std::string& text, RenderOptions& o, const std::string& where,
+                       const std::string& relative_to) {
     json j;
     try {
-        j = json::parse(text);
+        j = parse_json_without_repeats(text, where, "/");
     } catch (const json::exception& e) {
         throw Error(ErrorLocation{where}, std::string("malformed JSON: ") + e.what());
     }
@@ -447,7 +475,7 @@ void options_from_json(const std::string& text, RenderOptions& o, const std::str
             } else if (group == "stop") {
                 group_from_json(v, o.stop, stop_fields(), where, group);
             } else if (group == "scene") {
-                scene_from_json(v, o.scene, where);
+                scene_from_json(v, o.scene, where, relative_to);
             } else {
                 throw Error(ErrorLocation{where, "/" + group}, "unknown key");
             }
@@ -497,6 +525,10 @@ const char* image_kind(const std::string& path) {
 }  // namespace
 
 void options_from_session_file(const std::string& path, RenderOptions& o) {
+    // Relative file names resolve against the session's folder (the path as given, as for
+    // scene files); "." when the session is in the working directory.
+    const std::string folder = std::filesystem::path(path).parent_path().string();
+    const std::string relative_to = folder.empty() ? "." : folder;
     if (const char* kind = image_kind(path)) {
         const std::string k = kind;
         if (k == "PFM" || k == "Radiance HDR") {
@@ -517,10 +549,10 @@ void options_from_session_file(const std::string& path, RenderOptions& o) {
             throw Error(path + ": no kdtrace:params text in this " + kind +
                         " image (not written by kdtrace?), so it is not a session");
         }
-        return options_from_json(*params, o, path);
+        return options_from_json(*params, o, path, relative_to);
     }
     const std::vector<uint8_t> text = read_regular_file(path, uint64_t(1) << 20, "a session file");
-    options_from_json(std::string(text.begin(), text.end()), o, path);
+    options_from_json(std::string(text.begin(), text.end()), o, path, relative_to);
 }
 
 }  // namespace kdt

@@ -96,12 +96,17 @@ void make_file_names_absolute(SceneOptions& scene);
 /// sequence as %XX (upper-case hex), e.g. "scene_path_bytes": "/m/%9Bq.ply".
 std::string options_to_json(const RenderOptions& options);
 /// Reads options_to_json() output (any subset of groups and keys) into `options`; unknown
-/// groups or keys and invalid values throw kdt::Error naming `where` and the key.
+/// or repeated groups or keys and invalid values throw kdt::Error naming `where` and the key.
+/// With `relative_to` (a folder), a relative file name resolves against it, and one of an
+/// input (scene_path, env_file, tree_file) that does not exist there is an error; empty keeps
+/// names as given.
 void options_from_json(const std::string& json, RenderOptions& options,
-                       const std::string& where = "options");
+                       const std::string& where = "options", const std::string& relative_to = "");
 /// options_from_json() of a session file: a regular file of at most 1 MiB (a FIFO or a
 /// device is refused, not read), errors naming `path`. A PNG or OpenEXR file saved by kdtrace
-/// (render or view) is a session too: its `kdtrace:params` metadata is read.
+/// (render or view) is a session too: its `kdtrace:params` metadata is read. Relative file
+/// names resolve against the session's folder, as a scene file's do (kdtrace writes absolute
+/// ones).
 void options_from_session_file(const std::string& path, RenderOptions& options);
 
 }  // namespace kdt

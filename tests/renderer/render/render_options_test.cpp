@@ -4,6 +4,7 @@
 #include "renderer/render/render_options.h"
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <string>
 
@@ -419,6 +420,46 @@ TEST(RenderOptions, JsonKeepsFileNamesThatAreNotUtf8) {
               "s.json: /scene/tree_file_bytes: given with /scene/tree_file");
     EXPECT_NE(error("\"env_mapping_bytes\": \"x\"").find("env_mapping_bytes: unknown key"),
               std::string::npos);
+}
+
+}  // namespace
+}  // namespace kdt
+
+namespace kdt {
+namespace {
+
+// A hand-written session's relative file names resolve against its folder, as a scene
+// file's do, whatever the working directory; a missing input is named with the session and
+// the key. Absolute names (what kdtrace writes) are kept as they are.
+TEST(RenderOptions, SessionFileNamesAreRelativeToTheSession) {
+    const auto dir = test::temp_dir("session_relative");
+    std::filesystem::create_directories(dir / "sub");
+    std::ofstream(dir / "sub" / "m.ply") << "ply\n";
+    std::ofstream(dir / "sub" / "sky.pfm") << "PF\n";
+    const std::string session = (dir / "sub" / "rel.json").string();
+    auto read = [&](const std::string& text) {
+        std::ofstream(session) << text;
+        RenderOptions o;
+        options_from_session_file(session, o);
+        return o;
+    };
+    RenderOptions o = read(
+        R"({"scene": {"scene_path": "m.ply", "env_file": "../sub/sky.pfm", "cache_dir": "c"}})");
+    EXPECT_EQ(o.scene.scene_path, (dir / "sub" / "m.ply").string());
+    EXPECT_EQ(o.scene.env_file, (dir / "sub" / "sky.pfm").string());
+    EXPECT_EQ(o.scene.cache_dir, (dir / "sub" / "c").string());  // need not exist
+    const std::string absolute = (dir / "sub" / "m.ply").string();
+    EXPECT_EQ(read("{\"scene\": {\"scene_path\": \"" + absolute + "\"}}").scene.scene_path,
+              absolute);
+    const std::string err =
+        test::error_of_call([&] { read(R"({"scene": {"tree_file": "t.kdt"}})"); });
+    EXPECT_EQ(err, session +
+                       ": /scene/tree_file: no such file: " + (dir / "sub" / "t.kdt").string() +
+                       " (relative names in a session are relative to its folder)");
+    // options_from_json() alone (rank 0's options, the viewer's) keeps names as given.
+    RenderOptions plain;
+    options_from_json(R"({"scene": {"scene_path": "m.ply"}})", plain, "s.json");
+    EXPECT_EQ(plain.scene.scene_path, "m.ply");
 }
 
 }  // namespace
