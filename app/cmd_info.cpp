@@ -119,7 +119,7 @@ void run_info(const InfoArgs& args) {
     std::printf("degenerate:  %llu faces with repeated indices (kept)\n",
                 (unsigned long long)info.degenerate_faces);
     if (args.drop_invalid)
-        std::printf("dropped:     %llu faces using non-finite vertices\n",
+        std::printf("dropped:     %llu faces (non-finite vertices, or fewer than 3 indices)\n",
                     (unsigned long long)info.dropped_faces);
     std::printf("normals:     %s\n", mesh.normals.empty() ? "no" : "yes");
     std::printf("colours:     %s\n", mesh.colors.empty() ? "no" : "yes");

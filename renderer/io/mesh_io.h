@@ -11,9 +11,11 @@
 namespace kdt {
 
 struct MeshLoadOptions {
-    bool drop_invalid = false;  ///< drop faces using non-finite vertices instead of failing
-    bool keep_normals = true;   ///< keep per-vertex normals when the file has them
-    bool keep_colors = true;    ///< keep per-vertex colours when the file has them
+    /// Drop faces using non-finite vertices (and PLY faces of fewer than 3 indices) instead of
+    /// failing.
+    bool drop_invalid = false;
+    bool keep_normals = true;  ///< keep per-vertex normals when the file has them
+    bool keep_colors = true;   ///< keep per-vertex colours when the file has them
     /// Threads parsing ascii PLY: 1 = one (default; on the shared 2-core machine two were
     /// slower in wall time), 2 = two, 0 = two when the machine has them.
     int threads = 1;
@@ -28,9 +30,10 @@ struct MeshLoadInfo {
     /// Bytes taken from the file (inflated bytes for gzip), parsed or read ahead. PLY sets
     /// this and array_bytes also when the load fails after its header.
     uint64_t input_bytes_read = 0;
-    uint64_t array_bytes = 0;       ///< bytes the mesh arrays had allocated (their capacity)
-    uint64_t source_faces = 0;      ///< polygons in the file
-    uint64_t dropped_faces = 0;     ///< with drop_invalid: faces dropped for non-finite vertices
+    uint64_t array_bytes = 0;   ///< bytes the mesh arrays had allocated (their capacity)
+    uint64_t source_faces = 0;  ///< polygons in the file
+    /// With drop_invalid: faces dropped for non-finite vertices or (PLY) fewer than 3 indices.
+    uint64_t dropped_faces = 0;
     uint64_t degenerate_faces = 0;  ///< faces with repeated indices (kept)
     double seconds = 0.0;
 };

@@ -419,7 +419,7 @@ void PlyParser::read_ascii_line(Element& el, uint64_t i, float* v) {
                   "unexpected end of data (file truncated? the header declares " +
                       std::to_string(el.count) + " " + excerpt(el.name) + " elements)");
     const char* p = b;
-    bool have_face = false;
+    bool have_face = false, face_kept = true;
     for (const Property& prop : el.props) {
         p = skip_blanks(p, e);
         if (p == e)
@@ -475,7 +475,7 @@ void PlyParser::read_ascii_line(Element& el, uint64_t i, float* v) {
             }
             continue;
         }
-        check_face_size(el, i, count);
+        face_kept = check_face_size(el, i, count);
         poly_.clear();
         for (int64_t k = 0; k < count; ++k) {
             p = skip_blanks(p, e);
@@ -496,6 +496,7 @@ void PlyParser::read_ascii_line(Element& el, uint64_t i, float* v) {
                 "more values on the line than the header declares ('" +
                     token_text(skip_blanks(p, e), e) + "' after the last property)");
     if (is_vertex) store_vertex(el, i, v);
+    if (have_face && !face_kept) return;
     if (have_face && is_strip(el))
         emit_strip(el, i, poly_.data(), poly_.size());
     else if (have_face)

@@ -80,7 +80,7 @@ void PlyParser::read_binary_record(Element& el, uint64_t i) {
     const bool is_vertex = &el == &elements_[size_t(vertex_el_)];
     float v[9] = {};
     record_offset_ = in_.offset();
-    bool have_face = false;
+    bool have_face = false, face_kept = true;
     for (const Property& p : el.props) {
         if (!p.is_list()) {
             size_t sz = type_size(p.type);
@@ -102,7 +102,7 @@ void PlyParser::read_binary_record(Element& el, uint64_t i) {
                           "unexpected end of data (file truncated?)");
             continue;
         }
-        check_face_size(el, i, count);
+        face_kept = check_face_size(el, i, count);
         poly_.clear();
         if (uint64_t(count) * isz <= kBlockBytes) {
             need(el, i, size_t(count) * isz);
@@ -121,6 +121,7 @@ void PlyParser::read_binary_record(Element& el, uint64_t i) {
         have_face = true;
     }
     if (is_vertex) store_vertex(el, i, v);
+    if (have_face && !face_kept) return;
     if (have_face && is_strip(el))
         emit_strip(el, i, poly_.data(), poly_.size());
     else if (have_face)

@@ -1,5 +1,6 @@
 // The PLY header: keywords, elements and properties, their roles, and counts the input
 // cannot hold.
+#include <cstring>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -29,6 +30,14 @@ void PlyParser::parse_header() {
     };
     std::vector<std::string_view> tok;
 
+    // CR-only line ends (old Mac) would make the whole header one line. The data parsers
+    // split lines at LF (CRLF is LF with a CR before it), so such a file is refused, by name.
+    if (in_.fill(5) && std::memcmp(in_.pos(), "ply\r", 4) == 0 && in_.pos()[4] != '\n') {
+        line_ = 1;
+        fail_header(
+            "line ends are CR only (old Mac); PLY files are read with LF or CRLF line ends: "
+            "convert them first (for an ascii PLY: tr '\\r' '\\n' < IN > OUT)");
+    }
     if (!in_.next_line(b, e, too_long, kMaxHeaderBytes)) {
         line_ = 1;
         fail_header("empty file (not a PLY file)");

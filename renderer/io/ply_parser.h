@@ -101,12 +101,18 @@ private:
     [[gnu::noinline]] void non_finite_vertex(const Element& el, uint64_t i, const Vec3f& p);
     void emit_face(const Element& el, uint64_t i, const int64_t* idx, size_t n);
     void emit_strip(const Element& el, uint64_t i, const int64_t* idx, size_t n);
-    // A face lists at least three indices; a strip may hold any number.
-    void check_face_size(const Element& el, uint64_t i, int64_t count) const {
-        if (count < 3 && !is_strip(el))
+    // A face lists at least three indices; a strip may hold any number. False for a shorter
+    // face that drop_invalid drops (counted in dropped_faces_; the caller still reads its
+    // indices, unchecked, and emits nothing); an error without drop_invalid.
+    bool check_face_size(const Element& el, uint64_t i, int64_t count) {
+        if (count >= 3 || is_strip(el)) return true;
+        if (!options_.drop_invalid)
             fail_at(el, i,
                     std::to_string(count) + (count == 1 ? " index" : " indices") +
-                        ", a face needs at least 3");
+                        ", a face needs at least 3; --drop-invalid drops such faces");
+        ++source_faces_;
+        ++dropped_faces_;
+        return false;
     }
     bool is_strip(const Element& el) const {
         return strip_el_ >= 0 && &el == &elements_[size_t(strip_el_)];

@@ -40,7 +40,9 @@ inline constexpr std::array<const char*, 3> kPlyEncodingNames = {"ascii", "binar
 /// as its data arrives, so memory follows the data, not the header. Running out of memory is
 /// an Error naming the file and element.
 /// Non-finite vertex coordinates are an error unless options.drop_invalid, which drops the
-/// faces using them and the vertices themselves (indices are remapped).
+/// faces using them and the vertices themselves (indices are remapped); so are faces of fewer
+/// than 3 indices, which it drops (both counted in info->dropped_faces). CR-only line ends
+/// (old Mac) are refused by name: lines end at LF (CRLF included).
 TriangleMesh read_ply(const std::string& path, const MeshLoadOptions& options = {},
                       MeshLoadInfo* info = nullptr);
 

@@ -197,16 +197,44 @@ Mat4f read_transform(const Reader& r) {
     return glm::scale(m, s);
 }
 
-// A warning about the key `key` of `r` (its object when empty), through options.warn.
-void warn(const SceneLoadOptions& options, const Reader& r, const char* key,
-          const std::string& message) {
-    const std::string line = "warning: " + printable(r.file()) + ": " +
-                             excerpt(*key ? r.child_path(key) : r.where(), 240) + ": " + message;
+// One warning line ("warning: ..."), through options.warn.
+void say_warning(const SceneLoadOptions& options, const std::string& line) {
     if (options.warn) {
         options.warn(line);
     } else {
         std::fprintf(stderr, "kdtrace: %s\n", line.c_str());
     }
+}
+
+// A warning about the key `key` of `r` (its object when empty), through options.warn.
+void warn(const SceneLoadOptions& options, const Reader& r, const char* key,
+          const std::string& message) {
+    say_warning(options, "warning: " + printable(r.file()) + ": " +
+                             excerpt(*key ? r.child_path(key) : r.where(), 240) + ": " + message);
+}
+
+// load_mesh() of a model file, warning (not failing) about what renders nothing: a file
+// without faces (a point cloud; `kdtrace info` and `build` accept it too) and the faces
+// drop_invalid dropped.
+TriangleMesh load_model(const std::string& file, const SceneLoadOptions& options) {
+    MeshLoadOptions mo;
+    mo.drop_invalid = options.drop_invalid;
+    MeshLoadInfo info;
+    TriangleMesh mesh = load_mesh(file, mo, &info);
+    const std::string name = printable(file);
+    if (info.dropped_faces > 0) {
+        say_warning(options, "warning: " + name + ": --drop-invalid dropped " +
+                                 std::to_string(info.dropped_faces) +
+                                 (info.dropped_faces == 1 ? " face" : " faces") +
+                                 " (non-finite vertices, or fewer than 3 indices)");
+    }
+    if (mesh.triangle_count() == 0) {
+        say_warning(options, "warning: " + name +
+                                 (info.dropped_faces > 0 ? ": no faces left"
+                                                         : ": no faces (a point cloud?)") +
+                                 ": the model renders nothing");
+    }
+    return mesh;
 }
 
 MaterialDesc read_material(const Reader& r) {
@@ -442,12 +470,11 @@ Scene load_scene_text(const std::string& text, const std::string& path,
             inst.file = (f.is_relative() ? base / f : f).lexically_normal().string();
             auto& slot = loaded[inst.file];
             if (!slot) {
-                MeshLoadOptions mo;
-                mo.drop_invalid = options.drop_invalid;
                 try {
-                    slot = options.mesh_source
-                               ? options.mesh_source(inst.file)
-                               : std::make_shared<const TriangleMesh>(load_mesh(inst.file, mo));
+                    slot =
+                        options.mesh_source
+                            ? options.mesh_source(inst.file)
+                            : std::make_shared<const TriangleMesh>(load_model(inst.file, options));
                     if (!slot) throw Error(ErrorLocation{inst.file}, "no mesh");
                 } catch (const Error& e) {
                     // Name the scene file and the key too, then the mesh file's own message.
@@ -524,9 +551,7 @@ Scene scene_from_model(const std::string& path, const SceneLoadOptions& options)
     scene.name = fs::path(path).filename().string();
     MeshInstance inst;
     inst.file = path;
-    MeshLoadOptions mo;
-    mo.drop_invalid = options.drop_invalid;
-    inst.mesh = std::make_shared<const TriangleMesh>(load_mesh(path, mo));
+    inst.mesh = std::make_shared<const TriangleMesh>(load_model(path, options));
     inst.material.albedo = Vec3f(0.8f);
     scene.camera = frame_bounds(inst.mesh->bounds());
     scene.meshes.push_back(std::move(inst));

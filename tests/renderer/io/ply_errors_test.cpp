@@ -171,6 +171,14 @@ TEST(PlyReaderErrors, HeaderErrors) {
     EXPECT_ERROR(with("vertex_indices", "corners"),
                  "element face has no list property vertex_indices");
     EXPECT_ERROR("", "test.ply: line 1: header: empty file");
+    // CR-only line ends (old Mac) are named: the lines are read at LF.
+    std::string cr = kCubeAscii;
+    for (char& c : cr) c = c == '\n' ? '\r' : c;
+    EXPECT_ERROR(cr, "test.ply: line 1: header: line ends are CR only (old Mac)");
+    std::string crlf;
+    for (char c : std::string(kCubeAscii))
+        crlf += c == '\n' ? std::string("\r\n") : std::string(1, c);
+    EXPECT_EQ(load(crlf).triangle_count(), load(kCubeAscii).triangle_count());
     // A header without end_header that goes on forever stops at 4 MiB.
     std::string endless = "ply\nformat ascii 1.0\n" + std::string(5 << 20, 'c');
     for (size_t i = 100; i < endless.size(); i += 100) endless[i] = '\n';

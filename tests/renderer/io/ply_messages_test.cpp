@@ -99,7 +99,7 @@ TEST(PlyMessages, HostileTokensAreEscapedWherevertheyAreEchoed) {
     }
 }
 
-TEST(PlyMessages, FacesOfFewerThanThreeIndicesSaySo) {
+TEST(PlyMessages, FacesOfFewerThanThreeIndicesSaySoOrAreDropped) {
     // Face k of n has `count` indices, the others three. The file is just big enough for n
     // faces of `count` indices, so a header check assuming three per face would refuse it.
     for (int count = 0; count < 3; ++count) {
@@ -129,8 +129,18 @@ TEST(PlyMessages, FacesOfFewerThanThreeIndicesSaySo) {
             }
             for (const std::string* file : {&ascii, &binary}) {
                 const std::string msg = error_of(*file);
-                EXPECT_NE(msg.find(want), std::string::npos) << msg;
+                EXPECT_NE(msg.find(want + "; --drop-invalid drops such faces"), std::string::npos)
+                    << msg;
                 EXPECT_EQ(msg.find("bytes"), std::string::npos) << msg;
+                // drop_invalid drops them and counts them.
+                MeshLoadOptions drop;
+                drop.drop_invalid = true;
+                MeshLoadInfo info;
+                EXPECT_EQ(read_ply_memory(file->data(), file->size(), "m.ply", drop, &info)
+                              .triangle_count(),
+                          size_t(k));
+                EXPECT_EQ(info.dropped_faces, uint64_t(n - k));
+                EXPECT_EQ(info.source_faces, uint64_t(n));
             }
         }
     }

@@ -670,3 +670,53 @@ TEST(SceneJson, ReadsTheDocumentedKeysAndTheFormerOnes) {
 
 }  // namespace
 }  // namespace kdt
+
+namespace kdt {
+namespace {
+
+// A model that renders nothing (no faces, or none left after drop_invalid) and faces that
+// drop_invalid dropped are warned about, for PLY and OBJ alike; a whole model is not.
+TEST(Scene, ModelsThatRenderNothingWarn) {
+    auto dir = test::temp_dir("scene_nothing");
+    const std::string points =
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+        "property float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n";
+    std::string nan_face = points;
+    nan_face.replace(nan_face.find("end_header"), 10,
+                     "element face 2\nproperty list uchar int vertex_indices\nend_header");
+    nan_face.replace(nan_face.find("0 1 0"), 5, "nan 1 0");
+    nan_face += "3 0 1 2\n2 0 1\n";
+    struct Case {
+        std::string name, text, want;
+    } cases[] = {
+        {"points.ply", points, "points.ply: no faces (a point cloud?): the model renders nothing"},
+        {"points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n", "points.obj: no faces (a point cloud?)"},
+        {"nan.ply", nan_face,
+         "nan.ply: --drop-invalid dropped 2 faces (non-finite vertices, or fewer than 3 "
+         "indices)\nwarning: "},
+        {"nan.ply", nan_face, "nan.ply: no faces left: the model renders nothing"},
+        {"cube.ply", kCubePly, ""},
+    };
+    for (const Case& c : cases) {
+        const std::string path = write_file(dir, c.name, c.text);
+        std::string warnings;
+        SceneLoadOptions o;
+        o.drop_invalid = true;
+        o.warn = [&](const std::string& line) { warnings += line + "\n"; };
+        load_scene_or_model(path, o);
+        if (c.want.empty()) {
+            EXPECT_EQ(warnings, "");
+        } else {
+            EXPECT_NE(warnings.find(c.want), std::string::npos) << warnings;
+        }
+        // The same through a scene file, which names the mesh file as given.
+        const std::string scene =
+            write_file(dir, "s.json", "{\"meshes\": [{\"file\": \"" + c.name + "\"}]}");
+        warnings.clear();
+        load_scene(scene, o);
+        EXPECT_EQ(warnings.empty(), c.want.empty()) << warnings;
+    }
+}
+
+}  // namespace
+}  // namespace kdt
