@@ -7,6 +7,7 @@
 #include <mutex>
 
 #include <ImfChannelList.h>
+#include <ImfEnvmapAttribute.h>
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
 #include <ImfIO.h>
@@ -254,6 +255,13 @@ ImageMetadata string_attributes(const Imf::Header& header) {
     for (auto it = header.begin(); it != header.end(); ++it) {
         const auto* s = dynamic_cast<const Imf::StringAttribute*>(&it.attribute());
         if (s && !is_structural(it.name())) metadata.emplace_back(it.name(), s->value());
+    }
+    // The standard envmap attribute says how the image maps directions (OpenEXR's
+    // Imf::Envmap): environment lights refuse a cube-face map rather than read it as lat-long.
+    if (const auto* e = header.findTypedAttribute<Imf::EnvmapAttribute>("envmap")) {
+        metadata.emplace_back("envmap", e->value() == Imf::ENVMAP_CUBE      ? "cube"
+                                        : e->value() == Imf::ENVMAP_LATLONG ? "latlong"
+                                                                            : "unknown");
     }
     return metadata;
 }

@@ -38,7 +38,8 @@ bool is_exr(const std::vector<uint8_t>& data);
 /// Decodes a single-part scanline or tiled OpenEXR file (level 0 of a mipmapped one):
 /// R, G, B by name, or else a Y or single channel as grey; half, float and uint channels.
 /// Throws kdt::Error naming path for anything else, for sizes beyond kMaxImagePixels and
-/// for corrupt data. metadata (if given) receives the header's string attributes.
+/// for corrupt data. metadata (if given) receives the header's string attributes, and an
+/// envmap attribute as ("envmap", "latlong", "cube" or "unknown").
 ImageRGB load_exr(const std::vector<uint8_t>& data, const std::string& path,
                   ImageMetadata* metadata);
 

@@ -504,13 +504,28 @@ std::string environment_mapping_warning(EnvMapping mapping, int width, int heigh
         return "mapping latlong for a square " + size +
                " image, which looks like an angular map; lat-long maps are 2:1";
     }
+    // Any other aspect outside [1.5, 2.5] (a 1x4096 strip, a 16x96 cube cross) is not a
+    // lat-long map either.
+    if (mapping == EnvMapping::latlong &&
+        (2 * int64_t(width) < 3 * int64_t(height) || 2 * int64_t(width) > 5 * int64_t(height))) {
+        return "mapping latlong for a " + size + " image, far from 2:1; lat-long maps are 2:1";
+    }
     return "";
 }
 
 std::shared_ptr<const EnvironmentLight> make_environment_light(const EnvironmentDesc& desc,
                                                                const EnvLog& log) {
     if (desc.file.empty()) return make_environment_light(desc);
-    ImageRGB image = load_image(desc.file);
+    ImageMetadata metadata;
+    ImageRGB image = load_image(desc.file, &metadata);
+    for (const auto& [key, value] : metadata) {
+        if (key == "envmap" && value != "latlong") {
+            throw Error(ErrorLocation{desc.file},
+                        "its envmap attribute says '" + printable(value) +
+                            "' (a cube-face map, six faces in a strip?): environment maps must "
+                            "be lat-long or angular; convert it, e.g. exrenvmap -l IN OUT");
+        }
+    }
     const std::string warning =
         environment_mapping_warning(desc.mapping, image.width, image.height);
     if (log && !warning.empty()) log("warning: " + desc.file + ": " + warning);
@@ -530,7 +545,7 @@ std::shared_ptr<const EnvironmentLight> make_environment_light(const Environment
                              "", "environment colour channel");
         return std::make_shared<ConstantEnvironment>(desc.color * desc.intensity);
     }
-    return make_environment_light(desc, load_image(desc.file));
+    return make_environment_light(desc, EnvLog{});  // the map's checks, without the warning
 }
 
 }  // namespace kdt

@@ -64,7 +64,8 @@ using EnvLog = std::function<void(const std::string&)>;
 
 /// Builds the light; throws kdt::Error for a missing or malformed map file, a colour or
 /// intensity that is negative or not finite, texels that are negative or not finite
-/// (naming the first one and the count), and radiance above kMaxEnvironmentRadiance.
+/// (naming the first one and the count), radiance above kMaxEnvironmentRadiance, and an
+/// OpenEXR map whose envmap attribute is not latlong (a cube-face map).
 std::shared_ptr<const EnvironmentLight> make_environment_light(const EnvironmentDesc& desc);
 
 /// The same, passing log the mapping warning (environment_mapping_warning) prefixed with
@@ -74,7 +75,8 @@ std::shared_ptr<const EnvironmentLight> make_environment_light(const Environment
                                                                const EnvLog& log);
 
 /// A warning when the image's shape contradicts the mapping (angular for a 2:1 image,
-/// lat-long for a square one), else "". The map is still used as asked.
+/// lat-long for a square one or any aspect outside [1.5, 2.5]), else "". The map is still
+/// used as asked.
 std::string environment_mapping_warning(EnvMapping mapping, int width, int height);
 
 }  // namespace kdt

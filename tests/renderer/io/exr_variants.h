@@ -9,6 +9,7 @@
 #include <vector>
 
 #include <ImfChannelList.h>
+#include <ImfEnvmapAttribute.h>
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
 #include <ImfOutputFile.h>
@@ -27,6 +28,7 @@ struct ExrVariant {
     bool grey = false;    ///< one "Y" channel instead of R, G, B
     int tile_size = 0;    ///< > 0: tiled, one level
     std::string comment;  ///< non-empty: a "comments" string attribute
+    int envmap = -1;      ///< >= 0: an "envmap" attribute of this Imf::Envmap value
 };
 
 /// The value variant v stores in channel c (0..2) of pixel (x, y); exact in half and uint.
@@ -43,6 +45,7 @@ inline std::vector<uint8_t> exr_variant(const ExrVariant& v) {
         v.grey ? std::vector<std::string>{"Y"} : std::vector<std::string>{"R", "G", "B"};
     for (const std::string& n : names) header.channels().insert(n, Imf::Channel(v.type));
     if (!v.comment.empty()) header.insert("comments", Imf::StringAttribute(v.comment));
+    if (v.envmap >= 0) header.insert("envmap", Imf::EnvmapAttribute(Imf::Envmap(v.envmap)));
     const size_t size = v.type == Imf::HALF ? 2 : 4, count = size_t(v.width * v.height);
     std::vector<std::vector<char>> planes(names.size(), std::vector<char>(count * size));
     Imf::FrameBuffer fb;

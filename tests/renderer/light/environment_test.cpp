@@ -20,6 +20,7 @@
 #include "renderer/io/image_io.h"
 #include "renderer/light/image_environment.h"
 #include "renderer/light/mapping.h"
+#include "tests/renderer/io/exr_variants.h"
 #include "tests/test_util.h"
 
 namespace kdt {
@@ -573,6 +574,15 @@ TEST(Environment, MappingThatContradictsTheImageShapeWarns) {
     EXPECT_EQ(environment_mapping_warning(EnvMapping::angular, 64, 64), "");
     EXPECT_EQ(environment_mapping_warning(EnvMapping::latlong, 512, 256), "");
     EXPECT_EQ(environment_mapping_warning(EnvMapping::angular, 300, 200), "");
+    // Lat-long maps far from 2:1 either way warn as a square one does.
+    for (const auto& [w, h] : {std::pair{1, 4096}, std::pair{16, 96}, std::pair{4096, 1},
+                               std::pair{299, 200}, std::pair{501, 200}}) {
+        EXPECT_NE(environment_mapping_warning(EnvMapping::latlong, w, h).find("far from 2:1"),
+                  std::string::npos)
+            << w << "x" << h;
+    }
+    for (const auto& [w, h] : {std::pair{300, 200}, std::pair{500, 200}, std::pair{2048, 1025}})
+        EXPECT_EQ(environment_mapping_warning(EnvMapping::latlong, w, h), "") << w << "x" << h;
 
     auto dir = test::temp_dir("env_warn");
     ImageRGB img(16, 8);
@@ -645,6 +655,43 @@ TEST(Environment, BadInputThrows) {
     EXPECT_THROW(make_environment_light(bad_colour), Error);
     bad_colour.color = Vec3f(-1.0f);
     EXPECT_THROW(make_environment_light(bad_colour), Error);
+    std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace kdt
+
+namespace kdt {
+namespace {
+
+// OpenEXR's envmap attribute: a cube-face map is refused, naming the attribute, rather than
+// read as a lat-long strip; a lat-long one (or none) loads.
+TEST(Environment, OpenExrCubeFaceMapsAreRefused) {
+    auto dir = test::temp_dir("env_cube");
+    auto write = [&](const std::string& name, int width, int height, int envmap) {
+        test::ExrVariant v;
+        v.width = width;
+        v.height = height;
+        v.envmap = envmap;
+        const std::vector<uint8_t> bytes = test::exr_variant(v);
+        const std::string path = (dir / name).string();
+        std::ofstream(path, std::ios::binary)
+            .write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+        return path;
+    };
+    EnvironmentDesc desc;
+    desc.file = write("cube.exr", 16, 96, Imf::ENVMAP_CUBE);
+    std::string m;
+    try {
+        make_environment_light(desc);
+    } catch (const Error& e) {
+        m = e.what();
+    }
+    EXPECT_NE(m.find("cube.exr: its envmap attribute says 'cube'"), std::string::npos) << m;
+    for (const int envmap : {int(Imf::ENVMAP_LATLONG), -1}) {
+        desc.file = write("latlong.exr", 16, 8, envmap);
+        EXPECT_NE(make_environment_light(desc), nullptr);
+    }
     std::filesystem::remove_all(dir);
 }
 
