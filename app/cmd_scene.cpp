@@ -15,6 +15,11 @@
 
 namespace kdt::app {
 
+namespace {
+/// The longest scene name printed whole; a longer one is shown by its head and size.
+constexpr size_t kMaxNameBytes = 200;
+}  // namespace
+
 void add_scene_command(CLI::App& parent) {
     auto* cmd =
         parent.add_subcommand("scene", "Check a scene file, or export the built-in default scene");
@@ -64,10 +69,12 @@ void add_scene_command(CLI::App& parent) {
             tris += m.mesh->triangle_count();
             verts += m.mesh->vertex_count();
         }
-        std::printf("scene %s: %zu meshes, %zu vertices, %zu triangles\n", scene.name.c_str(),
-                    scene.meshes.size(), verts, tris);
+        // Names come from files: printable() keeps their bytes from driving the terminal or
+        // cutting the line short (a NUL); a scene name, which nothing bounds, is cut short.
+        std::printf("scene %s: %zu meshes, %zu vertices, %zu triangles\n",
+                    excerpt(scene.name, kMaxNameBytes).c_str(), scene.meshes.size(), verts, tris);
         for (const MeshInstance& m : scene.meshes) {
-            std::printf("  %s: %zu triangles, %s, %s shading\n", m.file.c_str(),
+            std::printf("  %s: %zu triangles, %s, %s shading\n", printable(m.file).c_str(),
                         m.mesh->triangle_count(), kMaterialTypeNames[size_t(m.material.type)],
                         m.smooth ? "smooth" : "flat");
         }
@@ -80,14 +87,15 @@ void add_scene_command(CLI::App& parent) {
             std::printf("environment: constant (%g %g %g) x %g\n", e.color.x, e.color.y, e.color.z,
                         e.intensity);
         } else {
-            std::printf("environment: %s (%s), rotation %g deg, intensity %g\n", e.file.c_str(),
-                        kEnvMappingNames[size_t(e.mapping)], e.rotation_degrees, e.intensity);
+            std::printf("environment: %s (%s), rotation %g deg, intensity %g\n",
+                        printable(e.file).c_str(), kEnvMappingNames[size_t(e.mapping)],
+                        e.rotation_degrees, e.intensity);
         }
         if (!output.empty()) {
             check_output(output, scene_input_files(scene), "the scene");
             const std::string text = scene_to_json(scene);
             write_file_atomically(output, text.data(), text.size());
-            std::printf("wrote %s\n", output.c_str());
+            std::printf("wrote %s\n", printable(output).c_str());
         }
     });
 }

@@ -34,4 +34,17 @@ check '{"meshes": [{"file": "cube.ply", "transform": {"matrix": [1,0,0,0, 0,1,0,
     "s9.json: meshes/0/transform/matrix: the bottom row must be 0 0 0 1"
 env good.pfm >ok.json
 "$kdt" scene ok.json >/dev/null || fail "a scene with a good probe was refused"
+# Names from files reach the terminal escaped (ESC, BEL, U+202E) and whole (a NUL does not
+# cut them short), as `info` shows them.
+printf '{"name": "a\\u001b[31mred\\u0007\\u202e\\u0000z", "meshes": [{"file": "cube.ply"}]}\n' \
+    >named.json
+out=$("$kdt" scene named.json 2>&1) || fail "named.json refused: $out"
+grep -qF 'scene a\x1b[31mred\x07\u202e\x00z: 1 meshes' <<<"$out" || fail "scene name: $out"
+cp cube.ply $'m\e[31m.ply'
+out=$("$kdt" scene $'m\e[31m.ply' 2>&1) || fail "m<ESC>.ply refused: $out"
+grep -qF '  m\x1b[31m.ply: 12 triangles' <<<"$out" || fail "model name: $out"
+for f in named.json $'m\e[31m.ply'; do
+    LC_ALL=C grep -q $'[\x01-\x08\x0b-\x1f\x7f]' <("$kdt" scene "$f" 2>&1) &&
+        fail "$f: a control byte reached the terminal"
+done
 echo "PASS: scene checks"
