@@ -448,12 +448,16 @@ void add_bench_converge_command(CLI::App& parent) {
     static ConvergeArgs a;
     auto* cmd =
         parent.add_subcommand("converge", "Error against time for several sampling strategies");
-    cmd->add_option("SCENE", a.scene, "Scene or model; omitted = built-in default scene");
+    non_empty_file_name(
+        cmd->add_option("SCENE", a.scene, "Scene or model; omitted = built-in default scene"),
+        "SCENE", " (omit SCENE for the built-in scene)");
     non_empty_file_name(cmd->add_option("--env", a.env, "Environment map replacing the scene's"),
                         "--env");
     cmd->add_option("--view", a.view,
                     "Camera of this view of the views file (the kd-tree bench's views A-D)");
-    cmd->add_option("--views", a.views, "Views file for --view (default assets/views/dragon.json)");
+    non_empty_file_name(cmd->add_option("--views", a.views,
+                                        "Views file for --view (default assets/views/dragon.json)"),
+                        "--views", " (omit --views for assets/views/dragon.json)");
     non_empty_file_name(
         cmd->add_option("--reference", a.reference,
                         "Reference image (.exr/.pfm); rendered and written there when missing"),
@@ -485,8 +489,10 @@ void add_bench_converge_command(CLI::App& parent) {
     cmd->add_option("--adaptive-threshold", a.adaptive_threshold,
                     "mis+adaptive: relative error to stop at")
         ->capture_default_str();
-    cmd->add_option("-o,--out-dir", a.out_dir, "Directory for reference, CSV and plot")
-        ->capture_default_str();
+    non_empty_file_name(
+        cmd->add_option("-o,--out-dir", a.out_dir, "Directory for reference, CSV and plot")
+            ->capture_default_str(),
+        "-o");
     cmd->add_flag("--no-plot", a.no_plot, "Do not run scripts/plot_converge.py");
     cmd->add_flag("--no-cache", a.no_cache, "Build the kd-tree without the tree cache");
     cmd->add_flag("--throughput", a.throughput,

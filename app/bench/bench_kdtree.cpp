@@ -164,9 +164,13 @@ void add_bench_kdtree_command(CLI::App& bench) {
     auto* cmd = bench.add_subcommand(
         "kdtree", "Thesis table 6.1 on the dragon, the best tree against Embree, robustness");
     static kdtree_bench::Options opt;
-    cmd->add_option("--model", opt.model,
-                    "Model file (default: the fetched Stanford dragon, dragon_vrip.ply)");
-    cmd->add_option("--views", opt.views, "Views file (default: assets/views/dragon.json)");
+    non_empty_file_name(
+        cmd->add_option("--model", opt.model,
+                        "Model file (default: the fetched Stanford dragon, dragon_vrip.ply)"),
+        "--model", " (omit --model for the Stanford dragon)");
+    non_empty_file_name(
+        cmd->add_option("--views", opt.views, "Views file (default: assets/views/dragon.json)"),
+        "--views", " (omit --views for assets/views/dragon.json)");
     cmd->add_option("--repeat", opt.repeat, "Repeats; medians are reported")
         ->capture_default_str()
         ->check(in_range(1, 1000));

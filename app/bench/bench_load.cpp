@@ -232,15 +232,18 @@ void add_bench_load_command(CLI::App& bench) {
     auto args = std::make_shared<BenchLoadArgs>();
     CLI::App* cmd =
         bench.add_subcommand("load", "PLY load time: ours against Assimp (Markdown table)");
-    cmd->add_option("files", args->files, "PLY/OBJ files")->required();
+    non_empty_file_name(cmd->add_option("files", args->files, "PLY/OBJ files")->required(),
+                        "FILES");
     cmd->add_option("--repeat", args->repeat, "Runs per file and reader (median reported)")
         ->capture_default_str()
         ->check(in_range(1, 1000));
-    cmd->add_option("--csv", args->csv, "Also write the table as CSV");
-    cmd->add_option(
-        "--make-binary", args->make_binary,
-        "Write binary little- and big-endian copies of the inputs into DIR with our writer "
-        "and benchmark them too");
+    non_empty_file_name(cmd->add_option("--csv", args->csv, "Also write the table as CSV"),
+                        "--csv");
+    non_empty_file_name(
+        cmd->add_option("--make-binary", args->make_binary,
+                        "Write binary little- and big-endian copies of the inputs into DIR with "
+                        "our writer and benchmark them too"),
+        "--make-binary");
     cmd->add_flag("--no-assimp", args->no_assimp, "Time our reader only");
     cmd->add_flag("--warm-heap", args->warm_heap,
                   "Let each load reuse the heap earlier loads grew (faster, but the peak RSS "

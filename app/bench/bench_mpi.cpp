@@ -224,7 +224,9 @@ void run(const BenchMpiArgs& a) {
 void add_bench_mpi_command(CLI::App& parent) {
     static BenchMpiArgs args;
     auto* sub = parent.add_subcommand("mpi", "MPI farm: per-rank busy/idle, efficiency, speedup");
-    sub->add_option("--model", args.model, "Scene or model (default: the built-in scene)");
+    non_empty_file_name(
+        sub->add_option("--model", args.model, "Scene or model (default: the built-in scene)"),
+        "--model", " (omit --model for the built-in scene)");
     // Each count is passed to the launcher as -np (with --oversubscribe): bounded, so that a
     // typo cannot start thousands of processes.
     sub->add_option("--ranks", args.ranks, "Rank counts")
@@ -269,7 +271,9 @@ void add_bench_mpi_command(CLI::App& parent) {
         ->check(in_range(1.0, 1000.0, false))
         ->capture_default_str();
     sub->add_option("--mpiexec", args.mpiexec, "The MPI launcher")->capture_default_str();
-    sub->add_option("--work-dir", args.work_dir, "Images, stats and logs")->capture_default_str();
+    non_empty_file_name(sub->add_option("--work-dir", args.work_dir, "Images, stats and logs")
+                            ->capture_default_str(),
+                        "--work-dir");
     sub->callback([] { run(args); });
 }
 

@@ -106,7 +106,18 @@ foreach(_case "render_o;render --spp 1 --width 8 --height 6 -o;-o: empty file na
               "build_o;build /usr/share/assimp/models/PLY/cube.ply -o;-o: empty file name"
               "scene_o;scene -o;-o: empty file name"
               "frames;render --spp 1 --width 8 --height 6 -o ${_tmp}/empty_frames.png --frames;--frames takes N [^\n]* \\(got ''\\)"
-              "env_mapping;render --spp 1 --width 8 --height 6 -o ${_tmp}/empty_mapping.png --env-mapping;--env-mapping must be one of: latlong, angular \\(got ''\\)")
+              "env_mapping;render --spp 1 --width 8 --height 6 -o ${_tmp}/empty_mapping.png --env-mapping;--env-mapping must be one of: latlong, angular \\(got ''\\)"
+              "kdtree_model;bench kdtree --model;--model: empty file name \\(omit --model for the Stanford dragon\\)"
+              "kdtree_views;bench kdtree --views;--views: empty file name \\(omit --views for assets/views/dragon.json\\)"
+              "kdtree_save_views;bench kdtree --save-views;--save-views: empty file name"
+              "mpi_model;bench mpi --model;--model: empty file name \\(omit --model for the built-in scene\\)"
+              "mpi_work_dir;bench mpi --work-dir;--work-dir: empty file name"
+              "load_files;bench load;FILES: empty file name"
+              "load_csv;bench load /usr/share/assimp/models/PLY/cube.ply --csv;--csv: empty file name"
+              "load_make_binary;bench load /usr/share/assimp/models/PLY/cube.ply --make-binary;--make-binary: empty file name"
+              "converge_scene;bench converge;SCENE: empty file name \\(omit SCENE for the built-in scene\\)"
+              "converge_views;bench converge --views;--views: empty file name \\(omit --views for assets/views/dragon.json\\)"
+              "converge_o;bench converge --no-plot -o;-o: empty file name")
   list(GET _case 0 _id)
   list(GET _case 1 _args)
   list(GET _case 2 _why)
@@ -115,6 +126,12 @@ foreach(_case "render_o;render --spp 1 --width 8 --height 6 -o;-o: empty file na
   set_tests_properties(smoke.empty_value_${_id} PROPERTIES
     PASS_REGULAR_EXPRESSION "^kdtrace: error: ${_why}\n$")
 endforeach()
+if(TARGET kdt_ui)
+  # Refused while parsing, before the viewer opens a window: no display needed.
+  add_test(NAME smoke.empty_value_view_screenshot COMMAND ${_kdt} view --frames 1 --screenshot "")
+  set_tests_properties(smoke.empty_value_view_screenshot PROPERTIES
+    PASS_REGULAR_EXPRESSION "^kdtrace: error: --screenshot: empty file name\n$")
+endif()
 # A directory given as the output image is named as such, with the flag.
 add_test(NAME smoke.output_is_directory COMMAND ${_kdt} render --spp 1 --width 8 --height 6
          -o ${_tmp})
