@@ -29,8 +29,13 @@ void add_scene_command(CLI::App& parent) {
                                         "Scene (.json) or model file; omitted = the built-in "
                                         "default scene"),
                         "SCENE", " (omit SCENE for the built-in scene)");
-    non_empty_file_name(
-        cmd->add_option("-o,--output", output, "Write the scene as JSON to this file"), "-o");
+    // A scene file is read as JSON by its extension (load_scene_or_model()): another one
+    // would come back as a model.
+    file_extension(non_empty_file_name(cmd->add_option("-o,--output", output,
+                                                       "Write the scene as JSON to this .json "
+                                                       "file (- = standard output)"),
+                                       "-o"),
+                   "-o", ".json", "the scene is written as JSON (- for standard output)", {"-"});
     cmd->add_flag("--drop-invalid", drop_invalid, "Drop faces with non-finite vertices");
     static uint64_t max_triangles = kDefaultMaxSceneTriangles;
     cmd->add_option("--max-triangles", max_triangles,
@@ -41,7 +46,10 @@ void add_scene_command(CLI::App& parent) {
     cmd->callback([] {
         interrupt::install();
         // Fail before loading, not after; the files the scene references are checked below.
-        if (!output.empty()) check_output(output, {input}, "the scene");
+        const bool to_stdout = output == "-";
+        if (!output.empty() && !to_stdout) check_output(output, {input}, "the scene");
+        // With -o -, standard output holds the JSON alone and the summary goes to stderr.
+        std::FILE* report = to_stdout ? stderr : stdout;
         SceneLoadOptions opts;
         opts.drop_invalid = drop_invalid;
         opts.max_triangles = max_triangles;
@@ -71,31 +79,36 @@ void add_scene_command(CLI::App& parent) {
         }
         // Names come from files: printable() keeps their bytes from driving the terminal or
         // cutting the line short (a NUL); a scene name, which nothing bounds, is cut short.
-        std::printf("scene %s: %zu meshes, %zu vertices, %zu triangles\n",
-                    excerpt(scene.name, kMaxNameBytes).c_str(), scene.meshes.size(), verts, tris);
+        std::fprintf(report, "scene %s: %zu meshes, %zu vertices, %zu triangles\n",
+                     excerpt(scene.name, kMaxNameBytes).c_str(), scene.meshes.size(), verts, tris);
         for (const MeshInstance& m : scene.meshes) {
-            std::printf("  %s: %zu triangles, %s, %s shading\n", printable(m.file).c_str(),
-                        m.mesh->triangle_count(), kMaterialTypeNames[size_t(m.material.type)],
-                        m.smooth ? "smooth" : "flat");
+            std::fprintf(report, "  %s: %zu triangles, %s, %s shading\n", printable(m.file).c_str(),
+                         m.mesh->triangle_count(), kMaterialTypeNames[size_t(m.material.type)],
+                         m.smooth ? "smooth" : "flat");
         }
         const CameraDesc& c = scene.camera;
-        std::printf("camera: eye (%g %g %g) target (%g %g %g) up (%g %g %g) vfov %g deg\n", c.eye.x,
-                    c.eye.y, c.eye.z, c.target.x, c.target.y, c.target.z, c.up.x, c.up.y, c.up.z,
-                    c.vfov_degrees);
+        std::fprintf(report, "camera: eye (%g %g %g) target (%g %g %g) up (%g %g %g) vfov %g deg\n",
+                     c.eye.x, c.eye.y, c.eye.z, c.target.x, c.target.y, c.target.z, c.up.x, c.up.y,
+                     c.up.z, c.vfov_degrees);
         const EnvironmentDesc& e = scene.environment;
         if (e.file.empty()) {
-            std::printf("environment: constant (%g %g %g) x %g\n", e.color.x, e.color.y, e.color.z,
-                        e.intensity);
+            std::fprintf(report, "environment: constant (%g %g %g) x %g\n", e.color.x, e.color.y,
+                         e.color.z, e.intensity);
         } else {
-            std::printf("environment: %s (%s), rotation %g deg, intensity %g\n",
-                        printable(e.file).c_str(), kEnvMappingNames[size_t(e.mapping)],
-                        e.rotation_degrees, e.intensity);
+            std::fprintf(report, "environment: %s (%s), rotation %g deg, intensity %g\n",
+                         printable(e.file).c_str(), kEnvMappingNames[size_t(e.mapping)],
+                         e.rotation_degrees, e.intensity);
         }
-        if (!output.empty()) {
+        if (to_stdout) {
+            const std::string text = scene_to_json(scene);
+            // A failed write (a full disk, a closed pipe) is reported by main()'s
+            // finish_stdout(), with status 1.
+            std::fwrite(text.data(), 1, text.size(), stdout);
+        } else if (!output.empty()) {
             check_output(output, scene_input_files(scene), "the scene");
             const std::string text = scene_to_json(scene);
             write_file_atomically(output, text.data(), text.size());
-            std::printf("wrote %s\n", printable(output).c_str());
+            std::fprintf(report, "wrote %s\n", printable(output).c_str());
         }
     });
 }

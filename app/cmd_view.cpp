@@ -19,9 +19,10 @@ void add_view_command(CLI::App& parent) {
     sub->add_option("--frames", vo.frames,
                     "Exit after N frames once the script has run (tests; 0 = until closed)")
         ->check(in_range(0, 2147483647));
-    non_empty_file_name(
-        sub->add_option("--screenshot", vo.screenshot, "PNG of the window at exit (with --frames)"),
-        "--screenshot");
+    file_extension(non_empty_file_name(sub->add_option("--screenshot", vo.screenshot,
+                                                       "PNG of the window at exit (with --frames)"),
+                                       "--screenshot"),
+                   "--screenshot", ".png", "the screenshot is written as PNG");
     sub->add_option("--script", vo.script,
                     "Commands separated by ';', e.g. \"orbit 30 0; set tree.q 0.9; rebuild\"");
     sub->add_option("--preview-divisor", vo.preview_divisor,

@@ -1,5 +1,6 @@
 #include "app/options_cli.h"
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
@@ -9,6 +10,7 @@
 #include <optional>
 #include <tuple>
 #include <utility>
+#include <vector>
 
 #include "renderer/core/error.h"
 #include "renderer/io/image_io.h"
@@ -98,6 +100,19 @@ CLI::Option* non_empty_file_name(CLI::Option* opt, const std::string& name,
     // A kdt::Error, not a CLI11 validation message: one line in kdtrace's own format.
     return opt->each([name, hint](const std::string& text) {
         if (text.empty()) throw Error(name + ": empty file name" + hint);
+    });
+}
+
+CLI::Option* file_extension(CLI::Option* opt, const std::string& name, const std::string& ext,
+                            const std::string& holds, std::initializer_list<const char*> allowed) {
+    std::vector<std::string> pass(allowed.begin(), allowed.end());
+    return opt->each([name, ext, holds, pass](const std::string& text) {
+        if (std::find(pass.begin(), pass.end(), text) != pass.end()) return;
+        std::string given = std::filesystem::path(text).extension().string();
+        for (char& c : given) c = char(std::tolower(static_cast<unsigned char>(c)));
+        if (given != ext)
+            throw Error(name + " " + excerpt(text) + ": " + holds + "; give a " + ext +
+                        " file name");
     });
 }
 

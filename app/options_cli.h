@@ -23,6 +23,14 @@ using SkipFlags = std::initializer_list<const char*>;
 CLI::Option* non_empty_file_name(CLI::Option* opt, const std::string& name,
                                  const std::string& hint = "");
 
+/// Makes `opt`, a file name called `name` in messages, refuse a value whose extension (any
+/// case) is not `ext`, saying why (`holds`): "-o out.png: the scene is written as JSON; give
+/// a .json file name". A value in `allowed` (such as "-" for standard output) passes.
+/// Returns `opt`.
+CLI::Option* file_extension(CLI::Option* opt, const std::string& name, const std::string& ext,
+                            const std::string& holds,
+                            std::initializer_list<const char*> allowed = {});
+
 /// check_image_output() of the -o of a render, its errors naming the flag: "-o /tmp: is a
 /// directory, not an image file name".
 void check_image_output_flag(const std::string& output, bool with_alpha);

@@ -17,7 +17,9 @@
 // The script starts once the first scene has loaded. `set` also takes material.NAME
 // (instance, type, albedo R,G,B, emission R,G,B, ior, roughness) and scene.env_file PATH.
 #include <algorithm>
+#include <cctype>
 #include <cstdio>
+#include <filesystem>
 #include <iterator>
 #include <sstream>
 
@@ -231,6 +233,10 @@ bool Viewer::script_step() {
                 panels_ = word("on or off") == "on";
             } else if (op == "screenshot") {
                 const std::string file = word("file");
+                std::string ext = std::filesystem::path(file).extension().string();
+                for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+                if (ext != ".png")
+                    throw script_error(cmd, "the screenshot is written as PNG; give a .png name");
                 check_viewer_output(file, "the screenshot");  // a script error, not the exit's
                 screenshot_requests_.push_back(file);
                 return true;  // taken at the end of this frame, before any later command

@@ -13,6 +13,11 @@ cp /usr/share/assimp/models/PLY/cube.ply m.ply
 ln -s m.ply link.ply
 ln m.ply hard.ply
 ln -s e.pfm e_link.pfm
+# .json names of the inputs and of a device, for `scene -o` (which takes .json names only).
+ln -s m.ply m_link.json
+ln m.ply m_hard.json
+ln -s e.pfm e_alias.json
+ln -s /dev/null null.json
 mkfifo fifo.png
 printf '{"meshes": [{"file": "m.ply"}], "environment": {"file": "e.pfm"}}\n' >s.json
 sum_before=$(md5sum m.ply e.pfm s.json)
@@ -29,14 +34,14 @@ refused "cannot write the tree: it is the input" build m.ply -o m.ply
 refused "cannot write the tree: it is the input" build m.ply -o sub/../m.ply
 refused "cannot write the tree: it is the input" build m.ply -o link.ply
 refused "cannot write the tree: it is the input" build link.ply -o hard.ply
-refused "cannot write the scene: it is the input" scene m.ply -o ./m.ply
+refused "cannot write the scene: it is the input" scene m.ply -o ./m_link.json
 refused "cannot write the scene: it is the input" scene s.json -o s.json
-refused "cannot write the scene: it is the input m.ply" scene s.json -o hard.ply
-refused "cannot write the scene: it is the input e.pfm" scene s.json -o sub/../e.pfm
+refused "cannot write the scene: it is the input m.ply" scene s.json -o m_hard.json
+refused "cannot write the scene: it is the input e.pfm" scene s.json -o sub/../e_alias.json
 refused "cannot write the image: it is the input" render m.ply --env e.pfm -o e.pfm --spp 1 --quiet
 refused "cannot write the image: it is the input" render s.json -o e_link.pfm --spp 1 --quiet
 refused "cannot write the image: is a FIFO" render m.ply -o fifo.png --spp 1 --quiet
-refused "cannot write the scene: is a character device" scene m.ply -o /dev/null
+refused "cannot write the scene: is a symlink to a character device" scene m.ply -o null.json
 refused "cannot write the CSV table: it is the input" bench load m.ply --csv link.ply --repeat 1
 # Files the options come from: --session, --views (with or without --view; with --mpi in
 # tests/mpi/mpi_test.sh, stats_output).

@@ -509,6 +509,19 @@ add_test(NAME smoke.outputs_never_destroy_inputs COMMAND bash
          ${CMAKE_CURRENT_LIST_DIR}/outputs_test.sh ${_kdt} ${_tmp}/outputs)
 set_tests_properties(smoke.outputs_never_destroy_inputs PROPERTIES PASS_REGULAR_EXPRESSION
                      "PASS: outputs" FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)
+# File names and numbers on the command line (tests/app/cli_files_test.sh).
+foreach(_case extensions)
+  add_test(NAME smoke.cli_files_${_case} COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/cli_files_test.sh
+           ${_case} ${_kdt} ${_tmp}/cli_files_${_case} ${CMAKE_SOURCE_DIR}/assets)
+  set_tests_properties(smoke.cli_files_${_case} PROPERTIES PASS_REGULAR_EXPRESSION
+                       "PASS: ${_case}" FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 60)
+endforeach()
+if(TARGET kdt_ui)
+  # Refused while parsing, before the viewer opens a window: no display needed.
+  add_test(NAME smoke.view_screenshot_not_png COMMAND ${_kdt} view --frames 1 --screenshot s.exr)
+  set_tests_properties(smoke.view_screenshot_not_png PROPERTIES PASS_REGULAR_EXPRESSION
+    "^kdtrace: error: --screenshot s.exr: the screenshot is written as PNG; give a .png file name\n$")
+endif()
 add_test(NAME smoke.scene_checks_referenced_files COMMAND bash
          ${CMAKE_CURRENT_LIST_DIR}/scene_check_test.sh ${_kdt} ${_tmp}/scene_checks)
 set_tests_properties(smoke.scene_checks_referenced_files PROPERTIES PASS_REGULAR_EXPRESSION

@@ -233,6 +233,7 @@ TEST(SplitView, ScriptErrorsNameTheProblem) {
     fails("divider 2", "[0, 1]");
     fails("split maybe", "on or off");
     fails("mode shiny", "normals or depth");
+    fails("screenshot shot.exr", "the screenshot is written as PNG; give a .png name");
 }
 
 }  // namespace

@@ -261,11 +261,14 @@ TEST(ViewerFiles, OutputsNeverReplaceTheFilesViewedAndRefuseFifos) {
     ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
     const std::string e = test::error_of_call([&] { v.save_session(fifo); });
     EXPECT_NE(e.find("FIFO"), std::string::npos) << e;
-    // A script's output error fails the script, naming the command.
-    v.script_ = {"screenshot " + model};
+    // A script's output error fails the script, naming the command (a .png name: any other
+    // is refused before the input is looked for).
+    const std::string shot = (dir / "model_link.png").string();
+    std::filesystem::create_symlink(model, shot);
+    v.script_ = {"screenshot " + shot};
     v.script_next_ = 0;
     const std::string s = test::error_of_call([&] { v.script_step(); });
-    EXPECT_NE(s.find("'screenshot " + model + "'"), std::string::npos) << s;
+    EXPECT_NE(s.find("'screenshot " + shot + "'"), std::string::npos) << s;
     EXPECT_NE(s.find("it is the input"), std::string::npos) << s;
     EXPECT_TRUE(v.screenshot_requests_.empty());
 }
