@@ -8,9 +8,11 @@
 #include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -27,6 +29,7 @@
 #include "renderer/core/timer.h"
 #include "renderer/io/image_io.h"
 #include "renderer/render/prepare.h"
+#include "renderer/render/render_options.h"
 #include "renderer/render/session.h"
 #include "renderer/render/settings.h"
 
@@ -292,7 +295,7 @@ void run(const ConvergeArgs& a) {
             check_output(a.reference, inputs, "the reference");
         }
     }
-    fs::create_directories(a.out_dir);
+    create_output_directory("-o", a.out_dir);
     std::vector<std::string> outputs = {"converge.csv"};
     if (a.reference.empty()) outputs.push_back("reference.exr");
     if (!a.no_plot) outputs.push_back("converge.png");
@@ -442,6 +445,14 @@ void run(const ConvergeArgs& a) {
     }
 }
 
+// The upper bound of a field of the render's scene options (scene.width), so that the help
+// states what the render accepts.
+double scene_field_max(const char* name) {
+    for (const Field<SceneOptions>& f : scene_fields())
+        if (std::strcmp(f.name, name) == 0) return f.max;
+    throw std::logic_error(std::string("no scene field ") + name);
+}
+
 }  // namespace
 
 void add_bench_converge_command(CLI::App& parent) {
@@ -470,10 +481,10 @@ void add_bench_converge_command(CLI::App& parent) {
         ->check(in_range(1, 65536));
     cmd->add_option("--width", a.width, "Image width")
         ->capture_default_str()
-        ->check(in_range(1, 65536));
+        ->check(in_range(1, scene_field_max("width")));
     cmd->add_option("--height", a.height, "Image height")
         ->capture_default_str()
-        ->check(in_range(1, 65536));
+        ->check(in_range(1, scene_field_max("height")));
     cmd->add_option("--threads", a.threads, "OpenMP threads (0 = all)")
         ->capture_default_str()
         ->check(in_range(0, 1024));

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "app/bench/bench_options.h"
 #include "app/bench/bench_table.h"
 #include "app/commands.h"
 #include "app/options_cli.h"
@@ -110,7 +111,7 @@ void run_bench_load(const BenchLoadArgs& args) {
             }
             if (dir_exists) check_output(copies[i], args.files, "the binary copy");
         }
-        std::filesystem::create_directories(args.make_binary);
+        create_output_directory("--make-binary", args.make_binary);
         for (size_t i = 0; i < args.files.size(); ++i) {
             TriangleMesh mesh = load_mesh(args.files[i]);
             for (PlyEncoding enc :

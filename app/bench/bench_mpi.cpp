@@ -183,7 +183,7 @@ void print_table(const BenchMpiArgs& a, const std::vector<Run>& runs) {
 void run(const BenchMpiArgs& a) {
     refuse_repeated_entries("--ranks", a.ranks);
     refuse_repeated_entries("--distributions", a.distributions);
-    std::filesystem::create_directories(a.work_dir);
+    create_output_directory("--work-dir", a.work_dir);
     std::vector<Run> runs;
     for (const std::string& d : a.distributions) {
         for (int n : a.ranks) {
