@@ -128,7 +128,8 @@ double parse_flag_number(const std::string& flag, const std::string& text, doubl
                          bool integral) {
     double v = 0.0;
     if (!detail::parse_number(text, v))
-        throw Error(flag + " must be a number " + detail::got(text));
+        throw Error(flag + " " +
+                    detail::number_error(text, detail::range_text(min, max, false, integral)));
     if (std::string why = detail::check_number(v, min, max, false, integral); !why.empty())
         throw Error(flag + " " + why);
     return v;
@@ -142,7 +143,8 @@ CLI::Validator in_range(double min, double max, bool integral) {
     return CLI::Validator(
         [min, max, integral](std::string& text) -> std::string {
             double v = 0.0;
-            if (!detail::parse_number(text, v)) return "must be a number " + detail::got(text);
+            if (!detail::parse_number(text, v))
+                return detail::number_error(text, detail::range_text(min, max, false, integral));
             return detail::check_number(v, min, max, false, integral);
         },
         detail::range_text(min, max, false, integral));

@@ -3,6 +3,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <string>
 
 #include "renderer/core/error.h"
@@ -99,6 +100,20 @@ bool parse_number(const std::string& text, double& out) {
     if (*begin == '+') ++begin;
     auto r = std::from_chars(begin, end, out);
     return r.ec == std::errc() && r.ptr == end;
+}
+
+std::string number_error(const std::string& text, const std::string& range) {
+    const char* begin = text.data();
+    const char* end = text.data() + text.size();
+    if (begin != end && *begin == '+') ++begin;
+    double unused = 0.0;
+    const auto r = std::from_chars(begin, end, unused);
+    if (r.ec != std::errc::result_out_of_range || r.ptr != end || begin == end)
+        return "must be a number " + got(text);
+    // from_chars leaves the value unset when out of range; strtod says which way it went.
+    const double v = std::strtod(std::string(begin, end).c_str(), nullptr);
+    return "must be in " + range + " (got '" + excerpt(text) + "', " +
+           (std::fabs(v) < 1.0 ? "too close to 0" : "too large") + " for a double)";
 }
 
 void throw_field_error(const char* group, const char* name, const std::string& reason) {

@@ -103,6 +103,10 @@ std::string choices_text(std::span<const char* const> names);
 std::string check_number(double v, double min, double max, bool min_open, bool integral,
                          bool as_float = false);
 bool parse_number(const std::string& text, double& out);
+/// Why parse_number() refused `text`, for a value that must lie in `range` ("[-20, 20]"):
+/// "must be a number (got 'x')", or for a number no double holds (1e-400, 1e400) "must be
+/// in [-20, 20] (got '1e-400', too close to 0 for a double)".
+std::string number_error(const std::string& text, const std::string& range);
 void throw_field_error(const char* group, const char* name, const std::string& reason);
 /// "(got 'text')" with the text made safe to print.
 std::string got(const std::string& text);
@@ -180,7 +184,7 @@ std::string parse_field(const Field<S>& f, S& s, const std::string& text) {
         return {};
     }
     double v = 0.0;
-    if (!detail::parse_number(text, v)) return "must be a number " + detail::got(text);
+    if (!detail::parse_number(text, v)) return detail::number_error(text, field_range_text(f));
     std::string why = detail::check_number(v, f.min, f.max, f.min_open, field_is_integral(r),
                                            std::holds_alternative<float*>(r));
     if (why.empty()) set_field_number(r, v);
