@@ -1,5 +1,6 @@
 #include "renderer/scene/views.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -157,12 +158,18 @@ std::string view_model_warning(const std::string& views_path, const ViewSet& set
 CameraDesc find_view(const std::string& views_path, const std::string& name) {
     const std::string path = views_file_path(views_path);
     const ViewSet set = load_views(path);
-    std::string names;
     for (const View& v : set.views) {
         if (v.name == name) return v.camera;
-        names += (names.empty() ? "" : ", ") + v.name;
     }
-    throw Error(ErrorLocation{path}, "no view named \"" + name + "\" (views: " + names + ")");
+    // The first names show how they are spelt; a file of thousands would flood the terminal.
+    constexpr size_t kListed = 20;
+    std::string names;
+    for (size_t i = 0; i < std::min(kListed, set.views.size()); ++i)
+        names += (i ? ", " : "") + excerpt(set.views[i].name, 40);
+    if (set.views.size() > kListed)
+        names += ", ... (" + std::to_string(set.views.size()) + " views)";
+    throw Error(ErrorLocation{path},
+                "no view named \"" + excerpt(name) + "\" (views: " + names + ")");
 }
 
 std::string find_asset(const std::string& relative) {

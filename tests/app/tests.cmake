@@ -510,7 +510,7 @@ add_test(NAME smoke.outputs_never_destroy_inputs COMMAND bash
 set_tests_properties(smoke.outputs_never_destroy_inputs PROPERTIES PASS_REGULAR_EXPRESSION
                      "PASS: outputs" FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)
 # File names and numbers on the command line (tests/app/cli_files_test.sh).
-foreach(_case extensions bench_dirs bench_ranges numbers)
+foreach(_case extensions bench_dirs bench_ranges numbers many_views)
   add_test(NAME smoke.cli_files_${_case} COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/cli_files_test.sh
            ${_case} ${_kdt} ${_tmp}/cli_files_${_case} ${CMAKE_SOURCE_DIR}/assets)
   set_tests_properties(smoke.cli_files_${_case} PROPERTIES PASS_REGULAR_EXPRESSION
