@@ -13,6 +13,7 @@
 #include <map>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -183,6 +184,16 @@ void print_table(const BenchMpiArgs& a, const std::vector<Run>& runs) {
 void run(const BenchMpiArgs& a) {
     refuse_repeated_entries("--ranks", a.ranks);
     refuse_repeated_entries("--distributions", a.distributions);
+    if (a.frames == 0) {
+        // The turntable's sizes mean nothing without one: say so rather than ignore them.
+        for (const auto& [flag, value] :
+             {std::pair<const char*, int>{"--frame-width", a.frame_width},
+              {"--frame-height", a.frame_height},
+              {"--frame-spp", a.frame_spp}}) {
+            if (value != 0)
+                throw Error(std::string(flag) + " needs --frames N (the turntable it sizes)");
+        }
+    }
     create_output_directory("--work-dir", a.work_dir);
     std::vector<Run> runs;
     for (const std::string& d : a.distributions) {
@@ -262,7 +273,10 @@ void add_bench_mpi_command(CLI::App& parent) {
         ->check(in_range(0, 1 << 14));
     sub->add_option("--frame-spp", args.frame_spp, "Turntable spp (0 = --spp)")
         ->check(in_range(0, 1 << 20));
-    sub->add_flag("--tiles,!--no-tiles", args.tiles, "The tile rows (default on)");
+    sub->add_flag_callback(
+        "--tiles", [] { args.tiles = true; }, "Run the tile rows (the default)");
+    sub->add_flag_callback(
+        "--no-tiles", [] { args.tiles = false; }, "Leave out the tile rows (then give --frames)");
     sub->add_option(
         "--launcher-flags", args.launcher_flags,
         "Extra flags for the launcher, words separated by blanks (no shell quoting), e.g. "

@@ -64,6 +64,16 @@ add_test(NAME smoke.long_value_quoted_short COMMAND sh -c "\"$@\" 2>&1; echo \"s
          ${_kdt} render --tonemap ${_long_value})
 set_tests_properties(smoke.long_value_quoted_short PROPERTIES PASS_REGULAR_EXPRESSION
   "^kdtrace: error: --tonemap must be one of: [^\n]* \\(got 'z+\\.\\.\\. \\[5000 bytes\\]'\\)\nstatus 1\n$")
+# bench mpi: turntable sizes without a turntable are refused, not ignored; the tile flags read
+# as two flags in the help, not CLI11's "--tiles,--no-tiles{false}".
+add_test(NAME smoke.bench_mpi_frame_size_needs_frames
+         COMMAND sh -c "\"$@\" 2>&1; echo \"status $?\"" sh ${_kdt} bench mpi --frame-spp 4
+                 --work-dir ${_tmp}/bench_mpi_frame_size)
+set_tests_properties(smoke.bench_mpi_frame_size_needs_frames PROPERTIES PASS_REGULAR_EXPRESSION
+  "^kdtrace: error: --frame-spp needs --frames N \\(the turntable it sizes\\)\nstatus 1\n$")
+add_test(NAME smoke.bench_mpi_tiles_help COMMAND ${_kdt} bench mpi --help)
+set_tests_properties(smoke.bench_mpi_tiles_help PROPERTIES
+  PASS_REGULAR_EXPRESSION "\n  --no-tiles +Leave out the tile rows" FAIL_REGULAR_EXPRESSION "\\{false\\}")
 add_test(NAME smoke.help_status COMMAND sh -c "\"$0\" render --help >/dev/null && \"$0\" --version"
          ${_kdt})
 set_tests_properties(smoke.help_status PROPERTIES PASS_REGULAR_EXPRESSION "^kdtrace 0.1.0\n$")
