@@ -77,13 +77,6 @@ Workspace& workspace() {
     return w;
 }
 
-inline float max_ss(float a, float b) {
-    return _mm_cvtss_f32(_mm_max_ss(_mm_set_ss(a), _mm_set_ss(b)));
-}
-inline float min_ss(float a, float b) {
-    return _mm_cvtss_f32(_mm_min_ss(_mm_set_ss(a), _mm_set_ss(b)));
-}
-
 // Where the step's four lists grow: continuing entries in [cont, cont + count + kPad), left
 // child from the front (cl), right child from the back (cr); pushed entries likewise in
 // [push, push + count + kPad) (pl, pr). Each entry adds at most one entry to each region,
@@ -108,6 +101,13 @@ void step_scalar(const KdNode node, bool pushed, uint32_t begin, uint32_t end, W
         er[i] = r;
         e0[i] = a;
         e1[i] = b;
+    };
+    // descend()'s min and max: SSE's, whose NaN rule (the second operand) the decisions need.
+    auto max_ss = [](float a, float b) {
+        return _mm_cvtss_f32(_mm_max_ss(_mm_set_ss(a), _mm_set_ss(b)));
+    };
+    auto min_ss = [](float a, float b) {
+        return _mm_cvtss_f32(_mm_min_ss(_mm_set_ss(a), _mm_set_ss(b)));
     };
     for (uint32_t j = begin; j < end; ++j) {
         const uint32_t r = er[j];
