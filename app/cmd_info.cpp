@@ -84,9 +84,11 @@ void print_image_info(const InfoArgs& args) {
             if (k == key) print(k, v);
         }
     }
-    for (const auto& [k, v] : info.metadata) {
+    for (const auto& entry : info.metadata) {
+        // Not a structured binding: clang 14 (the TSan and fuzz builds) cannot capture one.
+        const std::string& k = entry.first;
         if (std::none_of(std::begin(order), std::end(order), [&](const char* o) { return k == o; }))
-            print(k, v);
+            print(k, entry.second);
     }
 }
 
