@@ -55,7 +55,8 @@ if(KDT_FUZZ)
     target_link_libraries(image_fuzzer PRIVATE kdt_core ZLIB::ZLIB OpenEXR::OpenEXR kdt_options)
 
     # The scene reader (nlohmann::json is header-only, so it is instrumented along with it).
-    kdt_add_fuzzer(scene ${_src}/scene/scene.cpp ${_src}/scene/default_scene.cpp)
+    kdt_add_fuzzer(scene ${_src}/scene/scene.cpp ${_src}/scene/default_scene.cpp
+                   ${_src}/scene/json_parse.cpp)
     target_link_libraries(scene_fuzzer PRIVATE kdt_io kdt_options)
 
     # Writes the seed corpora with the project's own writers (see the file for how to run it).
