@@ -254,6 +254,15 @@ struct FramePlan {
     int turn = 0, turns = 0;  // a turntable's frame `turn` of `turns`; turns = 0: none
 };
 
+// The files a sequence writes, for its summary line: "a.png", "a.png, b.png" or
+// "a.png ... z.png" (each frame's own line names the others); for one image, output itself.
+std::string files_written(const std::vector<FramePlan>& frames, const std::string& output) {
+    if (frames.empty() || frames.front().output.empty()) return printable(output);
+    const std::string first = printable(frames.front().output);
+    if (frames.size() == 1) return first;
+    return first + (frames.size() == 2 ? ", " : " ... ") + printable(frames.back().output);
+}
+
 std::vector<std::string> split_list(const std::string& list, const std::string& spec) {
     std::vector<std::string> out;
     size_t start = 0;
@@ -575,8 +584,9 @@ void run_local_frames(const RenderOptions& base, const std::string& output, bool
             std::fprintf(stderr, "kdtrace: frame %zu/%zu -> %s\n", i + 1, frames.size(),
                          printable(f.output).c_str());
     }
-    std::printf("render: %zu frames, %.2f s -> %s\n", frames.size(), timer.seconds(),
-                printable(output).c_str());
+    std::printf("render: %zu %s, %.2f s -> %s\n", frames.size(),
+                frames.size() == 1 ? "frame" : "frames", timer.seconds(),
+                files_written(frames, output).c_str());
 }
 
 }  // namespace
@@ -872,7 +882,8 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
     // A sequence's frames were named as they were written; each has its own size and stop.
     char what[64];
     if (sequence) {
-        std::snprintf(what, sizeof what, "%zu frames", frames.size());
+        std::snprintf(what, sizeof what, "%zu %s", frames.size(),
+                      frames.size() == 1 ? "frame" : "frames");
     } else {
         std::snprintf(what, sizeof what, "%dx%d, %d spp", o.scene.width, o.scene.height,
                       o.stop.spp);
@@ -883,7 +894,7 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
         o.scene.scene_path.empty() ? "default scene" : printable(o.scene.scene_path).c_str(), what,
         seconds, seconds > 0.0 ? double(c.rays()) / seconds * 1e-6 : 0.0, ctx.size(),
         (unsigned long long)c.rays(), (unsigned long long)c.nonfinite_dropped,
-        printable(output).c_str());
+        (sequence ? files_written(frames, output) : printable(output)).c_str());
 }
 
 }  // namespace

@@ -74,6 +74,12 @@ set_tests_properties(smoke.bench_mpi_frame_size_needs_frames PROPERTIES PASS_REG
 add_test(NAME smoke.bench_mpi_tiles_help COMMAND ${_kdt} bench mpi --help)
 set_tests_properties(smoke.bench_mpi_tiles_help PROPERTIES
   PASS_REGULAR_EXPRESSION "\n  --no-tiles +Leave out the tile rows" FAIL_REGULAR_EXPRESSION "\\{false\\}")
+# A sequence's summary names the files it wrote, not the -o pattern.
+add_test(NAME smoke.frames_summary_names_files
+         COMMAND ${_kdt} render --frames 3 --turntable -o ${_tmp}/summary_%d.pfm --width 8
+                 --height 6 --spp 1 --quiet)
+set_tests_properties(smoke.frames_summary_names_files PROPERTIES PASS_REGULAR_EXPRESSION
+  "render: 3 frames, [0-9.]+ s -> [^\n]*summary_0\\.pfm \\.\\.\\. [^\n]*summary_2\\.pfm\n")
 add_test(NAME smoke.help_status COMMAND sh -c "\"$0\" render --help >/dev/null && \"$0\" --version"
          ${_kdt})
 set_tests_properties(smoke.help_status PROPERTIES PASS_REGULAR_EXPRESSION "^kdtrace 0.1.0\n$")
