@@ -8,6 +8,8 @@
 #include <mutex>
 #include <vector>
 
+#include <gtest/gtest.h>
+
 #include "renderer/core/error.h"
 
 namespace kdt::test {
@@ -64,8 +66,14 @@ TempDirs& temp_dirs() {
 }  // namespace
 
 std::filesystem::path temp_dir(const std::string& name) {
-    auto p = std::filesystem::temp_directory_path() /
-             ("kdt_test_" + name + "_" + std::to_string(::getpid()));
+    // A "threadsafe" death test's child runs the test body again from the start, in a process
+    // of its own: it must get its parent's directory (as is, for the parent to check), not
+    // one that no one looks at.
+    const bool death_test_child = !GTEST_FLAG_GET(internal_run_death_test).empty();
+    auto p =
+        std::filesystem::temp_directory_path() /
+        ("kdt_test_" + name + "_" + std::to_string(death_test_child ? ::getppid() : ::getpid()));
+    if (death_test_child) return p;
     std::filesystem::remove_all(p);
     std::filesystem::create_directories(p);
     TempDirs& dirs = temp_dirs();
