@@ -28,8 +28,9 @@ enum class Mode {
 void install(Mode mode = Mode::exit_now);
 /// In exit_now mode, the first signal writes "kdtrace: SIGINT: <notice>" (or SIGTERM) on a
 /// line of its own to stderr before the process dies, e.g. "interrupted while loading; nothing
-/// written"; nullptr (the default) dies without a word. `notice` must stay valid for the
-/// process's life (a string literal).
+/// written"; nullptr (the default) dies without a word. When a TempFile was committed since
+/// this call, the line says "interrupted after writing <its target>" instead. `notice` must
+/// stay valid for the process's life (a string literal).
 void set_exit_notice(const char* notice);
 /// Installs the handlers once, leaving the mode as it is (exit_now unless set). A signal the
 /// process inherited as ignored (nohup, a background job) stays ignored. TempFile calls it,
@@ -71,6 +72,14 @@ inline constexpr int kMaxTempPath = 4096;
 /// Registers `path` for removal if a signal ends the process; returns a slot for
 /// unregister_temp(), or -1 when it could not be registered.
 int register_temp(const char* path);
+/// Renames the registered temporary file `from` (in `slot`, or -1 when it could not be
+/// registered) over `to`, as std::rename, without racing a handler that is removing the
+/// temporary files: the outcome is either `to` written and recorded, so that the exit notice
+/// says "interrupted after writing <to>" instead of its own text, or nothing written and the
+/// calling thread blocked until the signal ends the process (as wait_if_dying()). Returns
+/// false with errno set when the rename fails. An unregistered file is only checked against
+/// dying() before its rename.
+bool commit_rename(int slot, const char* from, const char* to);
 /// Forgets a slot (the file was renamed or removed); ignores -1.
 void unregister_temp(int slot);
 /// Paths registered now (for tests).
@@ -95,5 +104,8 @@ private:
 void reset_for_testing();
 /// For tests: makes dying() true without a signal or a handler (nothing will end the process).
 void set_dying_for_testing();
+/// For tests: commit_rename() calls `hook` (unless null) just before its rename, with its slot
+/// claimed and SIGINT/SIGTERM blocked on its thread.
+void set_commit_hook_for_testing(void (*hook)());
 
 }  // namespace kdt::interrupt

@@ -49,6 +49,11 @@ TempFile::TempFile(const std::string& target) : target_(target), real_(write_tar
         throw Error(ErrorLocation{target_},
                     "cannot create temporary file " + path_ + ": " + std::strerror(err));
     }
+    // A handler that was already removing the registered files may have passed this slot.
+    if (interrupt::dying()) {
+        discard();
+        interrupt::wait_if_dying();
+    }
 }
 
 TempFile::~TempFile() { discard(); }
@@ -99,10 +104,8 @@ void TempFile::commit() {
     }
     // A signal handler on another thread may be removing this file on its way to ending the
     // process: then neither commit nor report an error (the signal is the outcome).
-    interrupt::wait_if_dying();
-    if (std::rename(path_.c_str(), real_.c_str()) != 0) {
+    if (!interrupt::commit_rename(slot_, path_.c_str(), real_.c_str())) {
         const int err = errno;
-        interrupt::wait_if_dying();
         ::unlink(path_.c_str());
         interrupt::unregister_temp(slot_);
         slot_ = -1;

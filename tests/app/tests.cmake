@@ -515,9 +515,11 @@ set_tests_properties(smoke.view_of_its_model PROPERTIES PASS_REGULAR_EXPRESSION 
 # SIGINT/SIGTERM against a running kdtrace: the image is saved and marked interrupted, a
 # second signal quits at once, a signal while loading says nothing was written, and no
 # temporary file is left (tests/app/interrupt_test.sh).
+add_library(kdt_slow_fsync MODULE ${CMAKE_CURRENT_LIST_DIR}/slow_fsync.cpp)
 foreach(_case render_int render_term render_int_pass frames_int render_twice build_int load_int)
   add_test(NAME smoke.interrupt_${_case} COMMAND bash
-           ${CMAKE_CURRENT_LIST_DIR}/interrupt_test.sh ${_kdt} ${_case} ${_tmp}/interrupt_${_case})
+           ${CMAKE_CURRENT_LIST_DIR}/interrupt_test.sh ${_kdt} ${_case} ${_tmp}/interrupt_${_case}
+           $<TARGET_FILE:kdt_slow_fsync>)
   set_tests_properties(smoke.interrupt_${_case} PROPERTIES PASS_REGULAR_EXPRESSION "PASS: "
                        FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)
 endforeach()

@@ -175,5 +175,56 @@ TEST(InterruptDeathTest, CommitWaitsWhileTheProcessIsDying) {
     EXPECT_EXIT(commit_while_dying(dir), ::testing::ExitedWithCode(0), "written 0, returned 0");
 }
 
+// A signal that comes while another thread is renaming its file over the target (its slot
+// claimed) lets the rename finish: the file is complete, and the notice names it instead of
+// claiming that nothing was written.
+void signal_during_rename(const fs::path& dir) {
+    interrupt::reset_for_testing();
+    interrupt::install(interrupt::Mode::exit_now);
+    interrupt::set_exit_notice("interrupted; nothing written");
+    std::thread other([] {
+        for (;;) ::pause();
+    });
+    other.detach();
+    interrupt::set_commit_hook_for_testing([] {
+        ::kill(::getpid(), SIGINT);  // blocked on this thread: `other` takes it
+        while (!interrupt::dying()) std::this_thread::yield();
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));  // the handler waits
+    });
+    TempFile tmp((dir / "tree.kdt").string());
+    tmp.write("data", 4);
+    tmp.commit();
+    for (;;) ::pause();  // the signal unblocked at the end of the commit ends the process
+}
+
+TEST(InterruptDeathTest, SignalDuringTheRenameKeepsTheFileAndSaysSo) {
+    GTEST_FLAG_SET(death_test_style, "threadsafe");
+    const fs::path dir = test::temp_dir("interrupt_death_rename");
+    EXPECT_EXIT(signal_during_rename(dir), ::testing::KilledBySignal(SIGINT),
+                "^kdtrace: SIGINT: interrupted after writing [^\n]*/tree\\.kdt\n$");
+    EXPECT_EQ(test::read_bytes(dir / "tree.kdt"), (std::vector<unsigned char>{'d', 'a', 't', 'a'}));
+    EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 1) << dir;
+}
+
+// The exit notice is the command's until a file is written; set_exit_notice() starts afresh.
+void notice_after_commit(const fs::path& dir, bool set_again) {
+    interrupt::reset_for_testing();
+    interrupt::install(interrupt::Mode::exit_now);
+    interrupt::set_exit_notice("interrupted; nothing written");
+    write_file_atomically((dir / "a.kdt").string(), "data", 4);
+    if (set_again) interrupt::set_exit_notice("interrupted; no image written");
+    ::raise(SIGTERM);
+    std::_Exit(0);
+}
+
+TEST(InterruptDeathTest, NoticeNamesAFileWrittenSinceItWasSet) {
+    GTEST_FLAG_SET(death_test_style, "threadsafe");
+    const fs::path dir = test::temp_dir("interrupt_death_notice");
+    EXPECT_EXIT(notice_after_commit(dir, false), ::testing::KilledBySignal(SIGTERM),
+                "^kdtrace: SIGTERM: interrupted after writing [^\n]*/a\\.kdt\n$");
+    EXPECT_EXIT(notice_after_commit(dir, true), ::testing::KilledBySignal(SIGTERM),
+                "^kdtrace: SIGTERM: interrupted; no image written\n$");
+}
+
 }  // namespace
 }  // namespace kdt
