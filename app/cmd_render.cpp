@@ -232,12 +232,6 @@ void run(const RenderCommand& cmd) {
     image.alpha = film.coverage();
     const PathCounters& c = session.totals();
     const double spp = double(film.total_drawn()) / pixels;
-    const std::string& scene = o.scene.scene_path;
-    ImageMetadata meta;
-    meta.emplace_back("Software", "kdtrace 0.1.0");
-    meta.emplace_back("kdtrace:scene", scene.empty() ? std::string("builtin:default") : scene);
-    meta.emplace_back("kdtrace:scene_json", scene_to_json(prep.scene));
-    meta.emplace_back("kdtrace:camera", camera_to_json(snap.camera));
     // The tree's parameters are those of the tree used: a --tree file's, not the flags'.
     // With absolute file names, the image is a session (`--session IMAGE`) from anywhere.
     // Its stop conditions are the command's: a --time render's session asks for the spp
@@ -246,6 +240,13 @@ void run(const RenderCommand& cmd) {
     RenderOptions used = again;
     used.tree = snap.tree_params;
     make_file_names_absolute(used.scene);
+    // kdtrace:scene is absolute too, as in frame sequences (the command keeps the names typed).
+    const std::string& scene = used.scene.scene_path;
+    ImageMetadata meta;
+    meta.emplace_back("Software", "kdtrace 0.1.0");
+    meta.emplace_back("kdtrace:scene", scene.empty() ? std::string("builtin:default") : scene);
+    meta.emplace_back("kdtrace:scene_json", scene_to_json(prep.scene));
+    meta.emplace_back("kdtrace:camera", camera_to_json(snap.camera));
     meta.emplace_back("kdtrace:params", options_to_json(used));
     meta.emplace_back("kdtrace:seed", std::to_string(o.trace.seed));
     meta.emplace_back("kdtrace:spp", std::to_string(spp));

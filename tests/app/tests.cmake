@@ -551,6 +551,14 @@ add_test(NAME smoke.info_image COMMAND sh -c "\"$0\" render --width 16 --height 
 set_tests_properties(smoke.info_image PROPERTIES PASS_REGULAR_EXPRESSION
   "format: +OpenEXR\nsize: +16x12\nencoding: +zip compression[^\n]*\nkdtrace:command: kdtrace render --width 16 --height 12 [^\n]*--spp 2\n")
 
+# kdtrace:scene names the model by its absolute path, as frame sequences do; the command keeps
+# the name as typed (it is replayed from the same directory).
+add_test(NAME smoke.info_scene_absolute COMMAND sh -c "d=\"$1\"; rm -rf \"$d\"; mkdir -p \"$d\" && \
+cd \"$d\" && cp /usr/share/assimp/models/PLY/cube.ply . && \"$0\" render cube.ply --width 8 \
+--height 6 --spp 1 --quiet -o m.png >/dev/null && \"$0\" info m.png" ${_kdt} ${_tmp}/info_scene_abs)
+set_tests_properties(smoke.info_scene_absolute PROPERTIES PASS_REGULAR_EXPRESSION
+  "kdtrace:command: kdtrace render 'cube.ply' [^\n]*\nkdtrace:scene: /[^\n]*/info_scene_abs/cube.ply\n")
+
 # -o through a symlink writes the file it leads to, as cp and `>` do; the link stays.
 add_test(NAME smoke.output_symlink COMMAND sh -c "d=\"$1\"; rm -rf \"$d\"; mkdir -p \"$d/real\" \
 && echo not-an-image >\"$d/real/a.png\" && ln -s real/a.png \"$d/link.png\" && \"$0\" render --width 8 \
