@@ -8,8 +8,6 @@
 #include <mutex>
 #include <vector>
 
-#include <gtest/gtest.h>
-
 #include "renderer/core/error.h"
 
 namespace kdt::test {
@@ -63,13 +61,24 @@ TempDirs& temp_dirs() {
     return dirs;
 }
 
+// Whether this process is a "threadsafe" death test's child, which gtest starts with
+// --gtest_internal_run_death_test=... (read from the command line, so that the programs that
+// share this file without linking gtest need not).
+bool in_death_test_child() {
+    std::ifstream in("/proc/self/cmdline", std::ios::binary);
+    std::string arg;
+    while (std::getline(in, arg, '\0'))
+        if (arg.rfind("--gtest_internal_run_death_test", 0) == 0) return true;
+    return false;
+}
+
 }  // namespace
 
 std::filesystem::path temp_dir(const std::string& name) {
     // A "threadsafe" death test's child runs the test body again from the start, in a process
     // of its own: it must get its parent's directory (as is, for the parent to check), not
     // one that no one looks at.
-    const bool death_test_child = !GTEST_FLAG_GET(internal_run_death_test).empty();
+    const bool death_test_child = in_death_test_child();
     auto p =
         std::filesystem::temp_directory_path() /
         ("kdt_test_" + name + "_" + std::to_string(death_test_child ? ::getppid() : ::getpid()));
