@@ -102,15 +102,21 @@ void write_notice(int sig, const char* text, const char* path = nullptr) {
 }
 
 void handler(int sig) {
+    // The interrupted code may be between a failed call and its errno check, and the notice's
+    // write() sets errno when it fails (stderr closed, a closed pipe).
+    const int saved_errno = errno;
     int none = 0;
     const bool first = g_signal.compare_exchange_strong(none, sig);
-    if (first && g_mode.load() == int(Mode::report)) return;
-    if (first && g_mode.load() == int(Mode::finish_work)) {
-        write_notice(sig, sig == SIGINT
-                              ? "finishing the tiles in flight and saving (interrupt again to "
-                                "quit at once)"
-                              : "finishing the tiles in flight and saving (signal again to quit "
-                                "at once)");
+    const int mode = g_mode.load();
+    if (first && mode != int(Mode::exit_now)) {
+        if (mode == int(Mode::finish_work)) {
+            write_notice(sig, sig == SIGINT
+                                  ? "finishing the tiles in flight and saving (interrupt again "
+                                    "to quit at once)"
+                                  : "finishing the tiles in flight and saving (signal again to "
+                                    "quit at once)");
+        }
+        errno = saved_errno;
         return;
     }
     die(sig, first ? g_exit_notice.load() : nullptr);

@@ -1,8 +1,12 @@
+#include <fcntl.h>
+#include <pthread.h>
 #include <signal.h>
 #include <unistd.h>
 
 #include <atomic>
+#include <cerrno>
 #include <chrono>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <thread>
@@ -63,6 +67,33 @@ TEST(Interrupt, FinishWorkModeRecordsTheSignalAndTheWatcherReacts) {
         EXPECT_STREQ(interrupt::signal_name(), sig == SIGINT ? "SIGINT" : "SIGTERM");
         EXPECT_EQ(interrupt::exit_code(), sig == SIGINT ? 130 : 143);
     }
+    interrupt::reset_for_testing();
+    interrupt::install(interrupt::Mode::exit_now);
+}
+
+// A signal can land between a failing call and its errno check: the handler must leave errno
+// as it found it, also when its notice cannot be written (stderr open read-only here, so the
+// write fails with EBADF). Sent from another thread while this one waits in join(), so that
+// ThreadSanitizer takes it as asynchronous and checks errno too (it skips SIGTERM); it restores
+// errno itself and writes its report to the same read-only stderr, so under TSan a regression
+// shows only as the exit status 66.
+TEST(Interrupt, FinishWorkNoticeKeepsErrno) {
+    interrupt::reset_for_testing();
+    interrupt::install(interrupt::Mode::finish_work);
+    const int saved_stderr = ::dup(STDERR_FILENO);
+    const int read_only = ::open("/dev/null", O_RDONLY | O_CLOEXEC);
+    ASSERT_GE(saved_stderr, 0);
+    ASSERT_GE(read_only, 0);
+    ASSERT_EQ(::dup2(read_only, STDERR_FILENO), STDERR_FILENO);
+    const pthread_t self = pthread_self();
+    errno = ERANGE;
+    std::thread([self] { pthread_kill(self, SIGINT); }).join();
+    const int err = errno;
+    ::dup2(saved_stderr, STDERR_FILENO);
+    ::close(saved_stderr);
+    ::close(read_only);
+    EXPECT_TRUE(interrupt::requested());
+    EXPECT_EQ(err, ERANGE) << std::strerror(err);
     interrupt::reset_for_testing();
     interrupt::install(interrupt::Mode::exit_now);
 }
