@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
-# Runs the unit tests of the threaded parts (OpenMP render passes, parallel SAH builds,
-# batch queries, sampler, PLY reading on two threads) under ThreadSanitizer. Uses the `tsan`
-# preset: clang with LLVM's libomp and its Archer tool, which tells TSan about OpenMP's
-# barriers and reductions (GCC's libgomp is not instrumented, so a GCC TSan build reports
-# every parallel region). tests/tsan/suppressions.txt hides libomp's own internals only.
-# Exits non-zero on any report or failed test. Not part of scripts/test.sh (about 5 min).
+# Runs every unit test executable (the threaded parts among them: OpenMP render passes,
+# parallel SAH builds, batch queries, PLY reading on two threads, the viewer's threads) under
+# ThreadSanitizer, one log per executable. Uses the `tsan` preset: clang with LLVM's libomp and
+# its Archer tool, which tells TSan about OpenMP's barriers and reductions (GCC's libgomp is not
+# instrumented, so a GCC TSan build reports every parallel region).
+# tests/tsan/suppressions.txt hides libomp's own internals only. `ctest --preset tsan` sets the
+# same environment. Exits non-zero on any report or failed test. Not part of scripts/test.sh
+# (about 5 min).
 set -euo pipefail
 
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -13,10 +15,11 @@ bash scripts/setup.sh
 archer=/usr/lib/llvm-14/lib/libarcher.so
 [ -f "$archer" ] || { echo "run_tsan: $archer missing (Debian libomp-14-dev)" >&2; exit 1; }
 
-targets=(kdt_core_tests kdt_accel_tests kdt_io_tests kdt_integrator_tests kdt_render_tests
-         kdt_ui_stress_tests kdt_ui_loader_tests)
 cmake --preset tsan >/dev/null
-cmake --build --preset tsan --target "${targets[@]}"
+cmake --build --preset tsan --target kdt_unit_tests
+# Every unit test executable (one per renderer module, and the viewer's headless ones).
+targets=()
+for exe in "$root"/build/tsan/tests/kdt_*_tests; do targets+=("$(basename "$exe")"); done
 
 status=0
 for t in "${targets[@]}"; do
