@@ -149,9 +149,9 @@ void add_info_command(CLI::App& parent) {
         ->required();
     cmd->add_flag("--all", args->all,
                   "Images: print the stored scene JSON and any value over 16 KiB in full");
-    cmd->add_flag(
-        "--drop-invalid", args->drop_invalid,
-        "Drop faces that use non-finite vertices instead of failing (and report how many)");
+    cmd->add_flag("--drop-invalid", args->drop_invalid,
+                  "Drop faces that use non-finite vertices or have fewer than 3 indices instead of "
+                  "failing (and report how many)");
     cmd->add_option(
            "--threads", args->threads,
            "Threads for ascii PLY parsing: 1 (the default), 2 or more = two, 0 = two when the "

@@ -36,7 +36,8 @@ void add_scene_command(CLI::App& parent) {
                                                        "file (- = standard output)"),
                                        "-o"),
                    "-o", ".json", "the scene is written as JSON (- for standard output)", {"-"});
-    cmd->add_flag("--drop-invalid", drop_invalid, "Drop faces with non-finite vertices");
+    cmd->add_flag("--drop-invalid", drop_invalid,
+                  "Drop faces with non-finite vertices or fewer than 3 indices");
     static uint64_t max_triangles = kDefaultMaxSceneTriangles;
     cmd->add_option("--max-triangles", max_triangles,
                     "Refuse a scene (its instances counted), model or built-in scene of more "

@@ -11,7 +11,7 @@
 namespace kdt {
 
 struct MeshLoadOptions {
-    /// Drop faces using non-finite vertices (and PLY faces of fewer than 3 indices) instead of
+    /// Drop faces using non-finite vertices, and faces of fewer than 3 indices, instead of
     /// failing.
     bool drop_invalid = false;
     bool keep_normals = true;  ///< keep per-vertex normals when the file has them
@@ -32,7 +32,7 @@ struct MeshLoadInfo {
     uint64_t input_bytes_read = 0;
     uint64_t array_bytes = 0;   ///< bytes the mesh arrays had allocated (their capacity)
     uint64_t source_faces = 0;  ///< polygons in the file
-    /// With drop_invalid: faces dropped for non-finite vertices or (PLY) fewer than 3 indices.
+    /// With drop_invalid: faces dropped for non-finite vertices or fewer than 3 indices.
     uint64_t dropped_faces = 0;
     uint64_t degenerate_faces = 0;  ///< faces with repeated indices (kept)
     double seconds = 0.0;

@@ -155,7 +155,7 @@ private:
     [[gnu::always_inline]] inline void face_end(uint64_t n);
     [[noreturn, gnu::noinline]] void too_long(const char* element, uint64_t index, const char* what,
                                               const char* b, const char* e) const;
-    void corner(const char* b, const char* e, int64_t face);
+    void corner(const char* b, const char* e, int64_t face, uint64_t k);
     uint32_t index(const char* b, const char* e, uint64_t count, const char* what,
                    const char* plural, Farthest& farthest, int64_t face);
     float number(const char* b, const char* e, const char* element, uint64_t index) const;
@@ -182,10 +182,14 @@ private:
     uint64_t bad_count_ = 0;
     // Faces as read: corner counts, position index per corner, normal index per corner
     // while every corner so far has one (and normals are kept).
+    // A face of fewer than 3 corners that drop_invalid drops has size 0 here, so that faces
+    // keep their numbers in the file.
     std::vector<uint32_t> face_sizes_, corner_v_, corner_n_;
     bool all_normals_;
+    bool face_lacks_normal_ = false;  // a corner of the current face has no normal
     uint64_t triangles_ = 0;
     Farthest farthest_v_, farthest_n_;
+    Farthest face_start_v_, face_start_n_;  // farthest_v_ and farthest_n_ before this face
 };
 
 bool ObjParser::next_line(const char*& b, const char*& e) {
@@ -559,21 +563,40 @@ void ObjParser::face_corner(uint64_t& n, const char* tb, const char* te) {
     if (size_t(te - tb) >= kMaxTokenBytes) [[unlikely]]
         too_long("face", uint64_t(f), "corner", tb, te);
     if (n == kMaxElements) fail("face", f, "more than 2^32-1 vertices");
-    corner(tb, te, f);
+    if (n == 0) {
+        face_lacks_normal_ = false;
+        face_start_v_ = farthest_v_;
+        face_start_n_ = farthest_n_;
+    }
+    corner(tb, te, f, n);
     ++n;
 }
 
 void ObjParser::face_end(uint64_t n) {
     const int64_t f = int64_t(face_sizes_.size());
-    if (n < 3)
-        fail("face", f,
-             std::to_string(n) + (n == 1 ? " index" : " indices") + ", a face needs at least 3");
+    if (n < 3) [[unlikely]] {
+        if (!options_.drop_invalid)
+            fail("face", f,
+                 std::to_string(n) + (n == 1 ? " index" : " indices") +
+                     ", a face needs at least 3; --drop-invalid drops such faces");
+        // Dropped, as PLY drops it: its corners go, and its indices are not checked against
+        // the vertex and normal counts (build() counts it in info->dropped_faces).
+        corner_v_.resize(corner_v_.size() - size_t(n));
+        if (all_normals_) corner_n_.resize(corner_n_.size() - size_t(n));
+        if (n > 0) {
+            farthest_v_ = face_start_v_;
+            farthest_n_ = face_start_n_;
+        }
+        face_sizes_.push_back(0);
+        return;
+    }
     face_sizes_.push_back(uint32_t(n));
     triangles_ += n - 2;
 }
 
-// One face corner: v, v/vt, v//vn or v/vt/vn. Texture coordinates are checked for form only.
-void ObjParser::corner(const char* b, const char* e, int64_t f) {
+// Corner k (0-based) of face f: v, v/vt, v//vn or v/vt/vn. Texture coordinates are checked for
+// form only.
+void ObjParser::corner(const char* b, const char* e, int64_t f, uint64_t k) {
     const char* s1 = std::find(b, e, '/');
     if (s1 == b) fail("face", f, "corner " + quoted(b, e) + " has no vertex index");
     corner_v_.push_back(index(b, s1, positions_.size(), "vertex", "vertices", farthest_v_, f));
@@ -591,12 +614,14 @@ void ObjParser::corner(const char* b, const char* e, int64_t f) {
                 n = index(s2 + 1, e, normal_count_, "normal", "normals", farthest_n_, f);
         }
     }
-    if (n == kNone) {
-        if (all_normals_) {
-            all_normals_ = false;
-            std::vector<uint32_t>().swap(corner_n_);
-        }
-    } else if (all_normals_) {
+    if (!all_normals_) return;
+    // A face's first two corners may belong to a face that drop_invalid drops: a missing
+    // normal there turns normals off only once a third corner keeps the face.
+    face_lacks_normal_ |= n == kNone;
+    if (face_lacks_normal_ && k >= 2) {
+        all_normals_ = false;
+        std::vector<uint32_t>().swap(corner_n_);
+    } else {
         corner_n_.push_back(n);
     }
 }
@@ -651,7 +676,7 @@ TriangleMesh ObjParser::build(MeshLoadInfo* info) {
 
     TriangleMesh mesh;
     mesh.triangles.reserve(size_t(triangles_));
-    const bool use_normals = all_normals_ && !face_sizes_.empty();
+    const bool use_normals = all_normals_ && triangles_ > 0;
     std::vector<uint32_t> remap;  // file position -> vertex, without normals, when some are dropped
     if (!use_normals) {
         // The file's vertices in file order (unused ones too), minus non-finite ones.
@@ -701,6 +726,10 @@ TriangleMesh ObjParser::build(MeshLoadInfo* info) {
     std::vector<uint32_t> sorted;  // scratch for the degenerate test of big polygons
     size_t c = 0;
     for (const uint32_t n : face_sizes_) {
+        if (n == 0) {  // fewer than 3 corners, dropped
+            ++dropped;
+            continue;
+        }
         const uint32_t* idx = corner_v_.data() + c;
         bool is_bad = false;
         for (uint32_t k = 0; k < n && bad_count_ > 0; ++k) is_bad |= bad_[idx[k]] != 0;

@@ -32,15 +32,16 @@ namespace kdt {
 /// Vertices are split per distinct (position, normal) pair when every face corner names a
 /// normal, otherwise the file's positions are used as they are and normals are dropped.
 /// Non-finite positions are an error unless options.drop_invalid, which drops the faces
-/// using them and the vertices themselves (indices are remapped), as for PLY.
+/// using them and the vertices themselves (indices are remapped), as for PLY; it also drops
+/// faces of fewer than 3 corners (their indices unchecked). Both count in info->dropped_faces.
 ///
 /// Throws kdt::Error naming the file, the line and the vertex, normal or face (numbered from
 /// 1, as OBJ indices are: "vertex 1" is the first `v` line, "face 1" the first face) for: a file
 /// that cannot be opened or is not a regular file, gzip input, a file without vertices, a line not
 /// starting with a statement keyword or holding a NUL byte (binary data, UTF-16), malformed
 /// numbers or corners, a value or corner of 1 MiB or more, index 0, indices out of range or
-/// pointing before the first element, faces with fewer than 3 corners, more than 2^32-1 vertices
-/// or normals.
+/// pointing before the first element, faces with fewer than 3 corners (without drop_invalid),
+/// more than 2^32-1 vertices or normals.
 TriangleMesh read_obj(const std::string& path, const MeshLoadOptions& options = {},
                       MeshLoadInfo* info = nullptr);
 

@@ -340,6 +340,45 @@ TEST_F(ObjReader, NonFiniteVerticesMirrorPly) {
     }
 }
 
+TEST_F(ObjReader, FacesOfFewerThanThreeCornersDroppedLikePly) {
+    const std::string tri = kTriangle;
+    EXPECT_NE(error_of(tri + "f 1 2\n")
+                  .find("t.obj: line 4: face 1: 2 indices, a face needs at least 3; --drop-invalid "
+                        "drops such faces"),
+              std::string::npos)
+        << error_of(tri + "f 1 2\n");
+    MeshLoadOptions o;
+    o.drop_invalid = true;
+    // Dropped faces lack normals and name a vertex out of range: neither counts, as a PLY
+    // face dropped for its size is not checked either.
+    const std::string text =
+        tri + "vn 0 0 1\nf 1//1 2//1 3//1\nf 1 2\nf 1\nf\nf 1 9\nf 3//1 2//1 1//1\n";
+    for (bool normals : {true, false}) {
+        o.keep_normals = normals;
+        MeshLoadInfo info;
+        TriangleMesh m = load(text, o, &info);
+        EXPECT_EQ(info.source_faces, 6u);
+        EXPECT_EQ(info.dropped_faces, 4u);
+        ASSERT_EQ(m.triangle_count(), 2u);
+        EXPECT_EQ(m.triangles[1], Vec3u(m.triangles[0].z, m.triangles[0].y, m.triangles[0].x));
+        EXPECT_EQ(m.normals.size(), normals ? 3u : 0u);
+    }
+    o.keep_normals = true;
+    // Faces after a dropped one keep their numbers in the file.
+    EXPECT_NE(error_of(tri + "f 1 2\nf 1 2 7\n", o)
+                  .find("t.obj: line 5: face 2: vertex index 7 out of range (3 vertices)"),
+              std::string::npos)
+        << error_of(tri + "f 1 2\nf 1 2 7\n", o);
+    // Malformed corners stay errors.
+    EXPECT_NE(error_of(tri + "f 0 1\n", o).find("face 1: vertex index 0"), std::string::npos);
+    // Every face dropped: the vertices stay, as in a file without faces.
+    MeshLoadInfo info;
+    TriangleMesh m = load(tri + "vn 0 0 1\nf 1//1 2//1\n", o, &info);
+    EXPECT_EQ(info.dropped_faces, 1u);
+    EXPECT_EQ(m.triangle_count(), 0u);
+    EXPECT_EQ(m.vertex_count(), 3u);
+}
+
 // One hostile input per error: each message names the file, and the line where there is one.
 TEST_F(ObjReader, HostileInputsGiveClearErrors) {
     const std::string tri = kTriangle;

@@ -73,6 +73,8 @@ TEST(ObjSmallBlock, TrickyInputsReadAsWithTheDefaultBlock) {
         kTri + "f 1 2\\\r\n 3\\",
         kTri + "v\\",
         kTri + "\\",
+        // Faces of fewer than 3 corners (dropped with drop_invalid) before one with normals.
+        kTri + "vn 0 0 1\nf 1" + std::string(40, ' ') + "2\nf 2//1 1//1 3//1\nf\nf 9 3\n",
         // Errors and their lines.
         kTri + "f 1 2 9\n",
         kTri + "v 1 2\n",
@@ -99,6 +101,7 @@ TEST(ObjSmallBlock, TrickyInputsReadAsWithTheDefaultBlock) {
                     EXPECT_TRUE(same_bytes(r.mesh.normals, ref.mesh.normals));
                     EXPECT_EQ(r.info.source_faces, ref.info.source_faces);
                     EXPECT_EQ(r.info.degenerate_faces, ref.info.degenerate_faces);
+                    EXPECT_EQ(r.info.dropped_faces, ref.info.dropped_faces);
                 }
             }
         }
