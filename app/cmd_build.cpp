@@ -13,6 +13,7 @@
 #include "renderer/core/timer.h"
 #include "renderer/io/mesh_io.h"
 #include "renderer/render/settings.h"
+#include "renderer/scene/scene.h"
 
 namespace kdt::app {
 namespace {
@@ -83,7 +84,9 @@ void add_build_command(CLI::App& parent) {
         // Fail before a long build, not after it.
         if (!output.empty()) check_output(output, {model}, "the tree");
         MeshLoadInfo info;
-        auto mesh = std::make_shared<TriangleMesh>(load_mesh(model, {}, &info));
+        // Through the scene loader's model loading, so that a model without faces gets the
+        // warning `render` gives: the tree is valid (one empty leaf) and `render` accepts it.
+        auto mesh = std::make_shared<TriangleMesh>(load_model(model, {}, &info));
         std::printf("%s: %zu vertices, %zu triangles, loaded in %.3f s\n", printable(model).c_str(),
                     mesh->vertex_count(), mesh->triangle_count(), info.seconds);
         std::string model_key = model;

@@ -213,13 +213,14 @@ void warn(const SceneLoadOptions& options, const Reader& r, const char* key,
                              excerpt(*key ? r.child_path(key) : r.where(), 240) + ": " + message);
 }
 
-// load_mesh() of a model file, warning (not failing) about what renders nothing: a file
-// without faces (a point cloud; `kdtrace info` and `build` accept it too) and the faces
-// drop_invalid dropped.
-TriangleMesh load_model(const std::string& file, const SceneLoadOptions& options) {
+}  // namespace
+
+TriangleMesh load_model(const std::string& file, const SceneLoadOptions& options,
+                        MeshLoadInfo* load_info) {
     MeshLoadOptions mo;
     mo.drop_invalid = options.drop_invalid;
-    MeshLoadInfo info;
+    MeshLoadInfo local;
+    MeshLoadInfo& info = load_info ? *load_info : local;
     TriangleMesh mesh = load_mesh(file, mo, &info);
     const std::string name = printable(file);
     if (info.dropped_faces > 0) {
@@ -236,6 +237,8 @@ TriangleMesh load_model(const std::string& file, const SceneLoadOptions& options
     }
     return mesh;
 }
+
+namespace {
 
 MaterialDesc read_material(const Reader& r) {
     r.allow({"type", "albedo", "ior", "emission", "roughness"});

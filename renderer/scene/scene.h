@@ -18,6 +18,8 @@
 
 namespace kdt {
 
+struct MeshLoadInfo;
+
 /// One mesh placed in the world. The mesh itself is loaded by load_scene().
 struct MeshInstance {
     std::string file;  ///< empty for generated meshes
@@ -82,6 +84,12 @@ Scene load_scene(const std::string& path, const SceneLoadOptions& options = {});
 /// is the base of relative mesh paths. For tests and fuzzers.
 Scene load_scene_text(const std::string& text, const std::string& path,
                       const SceneLoadOptions& options = {});
+
+/// load_mesh() of one model file (options.drop_invalid as MeshLoadOptions::drop_invalid),
+/// warning through options.warn (not failing) about what renders nothing: a file without
+/// faces (a point cloud) and the faces drop_invalid dropped. `info` as for load_mesh().
+TriangleMesh load_model(const std::string& file, const SceneLoadOptions& options = {},
+                        MeshLoadInfo* info = nullptr);
 
 /// A scene around one model file (.ply, .ply.gz, .obj): a camera framing its bounds,
 /// a diffuse grey material and a constant white environment.

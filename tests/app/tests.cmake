@@ -623,6 +623,12 @@ add_test(NAME smoke.build_warns_foreign_flag COMMAND ${_kdt} build
          -o ${_tmp}/cube_thesis_foreign.kdt)
 set_tests_properties(smoke.build_warns_foreign_flag PROPERTIES
   PASS_REGULAR_EXPRESSION "warning: --sah-traversal-cost has no effect with the thesis builder")
+# A model without faces builds (a tree of one empty leaf, which `render` accepts) with the
+# warning `render` gives.
+add_test(NAME smoke.build_point_cloud_warns COMMAND sh -c "\"$@\" 2>&1 >/dev/null; echo \"status $?\""
+         sh ${_kdt} build /usr/share/assimp/models/OBJ/point_cloud.obj -o ${_tmp}/point_cloud.kdt)
+set_tests_properties(smoke.build_point_cloud_warns PROPERTIES PASS_REGULAR_EXPRESSION
+  "^kdtrace: warning: [^\n]*/point_cloud.obj: no faces \\(a point cloud\\?\\): the model renders nothing\nstatus 0\n$")
 add_test(NAME smoke.build_sah_prints_costs COMMAND ${_kdt} build
          /usr/share/assimp/models/PLY/cube.ply --sah-empty-bonus 0.5 -o ${_tmp}/cube_sah.kdt)
 set_tests_properties(smoke.build_sah_prints_costs PROPERTIES
