@@ -43,6 +43,7 @@ struct ConvergeArgs {
     uint64_t seed = 0;
     std::string configs = "uniform,bsdf,mis,mis+adaptive";
     float adaptive_threshold = 0.02f;
+    bool adaptive_threshold_given = false;
     int path_depth = 16;
     bool no_plot = false;
     bool throughput = false;
@@ -277,6 +278,20 @@ void run(const ConvergeArgs& a) {
     if (a.max_spp < 1 || a.reference_spp < 1)
         throw Error("--max-spp and --reference-spp must be >= 1");
     const std::vector<Config> configs = parse_configs(a);
+    // Only mis+adaptive reads the threshold; said as render says its --adaptive-* flags have
+    // no effect without adaptive sampling.
+    if (a.adaptive_threshold_given) {
+        if (a.throughput) {
+            std::fprintf(stderr,
+                         "kdtrace: warning: --adaptive-threshold has no effect with --throughput "
+                         "(it renders none of --configs)\n");
+        } else if (std::none_of(configs.begin(), configs.end(),
+                                [](const Config& c) { return c.film.adaptive; })) {
+            std::fprintf(stderr,
+                         "kdtrace: warning: --adaptive-threshold has no effect without "
+                         "mis+adaptive in --configs\n");
+        }
+    }
     // The reference and the outputs are checked before the reference render (minutes).
     const std::vector<std::string> inputs = {a.scene, a.env, a.views};
     ImageRGB given_ref;
@@ -511,7 +526,10 @@ void add_bench_converge_command(CLI::App& parent) {
     cmd->add_option("--repeats", a.repeats, "--throughput: runs (median)")
         ->capture_default_str()
         ->check(in_range(1, 1000));
-    cmd->callback([] { run(a); });
+    cmd->callback([cmd] {
+        a.adaptive_threshold_given = cmd->count("--adaptive-threshold") > 0;
+        run(a);
+    });
 }
 
 }  // namespace kdt::app

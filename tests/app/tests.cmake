@@ -694,6 +694,22 @@ foreach(_case kdtree_no_rays kdtree_subdivide_oom converge_quote converge_tiny)
   set_tests_properties(smoke.bench_${_case} PROPERTIES PASS_REGULAR_EXPRESSION "PASS: ${_case}"
                        FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)
 endforeach()
+# bench converge --adaptive-threshold without mis+adaptive in --configs, or with --throughput,
+# is named in a warning; with mis+adaptive it is not.
+set(_converge_tiny bench converge /usr/share/assimp/models/PLY/cube.ply --no-cache --threads 1
+    --width 8 --height 6 --reference-spp 1 --max-spp 1 --no-plot --adaptive-threshold 0.1)
+add_test(NAME smoke.bench_converge_threshold_unused COMMAND ${_kdt} ${_converge_tiny}
+         --configs mis,bsdf -o ${_tmp}/bench_converge_threshold_unused)
+set_tests_properties(smoke.bench_converge_threshold_unused PROPERTIES PASS_REGULAR_EXPRESSION
+  "kdtrace: warning: --adaptive-threshold has no effect without mis\\+adaptive in --configs\n")
+add_test(NAME smoke.bench_converge_threshold_throughput COMMAND ${_kdt} ${_converge_tiny}
+         --throughput --repeats 1 -o ${_tmp}/bench_converge_threshold_throughput)
+set_tests_properties(smoke.bench_converge_threshold_throughput PROPERTIES PASS_REGULAR_EXPRESSION
+  "kdtrace: warning: --adaptive-threshold has no effect with --throughput \\(it renders none of --configs\\)\n")
+add_test(NAME smoke.bench_converge_threshold_used COMMAND ${_kdt} ${_converge_tiny}
+         --configs mis,mis+adaptive -o ${_tmp}/bench_converge_threshold_used)
+set_tests_properties(smoke.bench_converge_threshold_used PROPERTIES
+  PASS_REGULAR_EXPRESSION "mis\\+adaptive" FAIL_REGULAR_EXPRESSION "warning")
 # A list entry given twice would make two rows of the same run (bench mpi then reported a
 # "speedup" between them): refused, naming the option and the entry, before any work (FAIL on
 # the model loading, the reference rendering or the runs' header).
