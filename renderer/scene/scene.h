@@ -107,9 +107,10 @@ TriangleMesh make_icosphere(int levels);         ///< unit sphere, 20 * 4^levels
 TriangleMesh make_displaced_sphere(int levels);  ///< the default scene's object, radius ~1
 TriangleMesh make_ground_plane(float half_size, float height);  ///< two triangles facing +y
 
-/// The triangle budget: max_triangles, or fewer when kRenderBytesPerTriangle times it
-/// would not fit the physical memory available now.
-uint64_t scene_triangle_budget(uint64_t max_triangles = kDefaultMaxSceneTriangles);
+/// The triangle budget: max_triangles, or fewer when bytes_per_triangle times it would not
+/// fit the physical memory available now.
+uint64_t scene_triangle_budget(uint64_t max_triangles = kDefaultMaxSceneTriangles,
+                               uint64_t bytes_per_triangle = kRenderBytesPerTriangle);
 
 /// Triangles a render of the scene holds: every instance's mesh counted once per instance.
 uint64_t instanced_triangle_count(const Scene& scene);

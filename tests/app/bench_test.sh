@@ -91,6 +91,14 @@ converge_tiny)
     grep -q '^| mis | - | [0-9.]* | [0-9.]* |$' <<<"$out" || fail "the slope of mis is not -"
     grep -q '^| bsdf | - | [0-9.]* | [0-9.]* |$' <<<"$out" || fail "the slope of bsdf is not -"
     ;;
+kdtree_subdivide_4)
+    # --subdivide takes [0, 4], as `build --subdivide` does: one triangle becomes 256.
+    ply tri.ply "$(printf -- '-0.1 0 0\n0.1 0 0\n0 0.2 0')" "0 1 2"
+    out=$("$kdt" "${kdtree[@]}" --model tri.ply --subdivide 4 --rows sah --no-embree \
+        --no-robustness 2>&1) || fail "exit status $?: $out"
+    echo "$out"
+    grep -q '^256 triangles; ' <<<"$out" || fail "not 256 triangles"
+    ;;
 kdtree_subdivide_oom)
     # --subdivide running out of memory names the model and the flag, as `kdtrace build`
     # does. 200000 triangles (loaded within about 120 MB of address space) become 12.8M,

@@ -48,6 +48,7 @@ foreach(_case "bad_option;render --bogus;unexpected argument --bogus \\(`kdtrace
               "extras_in_order;render --spp 2 a b c;unexpected arguments b c \\(`kdtrace render --help` lists the options\\)"
               "extras_after_dashes;render -- a --spp 2;unexpected arguments --spp 2 \\(`kdtrace render --help` lists the options\\)"
               "subdivide_range;build a.ply --subdivide 5;--subdivide must be in \\[0, 4\\] \\(got 5\\)"
+              "bench_subdivide_range;bench kdtree --subdivide 5;--subdivide must be in \\[0, 4\\] \\(got 5\\)"
               "info_threads;info a.ply --threads 1025;--threads must be in \\[0, 1024\\] \\(got 1025\\)")
   list(GET _case 0 _id)
   list(GET _case 1 _args)
@@ -688,7 +689,7 @@ if(EXISTS /proc/self)
 endif()
 
 # bench kdtree and bench converge on hostile input (tests/app/bench_test.sh).
-foreach(_case kdtree_no_rays kdtree_subdivide_oom converge_quote converge_tiny)
+foreach(_case kdtree_no_rays kdtree_subdivide_4 kdtree_subdivide_oom converge_quote converge_tiny)
   add_test(NAME smoke.bench_${_case} COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/bench_test.sh
            ${_case} ${_kdt} ${_tmp}/bench_${_case})
   set_tests_properties(smoke.bench_${_case} PROPERTIES PASS_REGULAR_EXPRESSION "PASS: ${_case}"
