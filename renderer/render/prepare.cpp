@@ -44,9 +44,11 @@ Scene load_scene_with_overrides(const SceneOptions& o, const PrepareLog& log) {
     scene.camera = with_camera_overrides(scene.camera, o);
     if (!o.materials.empty()) {
         if (o.materials.size() != scene.meshes.size()) {
-            throw Error("scene.materials: " + std::to_string(o.materials.size()) +
-                        " materials for a scene of " + std::to_string(scene.meshes.size()) +
-                        " mesh instances");
+            const std::string what = std::to_string(o.materials.size()) +
+                                     " materials for a scene of " +
+                                     std::to_string(scene.meshes.size()) + " mesh instances";
+            if (!o.materials_from.path.empty()) throw Error(o.materials_from, what);
+            throw Error("scene.materials: " + what);
         }
         for (size_t i = 0; i < o.materials.size(); ++i) scene.meshes[i].material = o.materials[i];
     }

@@ -330,6 +330,7 @@ void scene_from_json(const json& v, SceneOptions& scene, const std::string& wher
         } else if (key == "materials") {
             if (!x.is_array()) throw Error(ErrorLocation{where, pointer}, "expected an array");
             scene.materials.clear();
+            scene.materials_from = ErrorLocation{where, pointer};
             for (size_t i = 0; i < x.size(); ++i) {
                 scene.materials.push_back(
                     material_from_json(x[i].dump(), where, pointer + "/" + std::to_string(i)));
@@ -488,13 +489,27 @@ void options_from_json(const std::string& text, RenderOptions& o, const std::str
     // which the render applies later; a 1x1 film leaves out only the image size it checks.
     try {
         validate(o);
-        if (o.scene.camera) {
-            const CameraDesc& c = *o.scene.camera;
-            make_camera(c.eye, c.target, c.up, c.vfov_degrees, 1, 1);
-        }
     } catch (const Error& e) {
         throw Error(ErrorLocation{where}, e.what());
     }
+    // make_camera()'s messages start "camera: "; the JSON path says which camera.
+    auto camera_error = [&](const char* pointer, const Error& e) {
+        std::string m = e.what();
+        if (m.starts_with("camera: ")) m.erase(0, 8);
+        return Error(ErrorLocation{where, pointer}, m);
+    };
+    if (o.scene.camera) {
+        const CameraDesc& c = *o.scene.camera;
+        try {
+            make_camera(c.eye, c.target, c.up, c.vfov_degrees, 1, 1);
+        } catch (const Error& e) {
+            throw camera_error("/scene/camera", e);
+        }
+    }
+    // A zero "up" replaces any camera's up with none; the other parts are checked with the
+    // camera they replace parts of, once the scene is known.
+    if (o.scene.up && *o.scene.up == Vec3f(0.0f))
+        throw Error(ErrorLocation{where, "/scene/up"}, "up vector is zero");
 }
 
 void make_file_names_absolute(SceneOptions& scene) {

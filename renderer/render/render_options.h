@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "renderer/accel/kdtree.h"
+#include "renderer/core/error.h"
 #include "renderer/core/fields.h"
 #include "renderer/film/film.h"
 #include "renderer/integrator/path_tracer.h"
@@ -52,6 +53,10 @@ struct SceneOptions {
     /// One per mesh instance of the scene, replacing the scene's materials when non-empty
     /// (the viewer's edits, saved with its session); another count is an error.
     std::vector<MaterialDesc> materials;
+    /// Where `materials` were read (a session file and "/scene/materials"), named by the
+    /// error that their count does not match the scene's, found once the scene is loaded;
+    /// an empty path when they were set otherwise (the viewer).
+    ErrorLocation materials_from;
 };
 
 struct RenderOptions {

@@ -210,13 +210,16 @@ TEST(RenderOptions, JsonRefusesWhatItCannotHonour) {
               "s.json: /scene/camera/vfov_degrees: repeated key");
     EXPECT_EQ(bad("{\"scene\": {\"materials\": [{}, {\"albedo\": 0.5, \"albedo\": 1}]}}"),
               "s.json: /scene/materials/1/albedo: repeated key");
-    // Errors found after the keys are read name the file too.
+    // Errors found after the keys are read name the file, and the JSON path where one is to
+    // blame.
+    EXPECT_EQ(bad(R"({"scene": {"up": [0, 0, 0]}})"), "s.json: /scene/up: up vector is zero");
     const char* cam = R"({"scene": {"camera": {"eye": [0, 0, 0], "target": [0, 0, 0],
         "up": [0, 1, 0], "vfov_degrees": 40}}})";
-    EXPECT_EQ(bad(cam), "s.json: camera: eye and target coincide");
+    EXPECT_EQ(bad(cam), "s.json: /scene/camera: eye and target coincide");
     const char* vfov = R"({"scene": {"camera": {"eye": [0, 0, 5], "target": [0, 0, 0],
         "up": [0, 1, 0], "vfov_degrees": 1e39}}})";
-    EXPECT_EQ(bad(vfov).rfind("s.json: camera: vertical field of view must be in (0, 180)", 0), 0u)
+    EXPECT_EQ(
+        bad(vfov).rfind("s.json: /scene/camera: vertical field of view must be in (0, 180)", 0), 0u)
         << bad(vfov);
     EXPECT_EQ(bad(R"({"scene": {"width": 16384, "height": 16384}})")
                   .rfind("s.json: scene.width x scene.height: 16384x16384", 0),
@@ -271,6 +274,14 @@ TEST(RenderOptions, MaterialsReadBackAreCheckedAndReplaceTheScenes) {
                   .find("scene.materials: " + std::to_string(n + 1) + " materials for a scene of " +
                         std::to_string(n) + " mesh instances"),
               std::string::npos);
+    // Read from a session, the count found wrong once the scene is loaded names the session
+    // and the key.
+    RenderOptions from_session;
+    from_session.scene.materials = s.materials;
+    options_from_json(options_to_json(from_session), from_session, "s.json");
+    EXPECT_EQ(test::error_of_call([&] { load_scene_with_overrides(from_session.scene); }),
+              "s.json: /scene/materials: " + std::to_string(n + 1) + " materials for a scene of " +
+                  std::to_string(n) + " mesh instances");
 }
 
 // A scene's rotation loses its whole turns before the flag's is added: 1e20 degrees would
