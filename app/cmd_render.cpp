@@ -195,14 +195,8 @@ void run(const RenderCommand& cmd) {
                      "a constant colour, not a map\n");
     }
     check_output(cmd.output, scene_input_files(prep.scene), "the image");
-    if (!cmd.view.empty()) {
-        const std::string views = views_file_path(cmd.views);
-        const std::string scene =
-            o.scene.scene_path.empty() ? "the built-in default scene" : o.scene.scene_path;
-        const std::string w = view_model_warning(views, load_views(views), cmd.view, scene,
-                                                 scene_input_files(prep.scene));
-        if (!w.empty()) std::fprintf(stderr, "kdtrace: warning: %s\n", w.c_str());
-    }
+    if (!cmd.view.empty())
+        warn_view_model(cmd.views, "--view " + cmd.view, o.scene.scene_path, prep.scene);
 
     RenderSession session(prep.snapshot, o.trace, o.film);
     session.set_publishing(false);  // nothing reads the image before the render ends

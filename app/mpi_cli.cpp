@@ -17,6 +17,7 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <set>
 #include <string_view>
 
 #include <omp.h>
@@ -446,6 +447,25 @@ SceneGroups load_scenes(const std::vector<FramePlan>& frames,
     return g;
 }
 
+// The warning `render --view` gives when the views file places its cameras for another
+// model, for a sequence whose cameras are views (--frames views:..., or --view), once per
+// scene.
+void warn_view_models(const std::vector<FramePlan>& frames, const SceneGroups& scenes,
+                      const DistArgs& a) {
+    const bool listed = a.frames.rfind("views:", 0) == 0;
+    if (!listed && !given(a, "--view")) return;
+    const std::string label = listed
+                                  ? "--frames " + a.frames
+                                  : "--view " + a.command->get_option("--view")->as<std::string>();
+    // Every frame's camera is a view (--view replaces a listed session's camera too).
+    std::set<size_t> said;
+    for (size_t i = 0; i < frames.size(); ++i) {
+        if (!said.insert(scenes.of_frame[i]).second) continue;
+        warn_view_model(views_file(a), label, frames[i].options.scene.scene_path,
+                        scenes.prepared[scenes.of_frame[i]].scene);
+    }
+}
+
 // The snapshot of a frame: its scene's, seen through the frame's camera (the scene's with
 // the frame's overrides, as prepare_render() applies them, then the turntable's turn).
 std::shared_ptr<const RenderSnapshot> frame_snapshot(const SceneGroups& g,
@@ -550,6 +570,7 @@ void run_local_frames(const RenderOptions& base, const std::string& output, bool
     };
     const SceneGroups scenes =
         load_scenes(frames, [&](const RenderOptions& o) { return prepare_render(o, log); });
+    warn_view_models(frames, scenes, a);
     std::vector<std::shared_ptr<const RenderSnapshot>> snaps;
     for (size_t i = 0; i < frames.size(); ++i) snaps.push_back(frame_snapshot(scenes, frames, i));
     Timer timer;
@@ -806,6 +827,7 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
     const SceneGroups scenes = load_scenes(frames, [&](const RenderOptions& k) {
         return dist::prepare_everywhere(ctx, k, log, fault);
     });
+    if (root) warn_view_models(frames, scenes, a);
     std::vector<dist::FrameJob> jobs;
     dist::check_every_rank(ctx, "set up the frames", [&]() -> dist::Fingerprint {
         for (size_t i = 0; i < frames.size(); ++i) {

@@ -219,6 +219,16 @@ void warn_unused_output_flags(const CLI::App& app, const std::string& output) {
     }
 }
 
+std::string warn_view_model(const std::string& views, const std::string& label,
+                            const std::string& scene_path, const Scene& scene) {
+    const std::string path = views_file_path(views);
+    const std::string w = view_model_warning(
+        path, load_views(path), label,
+        scene_path.empty() ? "the built-in default scene" : scene_path, scene_input_files(scene));
+    if (!w.empty()) std::fprintf(stderr, "kdtrace: warning: %s\n", w.c_str());
+    return w;
+}
+
 void check_subdivide(uint64_t triangles, int levels, const SubdivideMemory& memory) {
     const uint64_t result = subdivided_triangle_count(triangles, levels);
     const uint64_t budget = scene_triangle_budget(kMaxSubdividedTriangles - 1, memory.bytes);

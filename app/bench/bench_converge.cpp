@@ -328,6 +328,7 @@ void run(const ConvergeArgs& a) {
     std::printf("bench converge: %s%s%s, %dx%d, tree %.2f s\n",
                 a.scene.empty() ? "default scene" : a.scene.c_str(), a.env.empty() ? "" : " under ",
                 a.env.c_str(), a.width, a.height, prep.tree_seconds);
+    if (!a.view.empty()) warn_view_model(a.views, "--view " + a.view, a.scene, prep.scene);
     if (a.throughput) {
         run_throughput(a, *prep.snapshot, prep.snapshot);
         return;

@@ -138,7 +138,7 @@ std::string views_file_path(const std::string& views_path) {
 }
 
 std::string view_model_warning(const std::string& views_path, const ViewSet& set,
-                               const std::string& view, const std::string& scene,
+                               const std::string& label, const std::string& scene,
                                const std::vector<std::string>& files) {
     // The name up to its first dot: dragon_vrip.ply.gz -> dragon_vrip.
     auto stem = [](const std::string& file) {
@@ -150,9 +150,8 @@ std::string view_model_warning(const std::string& views_path, const ViewSet& set
     for (const std::string& f : files) {
         if (stem(f).rfind(model, 0) == 0) return "";
     }
-    return printable("--view " + view + ": the views file " + views_path +
-                     " places its cameras for " + set.model + ", not for " + scene +
-                     "; the view may not frame it");
+    return printable(label + ": the views file " + views_path + " places its cameras for " +
+                     set.model + ", not for " + scene + "; the view may not frame it");
 }
 
 CameraDesc find_view(const std::string& views_path, const std::string& name) {

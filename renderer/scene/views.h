@@ -40,13 +40,14 @@ CameraDesc find_view(const std::string& views_path, const std::string& name);
 std::string views_file_path(const std::string& views_path);
 
 /// A warning (one line, without "warning: ") when the views file at `views_path` names a model
-/// ("model" key) and none of `files`, the mesh files of the scene rendered with its view
-/// `view`, is that model: the camera was placed for another one. A file counts as the model
+/// ("model" key) and none of `files`, the mesh files of the scene rendered with a camera of it,
+/// is that model: the camera was placed for another one. `label` says what took the camera
+/// ("--view A", "--frames views:all") and starts the message. A file counts as the model
 /// when its name starts with the model's name less its extensions, so that
 /// dragon_vrip_res4.ply.gz matches dragon_vrip.ply; `scene` names what is rendered in the
 /// message. "" when it matches or the file names no model.
 std::string view_model_warning(const std::string& views_path, const ViewSet& set,
-                               const std::string& view, const std::string& scene,
+                               const std::string& label, const std::string& scene,
                                const std::vector<std::string>& files);
 
 /// Finds a file kdtrace ships under assets/: in $KDT_ASSETS_DIR, ./assets, then relative to the

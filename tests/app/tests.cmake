@@ -512,6 +512,34 @@ add_test(NAME smoke.view_of_its_model COMMAND sh -c "cp /usr/share/assimp/models
 --width 8 --height 6 --quiet -o \"$1/view_dragon.png\" 2>&1" ${_kdt} ${_tmp})
 set_tests_properties(smoke.view_of_its_model PROPERTIES PASS_REGULAR_EXPRESSION "-> "
   FAIL_REGULAR_EXPRESSION "warning")
+# The same warning wherever the views file's cameras are used: --frames views:... (once per
+# scene, not per frame), --view with a turntable, bench converge --view.
+set(_view_warning "the views file [^\n]*dragon.json places its cameras for stanford-dragon/dragon_vrip.ply, not for [^\n]*cube.ply; the view may not frame it")
+foreach(_case "frames_views;render;--frames;views:A,B;--frames views:A,B"
+              "turntable;render;--view;A;--view A"
+              "converge;bench converge;--view;A;--view A")
+  list(GET _case 0 _id)
+  list(GET _case 1 _cmd)
+  list(GET _case 2 _flag)
+  list(GET _case 3 _value)
+  list(GET _case 4 _label)
+  separate_arguments(_cmd)
+  if(_id STREQUAL "converge")
+    set(_more --configs mis --reference-spp 1 --max-spp 1 --no-plot --no-cache
+        -o ${_tmp}/view_warning_${_id})
+  else()
+    set(_more --spp 1 --quiet -o ${_tmp}/view_warning_${_id}_%d.png)
+    if(_id STREQUAL "turntable")
+      list(APPEND _more --frames 2 --turntable)
+    endif()
+  endif()
+  add_test(NAME smoke.view_warning_${_id} COMMAND ${_kdt} ${_cmd}
+           /usr/share/assimp/models/PLY/cube.ply ${_flag} ${_value} --width 8 --height 6 ${_more})
+  # Exactly one warning: a second "places its cameras" fails the test.
+  set_tests_properties(smoke.view_warning_${_id} PROPERTIES PASS_REGULAR_EXPRESSION
+    "kdtrace: warning: ${_label}: ${_view_warning}"
+    FAIL_REGULAR_EXPRESSION "places its cameras(.|\n)*places its cameras")
+endforeach()
 
 # SIGINT/SIGTERM against a running kdtrace: the image is saved and marked interrupted, a
 # second signal quits at once, a signal while loading says nothing was written, and no
