@@ -47,7 +47,7 @@ std::string default_model() {
 // its build), every other row's tree, all kept for the interleaved timing (28.6 bytes per
 // triangle for the SAH tree of the dragon subdivided to 13.9M triangles, docs/performance.md),
 // and each Embree BVH (peak build memory 1414 MB there, 102 bytes per triangle), rounded up.
-SubdivideMemory bench_memory(const Options& opt, size_t rows) {
+SubdivideMemory bench_memory([[maybe_unused]] const Options& opt, size_t rows) {
     constexpr uint64_t kRowTreeBytes = 30, kEmbreeBytes = 110;
     SubdivideMemory m;
     m.bytes += uint64_t(rows - 1) * kRowTreeBytes;

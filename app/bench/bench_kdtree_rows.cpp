@@ -52,7 +52,8 @@ std::vector<Config> table_configs() {
     return c;
 }
 
-WorkPerRay count_work(const KdTree& tree, const std::vector<Ray>& rays, int threads) {
+WorkPerRay count_work(const KdTree& tree, const std::vector<Ray>& rays,
+                      [[maybe_unused]] int threads) {
     uint64_t nodes = 0, tests = 0;
     const int64_t n = int64_t(rays.size());
 #pragma omp parallel for schedule(dynamic, 4096) num_threads(threads) reduction(+ : nodes, tests)
