@@ -89,6 +89,14 @@ Config make_config(const std::string& name, const ConvergeArgs& a) {
 // The configurations of --configs, each made and checked before anything renders (the
 // reference alone takes minutes at the defaults).
 std::vector<Config> parse_configs(const ConvergeArgs& a) {
+    // Out of range is an error even where no configuration reads it (then it only warns).
+    FilmParams threshold;
+    threshold.adaptive_threshold = a.adaptive_threshold;
+    try {
+        validate(threshold);
+    } catch (const Error& e) {
+        throw Error(with_flags(e.what()));
+    }
     std::vector<Config> out;
     std::vector<std::string> names;
     const std::string list = a.configs + ",";

@@ -739,6 +739,11 @@ add_test(NAME smoke.bench_converge_threshold_used COMMAND ${_kdt} ${_converge_ti
          --configs mis,mis+adaptive -o ${_tmp}/bench_converge_threshold_used)
 set_tests_properties(smoke.bench_converge_threshold_used PROPERTIES
   PASS_REGULAR_EXPRESSION "mis\\+adaptive" FAIL_REGULAR_EXPRESSION "warning")
+# Out of range is refused whether or not a configuration reads it.
+add_test(NAME smoke.bench_converge_threshold_range COMMAND ${_kdt} ${_converge_tiny}
+         --configs mis --adaptive-threshold -3 -o ${_tmp}/bench_converge_threshold_range)
+set_tests_properties(smoke.bench_converge_threshold_range PROPERTIES PASS_REGULAR_EXPRESSION
+  "^kdtrace: error: film.adaptive_threshold \\(--adaptive-threshold\\) must be in \\(0, 1e\\+06\\] \\(got -3\\)\n$")
 # A list entry given twice would make two rows of the same run (bench mpi then reported a
 # "speedup" between them): refused, naming the option and the entry, before any work (FAIL on
 # the model loading, the reference rendering or the runs' header).
