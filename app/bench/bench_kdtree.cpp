@@ -105,6 +105,9 @@ Context load_context(const Options& opt) {
     std::fprintf(stderr, "loading %s\n", ctx.model.c_str());
     MeshLoadInfo info;
     auto mesh = std::make_shared<TriangleMesh>(load_mesh(ctx.model, {}, &info));
+    // A table of rates over no triangles (bytes per triangle "inf") measures nothing.
+    if (mesh->triangle_count() == 0)
+        throw Error(ErrorLocation{ctx.model}, "no faces (a point cloud?): nothing to benchmark");
     mesh->normals.clear();
     mesh->colors.clear();
     ctx.model_key = ctx.model;

@@ -739,6 +739,12 @@ add_test(NAME smoke.bench_converge_threshold_used COMMAND ${_kdt} ${_converge_ti
          --configs mis,mis+adaptive -o ${_tmp}/bench_converge_threshold_used)
 set_tests_properties(smoke.bench_converge_threshold_used PROPERTIES
   PASS_REGULAR_EXPRESSION "mis\\+adaptive" FAIL_REGULAR_EXPRESSION "warning")
+# A model without faces gives the bench nothing to measure: an error naming it, before any row.
+add_test(NAME smoke.bench_kdtree_point_cloud COMMAND ${_kdt} bench kdtree
+         --model /usr/share/assimp/models/OBJ/point_cloud.obj --rows sah --repeat 1 --no-embree)
+set_tests_properties(smoke.bench_kdtree_point_cloud PROPERTIES PASS_REGULAR_EXPRESSION
+  "kdtrace: error: [^\n]*/point_cloud.obj: no faces \\(a point cloud\\?\\): nothing to benchmark\n$"
+  FAIL_REGULAR_EXPRESSION "row sah")
 # Out of range is refused whether or not a configuration reads it.
 add_test(NAME smoke.bench_converge_threshold_range COMMAND ${_kdt} ${_converge_tiny}
          --configs mis --adaptive-threshold -3 -o ${_tmp}/bench_converge_threshold_range)
