@@ -219,14 +219,13 @@ void warn_unused_output_flags(const CLI::App& app, const std::string& output) {
     }
 }
 
-std::string warn_view_model(const std::string& views, const std::string& label,
-                            const std::string& scene_path, const Scene& scene) {
+void warn_view_model(const std::string& views, const std::string& label,
+                     const std::string& scene_path, const Scene& scene) {
     const std::string path = views_file_path(views);
     const std::string w = view_model_warning(
         path, load_views(path), label,
         scene_path.empty() ? "the built-in default scene" : scene_path, scene_input_files(scene));
     if (!w.empty()) std::fprintf(stderr, "kdtrace: warning: %s\n", w.c_str());
-    return w;
 }
 
 void check_subdivide(uint64_t triangles, int levels, const SubdivideMemory& memory) {

@@ -96,10 +96,9 @@ struct SubdivideMemory {
 
 /// Prints view_model_warning() ("kdtrace: warning: ..." on stderr) for a camera that `label`
 /// ("--view A") took from the views file `views` ("" = the shipped one) and the scene
-/// `scene`, loaded from `scene_path` ("" = the built-in scene). Returns the warning, "" when
-/// there was none, so that a sequence can say each once.
-std::string warn_view_model(const std::string& views, const std::string& label,
-                            const std::string& scene_path, const Scene& scene);
+/// `scene`, loaded from `scene_path` ("" = the built-in scene), if there is one.
+void warn_view_model(const std::string& views, const std::string& label,
+                     const std::string& scene_path, const Scene& scene);
 
 /// Refuses --subdivide LEVELS of a mesh of `triangles` when the result would not fit in the
 /// memory available (scene_triangle_budget() at memory.bytes per triangle) or the kd-tree,
