@@ -260,8 +260,16 @@ void add_scene_options(CLI::App& app, SceneOptions& scene) {
         app.add_option("--env", scene.env_file,
                        "Environment map (.hdr, .exr, .pfm; .png as sRGB) replacing the scene's"),
         "--env");
-    // Empty is "not given" in SceneOptions; on the command line it is a mistake.
-    app.add_option("--env-mapping", scene.env_mapping, "Mapping of --env: latlong or angular")
+    // Empty is "not given" in SceneOptions; on the command line it is a mistake. The flag
+    // replaces a session's mapping, so an error about it names the flag, not the session.
+    app.add_option_function<std::string>(
+           "--env-mapping",
+           [&scene](const std::string& text) {
+               scene.env_mapping = text;
+               scene.env_mapping_from = {};
+           },
+           "Mapping of --env: latlong or angular")
+        ->type_name("TEXT")
         ->each([](const std::string& text) {
             if (text.empty())
                 throw Error("--env-mapping must be " + detail::choices_text(kEnvMappingNames) +

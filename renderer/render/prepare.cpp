@@ -33,8 +33,11 @@ Scene load_scene_with_overrides(const SceneOptions& o, const PrepareLog& log) {
         env.mapping = EnvMapping::latlong;
     }
     if (!o.env_mapping.empty()) {
-        if (env.file.empty())
-            throw Error("scene.env_mapping: the scene has no environment map to map");
+        if (env.file.empty()) {
+            const std::string what = "the scene has no environment map to map";
+            if (!o.env_mapping_from.path.empty()) throw Error(o.env_mapping_from, what);
+            throw Error("scene.env_mapping: " + what);
+        }
         env.mapping = EnvMapping(parse_name(kEnvMappingNames, o.env_mapping, "scene.env_mapping"));
     }
     if (o.env_intensity) env.intensity = *o.env_intensity;

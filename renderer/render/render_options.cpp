@@ -314,6 +314,7 @@ void scene_from_json(const json& v, SceneOptions& scene, const std::string& wher
             if (!x.is_string()) throw Error(ErrorLocation{where, pointer}, "expected a string");
             if (key == "env_mapping") {
                 scene.*text = x.get<std::string>();
+                scene.env_mapping_from = ErrorLocation{where, pointer};
             } else {
                 check_file_name(x.get<std::string>(), where, pointer);
                 scene.*text =
@@ -324,7 +325,13 @@ void scene_from_json(const json& v, SceneOptions& scene, const std::string& wher
         } else if (key == "env_intensity") {
             scene.env_intensity = number();
         } else if (key == "vfov_degrees") {
-            scene.vfov_degrees = number();
+            // In range whatever camera it replaces the angle of: refused here, with the key.
+            const float vfov = number();
+            if (!(vfov > 0.0f && vfov < 180.0f)) {
+                throw Error(ErrorLocation{where, pointer},
+                            "must be in (0, 180) degrees (got " + detail::number_text(vfov) + ")");
+            }
+            scene.vfov_degrees = vfov;
         } else if (key == "camera") {
             scene.camera = camera_from_json(x, where, pointer);
         } else if (key == "materials") {

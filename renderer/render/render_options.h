@@ -57,6 +57,10 @@ struct SceneOptions {
     /// error that their count does not match the scene's, found once the scene is loaded;
     /// an empty path when they were set otherwise (the viewer).
     ErrorLocation materials_from;
+    /// Where `env_mapping` was read (a session file and "/scene/env_mapping"), named by the
+    /// error that the scene has no environment map to map, found once the scene is loaded;
+    /// an empty path when it was set otherwise (--env-mapping, the viewer).
+    ErrorLocation env_mapping_from;
 };
 
 struct RenderOptions {

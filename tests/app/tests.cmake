@@ -449,6 +449,25 @@ add_test(NAME smoke.session_bad_key COMMAND ${_kdt} render --session ${_tmp}/ses
 file(WRITE ${_tmp}/session_bad.json "{\"trace\": {\"max_depht\": 2}}")
 set_tests_properties(smoke.session_bad_key PROPERTIES
   PASS_REGULAR_EXPRESSION "session_bad.json: /trace/max_depht: unknown key")
+# A session's env_mapping for a scene without an environment map is an error naming the
+# session and the key, under --session and --frames sessions:; --env-mapping replaces it, and
+# the error then names the flag.
+file(WRITE ${_tmp}/session_mapping.json "{\"scene\": {\"env_mapping\": \"angular\"}}")
+foreach(_case "session;--session;session_mapping.json: /scene/env_mapping: the scene has no environment map"
+              "frames;--frames;session_mapping.json: /scene/env_mapping: the scene has no environment map"
+              "flag;--env-mapping angular --session;^kdtrace: error: scene.env_mapping \\(--env-mapping\\): the scene has no")
+  list(GET _case 0 _id)
+  list(GET _case 1 _args)
+  list(GET _case 2 _why)
+  separate_arguments(_args)
+  set(_file ${_tmp}/session_mapping.json)
+  if(_id STREQUAL "frames")
+    set(_file sessions:${_file})
+  endif()
+  add_test(NAME smoke.session_mapping_${_id} COMMAND ${_kdt} render ${_args} ${_file}
+           --width 8 --height 6 --spp 1 --quiet -o ${_tmp}/session_mapping.pfm)
+  set_tests_properties(smoke.session_mapping_${_id} PROPERTIES PASS_REGULAR_EXPRESSION "${_why}")
+endforeach()
 # An adaptive budget at or below --adaptive-min-spp never adapts: a warning. An --error render
 # that stops at --max-spp first says so.
 add_test(NAME smoke.adaptive_budget_warning COMMAND ${_kdt} render --adaptive --width 8 --height 6

@@ -213,6 +213,10 @@ TEST(RenderOptions, JsonRefusesWhatItCannotHonour) {
     // Errors found after the keys are read name the file, and the JSON path where one is to
     // blame.
     EXPECT_EQ(bad(R"({"scene": {"up": [0, 0, 0]}})"), "s.json: /scene/up: up vector is zero");
+    EXPECT_EQ(bad(R"({"scene": {"vfov_degrees": 1e30}})"),
+              "s.json: /scene/vfov_degrees: must be in (0, 180) degrees (got 1e+30)");
+    EXPECT_EQ(bad(R"({"scene": {"vfov_degrees": 0}})"),
+              "s.json: /scene/vfov_degrees: must be in (0, 180) degrees (got 0)");
     const char* cam = R"({"scene": {"camera": {"eye": [0, 0, 0], "target": [0, 0, 0],
         "up": [0, 1, 0], "vfov_degrees": 40}}})";
     EXPECT_EQ(bad(cam), "s.json: /scene/camera: eye and target coincide");
@@ -282,6 +286,19 @@ TEST(RenderOptions, MaterialsReadBackAreCheckedAndReplaceTheScenes) {
     EXPECT_EQ(test::error_of_call([&] { load_scene_with_overrides(from_session.scene); }),
               "s.json: /scene/materials: " + std::to_string(n + 1) + " materials for a scene of " +
                   std::to_string(n) + " mesh instances");
+}
+
+// A session's env_mapping for a scene without an environment map, found once the scene is
+// loaded, names the session and the key; a mapping set otherwise (--env-mapping) does not.
+TEST(RenderOptions, SessionMappingWithoutAnEnvironmentMapNamesTheSession) {
+    RenderOptions o;
+    options_from_json(R"({"scene": {"env_mapping": "angular"}})", o, "s.json");
+    EXPECT_EQ(test::error_of_call([&] { load_scene_with_overrides(o.scene); }),
+              "s.json: /scene/env_mapping: the scene has no environment map to map");
+    SceneOptions flag;
+    flag.env_mapping = "angular";
+    EXPECT_EQ(test::error_of_call([&] { load_scene_with_overrides(flag); }),
+              "scene.env_mapping: the scene has no environment map to map");
 }
 
 // A scene's rotation loses its whole turns before the flag's is added: 1e20 degrees would
