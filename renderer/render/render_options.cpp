@@ -267,6 +267,25 @@ CameraDesc camera_from_json(const json& x, const std::string& where, const std::
     return c;
 }
 
+// The checks of the scene's fields without a table entry, shared by validate() and the
+// session reader (which names the JSON path): "" when valid, else why not.
+std::string env_intensity_problem(float intensity) {
+    return detail::check_number(intensity, 0.0, 3.0e38, false, false, true);
+}
+std::string env_mapping_problem(const std::string& mapping) {
+    for (const char* name : kEnvMappingNames) {
+        if (mapping == name) return "";
+    }
+    return "must be " + detail::choices_text(kEnvMappingNames) + " " + detail::got(mapping);
+}
+// Each side within its range can still make an image the film and the files cannot hold.
+std::string image_size_problem(int width, int height) {
+    const int64_t pixels = int64_t(width) * height;
+    if (pixels <= kMaxCameraPixels) return "";
+    return std::to_string(width) + "x" + std::to_string(height) + " is " + std::to_string(pixels) +
+           " pixels, more than " + std::to_string(kMaxCameraPixels);
+}
+
 // The scene group: its strings, optionals and camera here, the tabled fields by the table.
 // A file name read from a session file: relative to the session's folder, as a scene file's
 // names are to the scene's. An input file (not cache_dir, which may not exist yet) must exist
@@ -314,6 +333,8 @@ void scene_from_json(const json& v, SceneOptions& scene, const std::string& wher
             if (!x.is_string()) throw Error(ErrorLocation{where, pointer}, "expected a string");
             if (key == "env_mapping") {
                 scene.*text = x.get<std::string>();
+                if (std::string why = env_mapping_problem(scene.*text); !why.empty())
+                    throw Error(ErrorLocation{where, pointer}, why);
                 scene.env_mapping_from = ErrorLocation{where, pointer};
             } else {
                 check_file_name(x.get<std::string>(), where, pointer);
@@ -323,7 +344,10 @@ void scene_from_json(const json& v, SceneOptions& scene, const std::string& wher
         } else if (auto part = find_member(kSceneVectors, key)) {
             scene.*part = vec_from_json(x, where, pointer);
         } else if (key == "env_intensity") {
-            scene.env_intensity = number();
+            const float intensity = number();
+            if (std::string why = env_intensity_problem(intensity); !why.empty())
+                throw Error(ErrorLocation{where, pointer}, why);
+            scene.env_intensity = intensity;
         } else if (key == "vfov_degrees") {
             // In range whatever camera it replaces the angle of: refused here, with the key.
             const float vfov = number();
@@ -370,25 +394,15 @@ static_assert(kMaxCameraPixels == 134217728, "the help of --width and --height s
 
 void validate(const SceneOptions& s) {
     validate_fields(s, scene_fields(), "scene");
-    // Each side within its range can still make an image the film and the files cannot hold.
-    if (int64_t(s.width) * s.height > kMaxCameraPixels) {
-        throw Error("scene.width x scene.height: " + std::to_string(s.width) + "x" +
-                    std::to_string(s.height) + " is " +
-                    std::to_string(int64_t(s.width) * s.height) + " pixels, more than " +
-                    std::to_string(kMaxCameraPixels));
-    }
+    if (std::string why = image_size_problem(s.width, s.height); !why.empty())
+        throw Error("scene.width x scene.height: " + why);
     if (s.env_intensity) {
-        const std::string why =
-            detail::check_number(*s.env_intensity, 0.0, 3.0e38, false, false, true);
-        if (!why.empty()) detail::throw_field_error("scene", "env_intensity", why);
+        if (std::string why = env_intensity_problem(*s.env_intensity); !why.empty())
+            detail::throw_field_error("scene", "env_intensity", why);
     }
     if (!s.env_mapping.empty()) {
-        bool known = false;
-        for (const char* name : kEnvMappingNames) known |= s.env_mapping == name;
-        if (!known)
-            detail::throw_field_error("scene", "env_mapping",
-                                      "must be " + detail::choices_text(kEnvMappingNames) + " " +
-                                          detail::got(s.env_mapping));
+        if (std::string why = env_mapping_problem(s.env_mapping); !why.empty())
+            detail::throw_field_error("scene", "env_mapping", why);
     }
 }
 
@@ -491,9 +505,21 @@ void options_from_json(const std::string& text, RenderOptions& o, const std::str
     } catch (const json::exception& e) {
         throw Error(ErrorLocation{where}, std::string("bad value: ") + e.what());
     }
-    // Value errors found once every key is read (ranges, a camera that spans no frame) name
-    // `where` too: the user must know which file to fix. The camera's rules are make_camera's,
-    // which the render applies later; a 1x1 film leaves out only the image size it checks.
+    // Value errors found once every key is read name `where` and the JSON path too: the user
+    // must know which file and key to fix. The image size is the product of two keys; the
+    // ones this file gave are to blame (the others were valid before it was read).
+    if (std::string why = image_size_problem(o.scene.width, o.scene.height); !why.empty()) {
+        std::string pointers;
+        const json* scene = j.contains("scene") ? &j["scene"] : nullptr;
+        for (const char* key : {"width", "height"}) {
+            if (scene && scene->contains(key))
+                pointers += (pointers.empty() ? "/scene/" : ", /scene/") + std::string(key);
+        }
+        throw Error(ErrorLocation{where, pointers.empty() ? "/scene" : pointers}, why);
+    }
+    // Any other (validate() repeats the checks made per key above) with the file's name. The
+    // camera's rules are make_camera's, which the render applies later; a 1x1 film leaves out
+    // only the image size it checks.
     try {
         validate(o);
     } catch (const Error& e) {

@@ -225,9 +225,20 @@ TEST(RenderOptions, JsonRefusesWhatItCannotHonour) {
     EXPECT_EQ(
         bad(vfov).rfind("s.json: /scene/camera: vertical field of view must be in (0, 180)", 0), 0u)
         << bad(vfov);
-    EXPECT_EQ(bad(R"({"scene": {"width": 16384, "height": 16384}})")
-                  .rfind("s.json: scene.width x scene.height: 16384x16384", 0),
-              0u);
+    // Ranges of the scene's keys without a table entry, and the image size, by JSON path.
+    EXPECT_EQ(bad(R"({"scene": {"width": 16384, "height": 16384}})"),
+              "s.json: /scene/width, /scene/height: 16384x16384 is 268435456 pixels, more than "
+              "134217728");
+    EXPECT_EQ(bad(R"({"scene": {"env_intensity": -1}})"),
+              "s.json: /scene/env_intensity: must be in [0, 3e+38] (got -1)");
+    EXPECT_EQ(bad(R"({"scene": {"env_mapping": "polar"}})"),
+              "s.json: /scene/env_mapping: must be one of: latlong, angular (got 'polar')");
+    // Only the keys the file gave are to blame for the size.
+    RenderOptions wide;
+    wide.scene.width = 16384;
+    EXPECT_EQ(test::error_of_call(
+                  [&] { options_from_json(R"({"scene": {"height": 16384}})", wide, "s.json"); }),
+              "s.json: /scene/height: 16384x16384 is 268435456 pixels, more than 134217728");
 }
 
 }  // namespace
