@@ -272,7 +272,19 @@ void add_bench_kdtree_command(CLI::App& bench) {
                     "Vertex- and edge-aimed rays each (about 130 bytes of memory per ray)")
         ->capture_default_str()
         ->check(in_range(1, 10000000));
-    cmd->callback([] { kdtree_bench::run(opt); });
+    cmd->callback([cmd] {
+        // The robust BVH is a second Embree scene: nothing to add it to without the first.
+        if (cmd->count("--embree-robust") > 0) {
+#ifdef KDT_HAVE_EMBREE
+            const char* why = opt.embree ? nullptr : "with --no-embree";
+#else
+            const char* why = "in a build without Embree";
+#endif
+            if (why)
+                std::fprintf(stderr, "kdtrace: warning: --embree-robust has no effect %s\n", why);
+        }
+        kdtree_bench::run(opt);
+    });
 }
 
 }  // namespace kdt::app

@@ -319,6 +319,13 @@ add_test(NAME smoke.bench_kdtree_sah_depth COMMAND ${_kdt} bench kdtree
          --no-embree --no-robustness --sah-depth 8)
 set_tests_properties(smoke.bench_kdtree_sah_depth PROPERTIES
   PASS_REGULAR_EXPRESSION "\\| sah \\| sah \\| - \\| - \\| 8/8 \\|")
+# --embree-robust adds a second Embree scene: with --no-embree it has none to add, said so.
+add_test(NAME smoke.bench_kdtree_robust_without_embree COMMAND ${_kdt} bench kdtree
+         --model /usr/share/assimp/models/PLY/cube.ply
+         --views ${CMAKE_SOURCE_DIR}/assets/views/dragon.json --rows sah --repeat 1 --spp 1
+         --no-embree --no-robustness --embree-robust)
+set_tests_properties(smoke.bench_kdtree_robust_without_embree PROPERTIES
+  PASS_REGULAR_EXPRESSION "kdtrace: warning: --embree-robust has no effect with --no-embree\n")
 # On a closed model (the cube: every vertex and edge a closed fan) no aimed ray escapes.
 add_test(NAME smoke.bench_kdtree_robustness COMMAND ${_kdt} bench kdtree
          --model /usr/share/assimp/models/PLY/cube.ply
