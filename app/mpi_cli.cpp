@@ -127,8 +127,10 @@ void add_dist_options(CLI::App& app, DistArgs& a, RenderOptions& options) {
                    "0 cannot write the images), RANK:result-item|result-header|result-ids|"
                    "result-short (the worker's first result is malformed), "
                    "RANK:work-item|work-repeat|work-count|work-bytes (rank 0's first reply to "
-                   "the worker is) or RANK:options-header|options-short|options-long|"
-                   "options-huge (rank 0's options message to the worker is)");
+                   "the worker is), RANK:options-header|options-short|options-long|"
+                   "options-huge (rank 0's options message to the worker is) or "
+                   "RANK:log-header|log-short|log-long|log-huge (the worker's load log to rank "
+                   "0 is)");
 }
 
 int launcher_rank() {
@@ -648,21 +650,23 @@ void check_fault(const dist::InjectedFault& fault, const std::string& spec, int 
                     std::to_string(ranks));
     }
     const bool message = bad_message(fault.what) != dist::BadMessage::none ||
-                         bad_broadcast(fault.what) != dist::BadBroadcast::none;
+                         bad_broadcast(fault.what) != dist::BadBroadcast::none ||
+                         std::find(dist::kBadLogNames.begin() + 1, dist::kBadLogNames.end(),
+                                   fault.what) != dist::kBadLogNames.end();
     if (fault.what != "load" && fault.what != "hash" && fault.what != "write" &&
         fault.what != "stall" && fault.what != "stop" && fault.what != "interrupt" && !message) {
         throw Error("--mpi-inject " + spec + ": unknown fault '" + printable(fault.what) +
                     "' (faults: load, hash, stall, stop, interrupt, write, result-item, "
                     "result-header, result-ids, result-short, work-item, work-repeat, "
                     "work-count, work-bytes, options-header, options-short, options-long, "
-                    "options-huge)");
+                    "options-huge, log-header, log-short, log-long, log-huge)");
     }
     if (fault.what == "write" && fault.rank != 0)
         throw Error("--mpi-inject " + spec + ": only rank 0 writes images (use 0:write)");
     if (message && fault.rank == 0) {
         throw Error("--mpi-inject " + spec +
-                    ": only a worker sends results and receives work and options (rank 1 or "
-                    "above)");
+                    ": only a worker sends results and load logs and receives work and "
+                    "options (rank 1 or above)");
     }
     if ((fault.what == "stop" || fault.what == "interrupt") && fault.rank == 0) {
         throw Error("--mpi-inject " + spec + ": only a worker can " + fault.what +

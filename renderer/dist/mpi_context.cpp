@@ -29,11 +29,70 @@ namespace {
 constexpr int kTagArrived = 7;
 constexpr int kTagBroadcast = 8;  // 0 -> worker: MpiContext::broadcast()'s header and text
 constexpr int kTagFailed = 9;     // worker -> 0: the line of end_after_failure()
+constexpr int kTagLog = 10;       // worker -> 0: its load log (prepare_everywhere())
 // The longest line end_after_failure() sends, and the longest rank 0 receives.
 constexpr size_t kMaxFailureLine = 1024;
 
 // "12 bytes", for messages.
 std::string bytes_text(uint64_t n) { return std::to_string(n) + (n == 1 ? " byte" : " bytes"); }
+
+// A length-prefixed message: an 8-byte header holding the text's length, then the text (none
+// when `with_text` is false: the receiver fails on the header alone), malformed as `fault`
+// says (test only).
+constexpr size_t kHeader = sizeof(uint64_t);
+std::vector<char> framed_message(const std::string& text, bool with_text, BadBroadcast fault) {
+    uint64_t length = text.size();
+    size_t sent = with_text ? text.size() : 0;
+    if (fault == BadBroadcast::short_text) {
+        sent /= 2;
+        if (length == 0) length = 1;  // an empty text (a quiet load log) has no half to miss
+    }
+    if (fault == BadBroadcast::huge_length) length = uint64_t(1) << 60;
+    std::vector<char> m(kHeader + sent + (fault == BadBroadcast::long_text ? 8 : 0), '\0');
+    std::memcpy(m.data(), &length, kHeader);
+    if (sent > 0) std::memcpy(m.data() + kHeader, text.data(), sent);
+    if (fault == BadBroadcast::header) m.resize(kHeader - 2);
+    return m;
+}
+
+// The text of the next framed_message() from `source` with `tag`, trusting nothing in it: a
+// message over kHeader + max_text bytes is not received (nor allocated for), and one shorter
+// than its header, announcing more than max_text, or followed by a text of another length
+// than announced throws Error "<malformed><problem>". Waits as MpiContext::wait() does.
+std::string receive_framed(const MpiContext& ctx, int source, int tag, uint64_t max_text,
+                           const std::string& malformed) {
+    MPI_Status st;
+    ctx.poll_until([&] {
+        int flag = 0;
+        MPI_Iprobe(source, tag, MPI_COMM_WORLD, &flag, &st);
+        return flag != 0;
+    });
+    int count = 0;
+    MPI_Get_count(&st, MPI_BYTE, &count);
+    if (count < 0 || uint64_t(count) > kHeader + max_text) {
+        throw Error(malformed + "a message of " +
+                    (count < 0 ? std::string("unknown size") : bytes_text(uint64_t(count))) +
+                    ", more than the " + bytes_text(kHeader + max_text) + " a rank accepts");
+    }
+    std::vector<char> message(static_cast<size_t>(count));
+    MPI_Recv(message.data(), count, MPI_BYTE, source, tag, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    if (message.size() < kHeader) {
+        throw Error(malformed + bytes_text(message.size()) + ", shorter than its " +
+                    std::to_string(kHeader) + "-byte header");
+    }
+    uint64_t length = 0;
+    std::memcpy(&length, message.data(), kHeader);
+    if (length > max_text) {
+        throw Error(malformed + "its header announces " + bytes_text(length) + ", more than the " +
+                    bytes_text(max_text) + " a rank accepts");
+    }
+    const size_t follow = message.size() - kHeader;
+    if (length != follow) {
+        throw Error(malformed + "its header announces " + bytes_text(length) + ", but " +
+                    bytes_text(follow) + (follow == 1 ? " follows" : " follow") + " it");
+    }
+    return std::string(message.data() + kHeader, follow);
+}
 
 }  // namespace
 
@@ -170,7 +229,6 @@ void MpiContext::stop_watchdog() {
 }
 
 std::string MpiContext::broadcast(const std::string& text, int bad_rank, BadBroadcast bad) const {
-    constexpr size_t kHeader = sizeof(uint64_t);  // the text's length
     if (rank_ == 0) {
         // A text too long for the workers still sends its header: they fail on it and say
         // so, instead of waiting for a message that never comes.
@@ -180,15 +238,7 @@ std::string MpiContext::broadcast(const std::string& text, int bad_rank, BadBroa
         MpiBuffer<std::vector<MPI_Request>> requests(static_cast<size_t>(size_), MPI_REQUEST_NULL);
         for (int r = 1; r < size_; ++r) {
             std::vector<char>& m = (*messages)[size_t(r)];
-            uint64_t length = text.size();
-            size_t sent = fits ? text.size() : 0;
-            const BadBroadcast fault = r == bad_rank ? bad : BadBroadcast::none;
-            if (fault == BadBroadcast::short_text) sent /= 2;
-            if (fault == BadBroadcast::huge_length) length = uint64_t(1) << 60;
-            m.assign(kHeader + sent + (fault == BadBroadcast::long_text ? 8 : 0), '\0');
-            std::memcpy(m.data(), &length, kHeader);
-            if (sent > 0) std::memcpy(m.data() + kHeader, text.data(), sent);
-            if (fault == BadBroadcast::header) m.resize(kHeader - 2);
+            m = framed_message(text, fits, r == bad_rank ? bad : BadBroadcast::none);
             MPI_Isend(m.data(), int(m.size()), MPI_BYTE, r, kTagBroadcast, MPI_COMM_WORLD,
                       &(*requests)[size_t(r)]);
         }
@@ -199,41 +249,9 @@ std::string MpiContext::broadcast(const std::string& text, int bad_rank, BadBroa
         }
         return text;
     }
-    MPI_Status st;
-    poll_until([&] {
-        int flag = 0;
-        MPI_Iprobe(0, kTagBroadcast, MPI_COMM_WORLD, &flag, &st);
-        return flag != 0;
-    });
-    const std::string malformed = "the options from rank 0 are malformed: ";
-    int count = 0;
-    MPI_Get_count(&st, MPI_BYTE, &count);
-    // Rank 0 never sends more (see above): a larger message is not received, and not
-    // allocated for.
-    if (count < 0 || uint64_t(count) > kHeader + kMaxBroadcastBytes) {
-        throw Error(malformed + "a message of " +
-                    (count < 0 ? std::string("unknown size") : bytes_text(uint64_t(count))) +
-                    ", more than the " + bytes_text(kHeader + kMaxBroadcastBytes) +
-                    " a rank accepts");
-    }
-    std::vector<char> message(static_cast<size_t>(count));
-    MPI_Recv(message.data(), count, MPI_BYTE, 0, kTagBroadcast, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
-    if (message.size() < kHeader) {
-        throw Error(malformed + bytes_text(message.size()) + ", shorter than its " +
-                    std::to_string(kHeader) + "-byte header");
-    }
-    uint64_t length = 0;
-    std::memcpy(&length, message.data(), kHeader);
-    if (length > kMaxBroadcastBytes) {
-        throw Error(malformed + "its header announces " + bytes_text(length) + ", more than the " +
-                    bytes_text(kMaxBroadcastBytes) + " a rank accepts");
-    }
-    const size_t follow = message.size() - kHeader;
-    if (length != follow) {
-        throw Error(malformed + "its header announces " + bytes_text(length) + ", but " +
-                    bytes_text(follow) + (follow == 1 ? " follows" : " follow") + " it");
-    }
-    return std::string(message.data() + kHeader, follow);
+    // Rank 0 never sends more than kMaxBroadcastBytes of text (see above).
+    return receive_framed(*this, 0, kTagBroadcast, kMaxBroadcastBytes,
+                          "the options from rank 0 are malformed: ");
 }
 
 void MpiContext::check_timeout() const {
@@ -447,34 +465,46 @@ void check_every_rank(const MpiContext& ctx, const std::string& what,
 namespace {
 
 // Rank 0: every rank's lines (joined by '\n', at most kMaxLogBytes each); elsewhere empty.
+// Each worker sends rank 0 one framed_message() (malformed as `bad` says on rank `bad_rank`,
+// test only), which rank 0 checks as receive_framed() does; then, collectively, a malformed
+// one fails every rank with FarmError "rank 0 of N could not read the load logs: the load log
+// from rank R is malformed: <problem>" (the lowest such R), so that all stop with one line.
 constexpr size_t kMaxLogBytes = 8192;
-std::vector<std::string> gather_lines(const MpiContext& ctx,
-                                      const std::vector<std::string>& lines) {
-    // Buffers of the operations below: kept if a wait throws (MpiBuffer).
-    MpiBuffer<std::string> mine;
+std::vector<std::string> gather_lines(const MpiContext& ctx, const std::vector<std::string>& lines,
+                                      int bad_rank, BadBroadcast bad) {
+    std::string mine;
     for (const std::string& line : lines) {
-        if (mine->size() + line.size() + 1 > kMaxLogBytes) break;
-        *mine += line + "\n";
+        if (mine.size() + line.size() + 1 > kMaxLogBytes) break;
+        mine += line + "\n";
     }
     const bool root = ctx.rank() == 0;
-    MpiBuffer<int> size(int(mine->size()));
-    MpiBuffer<std::vector<int>> sizes(root ? size_t(ctx.size()) : 1),
-        offsets(root ? size_t(ctx.size()) : 1, 0);
-    MPI_Request request;
-    MPI_Igather(&*size, 1, MPI_INT, sizes->data(), 1, MPI_INT, 0, MPI_COMM_WORLD, &request);
-    ctx.wait(request);
-    MpiBuffer<std::string> all;
-    if (root) {
-        for (size_t r = 1; r < sizes->size(); ++r)
-            (*offsets)[r] = (*offsets)[r - 1] + (*sizes)[r - 1];
-        all->resize(size_t(offsets->back() + sizes->back()));
-    }
-    MPI_Igatherv(mine->data(), *size, MPI_CHAR, all->data(), sizes->data(), offsets->data(),
-                 MPI_CHAR, 0, MPI_COMM_WORLD, &request);
-    ctx.wait(request);
     std::vector<std::string> out;
-    for (size_t r = 0; root && r < sizes->size(); ++r)
-        out.push_back(all->substr(size_t((*offsets)[r]), size_t((*sizes)[r])));
+    std::string problem;
+    if (root) {
+        out.push_back(std::move(mine));
+        for (int r = 1; r < ctx.size(); ++r) {
+            try {
+                out.push_back(receive_framed(
+                    ctx, r, kTagLog, kMaxLogBytes,
+                    "the load log from rank " + std::to_string(r) + " is malformed: "));
+            } catch (const Error& e) {
+                out.emplace_back();
+                if (problem.empty()) problem = e.what();
+            }
+        }
+    } else {
+        // The buffer of the send below: kept if the wait throws (MpiBuffer).
+        MpiBuffer<std::vector<char>> message(
+            framed_message(mine, true, ctx.rank() == bad_rank ? bad : BadBroadcast::none));
+        MPI_Request sent = MPI_REQUEST_NULL;
+        MPI_Isend(message->data(), int(message->size()), MPI_BYTE, 0, kTagLog, MPI_COMM_WORLD,
+                  &sent);
+        ctx.wait(sent);
+    }
+    check_every_rank(ctx, "read the load logs", [&]() -> Fingerprint {
+        if (!problem.empty()) throw Error(problem);
+        return {};
+    });
     return out;
 }
 
@@ -520,7 +550,10 @@ Prepared prepare_everywhere(const MpiContext& ctx, const RenderOptions& options,
     });
     // The workers' lines that rank 0 did not say itself (a cache they could not write), once
     // per text with the ranks that said it.
-    const std::vector<std::string> all = gather_lines(ctx, lines);
+    BadBroadcast bad_log = BadBroadcast::none;
+    for (size_t i = 1; i < kBadLogNames.size(); ++i)
+        if (fault.what == kBadLogNames[i]) bad_log = BadBroadcast(i);
+    const std::vector<std::string> all = gather_lines(ctx, lines, fault.rank, bad_log);
     if (all.empty() || !log) return prep;
     std::vector<std::string> own;
     for (const std::string& line : lines) own.push_back(without_times(line));

@@ -57,13 +57,17 @@ public:
 /// kilobytes (file names, not their contents).
 inline constexpr uint64_t kMaxBroadcastBytes = uint64_t(1) << 24;
 
-/// Test-only malformed options messages (--mpi-inject RANK:options-*), one kind per check of
-/// MpiContext::broadcast(): a message shorter than its header (header), a text half as long
-/// as announced (short), 8 bytes more than announced (long), a header announcing 2^60 bytes
-/// (huge).
+/// Test-only malformed length-prefixed messages, one kind per check of their receiver: a
+/// message shorter than its header (header), a text half as long as announced (short; an
+/// empty text announced as 1 byte), 8
+/// bytes more than announced (long), a header announcing 2^60 bytes (huge). Rank 0's options
+/// message to a worker (MpiContext::broadcast(), --mpi-inject RANK:options-*) and a worker's
+/// load log to rank 0 (prepare_everywhere(), --mpi-inject RANK:log-*).
 enum class BadBroadcast { none, header, short_text, long_text, huge_length };
 inline constexpr std::array<const char*, 5> kBadBroadcastNames = {
     "none", "options-header", "options-short", "options-long", "options-huge"};
+inline constexpr std::array<const char*, 5> kBadLogNames = {"none", "log-header", "log-short",
+                                                            "log-long", "log-huge"};
 
 /// A worker failed alone after the collective checks (MpiContext::end_after_failure() on
 /// that worker), thrown by MpiContext::check_timeout() on rank 0: what() is the worker's line,
@@ -218,7 +222,12 @@ void check_every_rank(const MpiContext& ctx, const std::string& what,
 /// names the part and the odd ranks. No rank renders before every rank has loaded. `log` is
 /// called on every rank with its own lines; after a good load rank 0's `log` also gets, once
 /// per text, the workers' lines it did not say itself (times left aside), prefixed with the
-/// ranks ("rank 1 of 3: kd-tree cache: cannot write to ...").
+/// ranks ("rank 1 of 3: kd-tree cache: cannot write to ..."). Rank 0 trusts nothing in a
+/// worker's log message (its size and header are checked before anything is allocated from
+/// them, as MpiContext::broadcast() checks the options): a malformed one makes every rank
+/// throw FarmError "rank 0 of N could not read the load logs: the load log from rank R is
+/// malformed: <problem>". Test-only: fault.what "log-header", "log-short", "log-long" or
+/// "log-huge" (kBadLogNames) malforms rank fault.rank's log message.
 Prepared prepare_everywhere(const MpiContext& ctx, const RenderOptions& options,
                             const PrepareLog& log, const InjectedFault& fault = {});
 

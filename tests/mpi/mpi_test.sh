@@ -246,6 +246,35 @@ bad_options)
     n=$(sed -n 's/.*announces \([0-9]*\) bytes, but \([0-9]*\) bytes follow.*/\1 \2/p' <<< "$out")
     [ -n "$n" ] && [ $((${n#* } - ${n% *})) -eq 8 ] || { echo "$out"; fail "options-long: not 8 bytes more"; }
     echo "ok: malformed options messages end the job with one error naming the rank" ;;
+bad_log)
+    # Rank 2's load log to rank 0 is malformed (a test fault, --mpi-inject 2:log-*): shorter
+    # than its header, a text shorter or longer than its header announces, an absurd
+    # announced length. Rank 0 checks it before it trusts or allocates anything, and every
+    # rank stops with one error line naming rank 2: status 1, no crash, no image, no hang.
+    malformed="rank 0 of 3 could not read the load logs: the load log from rank 2 is malformed"
+    for t in "log-header:6 bytes, shorter than its 8-byte header" \
+        "log-short:its header announces [0-9]* bytes*, but [0-9]* bytes follow it" \
+        "log-long:its header announces [0-9]* bytes, but [0-9]* bytes follow it" \
+        "log-huge:its header announces 1152921504606846976 bytes, more than the 8192 bytes a rank accepts"; do
+        rm -f x.pfm
+        out=$(mpi 3 "${common[@]}" --mpi --timeout 30 --mpi-inject "2:${t%%:*}" -o x.pfm 2>&1); rc=$?
+        echo "$out"
+        [ $rc -eq 1 ] || fail "${t%%:*}: exit status $rc, not 1"
+        grep -q "exited on signal\|Segmentation\|terminate called" <<< "$out" && fail "${t%%:*}: a rank crashed"
+        [ "$(grep -c 'kdtrace: error:' <<< "$out")" -eq 1 ] || fail "${t%%:*}: not exactly one error line"
+        grep -q "^kdtrace: error: $malformed: ${t#*:}$" <<< "$out" || fail "${t%%:*}: no error line naming rank 2"
+        grep -q "interrupted\|timeout" <<< "$out" && fail "${t%%:*}: an interrupt or timeout was reported"
+        [ -e x.pfm ] && fail "${t%%:*}: an image was written"
+    done
+    # The short and long texts differ from the announced length by what the fault says; the
+    # log is not empty (the load says what it did), so half of it is another length.
+    out=$(mpi 2 "${common[@]}" --mpi --mpi-inject 1:log-long -o x.pfm 2>&1)
+    n=$(sed -n 's/.*announces \([0-9]*\) bytes, but \([0-9]*\) bytes follow.*/\1 \2/p' <<< "$out")
+    [ -n "$n" ] && [ $((${n#* } - ${n% *})) -eq 8 ] || { echo "$out"; fail "log-long: not 8 bytes more"; }
+    # Rank 0 sends no log: the fault is refused there.
+    out=$(mpi 2 "${common[@]}" --mpi --mpi-inject 0:log-short -o x.pfm 2>&1)
+    grep -q "only a worker sends results and load logs" <<< "$out" || { echo "$out"; fail "0:log-short accepted"; }
+    echo "ok: malformed load logs end the job with one error naming the rank" ;;
 timeout_stall)
     # A rank whose load never ends (a test fault, not timing): the others time out in the
     # load check and the job ends with rank 0's message and status 1, not a crash in
