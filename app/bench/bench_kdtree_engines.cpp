@@ -265,6 +265,21 @@ void time_engines(const Context& ctx, const RaySets& rays, const LeafPaths& path
     const int threads = ctx.threads;
     const std::vector<Ray>& primary = rays.primary;
     const std::vector<Ray>& diffuse = rays.diffuse;
+    // A batch engine's three timings: the primary rays in chunks, the diffuse rays in 16x16
+    // tile batches (tiled) or in chunks of their own order. The queries stay template
+    // arguments, so that the timed loops make no indirect call per ray.
+    const auto time_batches = [&](Engine& e, const auto& intersect, const auto& occluded) {
+        e.primary_s.push_back(trace_closest_batch(primary, e.primary_hits, threads, intersect));
+        if (e.tiled) {
+            e.diffuse_s.push_back(trace_tiles_closest(tiles, e.diffuse_hits, threads, intersect));
+            e.shadow_s.push_back(
+                trace_tiles_occluded(tiles, threads, occluded, &e.diffuse_occluded));
+        } else {
+            e.diffuse_s.push_back(trace_closest_batch(diffuse, e.diffuse_hits, threads, intersect));
+            e.shadow_s.push_back(
+                trace_occluded_batch(diffuse, threads, occluded, &e.diffuse_occluded));
+        }
+    };
     for (int k = 0; k < ctx.repeat; ++k) {
         for (Engine& e : engines) {
             if (e.from_leaf) {
@@ -291,35 +306,24 @@ void time_engines(const Context& ctx, const RaySets& rays, const LeafPaths& path
             if (e.tiled && e.partition_min_rays > 0) {
                 const KdTree& t = *e.tree;
                 const int m = e.partition_min_rays;
-                e.primary_s.push_back(trace_closest_batch(
-                    primary, e.primary_hits, threads, [&](const Ray* r, size_t n, Hit* h) {
+                time_batches(
+                    e,
+                    [&](const Ray* r, size_t n, Hit* h) {
                         intersect_partition(t, r, n, h, nullptr, m);
-                    }));
-                e.diffuse_s.push_back(trace_tiles_closest(
-                    tiles, e.diffuse_hits, threads, [&](const Ray* r, size_t n, Hit* h) {
-                        intersect_partition(t, r, n, h, nullptr, m);
-                    }));
-                e.shadow_s.push_back(trace_tiles_occluded(
-                    tiles, threads,
+                    },
                     [&](const Ray* r, size_t n, uint8_t* o) {
                         occluded_partition(t, r, n, o, nullptr, m);
-                    },
-                    &e.diffuse_occluded));
+                    });
                 continue;
             }
-            if (e.tiled && e.stream_lanes > 0) {
+            if (e.stream_lanes > 0) {
                 const KdTree& t = *e.tree;
                 const int lanes = e.stream_lanes;
-                e.primary_s.push_back(trace_closest_batch(
-                    primary, e.primary_hits, threads,
-                    [&](const Ray* r, size_t n, Hit* h) { intersect_stream(t, r, n, h, lanes); }));
-                e.diffuse_s.push_back(trace_tiles_closest(
-                    tiles, e.diffuse_hits, threads,
-                    [&](const Ray* r, size_t n, Hit* h) { intersect_stream(t, r, n, h, lanes); }));
-                e.shadow_s.push_back(trace_tiles_occluded(
-                    tiles, threads,
-                    [&](const Ray* r, size_t n, uint8_t* o) { occluded_stream(t, r, n, o, lanes); },
-                    &e.diffuse_occluded));
+                time_batches(
+                    e, [&](const Ray* r, size_t n, Hit* h) { intersect_stream(t, r, n, h, lanes); },
+                    [&](const Ray* r, size_t n, uint8_t* o) {
+                        occluded_stream(t, r, n, o, lanes);
+                    });
                 continue;
             }
             if (e.tiled) {
@@ -337,21 +341,6 @@ void time_engines(const Context& ctx, const RaySets& rays, const LeafPaths& path
                         },
                         &e.diffuse_occluded));
                 });
-                continue;
-            }
-            if (e.stream_lanes > 0) {
-                const KdTree& t = *e.tree;
-                const int lanes = e.stream_lanes;
-                e.primary_s.push_back(trace_closest_batch(
-                    primary, e.primary_hits, threads,
-                    [&](const Ray* r, size_t n, Hit* h) { intersect_stream(t, r, n, h, lanes); }));
-                e.diffuse_s.push_back(trace_closest_batch(
-                    diffuse, e.diffuse_hits, threads,
-                    [&](const Ray* r, size_t n, Hit* h) { intersect_stream(t, r, n, h, lanes); }));
-                e.shadow_s.push_back(trace_occluded_batch(
-                    diffuse, threads,
-                    [&](const Ray* r, size_t n, uint8_t* o) { occluded_stream(t, r, n, o, lanes); },
-                    &e.diffuse_occluded));
                 continue;
             }
             if (e.batch) {
