@@ -47,7 +47,10 @@ const char* find_eol(const char* p, const char* end) {
     return p;
 }
 
-// A token for messages: quoted, at most 40 bytes, through printable().
+// A token for messages: quoted, at most 40 bytes, through printable(). Not excerpt(), whose
+// "[N bytes]" would mislead here: a token longer than 40 bytes is often only the piece of it
+// read so far (a statement longer than a block, a value past 1 MiB), so N would be the
+// piece's length, not the token's.
 std::string quoted(const char* b, const char* e) {
     const std::string_view token(b, size_t(std::min<ptrdiff_t>(e - b, 40)));
     return "'" + printable(token) + (e - b > 40 ? "...'" : "'");
