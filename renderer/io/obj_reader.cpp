@@ -13,6 +13,7 @@
 
 #include "renderer/core/error.h"
 #include "renderer/core/timer.h"
+#include "renderer/geometry/polygon.h"
 #include "renderer/io/ply_simd.h"
 
 namespace kdt {
@@ -681,10 +682,12 @@ TriangleMesh ObjParser::build(MeshLoadInfo* info) {
     mesh.triangles.reserve(size_t(triangles_));
     const bool use_normals = all_normals_ && triangles_ > 0;
     std::vector<uint32_t> remap;  // file position -> vertex, without normals, when some are dropped
+    bool positions_moved = false;
     if (!use_normals) {
         // The file's vertices in file order (unused ones too), minus non-finite ones.
         if (bad_count_ == 0) {
             mesh.positions = std::move(positions_);
+            positions_moved = true;
         } else {
             remap.assign(size_t(nv), kNone);
             mesh.positions.reserve(size_t(nv - bad_count_));
@@ -727,6 +730,11 @@ TriangleMesh ObjParser::build(MeshLoadInfo* info) {
 
     uint64_t dropped = 0, degenerate = 0;
     std::vector<uint32_t> sorted;  // scratch for the degenerate test of big polygons
+    std::vector<uint32_t> corner_vertex;
+    std::vector<Vec3f> corner_pos;
+    PolygonScratch scratch;
+    // Positions by file index (idx below): moved into the mesh when kept as they are.
+    const std::vector<Vec3f>& file_positions = positions_moved ? mesh.positions : positions_;
     size_t c = 0;
     for (const uint32_t n : face_sizes_) {
         if (n == 0) {  // fewer than 3 corners, dropped
@@ -752,13 +760,33 @@ TriangleMesh ObjParser::build(MeshLoadInfo* info) {
             repeated = std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end();
         }
         degenerate += repeated;
-        const uint32_t v0 = vertex_of(c);
-        uint32_t prev = vertex_of(c + 1);
-        for (uint32_t k = 2; k < n; ++k) {
-            const uint32_t cur = vertex_of(c + k);
-            mesh.triangles.emplace_back(v0, prev, cur);
-            prev = cur;
+        if (n == 3 || (n == 4 && quad_is_convex(file_positions[idx[0]], file_positions[idx[1]],
+                                                file_positions[idx[2]], file_positions[idx[3]]))) {
+            // The fan, which is what triangulate_polygon gives these.
+            const uint32_t v0 = vertex_of(c);
+            uint32_t prev = vertex_of(c + 1);
+            for (uint32_t k = 2; k < n; ++k) {
+                const uint32_t cur = vertex_of(c + k);
+                mesh.triangles.emplace_back(v0, prev, cur);
+                prev = cur;
+            }
+            c += n;
+            continue;
         }
+        // A polygon: its corners' vertices in corner order (vertex_of numbers new ones in
+        // order of first use), then triangulate_polygon's split.
+        corner_vertex.resize(n);
+        corner_pos.resize(n);
+        for (uint32_t k = 0; k < n; ++k) {
+            corner_vertex[k] = vertex_of(c + k);
+            corner_pos[k] = file_positions[idx[k]];
+        }
+        const size_t first = mesh.triangles.size();
+        mesh.triangles.resize(first + n - 2);
+        Vec3u* t = mesh.triangles.data() + first;
+        triangulate_polygon(corner_pos, t, scratch);
+        for (uint32_t k = 0; k + 2 < n; ++k)
+            t[k] = Vec3u(corner_vertex[t[k].x], corner_vertex[t[k].y], corner_vertex[t[k].z]);
         c += n;
     }
     if (info) {

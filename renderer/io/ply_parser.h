@@ -15,6 +15,7 @@
 #include "renderer/core/huge_pages.h"
 #include "renderer/core/timer.h"
 #include "renderer/geometry/mesh.h"
+#include "renderer/geometry/polygon.h"
 #include "renderer/io/file_reader.h"
 #include "renderer/io/mesh_io.h"
 #include "renderer/io/ply_format.h"
@@ -101,6 +102,9 @@ private:
     [[gnu::noinline]] void non_finite_vertex(const Element& el, uint64_t i, const Vec3f& p);
     void emit_face(const Element& el, uint64_t i, const int64_t* idx, size_t n);
     void emit_strip(const Element& el, uint64_t i, const int64_t* idx, size_t n);
+    /// Replaces the fan of the polygon idx[0 .. n) at mesh_.triangles[first ..] by
+    /// triangulate_polygon's triangles; its vertices must have been read.
+    void triangulate_face(size_t first, const uint32_t* idx, size_t n);
     // A face lists at least three indices; a strip may hold any number. False for a shorter
     // face that drop_invalid drops (counted in dropped_faces_; the caller still reads its
     // indices, unchecked, and emits nothing); an error without drop_invalid.
@@ -167,6 +171,15 @@ private:
     uint64_t dropped_faces_ = 0, degenerate_faces_ = 0, source_faces_ = 0;
     std::vector<int64_t> poly_;    // indices of the face being read
     std::vector<int64_t> sorted_;  // scratch for the degenerate test of big polygons
+    // Polygons (4+ corners) read before the vertices are fanned, and triangulated in finish().
+    struct LatePolygon {
+        size_t first_triangle = 0, first_index = 0, corners = 0;
+    };
+    std::vector<LatePolygon> late_polygons_;
+    std::vector<uint32_t> late_indices_;
+    std::vector<uint32_t> corner_index_;  // the polygon being triangulated
+    std::vector<Vec3f> corner_pos_;
+    PolygonScratch polygon_scratch_;
     int threads_ = 1;
     std::unique_ptr<Helper> helper_;  // created by the first two-thread chunk
 };

@@ -59,8 +59,30 @@ void PlyParser::emit_face(const Element& el, uint64_t i, const int64_t* idx, siz
         degenerate = std::adjacent_find(sorted_.begin(), sorted_.end()) != sorted_.end();
     }
     degenerate_faces_ += degenerate;
+    const size_t first = mesh_.triangles.size();
     for (size_t k = 1; k + 1 < n; ++k)
         mesh_.triangles.emplace_back(uint32_t(idx[0]), uint32_t(idx[k]), uint32_t(idx[k + 1]));
+    if (n == 3) return;
+    // A polygon: its fan stands unless it is not convex, which needs its corners' positions.
+    if (n == 4 && vertices_read_) {
+        const Vec3f* p = mesh_.positions.data();
+        if (quad_is_convex(p[idx[0]], p[idx[1]], p[idx[2]], p[idx[3]])) return;
+    }
+    corner_index_.assign(idx, idx + n);
+    if (vertices_read_) {
+        triangulate_face(first, corner_index_.data(), n);
+    } else {
+        late_polygons_.push_back({first, late_indices_.size(), n});
+        late_indices_.insert(late_indices_.end(), corner_index_.begin(), corner_index_.end());
+    }
+}
+
+void PlyParser::triangulate_face(size_t first, const uint32_t* idx, size_t n) {
+    corner_pos_.resize(n);
+    for (size_t k = 0; k < n; ++k) corner_pos_[k] = mesh_.positions[idx[k]];
+    Vec3u* t = mesh_.triangles.data() + first;
+    triangulate_polygon(corner_pos_, t, polygon_scratch_);
+    for (size_t k = 0; k + 2 < n; ++k) t[k] = Vec3u(idx[t[k].x], idx[t[k].y], idx[t[k].z]);
 }
 
 // One triangle strip: triangle k of a run is (v_k, v_k+1, v_k+2), with the first two swapped
@@ -106,6 +128,13 @@ void PlyParser::emit_strip(const Element& el, uint64_t i, const int64_t* idx, si
 }
 
 void PlyParser::finish(TriangleMesh& mesh) {
+    for (const LatePolygon& p : late_polygons_) {
+        const uint32_t* idx = late_indices_.data() + p.first_index;
+        // One using a non-finite vertex is dropped below; its fan needs no better split.
+        bool bad = false;
+        for (size_t k = 0; k < p.corners && !bad_vertex_.empty(); ++k) bad |= bad_vertex_[idx[k]];
+        if (!bad) triangulate_face(p.first_triangle, idx, p.corners);
+    }
     if (bad_vertices_ == 0) return;
     // Faces read before the vertices could not see the flags: drop their triangles now.
     std::vector<Vec3u> kept;

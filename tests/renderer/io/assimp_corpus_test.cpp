@@ -116,7 +116,7 @@ TEST(AssimpCorpus, EveryPlyLoadsLikeAssimpOrIsRejectedClearly) {
         TriangleMesh mesh = load_mesh(path);
 #ifdef KDT_HAVE_ASSIMP
         // Flags 0: Assimp's PLY import as is (one vertex per face corner, polygons kept);
-        // its polygons are fanned here the way ours are.
+        // its polygons, all convex quads, are fanned here as ours are.
         const aiScene* scene = aiImportFile(path.c_str(), 0);
         ASSERT_NE(scene, nullptr) << aiGetErrorString();
         std::vector<Tri> theirs, ours;

@@ -21,6 +21,7 @@
 #include <tiny_obj_loader.h>
 
 #include "renderer/core/error.h"
+#include "renderer/geometry/polygon.h"
 #include "renderer/io/mesh_io.h"
 #include "tests/test_util.h"
 
@@ -556,8 +557,25 @@ std::vector<Tri> triangles_of(const TriangleMesh& m) {
     return out;
 }
 
+// A peer's polygon split as our reader splits it (triangulate_polygon), so that a wrong
+// corner or corner order shows as different triangles.
+void split_like_ours(const std::vector<Vec3f>& corners, std::vector<Tri>& out) {
+    std::vector<Vec3u> t(corners.size() - 2);
+    PolygonScratch scratch;
+    triangulate_polygon(corners, t.data(), scratch);
+    for (const Vec3u& k : t) out.push_back({corners[k.x], corners[k.y], corners[k.z]});
+}
+
+// Total area of the triangles.
+double area_of(const std::vector<Tri>& tris) {
+    double a = 0.0;
+    for (const Tri& t : tris)
+        a += 0.5 * glm::length(glm::cross(Vec3d(t[1]) - Vec3d(t[0]), Vec3d(t[2]) - Vec3d(t[0])));
+    return a;
+}
+
 // tinyobjloader without its triangulation (it splits quads along the shorter diagonal and
-// ear-clips bigger polygons), its polygons fanned here the way ours are, in file order.
+// ear-clips bigger polygons), its polygons split here the way ours are, in file order.
 // Empty when it cannot hold a face: it counts corners in an unsigned char.
 std::optional<std::vector<Tri>> tinyobj_triangles(const std::string& path) {
     tinyobj::ObjReaderConfig config;
@@ -579,9 +597,9 @@ std::optional<std::vector<Tri>> tinyobj_triangles(const std::string& path) {
         size_t c = 0;
         for (const unsigned char n : shape.mesh.num_face_vertices) {
             const tinyobj::index_t* idx = &shape.mesh.indices[c];
-            for (size_t k = 1; k + 1 < n; ++k)
-                out.push_back({at(idx[0].vertex_index), at(idx[k].vertex_index),
-                               at(idx[k + 1].vertex_index)});
+            std::vector<Vec3f> polygon;
+            for (size_t k = 0; k < n; ++k) polygon.push_back(at(idx[k].vertex_index));
+            if (n >= 3) split_like_ours(polygon, out);
             c += n;
         }
     }
@@ -634,7 +652,7 @@ TEST(ObjCorpus, EveryObjLoadsLikeTinyobjloaderAndAssimpOrIsRejectedClearly) {
         }
 
 #ifdef KDT_HAVE_ASSIMP
-        // Assimp (flags 0: polygons kept, fanned here): one mesh per object and material,
+        // Assimp (flags 0: polygons kept, split here): one mesh per object and material,
         // each in file order. So each of its meshes must be a subsequence of our triangles,
         // and the counts must agree.
         const aiScene* scene = aiImportFile(path.c_str(), 0);
@@ -648,9 +666,13 @@ TEST(ObjCorpus, EveryObjLoadsLikeTinyobjloaderAndAssimpOrIsRejectedClearly) {
             size_t next = 0, missing = 0;
             for (unsigned f = 0; f < am->mNumFaces; ++f) {
                 const aiFace& face = am->mFaces[f];
-                for (unsigned k = 1; k + 1 < face.mNumIndices; ++k) {
-                    const Tri t = {v(face.mIndices[0]), v(face.mIndices[k]),
-                                   v(face.mIndices[k + 1])};
+                if (face.mNumIndices < 3) continue;
+                std::vector<Vec3f> corners;
+                for (unsigned k = 0; k < face.mNumIndices; ++k)
+                    corners.push_back(v(face.mIndices[k]));
+                std::vector<Tri> split;
+                split_like_ours(corners, split);
+                for (const Tri& t : split) {
                     ++their_count;
                     while (next < ours.size() && !same_triangle(ours[next], t)) ++next;
                     if (next == ours.size())
@@ -663,6 +685,25 @@ TEST(ObjCorpus, EveryObjLoadsLikeTinyobjloaderAndAssimpOrIsRejectedClearly) {
         }
         aiReleaseImport(scene);
         EXPECT_EQ(ours.size(), their_count) << "triangle count differs from Assimp's";
+
+        // Assimp's own split (aiProcess_Triangulate) covers the same area: a fan of a
+        // concave polygon (concave_polygon.obj's keyhole 66-gon) covers more.
+        const aiScene* split = aiImportFile(path.c_str(), aiProcess_Triangulate);
+        ASSERT_NE(split, nullptr) << aiGetErrorString();
+        std::vector<Tri> theirs;
+        for (unsigned m = 0; m < split->mNumMeshes; ++m) {
+            const aiMesh* am = split->mMeshes[m];
+            auto v = [&](unsigned i) {
+                return Vec3f(am->mVertices[i].x, am->mVertices[i].y, am->mVertices[i].z);
+            };
+            for (unsigned f = 0; f < am->mNumFaces; ++f)
+                if (am->mFaces[f].mNumIndices == 3)
+                    theirs.push_back({v(am->mFaces[f].mIndices[0]), v(am->mFaces[f].mIndices[1]),
+                                      v(am->mFaces[f].mIndices[2])});
+        }
+        aiReleaseImport(split);
+        EXPECT_NEAR(area_of(ours), area_of(theirs), 1e-5 * area_of(theirs))
+            << "area differs from Assimp's triangulation";
 #endif
     }
 }
