@@ -105,6 +105,8 @@ void run_info(const InfoArgs& args) {
     const size_t rss_before = current_rss_bytes();
     TriangleMesh mesh = load_mesh(args.file, options, &info);
     const size_t peak = peak_rss_bytes();
+    for (const std::string& w : info.warnings)
+        std::fprintf(stderr, "kdtrace: warning: %s\n", w.c_str());
     const Bounds3f b = mesh.bounds();
     const double mib = 1.0 / (1024.0 * 1024.0);
     std::printf("file:        %s\n", printable(args.file).c_str());

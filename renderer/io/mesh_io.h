@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "renderer/geometry/mesh.h"
 
@@ -35,6 +36,9 @@ struct MeshLoadInfo {
     /// With drop_invalid: faces dropped for non-finite vertices or fewer than 3 indices.
     uint64_t dropped_faces = 0;
     uint64_t degenerate_faces = 0;  ///< faces with repeated indices (kept)
+    /// Problems of the file that are not errors (a PLY version other than 1.0), one line
+    /// each naming the file and where, without a "warning: " prefix.
+    std::vector<std::string> warnings;
     double seconds = 0.0;
 };
 

@@ -59,10 +59,11 @@ void PlyParser::parse_header() {
         std::string_view kw = tok[0];
         if (kw == "format") {
             if (have_format) fail_header("second format line");
-            if (tok.size() != 3 || (tok[2] != "1.0" && tok[2] != "1"))
+            if (tok.size() != 3)
                 fail_header(
                     "unknown format line '" + excerpt(std::string_view(b, size_t(e - b))) +
                     "' (expected 'format ascii|binary_little_endian|binary_big_endian 1.0')");
+            check_version(tok[2]);
             if (tok[1] == "ascii")
                 encoding_ = PlyEncoding::ascii;
             else if (tok[1] == "binary_little_endian")
@@ -138,6 +139,25 @@ void PlyParser::parse_header() {
     swap_ = encoding_ == PlyEncoding::binary_big_endian;
     data_offset_ = in_.offset();
     header_lines_ = line_;
+}
+
+// Only version 1.0 is specified. Writers that say 1.1 and the like (Assimp reads them) write
+// the same layout, so any 1.x is read as 1.0, with a warning; another major is refused.
+void PlyParser::check_version(std::string_view v) {
+    if (v == "1" || v == "1.0") return;
+    bool minor = v.size() > 2 && v.substr(0, 2) == "1.";
+    for (size_t k = 2; k < v.size() && minor; ++k) minor = is_digit(v[k]);
+    if (!minor)
+        fail_header("PLY version '" + excerpt(v) +
+                    "' is not supported (versions 1.x are read, as 1.0)");
+    if (v.find_first_not_of('0', 2) == std::string_view::npos) return;  // 1.00
+    ErrorLocation w;
+    w.path = reader_.path();
+    w.element = "header";
+    w.line = line_;
+    warnings_.push_back(
+        Error(w, "format version " + excerpt(v) + ": only PLY 1.0 is specified; read as 1.0")
+            .what());
 }
 
 void PlyParser::plan_elements() {

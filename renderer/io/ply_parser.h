@@ -8,6 +8,7 @@
 #include <memory>
 #include <new>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -63,6 +64,7 @@ private:
     }
 
     void parse_header();
+    void check_version(std::string_view version);
     void plan_elements();
     void check_counts();
     uint64_t min_record_bytes(const Element& el, bool full_faces) const;
@@ -182,6 +184,8 @@ private:
     PolygonScratch polygon_scratch_;
     int threads_ = 1;
     std::unique_ptr<Helper> helper_;  // created by the first two-thread chunk
+
+    std::vector<std::string> warnings_;  // for MeshLoadInfo::warnings
 };
 
 inline void PlyParser::store_vertex(const Element& el, uint64_t i, const float* v) {

@@ -321,6 +321,7 @@ void PlyParser::report(MeshLoadInfo* info, const Timer& timer) const {
     info->source_faces = source_faces_;
     info->dropped_faces = dropped_faces_;
     info->degenerate_faces = degenerate_faces_;
+    info->warnings = warnings_;
     info->seconds = timer.seconds();
 }
 

@@ -223,6 +223,7 @@ TriangleMesh load_model(const std::string& file, const SceneLoadOptions& options
     MeshLoadInfo& info = load_info ? *load_info : local;
     TriangleMesh mesh = load_mesh(file, mo, &info);
     const std::string name = printable(file);
+    for (const std::string& w : info.warnings) say_warning(options, "warning: " + w);
     if (info.dropped_faces > 0) {
         say_warning(options, "warning: " + name + ": --drop-invalid dropped " +
                                  std::to_string(info.dropped_faces) +

@@ -153,8 +153,15 @@ TEST(PlyReaderErrors, HeaderErrors) {
     };
     EXPECT_ERROR(with("format ascii 1.0", "format ebcdic 1.0"),
                  "line 2: header: unknown format 'ebcdic'");
-    EXPECT_ERROR(with("format ascii 1.0", "format ascii 2.0"),
-                 "line 2: header: unknown format line 'format ascii 2.0'");
+    for (const char* version : {"2.0", "2", "0.9", "1.x", "1.", "1.1a", "10.0", "v1.0"}) {
+        EXPECT_ERROR(with("format ascii 1.0", std::string("format ascii ") + version),
+                     std::string("test.ply: line 2: header: PLY version '") + version +
+                         "' is not supported (versions 1.x are read, as 1.0)");
+        EXPECT_ERROR(with("format ascii 1.0", std::string("format binary_big_endian ") + version),
+                     std::string("PLY version '") + version + "' is not supported");
+    }
+    EXPECT_ERROR(with("format ascii 1.0", "format ascii 1.0 extra"),
+                 "line 2: header: unknown format line 'format ascii 1.0 extra'");
     EXPECT_ERROR(with("format ascii 1.0\n", ""), "missing format line");
     EXPECT_ERROR(with("end_header\n", ""), "missing end_header");
     EXPECT_ERROR(with("ply\n", "plx\n"), "line 1: header: not a PLY file");

@@ -41,6 +41,45 @@ TEST(PlyReader, AsciiQuadTriangulatedAsFan) {
     EXPECT_TRUE(m.colors.empty());
 }
 
+TEST(PlyReader, AnyVersionOneIsReadWithAWarning) {
+    const TriangleMesh want = load(kCubeAscii);
+    auto with_version = [](const std::string& text, const std::string& version) {
+        std::string t = text;
+        const size_t at = t.find(" 1.0\n");
+        return t.replace(at + 1, 3, version);
+    };
+    // The cube in each encoding, through our writer's layout: vertices, then faces.
+    Bytes le, be;
+    be.big = true;
+    for (Bytes* b : {&le, &be}) {
+        for (const Vec3f& p : want.positions) b->put(p.x).put(p.y).put(p.z);
+        b->put(uint8_t(4)).put(0).put(1).put(2).put(3).put(uint8_t(3)).put(0).put(1).put(4);
+    }
+    std::string head = kCubeAscii;
+    head.erase(head.find("end_header\n") + 11);
+    const std::string files[] = {
+        kCubeAscii,
+        std::string(head).replace(head.find("ascii"), 5, "binary_little_endian") + le.s,
+        std::string(head).replace(head.find("ascii"), 5, "binary_big_endian") + be.s,
+    };
+    for (const std::string& text : files) {
+        for (const char* version : {"1.1", "1.2", "1.10"}) {
+            SCOPED_TRACE(version);
+            MeshLoadInfo info;
+            test::expect_same_mesh(load(with_version(text, version), {}, &info), want);
+            ASSERT_EQ(info.warnings.size(), 1u);
+            EXPECT_EQ(info.warnings[0], std::string("test.ply: line 2: header: format version ") +
+                                            version + ": only PLY 1.0 is specified; read as 1.0");
+        }
+        for (const char* version : {"1.0", "1", "1.00"}) {
+            SCOPED_TRACE(version);
+            MeshLoadInfo info;
+            test::expect_same_mesh(load(with_version(text, version), {}, &info), want);
+            EXPECT_TRUE(info.warnings.empty());
+        }
+    }
+}
+
 TEST(PlyReader, CrlfHeaderAndDataAndBlankLines) {
     std::string t = kCubeAscii;
     std::string crlf;
