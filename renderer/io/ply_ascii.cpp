@@ -485,8 +485,17 @@ void PlyParser::read_ascii_line(Element& el, uint64_t i, float* v) {
                             " vertex indices");
             int64_t x = 0;
             const char* s = p;
-            if (parse_int(p, e, x) != IntResult::ok)
-                fail_at(el, i, "invalid vertex index '" + token_text(s, e) + "'");
+            if (is_integer(prop.type)) {
+                if (parse_int(p, e, x) != IntResult::ok)
+                    fail_at(el, i, "invalid vertex index '" + token_text(s, e) + "'");
+            } else {
+                // Read as a double whatever the item type, so an integer written out in full
+                // is that integer even past float's 2^24.
+                double d = 0;
+                if (!parse_real(p, e, d))
+                    fail_at(el, i, "invalid vertex index '" + token_text(s, e) + "'");
+                x = real_index(el, i, d, token_text(s, e));
+            }
             poly_.push_back(x);
         }
         have_face = true;

@@ -2,6 +2,8 @@
 // any other record property by property.
 #include <algorithm>
 #include <bit>
+#include <charconv>
+#include <string>
 #include <vector>
 
 #include "renderer/io/ply_binary_decode.h"
@@ -74,6 +76,25 @@ void PlyParser::read_binary_vertices_fixed(Element& el) {
     }
 }
 
+// Index `p` of record i of el, of item type t: integer types as they are, float and double
+// through real_index (the value named as the shortest text that reads back to it).
+template <bool Swap>
+int64_t PlyParser::load_index(const Element& el, uint64_t i, const char* p, PlyType t) const {
+    if (is_integer(t)) return load_int<Swap>(p, t);
+    char text[32];
+    std::to_chars_result r;
+    double x;
+    if (t == PlyType::f32) {
+        const float f = std::bit_cast<float>(load_uint<Swap, uint32_t>(p));
+        r = std::to_chars(text, text + sizeof(text), f);
+        x = double(f);
+    } else {
+        x = std::bit_cast<double>(load_uint<Swap, uint64_t>(p));
+        r = std::to_chars(text, text + sizeof(text), x);
+    }
+    return real_index(el, i, x, std::string(text, r.ptr));
+}
+
 // One record of any element, property by property (lists included).
 template <bool Swap>
 void PlyParser::read_binary_record(Element& el, uint64_t i) {
@@ -107,14 +128,19 @@ void PlyParser::read_binary_record(Element& el, uint64_t i) {
         if (uint64_t(count) * isz <= kBlockBytes) {
             need(el, i, size_t(count) * isz);
             const char* q = in_.pos();
-            for (int64_t k = 0; k < count; ++k)
-                poly_.push_back(load_int<Swap>(q + k * isz, p.type));
+            if (is_integer(p.type)) {
+                for (int64_t k = 0; k < count; ++k)
+                    poly_.push_back(load_int<Swap>(q + k * isz, p.type));
+            } else {
+                for (int64_t k = 0; k < count; ++k)
+                    poly_.push_back(load_index<Swap>(el, i, q + k * isz, p.type));
+            }
             in_.advance(size_t(count) * isz);
         } else {
             // A huge polygon: stream it; poly_ grows only as real data arrives.
             for (int64_t k = 0; k < count; ++k) {
                 need(el, i, isz);
-                poly_.push_back(load_int<Swap>(in_.pos(), p.type));
+                poly_.push_back(load_index<Swap>(el, i, in_.pos(), p.type));
                 in_.advance(isz);
             }
         }
@@ -183,7 +209,8 @@ void PlyParser::read_binary_element(Element& el) {
     const bool is_face = face_el_ >= 0 && &el == &elements_[size_t(face_el_)];
     if (is_vertex && !el.has_lists) {
         read_binary_vertices_fixed<Swap>(el);
-    } else if (is_face && el.props.size() == 1 && el.props[0].count_type == PlyType::u8) {
+    } else if (is_face && el.props.size() == 1 && el.props[0].count_type == PlyType::u8 &&
+               is_integer(el.props[0].type)) {
         read_binary_faces_fast<Swap>(el);
     } else if (!is_vertex && !is_face && !el.has_lists) {
         record_offset_ = in_.offset();

@@ -234,9 +234,9 @@ void PlyParser::plan_elements() {
         Element& f = elements_[size_t(k)];
         line_ = f.line;
         for (Property& p : f.props) {
+            // Float and double indices are read too (Assimp reads them), each value checked
+            // to be an integer (real_index).
             if (p.is_list() && (p.name == "vertex_indices" || p.name == "vertex_index")) {
-                if (!is_integer(p.type))
-                    fail_header(f.name + " list " + p.name + " has non-integer item type");
                 p.slot = kIndices;
                 break;
             }

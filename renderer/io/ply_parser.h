@@ -4,6 +4,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <new>
@@ -103,6 +104,20 @@ private:
     void store_vertex(const Element& el, uint64_t i, const float* v);
     [[gnu::noinline]] void non_finite_vertex(const Element& el, uint64_t i, const Vec3f& p);
     void emit_face(const Element& el, uint64_t i, const int64_t* idx, size_t n);
+    /// A vertex index stored as a float or double: an integer value is taken as it is (out of
+    /// range ones then fail as integer indices do); any other value (a fraction, NaN,
+    /// infinity) fails naming record i of el and `text`, the value as written.
+    int64_t real_index(const Element& el, uint64_t i, double x, const std::string& text) const {
+        if (!std::isfinite(x) || x != std::floor(x))
+            fail_at(el, i, "vertex index " + text + " is not an integer");
+        if (std::fabs(x) >= 0x1p62)  // beyond int64_t, and far out of range
+            fail_at(el, i,
+                    "vertex index " + text + " out of range (" + std::to_string(vertex_count_) +
+                        " vertices)");
+        return int64_t(x);
+    }
+    template <bool Swap>
+    int64_t load_index(const Element& el, uint64_t i, const char* p, PlyType t) const;
     void emit_strip(const Element& el, uint64_t i, const int64_t* idx, size_t n);
     /// Replaces the fan of the polygon idx[0 .. n) at mesh_.triangles[first ..] by
     /// triangulate_polygon's triangles; its vertices must have been read.

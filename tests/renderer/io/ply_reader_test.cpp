@@ -80,6 +80,47 @@ TEST(PlyReader, AnyVersionOneIsReadWithAWarning) {
     }
 }
 
+// The cube with its face indices stored as `type` (float or double) in the given format.
+std::string cube_with_real_indices(const std::string& format, const std::string& type,
+                                   const std::string& ascii_faces = "4 0 1 2 3\n3 0 1 4\n") {
+    std::string head = kCubeAscii;
+    head.erase(head.find("end_header\n") + 11);
+    head.replace(head.find("ascii"), 5, format);
+    head.replace(head.find("uchar int"), 9, "uchar " + type);
+    if (format == "ascii") return head + "0 0 0\n1 0 0\n1 1 0\n0 1 0\n0.5 0.5 1\n" + ascii_faces;
+    Bytes b;
+    b.big = format == "binary_big_endian";
+    const float xyz[] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 0.5f, 0.5f, 1};
+    for (float v : xyz) b.put(v);
+    const int indices[] = {0, 1, 2, 3, 0, 1, 4};
+    for (int k = 0; k < 7; ++k) {
+        if (k == 0 || k == 4) b.put(uint8_t(k == 0 ? 4 : 3));
+        if (type == "float" || type == "float32")
+            b.put(float(indices[k]));
+        else
+            b.put(double(indices[k]));
+    }
+    return head + b.s;
+}
+
+TEST(PlyReader, FloatAndDoubleFaceIndicesInEveryEncoding) {
+    const TriangleMesh want = load(kCubeAscii);
+    for (const char* format : {"ascii", "binary_little_endian", "binary_big_endian"}) {
+        for (const char* type : {"float", "double", "float32", "float64"}) {
+            SCOPED_TRACE(std::string(format) + " " + type);
+            test::expect_same_mesh(load(cube_with_real_indices(format, type)), want);
+        }
+    }
+    // Integers in any form a float list may hold them.
+    test::expect_same_mesh(
+        load(cube_with_real_indices("ascii", "float", "4 0.0 1.000 2e0 3\n3 -0 +1 0.4e1\n")), want);
+    // Past float's 2^24 an integer written out in full is that integer (read as a double).
+    const std::string big = cube_with_real_indices("ascii", "float", "4 0 1 2 3\n3 0 1 16777217\n");
+    EXPECT_NE(test::error_of(big).find("face 1: vertex index 16777217 out of range (5 vertices)"),
+              std::string::npos)
+        << test::error_of(big);
+}
+
 TEST(PlyReader, CrlfHeaderAndDataAndBlankLines) {
     std::string t = kCubeAscii;
     std::string crlf;
@@ -335,6 +376,14 @@ TEST(PlyReader, TriangleStripsInEveryEncoding) {
     const TriangleMesh u = load(unsigned_list);
     ASSERT_EQ(u.triangles.size(), expected.size());
     for (size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(u.triangles[k], expected[k]) << k;
+    // In a float list, -1.0 restarts a strip.
+    std::string float_list = strips_file(PlyEncoding::ascii);
+    float_list.replace(float_list.find("property list int int vertex_indices"), 36,
+                       "property list int float vertex_indices");
+    float_list.replace(float_list.find(" -1 "), 4, " -1.0 ");
+    const TriangleMesh fl = load(float_list);
+    ASSERT_EQ(fl.triangles.size(), expected.size());
+    for (size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(fl.triangles[k], expected[k]) << k;
     std::string no_list = strips_file(PlyEncoding::ascii);
     no_list.replace(no_list.find("property list int int vertex_indices"), 36,
                     "property list int int vertex_ids");

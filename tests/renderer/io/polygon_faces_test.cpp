@@ -262,6 +262,41 @@ TEST(PolygonFaces, PlyConcavePolygonsCoverWhatAssimpCovers) {
     for (const Tri& t : theirs) b += area_z(t);
     EXPECT_NEAR(a, b, 1e-6 * b);
 }
+
+// Float and double index lists, which Assimp reads too: the same polygons, the same area.
+TEST(PolygonFaces, RealIndexListsLoadAsAssimpLoadsThem) {
+    const Model m = make_model();
+    const std::vector<Tri> want = expected(m);
+    const std::filesystem::path dir = test::temp_dir("polygon_faces_real");
+    for (const char* format : {"ascii", "binary_little_endian", "binary_big_endian"}) {
+        for (const char* type : {"float", "double"}) {
+            SCOPED_TRACE(std::string(format) + " " + type);
+            const std::string path =
+                test::write_text(dir, "real.ply", ply_text(m, format, type, false));
+            const std::vector<Tri> ours = triangles_of(load_mesh(path));
+            EXPECT_EQ(ours, want);
+            const aiScene* scene = aiImportFile(path.c_str(), aiProcess_Triangulate);
+            ASSERT_NE(scene, nullptr) << aiGetErrorString();
+            double theirs = 0.0;
+            for (unsigned k = 0; k < scene->mNumMeshes; ++k) {
+                const aiMesh* am = scene->mMeshes[k];
+                auto v = [&](unsigned i) {
+                    return Vec3f(am->mVertices[i].x, am->mVertices[i].y, am->mVertices[i].z);
+                };
+                for (unsigned f = 0; f < am->mNumFaces; ++f) {
+                    const unsigned* i = am->mFaces[f].mIndices;
+                    if (am->mFaces[f].mNumIndices == 3)
+                        theirs += area_z({v(i[0]), v(i[1]), v(i[2])});
+                }
+            }
+            aiReleaseImport(scene);
+            double a = 0.0;
+            for (const Tri& t : ours) a += area_z(t);
+            EXPECT_NEAR(a, theirs, 1e-6 * theirs);
+        }
+    }
+    std::filesystem::remove_all(dir);
+}
 #endif
 
 }  // namespace
