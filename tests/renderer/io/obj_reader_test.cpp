@@ -566,8 +566,8 @@ void split_like_ours(const std::vector<Vec3f>& corners, std::vector<Tri>& out) {
     for (const Vec3u& k : t) out.push_back({corners[k.x], corners[k.y], corners[k.z]});
 }
 
-// Total area of the triangles.
-double area_of(const std::vector<Tri>& tris) {
+// Total area of the triangles (used by the Assimp comparison only).
+[[maybe_unused]] double area_of(const std::vector<Tri>& tris) {
     double a = 0.0;
     for (const Tri& t : tris)
         a += 0.5 * glm::length(glm::cross(Vec3d(t[1]) - Vec3d(t[0]), Vec3d(t[2]) - Vec3d(t[0])));
