@@ -476,6 +476,7 @@ std::shared_ptr<const RenderSnapshot> frame_snapshot(const SceneGroups& g,
     const FramePlan& f = frames[i];
     const RenderSnapshot& base = *g.prepared[g.of_frame[i]].snapshot;
     const SceneOptions& o = f.options.scene;
+    check_session_camera(base.camera_desc, o);
     CameraDesc c = with_camera_overrides(base.camera_desc, o);
     if (f.turns > 0) c = turntable_camera(c, f.turn, f.turns);
     // A copy shares the mesh, tree and environment; only the camera changes.

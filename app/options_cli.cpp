@@ -403,8 +403,37 @@ std::string with_flags(const std::string& message) {
     return m;
 }
 
+namespace {
+
+// check_session_camera()'s message with the flags it names spelled as given: "eye from
+// --eye" becomes "eye from --eye 1,2,3", "up from the view" "up from --view A".
+std::string with_camera_flag_values(const CLI::App& app, const std::string& message) {
+    std::string m = message;
+    const CLI::Option* view = app.get_option_no_throw("--view");
+    for (const char* part : {"eye", "target", "up"}) {
+        const std::string flag = std::string("--") + part;
+        const CLI::Option* opt = app.get_option_no_throw(flag);
+        std::vector<std::pair<std::string, std::string>> spelled;
+        if (opt && opt->count() > 0)
+            spelled.emplace_back(flag, flag + " " + excerpt(opt->results().back()));
+        if (view && view->count() > 0)
+            spelled.emplace_back("the view", "--view " + excerpt(view->results().back()));
+        for (const auto& [said, given] : spelled) {
+            const std::string from = std::string(part) + " from " + said;
+            for (size_t at = m.find(from); at != std::string::npos; at = m.find(from, at + 1)) {
+                const size_t end = at + from.size();
+                if (end < m.size() && m[end] != ',' && m[end] != ')') continue;
+                m.replace(at, from.size(), std::string(part) + " from " + given);
+            }
+        }
+    }
+    return m;
+}
+
+}  // namespace
+
 std::string with_camera_flags(const CLI::App& app, const std::string& message) {
-    if (message.rfind("camera: ", 0) != 0) return message;
+    if (message.rfind("camera: ", 0) != 0) return with_camera_flag_values(app, message);
     if (message.find("eye") == std::string::npos && message.find("target") == std::string::npos &&
         message.find("up vector") == std::string::npos && message.find("up (") == std::string::npos)
         return message;  // the image size or the field of view: named by their own checks

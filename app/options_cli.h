@@ -114,7 +114,9 @@ void subdivide_model(const std::string& model, TriangleMesh& mesh, int levels,
 
 /// A camera error ("camera: up vector is zero") followed by the camera flags given on `app`'s
 /// command line, and where the other parts came from: "camera: up vector is parallel to the
-/// viewing direction (--eye 0,0,0 with the scene's target and up)". Other messages unchanged.
+/// viewing direction (--eye 0,0,0 with the scene's target and up)". A session file's camera
+/// error (check_session_camera()) gets the values of the flags it names: "target from --target
+/// 1,2,3", "up from --view A". Other messages unchanged.
 std::string with_camera_flags(const CLI::App& app, const std::string& message);
 
 /// Whether a line of prepare_render()'s log (or a worker's, "ranks 1, 2 of 3: ...") is a

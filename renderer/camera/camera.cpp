@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <string>
+#include <tuple>
 
 #include "renderer/core/error.h"
 
@@ -15,10 +16,40 @@ float sample_tent(float u) {
     return 1.0f - std::sqrt(2.0f - 2.0f * u);
 }
 
+// Directions are scaled by their largest component before normalizing, so that the squares
+// in the length neither overflow nor underflow for huge or tiny scenes.
+Vec3f unit_vector(const Vec3f& v) {
+    const float m = std::max(std::fabs(v.x), std::max(std::fabs(v.y), std::fabs(v.z)));
+    return m > 0.0f ? glm::normalize(v / m) : Vec3f(0.0f);
+}
+
 }  // namespace
 
 Vec2f sample_tent_filter(const Vec2f& u) {
     return {0.5f + sample_tent(u.x), 0.5f + sample_tent(u.y)};
+}
+
+CameraFrameProblem camera_frame_problem(const Vec3f& eye, const Vec3f& target, const Vec3f& up) {
+    // Name the vector: an overflowed or NaN coordinate is not "parallel" to anything.
+    for (auto [name, v, blame] : {std::tuple{"eye", eye, &CameraFrameProblem::eye},
+                                  std::tuple{"target", target, &CameraFrameProblem::target},
+                                  std::tuple{"up", up, &CameraFrameProblem::up}}) {
+        if (is_finite(v)) continue;
+        CameraFrameProblem p{std::string(name) + " (" + std::to_string(v.x) + ", " +
+                             std::to_string(v.y) + ", " + std::to_string(v.z) +
+                             ") is not finite (infinite, NaN or overflowed float)"};
+        p.*blame = true;
+        return p;
+    }
+    const Vec3f view = target - eye;
+    if (!is_finite(view)) {
+        return {"eye and target are too far apart: their difference overflows float", true, true};
+    }
+    if (view == Vec3f(0.0f)) return {"eye and target coincide", true, true};
+    if (up == Vec3f(0.0f)) return {"up vector is zero", false, false, true};
+    if (!(glm::length(glm::cross(unit_vector(view), unit_vector(up))) > 1e-6f))
+        return {"up vector is parallel to the viewing direction", true, true, true};
+    return {};
 }
 
 Camera make_camera(const Vec3f& eye, const Vec3f& target, const Vec3f& up, float vfov_degrees,
@@ -38,35 +69,12 @@ Camera make_camera(const Vec3f& eye, const Vec3f& target, const Vec3f& up, float
         throw Error("camera: vertical field of view must be in (0, 180) degrees (got " +
                     std::to_string(vfov_degrees) + ")");
     }
-    // Name the vector: an overflowed or NaN coordinate is not "parallel" to anything.
-    auto check_finite = [](const char* name, const Vec3f& v) {
-        if (is_finite(v)) return;
-        throw Error(std::string("camera: ") + name + " (" + std::to_string(v.x) + ", " +
-                    std::to_string(v.y) + ", " + std::to_string(v.z) +
-                    ") is not finite (infinite, NaN or overflowed float)");
-    };
-    check_finite("eye", eye);
-    check_finite("target", target);
-    check_finite("up", up);
-    // Directions are scaled by their largest component before normalizing, so that the
-    // squares in the length neither overflow nor underflow for huge or tiny scenes.
-    auto unit = [](const Vec3f& v) {
-        const float m = std::max(std::fabs(v.x), std::max(std::fabs(v.y), std::fabs(v.z)));
-        return m > 0.0f ? glm::normalize(v / m) : Vec3f(0.0f);
-    };
-    const Vec3f view = target - eye;
-    if (!is_finite(view)) {
-        throw Error("camera: eye and target are too far apart: their difference overflows float");
-    }
-    if (view == Vec3f(0.0f)) throw Error("camera: eye and target coincide");
-    if (up == Vec3f(0.0f)) throw Error("camera: up vector is zero");
+    if (CameraFrameProblem p = camera_frame_problem(eye, target, up); !p.why.empty())
+        throw Error("camera: " + p.why);
     Camera c;
     c.eye = eye;
-    c.forward = unit(view);
-    const Vec3f r = glm::cross(c.forward, unit(up));
-    if (!(glm::length(r) > 1e-6f)) {
-        throw Error("camera: up vector is parallel to the viewing direction");
-    }
+    c.forward = unit_vector(target - eye);
+    const Vec3f r = glm::cross(c.forward, unit_vector(up));
     c.right = glm::normalize(r);
     c.up = glm::cross(c.right, c.forward);
     c.vfov_degrees = vfov_degrees;

@@ -7,6 +7,7 @@
 
 #include <array>
 #include <cstdint>
+#include <string>
 
 #include "renderer/core/math.h"
 
@@ -55,6 +56,15 @@ struct Camera {
 /// Largest image make_camera() accepts: per side, and in pixels (as image files, 2^27).
 inline constexpr int kMaxCameraSide = 65536;
 inline constexpr int64_t kMaxCameraPixels = int64_t(1) << 27;
+
+/// Why a camera cannot look from eye at target with up ("eye and target coincide"), and which
+/// of the three are to blame, so that a message can name where each came from; `why` is
+/// empty when they make a camera frame.
+struct CameraFrameProblem {
+    std::string why;
+    bool eye = false, target = false, up = false;
+};
+CameraFrameProblem camera_frame_problem(const Vec3f& eye, const Vec3f& target, const Vec3f& up);
 
 /// Builds a camera looking from eye at target. Throws kdt::Error when eye == target, up is
 /// parallel to the view direction, vfov is outside (0, 180) or the size is not positive.

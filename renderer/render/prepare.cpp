@@ -1,10 +1,14 @@
 #include "renderer/render/prepare.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "renderer/accel/kdtree_cache.h"
+#include "renderer/camera/camera.h"
 #include "renderer/core/error.h"
 #include "renderer/core/timer.h"
 #include "renderer/render/settings.h"
@@ -18,6 +22,67 @@ CameraDesc with_camera_overrides(CameraDesc c, const SceneOptions& o) {
     if (o.up) c.up = *o.up;
     if (o.vfov_degrees) c.vfov_degrees = *o.vfov_degrees;
     return c;
+}
+
+void check_session_camera(const CameraDesc& scene_camera, const SceneOptions& o) {
+    const SessionCamera& s = o.session_camera;
+    if (s.file.empty()) return;
+    const CameraDesc c = with_camera_overrides(scene_camera, o);
+    const CameraFrameProblem problem = camera_frame_problem(c.eye, c.target, c.up);
+    if (problem.why.empty()) return;
+    struct Part {
+        const char* name;
+        bool blamed;
+        std::optional<Vec3f> SceneOptions::*set;
+        std::optional<Vec3f> SessionCamera::*read;
+    };
+    const Part parts[] = {{"eye", problem.eye, &SceneOptions::eye, &SessionCamera::eye},
+                          {"target", problem.target, &SceneOptions::target, &SessionCamera::target},
+                          {"up", problem.up, &SceneOptions::up, &SessionCamera::up}};
+    const std::string scene =
+        o.scene_path.empty() ? "the built-in scene" : "the scene file " + printable(o.scene_path);
+    std::vector<std::string> keys;
+    std::vector<std::pair<std::string, std::string>> others;  // (parts, where from)
+    for (size_t i = 0; i < 3; ++i) {
+        const Part& p = parts[i];
+        if (!p.blamed) continue;
+        // Where with_camera_overrides() took the part from: its own override, else the
+        // camera that replaces the scene's, else the scene.
+        std::string key, other;
+        if (const std::optional<Vec3f>& set = o.*p.set) {
+            const std::optional<Vec3f>& read = s.*p.read;
+            if (read && *read == *set) {
+                key = "/scene/" + std::string(p.name);
+            } else {
+                other = "--" + std::string(p.name);
+            }
+        } else if (o.camera) {
+            const std::optional<CameraDesc>& read = s.camera;
+            if (read && read->eye == o.camera->eye && read->target == o.camera->target &&
+                read->up == o.camera->up) {
+                // A key the object left out is its default: the object is to blame.
+                key = s.camera_keys[i] ? "/scene/camera/" + std::string(p.name) : "/scene/camera";
+            } else {
+                other = "the view";
+            }
+        } else {
+            other = scene;
+        }
+        if (!key.empty() && std::find(keys.begin(), keys.end(), key) == keys.end())
+            keys.push_back(key);
+        if (other.empty()) continue;
+        if (!others.empty() && others.back().second == other) {
+            others.back().first += std::string(" and ") + p.name;
+        } else {
+            others.emplace_back(p.name, other);
+        }
+    }
+    if (keys.empty()) return;
+    std::string pointers, from;
+    for (const std::string& k : keys) pointers += (pointers.empty() ? "" : ", ") + k;
+    for (const auto& [names, where] : others)
+        from += (from.empty() ? " (" : ", ") + names + " from " + where;
+    throw Error(ErrorLocation{s.file, pointers}, problem.why + (from.empty() ? "" : from + ")"));
 }
 
 Scene load_scene_with_overrides(const SceneOptions& o, const PrepareLog& log) {
@@ -44,6 +109,7 @@ Scene load_scene_with_overrides(const SceneOptions& o, const PrepareLog& log) {
     // The scene's whole turns come off first (fmod is exact): a rotation of 1e20 would
     // otherwise swallow the flag's 90 in the float sum.
     env.rotation_degrees = std::fmod(env.rotation_degrees, 360.0f) + o.env_rotation_degrees;
+    check_session_camera(scene.camera, o);
     scene.camera = with_camera_overrides(scene.camera, o);
     if (!o.materials.empty()) {
         if (o.materials.size() != scene.meshes.size()) {

@@ -52,9 +52,17 @@ Prepared prepare_render(const RenderOptions& options, const PrepareLog& log = {}
 /// vfov_degrees, each when set.
 CameraDesc with_camera_overrides(CameraDesc camera, const SceneOptions& options);
 
+/// Throws the kdt::Error of a camera that `scene_camera` (the scene's) with the overrides of
+/// `options` cannot make when a part a session file gave (options.session_camera) is to
+/// blame, naming the file, its keys and where the other parts to blame came from: "s.json:
+/// /scene/eye: eye and target coincide (target from the scene file x.json)"; a part that
+/// --eye, --target or --up gave is "from --eye", one of a view's camera "from the view".
+/// Returns otherwise (make_camera() then reports any problem, without a file to name).
+void check_session_camera(const CameraDesc& scene_camera, const SceneOptions& options);
+
 /// The loaded scene with options.scene's overrides (environment file, mapping, intensity,
-/// rotation, camera) applied; no snapshot. The scene file's warnings go to `log` (empty =
-/// stderr).
+/// rotation, camera) applied, the camera after check_session_camera(); no snapshot. The scene
+/// file's warnings go to `log` (empty = stderr).
 Scene load_scene_with_overrides(const SceneOptions& options, const PrepareLog& log = {});
 
 }  // namespace kdt

@@ -307,8 +307,10 @@ std::string session_file_name(const std::string& name, const std::string& key,
     return resolved;
 }
 
+// `session`: the text is a session file's, whose camera parts are kept in
+// scene.session_camera (not rank 0's options, say, which name no file to fix).
 void scene_from_json(const json& v, SceneOptions& scene, const std::string& where,
-                     const std::string& relative_to) {
+                     const std::string& relative_to, bool session) {
     if (!v.is_object()) throw Error(ErrorLocation{where, "/scene"}, "expected an object");
     json rest = json::object();
     for (auto s = v.begin(); s != v.end(); ++s) {
@@ -371,6 +373,19 @@ void scene_from_json(const json& v, SceneOptions& scene, const std::string& wher
         }
     }
     group_from_json(rest, scene, scene_fields(), where, "scene");
+    if (session &&
+        (v.contains("camera") || v.contains("eye") || v.contains("target") || v.contains("up"))) {
+        SessionCamera& s = scene.session_camera;
+        s = SessionCamera{where};
+        if (v.contains("camera")) {
+            s.camera = scene.camera;
+            const json& c = v["camera"];
+            s.camera_keys = {c.contains("eye"), c.contains("target"), c.contains("up")};
+        }
+        if (v.contains("eye")) s.eye = scene.eye;
+        if (v.contains("target")) s.target = scene.target;
+        if (v.contains("up")) s.up = scene.up;
+    }
 }
 
 }  // namespace
@@ -475,8 +490,10 @@ std::string options_to_json(const RenderOptions& o) {
     return j.dump(-1, ' ', false, json::error_handler_t::replace);
 }
 
-void options_from_json(const std::string& text, RenderOptions& o, const std::string& where,
-                       const std::string& relative_to) {
+namespace {
+
+void read_options(const std::string& text, RenderOptions& o, const std::string& where,
+                  const std::string& relative_to, bool session) {
     json j;
     try {
         j = parse_json_without_repeats(text, where, "/");
@@ -497,7 +514,7 @@ void options_from_json(const std::string& text, RenderOptions& o, const std::str
             } else if (group == "stop") {
                 group_from_json(v, o.stop, stop_fields(), where, group);
             } else if (group == "scene") {
-                scene_from_json(v, o.scene, where, relative_to);
+                scene_from_json(v, o.scene, where, relative_to, session);
             } else {
                 throw Error(ErrorLocation{where, "/" + group}, "unknown key");
             }
@@ -543,6 +560,13 @@ void options_from_json(const std::string& text, RenderOptions& o, const std::str
     // camera they replace parts of, once the scene is known.
     if (o.scene.up && *o.scene.up == Vec3f(0.0f))
         throw Error(ErrorLocation{where, "/scene/up"}, "up vector is zero");
+}
+
+}  // namespace
+
+void options_from_json(const std::string& text, RenderOptions& o, const std::string& where,
+                       const std::string& relative_to) {
+    read_options(text, o, where, relative_to, false);
 }
 
 void make_file_names_absolute(SceneOptions& scene) {
@@ -597,10 +621,10 @@ void options_from_session_file(const std::string& path, RenderOptions& o) {
             throw Error(path + ": no kdtrace:params text in this " + kind +
                         " image (not written by kdtrace?), so it is not a session");
         }
-        return options_from_json(*params, o, path, relative_to);
+        return read_options(*params, o, path, relative_to, true);
     }
     const std::vector<uint8_t> text = read_regular_file(path, uint64_t(1) << 20, "a session file");
-    options_from_json(std::string(text.begin(), text.end()), o, path, relative_to);
+    read_options(std::string(text.begin(), text.end()), o, path, relative_to, true);
 }
 
 }  // namespace kdt

@@ -5,6 +5,7 @@
 // Depends on accel, integrator, film, scene.
 #pragma once
 
+#include <array>
 #include <optional>
 #include <span>
 #include <string>
@@ -29,6 +30,18 @@ struct StopConditions {
 
 /// Samples per pixel of a render given no stop condition.
 inline constexpr int kDefaultSpp = 16;
+
+/// The camera parts a session file gave, as read: its /scene/camera, /scene/eye, /scene/target
+/// and /scene/up, which SceneOptions also holds as `camera`, `eye`, `target` and `up`. Kept so
+/// that parts making no camera with the scene's are an error naming the file and its keys
+/// (check_session_camera()). A part counts as the session's while SceneOptions still holds
+/// the value read: one a flag or a view replaced is not the session's to answer for.
+struct SessionCamera {
+    std::string file;  ///< the session file; empty when none gave a camera part
+    std::optional<CameraDesc> camera;
+    std::array<bool, 3> camera_keys{};  ///< whether /scene/camera gave eye, target and up
+    std::optional<Vec3f> eye, target, up;
+};
 
 /// What to load and how to compile it into a snapshot (the tree's parameters are
 /// RenderOptions::tree).
@@ -61,6 +74,8 @@ struct SceneOptions {
     /// error that the scene has no environment map to map, found once the scene is loaded;
     /// an empty path when it was set otherwise (--env-mapping, the viewer).
     ErrorLocation env_mapping_from;
+    /// The camera parts of the last session file read that gave any.
+    SessionCamera session_camera;
 };
 
 struct RenderOptions {
@@ -115,7 +130,7 @@ void options_from_json(const std::string& json, RenderOptions& options,
 /// device is refused, not read), errors naming `path`. A PNG or OpenEXR file saved by kdtrace
 /// (render or view) is a session too: its `kdtrace:params` metadata is read. Relative file
 /// names resolve against the session's folder, as a scene file's do (kdtrace writes absolute
-/// ones).
+/// ones). The camera parts it gives are kept in options.scene.session_camera too.
 void options_from_session_file(const std::string& path, RenderOptions& options);
 
 }  // namespace kdt

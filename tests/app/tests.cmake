@@ -485,6 +485,29 @@ foreach(_case "session;--session;session_mapping.json: /scene/env_mapping: the s
            --width 8 --height 6 --spp 1 --quiet -o ${_tmp}/session_mapping.pfm)
   set_tests_properties(smoke.session_mapping_${_id} PROPERTIES PASS_REGULAR_EXPRESSION "${_why}")
 endforeach()
+# A session's camera part that makes no camera with the scene's (here the built-in scene,
+# which looks at 0,0.85,0) is an error naming the session and the key, under --session and
+# --frames sessions:, and where the other part came from; a flag that replaces the session's
+# part names itself.
+file(WRITE ${_tmp}/session_eye.json "{\"scene\": {\"eye\": [0, 0.85, 0]}}")
+file(WRITE ${_tmp}/session_eye_123.json "{\"scene\": {\"eye\": [1, 2, 3]}}")
+foreach(_case "session;--session;session_eye.json;error: [^\n]*session_eye.json: /scene/eye: eye and target coincide \\(target from the built-in scene\\)"
+              "frames;--frames;session_eye.json;error: [^\n]*session_eye.json: /scene/eye: eye and target coincide \\(target from the built-in scene\\)"
+              "target;--target 1,2,3 --session;session_eye_123.json;error: [^\n]*session_eye_123.json: /scene/eye: eye and target coincide \\(target from --target 1,2,3\\)"
+              "eye;--eye 0,0.85,0 --session;session_eye_123.json;error: camera: eye and target coincide \\(--eye 0,0.85,0 with the scene's target and up\\)")
+  list(GET _case 0 _id)
+  list(GET _case 1 _args)
+  list(GET _case 2 _name)
+  list(GET _case 3 _why)
+  separate_arguments(_args)
+  set(_file ${_tmp}/${_name})
+  if(_id STREQUAL "frames")
+    set(_file sessions:${_file})
+  endif()
+  add_test(NAME smoke.session_camera_${_id} COMMAND ${_kdt} render ${_args} ${_file}
+           --width 8 --height 6 --spp 1 --quiet -o ${_tmp}/session_camera.pfm)
+  set_tests_properties(smoke.session_camera_${_id} PROPERTIES PASS_REGULAR_EXPRESSION "${_why}")
+endforeach()
 # An adaptive budget at or below --adaptive-min-spp never adapts: a warning. An --error render
 # that stops at --max-spp first says so.
 add_test(NAME smoke.adaptive_budget_warning COMMAND ${_kdt} render --adaptive --width 8 --height 6

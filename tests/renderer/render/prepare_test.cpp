@@ -1,0 +1,97 @@
+// The camera a session file's parts make with the scene's: an error names the session, its
+// keys and where the other parts came from, unless a flag or a view replaced the session's.
+#include "renderer/render/prepare.h"
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "tests/test_util.h"
+
+#include "renderer/core/error.h"
+
+namespace kdt {
+namespace {
+
+struct SessionCameraTest : ::testing::Test {
+    std::filesystem::path dir = test::temp_dir("prepare_session_camera");
+    std::string file = (dir / "s.json").string();
+    CameraDesc scene;  // the scene file's camera: from (0, 0, 5) at the origin, +y up
+
+    // The options of the session `text` (a file, as --session reads it), of scene x.json.
+    SceneOptions session(const std::string& text) {
+        const std::string json = "{\"scene\": " + text + "}";
+        test::write_bytes(file, std::vector<unsigned char>(json.begin(), json.end()));
+        RenderOptions o;
+        options_from_session_file(file, o);
+        o.scene.scene_path = "x.json";
+        return o.scene;
+    }
+    std::string error(const SceneOptions& o) {
+        return test::error_of_call([&] { check_session_camera(scene, o); });
+    }
+};
+
+TEST_F(SessionCameraTest, NamesTheSessionItsKeysAndTheScenesParts) {
+    EXPECT_EQ(error(session(R"({"eye": [0, 0, 0]})")),
+              file + ": /scene/eye: eye and target coincide (target from the scene file x.json)");
+    EXPECT_EQ(error(session(R"({"up": [0, 0, -2]})")),
+              file +
+                  ": /scene/up: up vector is parallel to the viewing direction (eye and target "
+                  "from the scene file x.json)");
+    SceneOptions builtin = session(R"({"target": [0, 0, 5]})");
+    builtin.scene_path.clear();
+    EXPECT_EQ(error(builtin),
+              file + ": /scene/target: eye and target coincide (eye from the built-in scene)");
+    // The session's parts alone: every key, nothing from the scene.
+    EXPECT_EQ(error(session(R"({"camera": {"eye": [0, 5, 0], "target": [0, 0, 0],
+        "up": [0, 0, 1]}, "up": [0, 1, 0]})")),
+              file +
+                  ": /scene/camera/eye, /scene/camera/target, /scene/up: up vector is parallel "
+                  "to the viewing direction");
+    EXPECT_EQ(error(session(R"({"eye": [1, 2, 3]})")), "");
+}
+
+TEST_F(SessionCameraTest, PartsAFlagOrAViewReplacedAreNotTheSessions) {
+    // --eye replaced the session's eye: the problem is the flag's, reported by make_camera().
+    SceneOptions flag = session(R"({"eye": [1, 1, 1]})");
+    flag.eye = Vec3f(0.0f);
+    EXPECT_EQ(error(flag), "");
+    SceneOptions target = session(R"({"eye": [1, 2, 3]})");
+    target.target = Vec3f(1.0f, 2.0f, 3.0f);
+    EXPECT_EQ(error(target), file + ": /scene/eye: eye and target coincide (target from --target)");
+    SceneOptions view = session(R"({"camera": {"eye": [0, 0, 5], "target": [0, 0, 0],
+        "up": [0, 1, 0]}, "up": [0, 1, 0]})");
+    view.camera = CameraDesc{{0.0f, 5.0f, 0.0f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 40.0f};
+    EXPECT_EQ(error(view),
+              file +
+                  ": /scene/up: up vector is parallel to the viewing direction (eye and target "
+                  "from the view)");
+    // A part the session's camera object leaves out is the object's default.
+    SceneOptions up = session(R"({"camera": {"eye": [0, 0, 1], "up": [1, 0, 0]}})");
+    up.up = Vec3f(0.0f, 0.0f, 1.0f);
+    EXPECT_EQ(error(up), file +
+                             ": /scene/camera/eye, /scene/camera: up vector is parallel to the "
+                             "viewing direction (up from --up)");
+}
+
+// Options read otherwise (rank 0's, a scene's own camera) name no session: make_camera()
+// reports the problem later.
+TEST_F(SessionCameraTest, OnlySessionFilesAreNamed) {
+    RenderOptions o;
+    options_from_json(R"({"scene": {"eye": [0, 0, 0]}})", o, "rank 0's options");
+    EXPECT_EQ(error(o.scene), "");
+}
+
+// load_scene_with_overrides() checks before it applies the session's parts.
+TEST_F(SessionCameraTest, LoadingTheSceneChecks) {
+    SceneOptions o = session(R"({"eye": [0, 0.85, 0]})");
+    o.scene_path.clear();  // the built-in scene, which looks at (0, 0.85, 0)
+    EXPECT_EQ(test::error_of_call([&] { load_scene_with_overrides(o, [](const std::string&) {}); }),
+              file + ": /scene/eye: eye and target coincide (target from the built-in scene)");
+}
+
+}  // namespace
+}  // namespace kdt
