@@ -127,7 +127,9 @@ void add_dist_options(CLI::App& app, DistArgs& a, RenderOptions& options) {
                    "0 cannot write the images), RANK:result-item|result-header|result-ids|"
                    "result-short (the worker's first result is malformed), "
                    "RANK:work-item|work-repeat|work-count|work-bytes (rank 0's first reply to "
-                   "the worker is), RANK:options-header|options-short|options-long|"
+                   "the worker is), RANK:orphan (rank 0 sends the worker a malformed first "
+                   "work message, as work-item, and then stops answering), "
+                   "RANK:options-header|options-short|options-long|"
                    "options-huge (rank 0's options message to the worker is) or "
                    "RANK:log-header|log-short|log-long|log-huge (the worker's load log to rank "
                    "0 is)");
@@ -156,6 +158,20 @@ int local_ranks() {
             return int(n);
     }
     return 1;
+}
+
+// KDT_MPI_FAILURE_GRACE, for tests: how long a worker that failed alone waits for rank 0 to
+// end the job before it prints its line and ends itself (MpiContext::end_after_failure()),
+// default MpiContext::kFailureGraceSeconds.
+double failure_grace_seconds() {
+    const char* value = std::getenv("KDT_MPI_FAILURE_GRACE");
+    if (!value) return dist::MpiContext::kFailureGraceSeconds;
+    double seconds = 0.0;
+    if (!detail::parse_number(value, seconds) || !(seconds >= 0.0 && seconds <= 3600.0)) {
+        throw Error("KDT_MPI_FAILURE_GRACE must be seconds in [0, 3600] (got '" + excerpt(value) +
+                    "')");
+    }
+    return seconds;
 }
 
 // Under --mpi without --threads (or OMP_NUM_THREADS), each rank's OpenMP threads default to
@@ -655,11 +671,12 @@ void check_fault(const dist::InjectedFault& fault, const std::string& spec, int 
                          std::find(dist::kBadLogNames.begin() + 1, dist::kBadLogNames.end(),
                                    fault.what) != dist::kBadLogNames.end();
     if (fault.what != "load" && fault.what != "hash" && fault.what != "write" &&
-        fault.what != "stall" && fault.what != "stop" && fault.what != "interrupt" && !message) {
+        fault.what != "stall" && fault.what != "stop" && fault.what != "interrupt" && !message &&
+        fault.what != "orphan") {
         throw Error("--mpi-inject " + spec + ": unknown fault '" + printable(fault.what) +
                     "' (faults: load, hash, stall, stop, interrupt, write, result-item, "
                     "result-header, result-ids, result-short, work-item, work-repeat, "
-                    "work-count, work-bytes, options-header, options-short, options-long, "
+                    "work-count, work-bytes, orphan, options-header, options-short, options-long, "
                     "options-huge, log-header, log-short, log-long, log-huge)");
     }
     if (fault.what == "write" && fault.rank != 0)
@@ -668,6 +685,10 @@ void check_fault(const dist::InjectedFault& fault, const std::string& spec, int 
         throw Error("--mpi-inject " + spec +
                     ": only a worker sends results and load logs and receives work and "
                     "options (rank 1 or above)");
+    }
+    if (fault.what == "orphan" && fault.rank == 0) {
+        throw Error("--mpi-inject " + spec +
+                    ": a stuck rank 0 orphans a worker: name the worker (rank 1 or above)");
     }
     if ((fault.what == "stop" || fault.what == "interrupt") && fault.rank == 0) {
         throw Error("--mpi-inject " + spec + ": only a worker can " + fault.what +
@@ -818,6 +839,10 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
             if (fault.what == "stop") params.stop_rank = fault.rank;
             if (fault.what == "interrupt") params.interrupt_rank = fault.rank;
             params.bad_message = bad_message(fault.what);
+            if (fault.what == "orphan") {
+                params.bad_message = dist::BadMessage::work_item;
+                params.stall_after_bad_work = true;
+            }
             if (params.bad_message != dist::BadMessage::none) params.bad_message_rank = fault.rank;
         }
         return dist::Fingerprint{
@@ -938,12 +963,14 @@ void run_dist_render(const RenderOptions& options, const std::string& output, bo
             "--mpi: not started by mpirun (run it as `mpirun -np N kdtrace render ... --mpi`; "
             "without --mpi one process renders the same image)");
     }
+    const double failure_grace = failure_grace_seconds();
     if (options.trace.threads == 0) share_cores_among_ranks(quiet, launcher_rank() == 0);
     bool failed = false;
     Kept kept;  // outlives ctx, whose signal watcher reads it
     kept.sequence = !a.frames.empty();
     {
         dist::MpiContext ctx;
+        ctx.set_failure_grace_seconds(failure_grace);
         // mpirun passes a Ctrl-C on as SIGTERM and SIGKILLs the ranks 1 s later: no time to
         // finish the tiles in flight, nor always to write an image. Rank 0 says what was
         // written (a sequence's frames are written as they come) and every rank ends.

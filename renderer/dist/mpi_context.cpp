@@ -181,7 +181,7 @@ void MpiContext::end_after_failure(const std::string& line) {
         // Rank 0 ends the job once it has the line (mpirun then ends this rank). The send's
         // buffer lives until this process ends.
         const auto until =
-            std::chrono::steady_clock::now() + std::chrono::duration<double>(kFailureGraceSeconds);
+            std::chrono::steady_clock::now() + std::chrono::duration<double>(failure_grace_);
         while (std::chrono::steady_clock::now() < until) {
             int done = 0;
             if (sent != MPI_REQUEST_NULL) MPI_Test(&sent, &done, MPI_STATUS_IGNORE);

@@ -136,11 +136,15 @@ public:
     /// which prints it at its next poll (check_timeout() throws FarmRankFailed) and ends the job,
     /// so that the one line on the terminal is the cause, not rank 0's "interrupted
     /// (SIGTERM)" after mpirun ends it for this worker's exit; the worker prints `line`
-    /// itself and exits with status 1 only when it is still running kFailureGraceSeconds
+    /// itself and exits with status 1 only when it is still running failure_grace_seconds()
     /// later (rank 0 stuck). From this call on a signal ends the rank silently with status 1.
     /// Never returns; never finalizes.
     [[noreturn]] void end_after_failure(const std::string& line);
     static constexpr double kFailureGraceSeconds = 10.0;
+    /// How long end_after_failure() on a worker waits for rank 0 to end the job (default
+    /// kFailureGraceSeconds; the app lets tests shorten it, docs/mpi.md).
+    void set_failure_grace_seconds(double seconds) { failure_grace_ = seconds; }
+    double failure_grace_seconds() const { return failure_grace_; }
     /// The job ends with a failure every rank knows of (a FarmError, printed by rank 0): from
     /// this call on a signal ends the rank silently with status 1, for it is mpirun ending a
     /// rank that is still finalizing after another one exited with status 1, no interrupt.
@@ -171,6 +175,7 @@ private:
     int rank_ = 0, size_ = 1;
     std::atomic<bool> expired_{false};
     double timeout_ = 0.0;
+    double failure_grace_ = kFailureGraceSeconds;
     std::thread watchdog_;
     std::mutex mutex_;
     std::condition_variable cv_;

@@ -232,6 +232,10 @@ private:
             MPI_Send(next.data(), int(next.size()), MPI_INT, w, kTagWork, MPI_COMM_WORLD);
         }
         bad_sent_ = bad_sent_ || bad != BadMessage::none;
+        // Until mpirun ends this rank, after the worker's exit (a signal is handled by the
+        // interrupt watcher, not here).
+        while (bad != BadMessage::none && params_.stall_after_bad_work)
+            std::this_thread::sleep_for(std::chrono::seconds(1));
     }
 
     std::string bad_result(int w) const {

@@ -63,6 +63,10 @@ struct FarmParams {
     /// Test-only: the worker that sends (result_*) or receives (work_*) a malformed message.
     int bad_message_rank = -1;
     BadMessage bad_message = BadMessage::none;
+    /// Test-only: once the malformed work message (work_*) is sent, rank 0 stops answering for
+    /// good, sleeping without polling as a rank 0 stuck in a long call would, so that the
+    /// worker's failure line never reaches it (MpiContext::end_after_failure()).
+    bool stall_after_bad_work = false;
 };
 
 /// What one rank did, gathered on rank 0. idle = wall - busy.

@@ -275,6 +275,33 @@ bad_log)
     out=$(mpi 2 "${common[@]}" --mpi --mpi-inject 0:log-short -o x.pfm 2>&1)
     grep -q "only a worker sends results and load logs" <<< "$out" || { echo "$out"; fail "0:log-short accepted"; }
     echo "ok: malformed load logs end the job with one error naming the rank" ;;
+orphan)
+    # Rank 0 stuck (a test fault, --mpi-inject 1:orphan: rank 0 sends rank 1 a malformed first
+    # work message, then sleeps without polling): rank 1's failure line never reaches rank 0,
+    # so rank 1 prints it itself once KDT_MPI_FAILURE_GRACE (1 s here; 10 s by default) has
+    # passed, and exits with status 1; mpirun then ends rank 0, which reports that as an
+    # interrupt. No --timeout: the fallback alone must end the job; `timeout` ends a hang
+    # (status 124). Strips: rank 1 has its own tiles, so it is sent work whatever the timing.
+    rm -f x.pfm
+    out=$(KDT_MPI_FAILURE_GRACE=1 timeout -k 5 60 "$mpiexec" --oversubscribe --allow-run-as-root \
+        -x KDT_MPI_FAILURE_GRACE -np 2 "$kdtrace" "${common[@]}" --mpi --distribution strips \
+        --mpi-inject 1:orphan -o x.pfm 2>&1); rc=$?
+    echo "$out"
+    [ $rc -ne 124 ] && [ $rc -ne 137 ] || fail "the job hung until timeout ended it"
+    [ $rc -eq 1 ] || fail "exit status $rc, not 1"
+    grep -q "exited on signal\|Segmentation\|terminate called" <<< "$out" && fail "a rank crashed"
+    [ "$(grep -c 'kdtrace: error:' <<< "$out")" -eq 1 ] || fail "not exactly one error line"
+    grep -q "^kdtrace: error: rank 1: a work message from rank 0 is malformed: item 15 is outside \[0, 15)$" \
+        <<< "$out" || fail "no error line from rank 1"
+    grep -q "timeout" <<< "$out" && fail "a timeout was reported"
+    [ -e x.pfm ] && fail "an image was written"
+    # The grace is checked like any number; rank 0 is no worker to orphan.
+    out=$(KDT_MPI_FAILURE_GRACE=-1 mpi 2 "${common[@]}" --mpi -o x.pfm 2>&1)
+    grep -q "KDT_MPI_FAILURE_GRACE must be seconds in \[0, 3600\] (got '-1')" <<< "$out" ||
+        { echo "$out"; fail "KDT_MPI_FAILURE_GRACE=-1 accepted"; }
+    out=$(mpi 2 "${common[@]}" --mpi --mpi-inject 0:orphan -o x.pfm 2>&1)
+    grep -q "0:orphan: a stuck rank 0 orphans a worker" <<< "$out" || { echo "$out"; fail "0:orphan accepted"; }
+    echo "ok: a worker orphaned by a stuck rank 0 ends the job itself with its error" ;;
 timeout_stall)
     # A rank whose load never ends (a test fault, not timing): the others time out in the
     # load check and the job ends with rank 0's message and status 1, not a crash in

@@ -11,7 +11,7 @@ if(KDT_WITH_MPI AND EXISTS /usr/share/assimp/models/PLY/Wuson.ply)
                 bad_list stats_output timeout_stall timeout_stop rescue test_flags
                 env_mismatch bench_quote bench_no_baseline option_error interrupt
                 interrupt_worker frames_session worker_warnings bad_result bad_work bad_options
-                bad_log
+                bad_log orphan
                 frames_passes
                 threads_default frames_names)
     add_test(NAME mpi.${_case}
