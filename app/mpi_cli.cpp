@@ -122,7 +122,7 @@ void add_dist_options(CLI::App& app, DistArgs& a, RenderOptions& options) {
     app.add_option("--mpi-inject", a.inject,
                    "Test only: RANK:load (the rank cannot open the scene), RANK:hash (the "
                    "rank reports a different tree), RANK:stall (its load never ends), RANK:stop "
-                   "(a worker stops itself, SIGSTOP, before its first item), RANK:interrupt (a "
+                   "(a worker hangs, asleep for good, before its first item), RANK:interrupt (a "
                    "worker raises SIGTERM just after sending its first result), 0:write (rank "
                    "0 cannot write the images), RANK:result-item|result-header|result-ids|"
                    "result-short (the worker's first result is malformed), "

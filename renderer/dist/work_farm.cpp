@@ -443,7 +443,9 @@ RankStats run_worker(const MpiContext& ctx, int total, const FarmParams& params,
             mine.push_back(queue.front());
             queue.pop_front();
         }
-        if (ctx.rank() == params.stop_rank) std::raise(SIGSTOP);
+        // Hangs as a stuck process does, but stays killable: a rank stopped by SIGSTOP
+        // made Open MPI 4.1.4's mpirun hang or crash ending the job (docs/mpi.md).
+        while (ctx.rank() == params.stop_rank) std::this_thread::sleep_for(std::chrono::seconds(1));
         Timer t;
         const std::vector<char> bytes = render(mine, no_poll);
         throttle(ctx, params, t.seconds());

@@ -55,7 +55,7 @@ struct FarmParams {
     int batches_in_flight = 2;
     int throttle_rank = -1;  ///< test-only: this rank sleeps (factor - 1) x its render time
     double throttle_factor = 1.0;
-    int stop_rank = -1;  ///< test-only: this rank stops itself (SIGSTOP) before its first item
+    int stop_rank = -1;  ///< test-only: this rank hangs (sleeps forever) before its first item
     /// Test-only: this worker raises SIGTERM right after sending its first result and leaves
     /// the farm at once (FarmInterrupted), the send most likely still pending; memory it
     /// frees then is overwritten, so that a pending send whose buffer was freed shows.

@@ -321,7 +321,7 @@ timeout_stall)
     [ -e x.pfm ] && fail "an image was written"
     echo "ok: a stalled load ends the job with status 1" ;;
 timeout_stop)
-    # A worker stopped (SIGSTOP) with work in hand: rank 0 names it and the job ends; the
+    # A worker hung with work in hand: rank 0 names it and the job ends; the
     # healthy ranks do not wait in MPI_Finalize for it. Rank 1's tiles are dealt out in
     # advance (interleaved): under the dynamic queue rank 0 renders all 15 tiles in a few ms,
     # so a rank 1 descheduled that long after the start finds none, never stops, and the run
@@ -332,8 +332,8 @@ timeout_stop)
     out=$(mpi 3 "${common[@]}" --mpi --distribution interleaved --mpi-inject 1:stop --timeout 4 \
         -o x.pfm 2>&1); rc=$?
     echo "$out"
-    # Open MPI 4.1.4's mpirun itself sometimes segfaults in PMIx_server_finalize while it ends
-    # a job with a stopped rank (docs/mpi.md; once in a CI run here). Tolerated only when
+    # Open MPI 4.1.4's mpirun itself sometimes segfaulted in PMIx_server_finalize while it
+    # ended such a job (docs/mpi.md; once in a CI run here). Tolerated only when
     # the backtrace is mpirun's own and no rank died of a signal.
     if [ $rc -eq 139 ] && grep -q "PMIx_server_finalize" <<< "$out" &&
         grep -q "\] \[ *[0-9]*\] /usr/bin/mpi\(run\|exec\)(" <<< "$out" &&
@@ -345,7 +345,7 @@ timeout_stop)
     grep -q "kdtrace: error: --timeout 4 s reached: rank 1 of 3 had not returned its work; ending every rank" \
         <<< "$out" || fail "the message does not name rank 1"
     [ $(($(date +%s) - start)) -lt 60 ] || fail "the job took a minute to end"
-    echo "ok: a stopped worker is named and the job ends" ;;
+    echo "ok: a hung worker is named and the job ends" ;;
 refuse_adaptive)
     # A tile's adaptive decisions read its neighbours across tile borders: refused for tiles.
     for flags in "--error 0.1" "--adaptive"; do
