@@ -34,6 +34,25 @@ EOF
     mkdir -p sub && cp near.json sub/near.json
 }
 
+# Each FAULT:PROBLEM makes rank 2's message malformed (--mpi-inject 2:FAULT) in a 3-rank
+# render, which must end with status 1, no crash, no image, no interrupt or timeout reported,
+# and exactly one error line, "MALFORMED: PROBLEM". Usage: malformed_ends MALFORMED CASE...
+malformed_ends() {
+    local malformed=$1 t out rc
+    shift
+    for t in "$@"; do
+        rm -f x.pfm
+        out=$(mpi 3 "${common[@]}" --mpi --timeout 30 --mpi-inject "2:${t%%:*}" -o x.pfm 2>&1); rc=$?
+        echo "$out"
+        [ $rc -eq 1 ] || fail "${t%%:*}: exit status $rc, not 1"
+        grep -q "exited on signal\|Segmentation\|terminate called" <<< "$out" && fail "${t%%:*}: a rank crashed"
+        [ "$(grep -c 'kdtrace: error:' <<< "$out")" -eq 1 ] || fail "${t%%:*}: not exactly one error line"
+        grep -q "^kdtrace: error: $malformed: ${t#*:}$" <<< "$out" || fail "${t%%:*}: no error line naming rank 2"
+        grep -q "interrupted\|timeout" <<< "$out" && fail "${t%%:*}: an interrupt or timeout was reported"
+        [ -e x.pfm ] && fail "${t%%:*}: an image was written"
+    done
+}
+
 # Tiles per rank from the "mpi: rank R: N tiles" lines.
 tiles_of() { sed -n "s/^mpi: rank $2: \([0-9]*\) tiles.*/\1/p" "$1"; }
 
@@ -226,21 +245,11 @@ bad_options)
     # announces, an absurd announced length. Rank 2 checks it before it trusts or allocates
     # anything, and every rank stops with one error line naming rank 2: status 1, no crash,
     # no image, no hang (--timeout would name the ranks instead).
-    malformed="rank 2 of 3 could not start: the options from rank 0 are malformed"
-    for t in "options-header:6 bytes, shorter than its 8-byte header" \
+    malformed_ends "rank 2 of 3 could not start: the options from rank 0 are malformed" \
+        "options-header:6 bytes, shorter than its 8-byte header" \
         "options-short:its header announces [0-9]* bytes, but [0-9]* bytes follow it" \
         "options-long:its header announces [0-9]* bytes, but [0-9]* bytes follow it" \
-        "options-huge:its header announces 1152921504606846976 bytes, more than the 16777216 bytes a rank accepts"; do
-        rm -f x.pfm
-        out=$(mpi 3 "${common[@]}" --mpi --timeout 30 --mpi-inject "2:${t%%:*}" -o x.pfm 2>&1); rc=$?
-        echo "$out"
-        [ $rc -eq 1 ] || fail "${t%%:*}: exit status $rc, not 1"
-        grep -q "exited on signal\|Segmentation\|terminate called" <<< "$out" && fail "${t%%:*}: a rank crashed"
-        [ "$(grep -c 'kdtrace: error:' <<< "$out")" -eq 1 ] || fail "${t%%:*}: not exactly one error line"
-        grep -q "^kdtrace: error: $malformed: ${t#*:}$" <<< "$out" || fail "${t%%:*}: no error line naming rank 2"
-        grep -q "interrupted" <<< "$out" && fail "${t%%:*}: an interrupt was reported"
-        [ -e x.pfm ] && fail "${t%%:*}: an image was written"
-    done
+        "options-huge:its header announces 1152921504606846976 bytes, more than the 16777216 bytes a rank accepts"
     # The lengths in the short and long messages: the header's is the text's, the others not.
     out=$(mpi 2 "${common[@]}" --mpi --mpi-inject 1:options-long -o x.pfm 2>&1)
     n=$(sed -n 's/.*announces \([0-9]*\) bytes, but \([0-9]*\) bytes follow.*/\1 \2/p' <<< "$out")
@@ -251,21 +260,11 @@ bad_log)
     # than its header, a text shorter or longer than its header announces, an absurd
     # announced length. Rank 0 checks it before it trusts or allocates anything, and every
     # rank stops with one error line naming rank 2: status 1, no crash, no image, no hang.
-    malformed="rank 0 of 3 could not read the load logs: the load log from rank 2 is malformed"
-    for t in "log-header:6 bytes, shorter than its 8-byte header" \
+    malformed_ends "rank 0 of 3 could not read the load logs: the load log from rank 2 is malformed" \
+        "log-header:6 bytes, shorter than its 8-byte header" \
         "log-short:its header announces [0-9]* bytes*, but [0-9]* bytes follow it" \
         "log-long:its header announces [0-9]* bytes, but [0-9]* bytes follow it" \
-        "log-huge:its header announces 1152921504606846976 bytes, more than the 8192 bytes a rank accepts"; do
-        rm -f x.pfm
-        out=$(mpi 3 "${common[@]}" --mpi --timeout 30 --mpi-inject "2:${t%%:*}" -o x.pfm 2>&1); rc=$?
-        echo "$out"
-        [ $rc -eq 1 ] || fail "${t%%:*}: exit status $rc, not 1"
-        grep -q "exited on signal\|Segmentation\|terminate called" <<< "$out" && fail "${t%%:*}: a rank crashed"
-        [ "$(grep -c 'kdtrace: error:' <<< "$out")" -eq 1 ] || fail "${t%%:*}: not exactly one error line"
-        grep -q "^kdtrace: error: $malformed: ${t#*:}$" <<< "$out" || fail "${t%%:*}: no error line naming rank 2"
-        grep -q "interrupted\|timeout" <<< "$out" && fail "${t%%:*}: an interrupt or timeout was reported"
-        [ -e x.pfm ] && fail "${t%%:*}: an image was written"
-    done
+        "log-huge:its header announces 1152921504606846976 bytes, more than the 8192 bytes a rank accepts"
     # The short and long texts differ from the announced length by what the fault says; the
     # log is not empty (the load says what it did), so half of it is another length.
     out=$(mpi 2 "${common[@]}" --mpi --mpi-inject 1:log-long -o x.pfm 2>&1)
