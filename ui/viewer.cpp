@@ -18,6 +18,7 @@
 #include "renderer/core/shell_word.h"
 #include "renderer/core/temp_file.h"
 #include "renderer/io/image_io.h"
+#include "renderer/render/prepare.h"
 #include "renderer/render/settings.h"
 #include "renderer/scene/views.h"
 #include "ui/camera_control.h"
@@ -394,6 +395,7 @@ void Viewer::save_session(const std::string& path) const {
 void Viewer::load_session(const std::string& path) {
     RenderOptions o = opts_;
     o.stop = stop_;
+    o.scene.session_camera = {};         // set below only if this session gives camera parts
     options_from_session_file(path, o);  // validates
     if (std::find(sessions_read_.begin(), sessions_read_.end(), path) == sessions_read_.end())
         sessions_read_.push_back(path);
@@ -406,6 +408,16 @@ void Viewer::load_session(const std::string& path) {
         throw Error(ErrorLocation{path, "/scene/materials", -1},
                     std::to_string(o.scene.materials.size()) + " materials for a scene of " +
                         std::to_string(materials_.size()) + " mesh instances");
+    }
+    // The session's camera parts over the camera the viewer started with, as `render
+    // --session` puts them over the scene's: a part alone (an "eye") counts too, and one that
+    // makes no camera is an error naming the session and its key, before anything changes.
+    std::optional<CameraDesc> camera = o.scene.camera;
+    if (!o.scene.session_camera.file.empty()) {
+        check_session_camera(home_camera_, o.scene);
+        camera = with_camera_overrides(home_camera_, o.scene);
+        if (const std::string problem = camera_problem(*camera); !problem.empty())
+            throw Error(ErrorLocation{path, "/scene", -1}, "camera: " + problem);
     }
     opts_.trace = o.trace;
     opts_.film = o.film;
@@ -430,7 +442,7 @@ void Viewer::load_session(const std::string& path) {
         tree_edit_ = o.tree;
         request_rebuild();
     }
-    if (o.scene.camera) set_camera(*o.scene.camera);
+    if (camera) set_camera(*camera);
 }
 
 std::string Viewer::summary() const {

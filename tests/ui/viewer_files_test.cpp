@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <fstream>
+#include <iomanip>
 #include <sstream>
 #include <thread>
 
@@ -209,6 +210,33 @@ TEST(ViewerFiles, SessionsHoldAbsoluteFileNamesAndLoadFromAnywhere) {
     ASSERT_TRUE(w.worker_);
     EXPECT_EQ(w.prep_.scene.environment.file, (dir / "sky.pfm").string());
     EXPECT_EQ(w.worker_->snapshot()->scene->mesh->triangle_count(), 4u);
+}
+
+TEST(ViewerFiles, ASessionsCameraPartsMoveTheCameraAsRenderTakesThem) {
+    const auto dir = test::temp_dir("ui_session_camera");
+    ViewerOptions vo = tiny_options();
+    vo.options.scene.scene_path = write_tetra_ply(dir, "model.ply");
+    Viewer v(vo);
+    v.finish_loading();
+    ASSERT_TRUE(v.worker_) << v.message_;
+    const CameraDesc home = v.home_camera_;
+    auto session = [&](const std::string& name, const Vec3f& eye) {
+        const std::string path = (dir / name).string();
+        std::ofstream(path) << std::setprecision(9) << "{\"scene\": {\"eye\": [" << eye.x << ", "
+                            << eye.y << ", " << eye.z << "]}}";
+        return path;
+    };
+    // An eye alone: the viewer's other parts stay.
+    const Vec3f eye = home.eye + Vec3f(0.5f, 0.25f, 0.0f);
+    EXPECT_EQ(test::error_of_call([&] { v.load_session(session("eye.json", eye)); }), "");
+    EXPECT_EQ(v.camera_.eye, eye);
+    EXPECT_EQ(v.camera_.target, home.target);
+    EXPECT_EQ(v.camera_.up, home.up);
+    // An eye on the target makes no camera: the session and its key are named, nothing moves.
+    const std::string bad = session("on_target.json", home.target);
+    const std::string e = test::error_of_call([&] { v.load_session(bad); });
+    EXPECT_NE(e.find(bad + ": /scene/eye: eye and target coincide"), std::string::npos) << e;
+    EXPECT_EQ(v.camera_.eye, eye);
 }
 
 std::string file_text(const std::string& path) {
