@@ -395,7 +395,6 @@ void Viewer::save_session(const std::string& path) const {
 void Viewer::load_session(const std::string& path) {
     RenderOptions o = opts_;
     o.stop = stop_;
-    o.scene.session_camera = {};         // set below only if this session gives camera parts
     options_from_session_file(path, o);  // validates
     if (std::find(sessions_read_.begin(), sessions_read_.end(), path) == sessions_read_.end())
         sessions_read_.push_back(path);

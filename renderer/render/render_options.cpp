@@ -494,6 +494,8 @@ namespace {
 
 void read_options(const std::string& text, RenderOptions& o, const std::string& where,
                   const std::string& relative_to, bool session) {
+    // A session's camera parts are this file's only, not an earlier session's.
+    if (session) o.scene.session_camera = {};
     json j;
     try {
         j = parse_json_without_repeats(text, where, "/");

@@ -54,6 +54,22 @@ TEST_F(SessionCameraTest, NamesTheSessionItsKeysAndTheScenesParts) {
     EXPECT_EQ(error(session(R"({"eye": [1, 2, 3]})")), "");
 }
 
+TEST_F(SessionCameraTest, ASecondSessionWithoutCameraPartsBlamesNone) {
+    // Options that read one session and then another, as the viewer's Load session does:
+    // the first one's parts are no longer a session's, so its file is not named.
+    const std::string first = (dir / "first.json").string();
+    const std::string text = R"({"scene": {"eye": [0, 0, 0]}})";
+    test::write_bytes(first, std::vector<unsigned char>(text.begin(), text.end()));
+    RenderOptions o;
+    options_from_session_file(first, o);
+    EXPECT_EQ(o.scene.session_camera.file, first);
+    const std::string second = R"({"trace": {"seed": 3}})";
+    test::write_bytes(file, std::vector<unsigned char>(second.begin(), second.end()));
+    options_from_session_file(file, o);
+    EXPECT_EQ(o.scene.session_camera.file, "");
+    EXPECT_EQ(error(o.scene), "");
+}
+
 TEST_F(SessionCameraTest, PartsAFlagOrAViewReplacedAreNotTheSessions) {
     // --eye replaced the session's eye: the problem is the flag's, reported by make_camera().
     SceneOptions flag = session(R"({"eye": [1, 1, 1]})");
