@@ -30,6 +30,7 @@ constexpr int kTagArrived = 7;
 constexpr int kTagBroadcast = 8;  // 0 -> worker: MpiContext::broadcast()'s header and text
 constexpr int kTagFailed = 9;     // worker -> 0: the line of end_after_failure()
 constexpr int kTagLog = 10;       // worker -> 0: its load log (prepare_everywhere())
+constexpr int kTagEnded = 11;     // 0 -> worker, no data: the job ends, rank 0 said why
 // The longest line end_after_failure() sends, and the longest rank 0 receives.
 constexpr size_t kMaxFailureLine = 1024;
 
@@ -148,9 +149,10 @@ void MpiContext::end_after_timeout(const std::string& message) {
             std::fprintf(stderr, "kdtrace: error: %s\n", message.c_str());
         std::fflush(stderr);
         std::fflush(stdout);
+        tell_workers_the_job_ended();
         std::_Exit(1);
     }
-    for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));
+    wait_for_the_end();
 }
 
 void MpiContext::watch_interrupts(std::function<std::string()> kept) {
@@ -168,7 +170,7 @@ void MpiContext::watch_interrupts(std::function<std::string()> kept) {
 void MpiContext::end_after_interrupt() {
     if (rank_ == 0) die_interrupted();
     // mpirun ends a worker; the watcher, when it does not.
-    for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));
+    wait_for_the_end();
 }
 
 void MpiContext::end_after_failure(const std::string& line) {
@@ -185,16 +187,46 @@ void MpiContext::end_after_failure(const std::string& line) {
         while (std::chrono::steady_clock::now() < until) {
             int done = 0;
             if (sent != MPI_REQUEST_NULL) MPI_Test(&sent, &done, MPI_STATUS_IGNORE);
+            if (job_ended()) die_interrupted();  // rank 0 printed the line: quiet, status 1
             std::this_thread::sleep_for(std::chrono::milliseconds(10));
         }
     }
     std::fprintf(stderr, "kdtrace: error: %s\n", printable(text).c_str());
     std::fflush(stderr);
     std::fflush(stdout);
+    if (rank_ == 0) tell_workers_the_job_ended();
     std::_Exit(1);
 }
 
-void MpiContext::die_interrupted() {
+void MpiContext::tell_workers_the_job_ended() const {
+    std::vector<MPI_Request> sent(size_t(std::max(size_ - 1, 0)), MPI_REQUEST_NULL);
+    for (int r = 1; r < size_; ++r)
+        MPI_Isend(nullptr, 0, MPI_BYTE, r, kTagEnded, MPI_COMM_WORLD, &sent[size_t(r - 1)]);
+    // Empty messages go out at once (eager); the bound keeps a dead peer from holding rank 0.
+    const auto until = std::chrono::steady_clock::now() + std::chrono::milliseconds(500);
+    int done = 0;
+    while (!done && std::chrono::steady_clock::now() < until) {
+        MPI_Testall(int(sent.size()), sent.data(), &done, MPI_STATUSES_IGNORE);
+        if (!done) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+}
+
+bool MpiContext::job_ended() const {
+    if (rank_ == 0) return false;
+    int flag = 0;
+    MPI_Iprobe(0, kTagEnded, MPI_COMM_WORLD, &flag, MPI_STATUS_IGNORE);
+    if (flag) failed_.store(true);
+    return flag != 0;
+}
+
+void MpiContext::wait_for_the_end() const {
+    for (;;) {
+        if (job_ended()) die_interrupted();
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+}
+
+void MpiContext::die_interrupted() const {
     if (dying_.exchange(true)) {
         for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));  // the other thread ends it
     }
@@ -255,6 +287,8 @@ std::string MpiContext::broadcast(const std::string& text, int bad_rank, BadBroa
 }
 
 void MpiContext::check_timeout() const {
+    // Before the signals mpirun sends once rank 0 has exited: they are no news then.
+    if (job_ended()) die_interrupted();
     if (rank_ == 0 && size_ > 1) {
         int flag = 0;
         MPI_Status st;

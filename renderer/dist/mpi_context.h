@@ -103,7 +103,8 @@ public:
     /// (end_after_failure()), FarmInterrupted once a signal arrived under watch_interrupts(),
     /// and FarmTimeout "--timeout S s reached: <pending>; ending every rank" once expired(),
     /// with what set_pending() describes on rank 0; in that order, so that a worker's failure
-    /// is the news rather than the signals mpirun then sends.
+    /// is the news rather than the signals mpirun then sends. Before all of them a worker that
+    /// rank 0 told the job ended (it printed why and exited) ends silently with status 1.
     void check_timeout() const;
     /// Rank 0: what the farm is waiting for, for the timeout message ("rank 2 of 3 had not
     /// answered"); empty = not known. Cleared with an empty function.
@@ -121,8 +122,9 @@ public:
     /// end_after_interrupt() ends the rank. Rank 0 prints "interrupted (SIGTERM); <kept()>"
     /// and dies of the signal, without MPI_Finalize; its watcher thread does so itself when
     /// the main thread has not 0.25 s after the signal (a load, a long pass). A worker waits
-    /// silently for mpirun to end it; one still running 2 s later (the signal was its own)
-    /// prints "rank R: interrupted (SIGINT); ending this rank" and dies of it. `kept` is
+    /// silently for mpirun to end it, or for rank 0 to say that the job ended (then it exits
+    /// with status 1); one still running 2 s later (the signal was its own) prints "rank R:
+    /// interrupted (SIGINT); ending this rank" and dies of it. `kept` is
     /// called on rank 0, on either thread, after the registered temporary files are removed.
     void watch_interrupts(std::function<std::string()> kept);
     /// After a FarmInterrupted, or once interrupt::requested(): ends the rank as
@@ -137,7 +139,8 @@ public:
     /// so that the one line on the terminal is the cause, not rank 0's "interrupted
     /// (SIGTERM)" after mpirun ends it for this worker's exit; the worker prints `line`
     /// itself and exits with status 1 only when it is still running failure_grace_seconds()
-    /// later (rank 0 stuck). From this call on a signal ends the rank silently with status 1.
+    /// later (rank 0 stuck); rank 0 tells every worker once it printed the line, and they end
+    /// silently. From this call on a signal ends the rank silently with status 1.
     /// Never returns; never finalizes.
     [[noreturn]] void end_after_failure(const std::string& line);
     static constexpr double kFailureGraceSeconds = 10.0;
@@ -183,11 +186,25 @@ private:
     mutable std::function<std::string()> pending_;
     std::atomic<bool> reported_{false};  // rank 0 printed the timeout message
     std::function<std::string()> kept_;
-    std::atomic<bool> dying_{false};   // a thread is ending the process after a signal
-    std::atomic<bool> failed_{false};  // the job fails (note_failure()): a signal is no news
+    mutable std::atomic<bool> dying_{false};  // a thread is ending the process after a signal
+    mutable std::atomic<bool> failed_{
+        false};  // the job fails (note_failure()): a signal is no news
     std::unique_ptr<interrupt::Watcher> interrupt_watcher_;  // after kept_: joined first
 
-    [[noreturn]] void die_interrupted();
+    /// Ends the process after a signal: silently with status 1 once failed_, else with the
+    /// interrupt's message and the signal.
+    [[noreturn]] void die_interrupted() const;
+    /// Rank 0, ending the job after printing why (end_after_failure(), end_after_timeout()):
+    /// tells every worker, so that each ends silently with status 1 at its next poll (or while
+    /// it waits to be ended) rather than report the SIGTERM mpirun sends it once rank 0 has
+    /// exited: mpirun's SIGKILL, 1 s later, can come after a worker's 2 s of waiting for it on
+    /// a loaded machine. Waits at most 0.5 s for the messages to go out.
+    void tell_workers_the_job_ended() const;
+    /// A worker: whether rank 0 said the job ended (then failed_ is set); false on rank 0.
+    bool job_ended() const;
+    /// A worker waiting to be ended (by mpirun, its watcher or its watchdog): ends silently
+    /// once rank 0 says the job ended.
+    [[noreturn]] void wait_for_the_end() const;
 };
 
 /// "rank 2 of 3" or "ranks 1, 2 of 3", for messages.
