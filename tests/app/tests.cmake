@@ -444,47 +444,32 @@ set_tests_properties(smoke.session_equals_flags PROPERTIES
 kdt_status_test(smoke.session_bad_key 1 "session_bad.json: /trace/max_depht: unknown key"
   ${_kdt} render --session ${_tmp}/session_bad.json)
 file(WRITE ${_tmp}/session_bad.json "{\"trace\": {\"max_depht\": 2}}")
-# A session's env_mapping for a scene without an environment map is an error naming the
-# session and the key, under --session and --frames sessions:; --env-mapping replaces it, and
-# the error then names the flag.
+# A session's part that the scene cannot take is an error naming the session and the key,
+# under --session and --frames sessions:, and where any other part to blame came from; a flag
+# that replaces the session's part names itself. Here the built-in scene, which has no
+# environment map for an env_mapping and looks at 0,0.85,0.
 file(WRITE ${_tmp}/session_mapping.json "{\"scene\": {\"env_mapping\": \"angular\"}}")
-foreach(_case "session;--session;session_mapping.json: /scene/env_mapping: the scene has no environment map"
-              "frames;--frames;session_mapping.json: /scene/env_mapping: the scene has no environment map"
-              "flag;--env-mapping angular --session;^kdtrace: error: scene.env_mapping \\(--env-mapping\\): the scene has no")
-  list(GET _case 0 _id)
-  list(GET _case 1 _args)
-  list(GET _case 2 _why)
-  separate_arguments(_args)
-  set(_file ${_tmp}/session_mapping.json)
-  if(_id STREQUAL "frames")
-    set(_file sessions:${_file})
-  endif()
-  kdt_status_test(smoke.session_mapping_${_id} 1 "${_why}"
-    ${_kdt} render ${_args} ${_file} --width 8 --height 6 --spp 1 --quiet -o
-    ${_tmp}/session_mapping.pfm)
-endforeach()
-# A session's camera part that makes no camera with the scene's (here the built-in scene,
-# which looks at 0,0.85,0) is an error naming the session and the key, under --session and
-# --frames sessions:, and where the other part came from; a flag that replaces the session's
-# part names itself.
 file(WRITE ${_tmp}/session_eye.json "{\"scene\": {\"eye\": [0, 0.85, 0]}}")
 file(WRITE ${_tmp}/session_eye_123.json "{\"scene\": {\"eye\": [1, 2, 3]}}")
-foreach(_case "session;--session;session_eye.json;error: [^\n]*session_eye.json: /scene/eye: eye and target coincide \\(target from the built-in scene\\)"
-              "frames;--frames;session_eye.json;error: [^\n]*session_eye.json: /scene/eye: eye and target coincide \\(target from the built-in scene\\)"
-              "target;--target 1,2,3 --session;session_eye_123.json;error: [^\n]*session_eye_123.json: /scene/eye: eye and target coincide \\(target from --target 1,2,3\\)"
-              "eye;--eye 0,0.85,0 --session;session_eye_123.json;error: camera: eye and target coincide \\(--eye 0,0.85,0 with the scene's target and up\\)")
+foreach(_case "mapping_session;--session;session_mapping.json;session_mapping.json: /scene/env_mapping: the scene has no environment map"
+              "mapping_frames;--frames;session_mapping.json;session_mapping.json: /scene/env_mapping: the scene has no environment map"
+              "mapping_flag;--env-mapping angular --session;session_mapping.json;^kdtrace: error: scene.env_mapping \\(--env-mapping\\): the scene has no"
+              "camera_session;--session;session_eye.json;error: [^\n]*session_eye.json: /scene/eye: eye and target coincide \\(target from the built-in scene\\)"
+              "camera_frames;--frames;session_eye.json;error: [^\n]*session_eye.json: /scene/eye: eye and target coincide \\(target from the built-in scene\\)"
+              "camera_target;--target 1,2,3 --session;session_eye_123.json;error: [^\n]*session_eye_123.json: /scene/eye: eye and target coincide \\(target from --target 1,2,3\\)"
+              "camera_eye;--eye 0,0.85,0 --session;session_eye_123.json;error: camera: eye and target coincide \\(--eye 0,0.85,0 with the scene's target and up\\)")
   list(GET _case 0 _id)
   list(GET _case 1 _args)
   list(GET _case 2 _name)
   list(GET _case 3 _why)
   separate_arguments(_args)
   set(_file ${_tmp}/${_name})
-  if(_id STREQUAL "frames")
+  if(_id MATCHES "_frames$")
     set(_file sessions:${_file})
   endif()
-  kdt_status_test(smoke.session_camera_${_id} 1 "${_why}"
+  kdt_status_test(smoke.session_${_id} 1 "${_why}"
     ${_kdt} render ${_args} ${_file} --width 8 --height 6 --spp 1 --quiet -o
-    ${_tmp}/session_camera.pfm)
+    ${_tmp}/session_${_id}.pfm)
 endforeach()
 # An adaptive budget at or below --adaptive-min-spp never adapts: a warning. An --error render
 # that stops at --max-spp first says so.
