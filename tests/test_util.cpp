@@ -103,4 +103,11 @@ void write_bytes(const std::filesystem::path& p, const std::vector<unsigned char
     if (!out) throw Error(ErrorLocation{p.string()}, "cannot write the file");
 }
 
+std::vector<Tri> triangles_of(const TriangleMesh& mesh) {
+    std::vector<Tri> out;
+    for (const Vec3u& t : mesh.triangles)
+        out.push_back({mesh.positions[t.x], mesh.positions[t.y], mesh.positions[t.z]});
+    return out;
+}
+
 }  // namespace kdt::test

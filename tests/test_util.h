@@ -4,6 +4,7 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <array>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -13,6 +14,7 @@
 
 #include "renderer/core/error.h"
 #include "renderer/core/math.h"
+#include "renderer/geometry/mesh.h"
 
 namespace kdt::test {
 
@@ -34,6 +36,11 @@ std::filesystem::path temp_dir(const std::string& name);
 std::vector<unsigned char> read_bytes(const std::filesystem::path& p);
 /// Writes the file, replacing it; throws kdt::Error naming it when that fails.
 void write_bytes(const std::filesystem::path& p, const std::vector<unsigned char>& bytes);
+
+/// A triangle by its corner positions.
+using Tri = std::array<Vec3f, 3>;
+/// The triangles of `mesh` by corner positions, in its order.
+std::vector<Tri> triangles_of(const TriangleMesh& mesh);
 
 /// The message of the kdt::Error that f() throws, or "" when it throws none.
 template <class F>

@@ -532,7 +532,8 @@ const Expectation kCorpus[] = {
      "malformed2.obj: line 23: face 1: 0 indices, a face needs at least 3"},
 };
 
-using Tri = std::array<Vec3f, 3>;
+using test::Tri;
+using test::triangles_of;
 
 // Equal within one float ulp: Assimp's fast_atof and tinyobjloader's parser are not
 // correctly rounded.
@@ -548,13 +549,6 @@ bool same_triangle(const Tri& a, const Tri& b) {
     for (int k = 0; k < 3; ++k)
         if (!near(a[size_t(k)], b[size_t(k)])) return false;
     return true;
-}
-
-std::vector<Tri> triangles_of(const TriangleMesh& m) {
-    std::vector<Tri> out;
-    for (const Vec3u& i : m.triangles)
-        out.push_back({m.positions[i.x], m.positions[i.y], m.positions[i.z]});
-    return out;
 }
 
 // A peer's polygon split as our reader splits it (triangulate_polygon), so that a wrong

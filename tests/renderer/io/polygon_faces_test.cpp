@@ -110,7 +110,8 @@ std::string obj_text(const Model& m, bool normals) {
     return s;
 }
 
-using Tri = std::array<Vec3f, 3>;
+using test::Tri;
+using test::triangles_of;
 
 // The triangles each face should give, by corner positions, in face order.
 std::vector<Tri> expected(const Model& m) {
@@ -123,13 +124,6 @@ std::vector<Tri> expected(const Model& m) {
         triangulate_polygon(c, t.data(), s);
         for (const Vec3u& k : t) out.push_back({c[k.x], c[k.y], c[k.z]});
     }
-    return out;
-}
-
-std::vector<Tri> triangles_of(const TriangleMesh& mesh) {
-    std::vector<Tri> out;
-    for (const Vec3u& t : mesh.triangles)
-        out.push_back({mesh.positions[t.x], mesh.positions[t.y], mesh.positions[t.z]});
     return out;
 }
 
