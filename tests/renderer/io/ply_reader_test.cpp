@@ -368,22 +368,22 @@ TEST(PlyReader, TriangleStripsInEveryEncoding) {
     std::string empty = strips_file(PlyEncoding::ascii);
     empty.replace(empty.find("5 1 2 2 3 4"), 11, "0");
     EXPECT_EQ(load(empty).triangles.size(), 4u);
-    // In an unsigned list, 2^32 - 1 (the bit pattern of -1) restarts a strip too.
-    std::string unsigned_list = strips_file(PlyEncoding::ascii);
-    unsigned_list.replace(unsigned_list.find("property list int int vertex_indices"), 36,
-                          "property list int uint vertex_indices");
-    unsigned_list.replace(unsigned_list.find(" -1 "), 4, " 4294967295 ");
-    const TriangleMesh u = load(unsigned_list);
-    ASSERT_EQ(u.triangles.size(), expected.size());
-    for (size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(u.triangles[k], expected[k]) << k;
-    // In a float list, -1.0 restarts a strip.
-    std::string float_list = strips_file(PlyEncoding::ascii);
-    float_list.replace(float_list.find("property list int int vertex_indices"), 36,
-                       "property list int float vertex_indices");
-    float_list.replace(float_list.find(" -1 "), 4, " -1.0 ");
-    const TriangleMesh fl = load(float_list);
-    ASSERT_EQ(fl.triangles.size(), expected.size());
-    for (size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(fl.triangles[k], expected[k]) << k;
+    // In an unsigned list, 2^32 - 1 (the bit pattern of -1) restarts a strip too; in a float
+    // list, -1.0.
+    const struct {
+        const char* type;
+        const char* restart;
+    } lists[] = {{"uint", " 4294967295 "}, {"float", " -1.0 "}};
+    for (const auto& list : lists) {
+        SCOPED_TRACE(list.type);
+        std::string text = strips_file(PlyEncoding::ascii);
+        text.replace(text.find("property list int int vertex_indices"), 36,
+                     std::string("property list int ") + list.type + " vertex_indices");
+        text.replace(text.find(" -1 "), 4, list.restart);
+        const TriangleMesh m = load(text);
+        ASSERT_EQ(m.triangles.size(), expected.size());
+        for (size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(m.triangles[k], expected[k]) << k;
+    }
     std::string no_list = strips_file(PlyEncoding::ascii);
     no_list.replace(no_list.find("property list int int vertex_indices"), 36,
                     "property list int int vertex_ids");
