@@ -334,7 +334,7 @@ void add_render_command(CLI::App& parent) {
         try {
             run(cmd);
         } catch (const Error& e) {
-            throw Error(with_camera_flags(*sub, with_flags(e.what())));
+            throw Error(with_camera_flags(*sub, with_flags(e.what()), cmd.options.scene));
         }
         if (interrupt::requested()) interrupt::exit_interrupted();  // 130 or 143
     });

@@ -44,7 +44,7 @@ void add_view_command(CLI::App& parent) {
             const size_t quoted = m.rfind(script, 0) == 0 ? m.find("': ", script.size()) : m.npos;
             if (quoted != m.npos)
                 throw Error(m.substr(0, quoted + 3) + with_flags(m.substr(quoted + 3)));
-            throw Error(with_camera_flags(*sub, with_flags(m)));
+            throw Error(with_camera_flags(*sub, with_flags(m), vo.options.scene));
         }
     });
 #else

@@ -1,6 +1,7 @@
 #include "app/options_cli.h"
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
@@ -15,6 +16,7 @@
 #include "renderer/core/error.h"
 #include "renderer/io/image_io.h"
 #include "renderer/light/environment.h"
+#include "renderer/render/prepare.h"
 #include "renderer/scene/scene.h"
 #include "renderer/scene/views.h"
 
@@ -432,26 +434,48 @@ std::string with_camera_flag_values(const CLI::App& app, const std::string& mess
 
 }  // namespace
 
-std::string with_camera_flags(const CLI::App& app, const std::string& message) {
+std::string with_camera_flags(const CLI::App& app, const std::string& message,
+                              const SceneOptions& scene, const std::string& view) {
     if (message.rfind("camera: ", 0) != 0) return with_camera_flag_values(app, message);
     if (message.find("eye") == std::string::npos && message.find("target") == std::string::npos &&
         message.find("up vector") == std::string::npos && message.find("up (") == std::string::npos)
         return message;  // the image size or the field of view: named by their own checks
-    std::string given, others;
-    for (const char* part : {"eye", "target", "up"}) {
-        const std::string flag = std::string("--") + part;
+    std::string given;
+    std::vector<std::pair<std::string, std::string>> others;  // (where from, parts)
+    const CLI::Option* view_flag = app.get_option_no_throw("--view");
+    for (size_t i = 0; i < 3; ++i) {
+        const std::string part = std::array{"eye", "target", "up"}[i];
+        const std::string flag = "--" + part;
         const CLI::Option* opt = app.get_option_no_throw(flag);
         if (opt && opt->count() > 0) {
             given += (given.empty() ? "" : ", ") + flag + " " + excerpt(opt->results().back());
+            continue;
+        }
+        // Where the part came from, in the words of a flag's error: a session file's, a
+        // view's, else the scene's.
+        const CameraPartSource source = camera_part_source(scene, i);
+        std::string from = "the scene's";
+        if (!source.key.empty()) {
+            from = printable(scene.session_camera.file) + "'s";
+        } else if (source.other == "the view") {
+            from = "the view's";
+            if (!view.empty()) {
+                from = view + "'s";
+            } else if (view_flag && view_flag->count() > 0) {
+                from = "--view " + excerpt(view_flag->results().back()) + "'s";
+            }
+        }
+        if (!others.empty() && others.back().first == from) {
+            others.back().second += " and " + part;
         } else {
-            others += (others.empty() ? "" : " and ") + std::string(part);
+            others.emplace_back(from, part);
         }
     }
     if (given.empty()) return message;
-    std::string from = "the scene's";
-    if (const CLI::Option* view = app.get_option_no_throw("--view"); view && view->count() > 0)
-        from = "--view " + excerpt(view->results().back()) + "'s";
-    return message + " (" + given + (others.empty() ? "" : " with " + from + " " + others) + ")";
+    std::string with;
+    for (const auto& [from, parts] : others)
+        with += (with.empty() ? " with " : " and ") + from + " " + parts;
+    return message + " (" + given + with + ")";
 }
 
 bool is_warning(const std::string& line) {

@@ -113,11 +113,15 @@ void subdivide_model(const std::string& model, TriangleMesh& mesh, int levels,
                      const SubdivideMemory& memory = {});
 
 /// A camera error ("camera: up vector is zero") followed by the camera flags given on `app`'s
-/// command line, and where the other parts came from: "camera: up vector is parallel to the
-/// viewing direction (--eye 0,0,0 with the scene's target and up)". A session file's camera
-/// error (check_session_camera()) gets the values of the flags it names: "target from --target
+/// command line, and where the other parts of `scene` (the options that made the camera)
+/// came from (camera_part_source()): "camera: up vector is parallel to the viewing direction
+/// (--eye 0,0,0 with the scene's target and up)", "(--up 0,0,0 with the scene's eye and
+/// s.json's target)", "(--up 0,0,0 with --view A's eye and target)"; `view` names a view that
+/// is no --view flag ("view A" of --frames views:A). A session file's camera error
+/// (check_session_camera()) gets the values of the flags it names: "target from --target
 /// 1,2,3", "up from --view A". Other messages unchanged.
-std::string with_camera_flags(const CLI::App& app, const std::string& message);
+std::string with_camera_flags(const CLI::App& app, const std::string& message,
+                              const SceneOptions& scene, const std::string& view = "");
 
 /// Whether a line of prepare_render()'s log (or a worker's, "ranks 1, 2 of 3: ...") is a
 /// warning: shown under --quiet, which silences progress and cache messages, not problems.

@@ -24,57 +24,54 @@ CameraDesc with_camera_overrides(CameraDesc c, const SceneOptions& o) {
     return c;
 }
 
+CameraPartSource camera_part_source(const SceneOptions& o, size_t part) {
+    static constexpr const char* kNames[] = {"eye", "target", "up"};
+    static constexpr std::optional<Vec3f> SceneOptions::*kSet[] = {
+        &SceneOptions::eye, &SceneOptions::target, &SceneOptions::up};
+    static constexpr std::optional<Vec3f> SessionCamera::*kRead[] = {
+        &SessionCamera::eye, &SessionCamera::target, &SessionCamera::up};
+    const SessionCamera& s = o.session_camera;
+    const std::string name = kNames[part];
+    // As with_camera_overrides() takes the part: its own override, else the camera that
+    // replaces the scene's, else the scene.
+    if (const std::optional<Vec3f>& set = o.*kSet[part]) {
+        const std::optional<Vec3f>& read = s.*kRead[part];
+        if (!s.file.empty() && read && *read == *set) return {"/scene/" + name, ""};
+        return {"", "--" + name};
+    }
+    if (o.camera) {
+        const std::optional<CameraDesc>& read = s.camera;
+        if (!s.file.empty() && read && read->eye == o.camera->eye &&
+            read->target == o.camera->target && read->up == o.camera->up) {
+            // A key the object left out is its default: the object is to blame.
+            return {s.camera_keys[part] ? "/scene/camera/" + name : "/scene/camera", ""};
+        }
+        return {"", "the view"};
+    }
+    return {"", o.scene_path.empty() ? "the built-in scene"
+                                     : "the scene file " + printable(o.scene_path)};
+}
+
 void check_session_camera(const CameraDesc& scene_camera, const SceneOptions& o) {
     const SessionCamera& s = o.session_camera;
     if (s.file.empty()) return;
     const CameraDesc c = with_camera_overrides(scene_camera, o);
     const CameraFrameProblem problem = camera_frame_problem(c.eye, c.target, c.up);
     if (problem.why.empty()) return;
-    struct Part {
-        const char* name;
-        bool blamed;
-        std::optional<Vec3f> SceneOptions::*set;
-        std::optional<Vec3f> SessionCamera::*read;
-    };
-    const Part parts[] = {{"eye", problem.eye, &SceneOptions::eye, &SessionCamera::eye},
-                          {"target", problem.target, &SceneOptions::target, &SessionCamera::target},
-                          {"up", problem.up, &SceneOptions::up, &SessionCamera::up}};
-    const std::string scene =
-        o.scene_path.empty() ? "the built-in scene" : "the scene file " + printable(o.scene_path);
+    const bool blamed[] = {problem.eye, problem.target, problem.up};
+    static constexpr const char* kNames[] = {"eye", "target", "up"};
     std::vector<std::string> keys;
     std::vector<std::pair<std::string, std::string>> others;  // (parts, where from)
     for (size_t i = 0; i < 3; ++i) {
-        const Part& p = parts[i];
-        if (!p.blamed) continue;
-        // Where with_camera_overrides() took the part from: its own override, else the
-        // camera that replaces the scene's, else the scene.
-        std::string key, other;
-        if (const std::optional<Vec3f>& set = o.*p.set) {
-            const std::optional<Vec3f>& read = s.*p.read;
-            if (read && *read == *set) {
-                key = "/scene/" + std::string(p.name);
-            } else {
-                other = "--" + std::string(p.name);
-            }
-        } else if (o.camera) {
-            const std::optional<CameraDesc>& read = s.camera;
-            if (read && read->eye == o.camera->eye && read->target == o.camera->target &&
-                read->up == o.camera->up) {
-                // A key the object left out is its default: the object is to blame.
-                key = s.camera_keys[i] ? "/scene/camera/" + std::string(p.name) : "/scene/camera";
-            } else {
-                other = "the view";
-            }
-        } else {
-            other = scene;
-        }
+        if (!blamed[i]) continue;
+        const auto [key, other] = camera_part_source(o, i);
         if (!key.empty() && std::find(keys.begin(), keys.end(), key) == keys.end())
             keys.push_back(key);
         if (other.empty()) continue;
         if (!others.empty() && others.back().second == other) {
-            others.back().first += std::string(" and ") + p.name;
+            others.back().first += std::string(" and ") + kNames[i];
         } else {
-            others.emplace_back(p.name, other);
+            others.emplace_back(kNames[i], other);
         }
     }
     if (keys.empty()) return;

@@ -52,6 +52,20 @@ Prepared prepare_render(const RenderOptions& options, const PrepareLog& log = {}
 /// vfov_degrees, each when set.
 CameraDesc with_camera_overrides(CameraDesc camera, const SceneOptions& options);
 
+/// Where with_camera_overrides() takes a camera part from: a key of the session file
+/// (options.session_camera.file) that gave it, or else `other`.
+struct CameraPartSource {
+    std::string key;    ///< "/scene/eye", "/scene/camera/up", "/scene/camera"; or empty
+    std::string other;  ///< "--eye" (or --target, --up), "the view", "the built-in scene" or
+                        ///< "the scene file x.json"; empty with a key
+};
+
+/// The source of camera part `part` (0 eye, 1 target, 2 up) of `options`' overrides over the
+/// scene's camera: an override equal to the session's part is the session's, any other is
+/// the flag's; a camera equal to the session's camera object is that object's, any other
+/// is a view's.
+CameraPartSource camera_part_source(const SceneOptions& options, size_t part);
+
 /// Throws the kdt::Error of a camera that `scene_camera` (the scene's) with the overrides of
 /// `options` cannot make when a part a session file gave (options.session_camera) is to
 /// blame, naming the file, its keys and where the other parts to blame came from: "s.json:

@@ -446,18 +446,22 @@ kdt_status_test(smoke.session_bad_key 1 "session_bad.json: /trace/max_depht: unk
 file(WRITE ${_tmp}/session_bad.json "{\"trace\": {\"max_depht\": 2}}")
 # A session's part that the scene cannot take is an error naming the session and the key,
 # under --session and --frames sessions:, and where any other part to blame came from; a flag
-# that replaces the session's part names itself. Here the built-in scene, which has no
-# environment map for an env_mapping and looks at 0,0.85,0.
+# that replaces the session's part names itself, and a flag's error names the parts the
+# session gave as the session's. Here the built-in scene, which has no environment map for an
+# env_mapping and looks at 0,0.85,0.
 file(WRITE ${_tmp}/session_mapping.json "{\"scene\": {\"env_mapping\": \"angular\"}}")
 file(WRITE ${_tmp}/session_eye.json "{\"scene\": {\"eye\": [0, 0.85, 0]}}")
 file(WRITE ${_tmp}/session_eye_123.json "{\"scene\": {\"eye\": [1, 2, 3]}}")
+file(WRITE ${_tmp}/session_target.json "{\"scene\": {\"target\": [1, 2, 3]}}")
 foreach(_case "mapping_session;--session;session_mapping.json;session_mapping.json: /scene/env_mapping: the scene has no environment map"
               "mapping_frames;--frames;session_mapping.json;session_mapping.json: /scene/env_mapping: the scene has no environment map"
               "mapping_flag;--env-mapping angular --session;session_mapping.json;^kdtrace: error: scene.env_mapping \\(--env-mapping\\): the scene has no"
               "camera_session;--session;session_eye.json;error: [^\n]*session_eye.json: /scene/eye: eye and target coincide \\(target from the built-in scene\\)"
               "camera_frames;--frames;session_eye.json;error: [^\n]*session_eye.json: /scene/eye: eye and target coincide \\(target from the built-in scene\\)"
               "camera_target;--target 1,2,3 --session;session_eye_123.json;error: [^\n]*session_eye_123.json: /scene/eye: eye and target coincide \\(target from --target 1,2,3\\)"
-              "camera_eye;--eye 0,0.85,0 --session;session_eye_123.json;error: camera: eye and target coincide \\(--eye 0,0.85,0 with the scene's target and up\\)")
+              "camera_eye;--eye 0,0.85,0 --session;session_eye_123.json;error: camera: eye and target coincide \\(--eye 0,0.85,0 with the scene's target and up\\)"
+              "camera_up;--up 0,0,0 --session;session_target.json;^kdtrace: error: camera: up vector is zero \\(--up 0,0,0 with the scene's eye and [^\n]*session_target.json's target\\)\n$"
+              "camera_up_view;--up 0,0,0 --view A --session;session_target.json;^kdtrace: error: camera: up vector is zero \\(--up 0,0,0 with --view A's eye and [^\n]*session_target.json's target\\)\n$")
   list(GET _case 0 _id)
   list(GET _case 1 _args)
   list(GET _case 2 _name)

@@ -101,6 +101,30 @@ TEST_F(SessionCameraTest, OnlySessionFilesAreNamed) {
     EXPECT_EQ(error(o.scene), "");
 }
 
+// Each part's source, blamed or not: what a flag's camera error names for the other parts.
+TEST_F(SessionCameraTest, EachPartsSource) {
+    auto sources = [](const SceneOptions& o) {
+        std::string s;
+        for (size_t i = 0; i < 3; ++i) {
+            const CameraPartSource p = camera_part_source(o, i);
+            s += (s.empty() ? "" : "; ") + (p.key.empty() ? p.other : p.key);
+        }
+        return s;
+    };
+    SceneOptions o = session(R"({"target": [1, 2, 3], "camera": {"eye": [0, 0, 1]}})");
+    o.up = Vec3f(0.0f);  // --up 0,0,0
+    EXPECT_EQ(sources(o), "/scene/camera/eye; /scene/target; --up");
+    o.camera = CameraDesc{{0.0f, 5.0f, 0.0f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 40.0f};
+    o.target = Vec3f(3.0f, 2.0f, 1.0f);
+    EXPECT_EQ(sources(o), "the view; --target; --up");
+    SceneOptions flags;  // no session: every override is a flag's
+    flags.scene_path = "x.json";
+    flags.eye = Vec3f(1.0f);
+    EXPECT_EQ(sources(flags), "--eye; the scene file x.json; the scene file x.json");
+    flags.scene_path.clear();
+    EXPECT_EQ(sources(flags), "--eye; the built-in scene; the built-in scene");
+}
+
 // load_scene_with_overrides() checks before it applies the session's parts.
 TEST_F(SessionCameraTest, LoadingTheSceneChecks) {
     SceneOptions o = session(R"({"eye": [0, 0.85, 0]})");
