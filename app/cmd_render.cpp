@@ -334,6 +334,8 @@ void add_render_command(CLI::App& parent) {
         try {
             run(cmd);
         } catch (const Error& e) {
+            // A sequence's camera errors name their frame's sources already (frame_snapshot()).
+            if (dist_requested(cmd.dist)) throw Error(with_flags(e.what()));
             throw Error(with_camera_flags(*sub, with_flags(e.what()), cmd.options.scene));
         }
         if (interrupt::requested()) interrupt::exit_interrupted();  // 130 or 143

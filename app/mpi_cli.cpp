@@ -484,22 +484,39 @@ void warn_view_models(const std::vector<FramePlan>& frames, const SceneGroups& s
     }
 }
 
+// "view A" for a frame of --frames views:..., else "" (with_camera_flags()'s `view`).
+std::string frame_view(const DistArgs& a, const FramePlan& f) {
+    return a.frames.rfind("views:", 0) == 0 ? "view " + f.name : "";
+}
+
 // The snapshot of a frame: its scene's, seen through the frame's camera (the scene's with
-// the frame's overrides, as prepare_render() applies them, then the turntable's turn).
+// the frame's overrides, as prepare_render() applies them, then the turntable's turn). A
+// camera error is a single render's, naming the flags as given (with_camera_flags()) and
+// where the frame's other camera parts came from.
 std::shared_ptr<const RenderSnapshot> frame_snapshot(const SceneGroups& g,
-                                                     const std::vector<FramePlan>& frames,
-                                                     size_t i) {
+                                                     const std::vector<FramePlan>& frames, size_t i,
+                                                     const DistArgs& a) {
     const FramePlan& f = frames[i];
     const RenderSnapshot& base = *g.prepared[g.of_frame[i]].snapshot;
     const SceneOptions& o = f.options.scene;
-    check_session_camera(base.camera_desc, o);
-    CameraDesc c = with_camera_overrides(base.camera_desc, o);
-    if (f.turns > 0) c = turntable_camera(c, f.turn, f.turns);
-    // A copy shares the mesh, tree and environment; only the camera changes.
-    auto s = std::make_shared<RenderSnapshot>(base);
-    s->camera_desc = c;
-    s->camera = make_camera(c, o.width, o.height);
-    return s;
+    try {
+        check_session_camera(base.camera_desc, o);
+        CameraDesc c = with_camera_overrides(base.camera_desc, o);
+        // The camera's own problem, not the non-finite turn that a camera without a frame
+        // would give.
+        if (f.turns > 0) {
+            make_camera(c, o.width, o.height);
+            c = turntable_camera(c, f.turn, f.turns);
+        }
+        // A copy shares the mesh, tree and environment; only the camera changes.
+        auto s = std::make_shared<RenderSnapshot>(base);
+        s->camera_desc = c;
+        s->camera = make_camera(c, o.width, o.height);
+        return s;
+    } catch (const Error& e) {
+        if (!a.command) throw;
+        throw Error(with_camera_flags(*a.command, e.what(), o, frame_view(a, f)));
+    }
 }
 
 // What `render --session IMAGE` reads back from a frame image to render it again: the
@@ -591,7 +608,8 @@ void run_local_frames(const RenderOptions& base, const std::string& output, bool
         load_scenes(frames, [&](const RenderOptions& o) { return prepare_render(o, log); });
     warn_view_models(frames, scenes, a);
     std::vector<std::shared_ptr<const RenderSnapshot>> snaps;
-    for (size_t i = 0; i < frames.size(); ++i) snaps.push_back(frame_snapshot(scenes, frames, i));
+    for (size_t i = 0; i < frames.size(); ++i)
+        snaps.push_back(frame_snapshot(scenes, frames, i, a));
     Timer timer;
     // The first SIGINT/SIGTERM ends the frame in flight after its tiles in flight; that frame
     // is written, marked interrupted, and the sequence stops (render then exits 130 or 143).
@@ -817,6 +835,13 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
     std::vector<FramePlan> frames;
     dist::check_every_rank(ctx, "start", [&]() -> dist::Fingerprint {
         if (!received.empty()) throw Error(received);
+        // The options' JSON refuses a zero up vector (a session's "up"): the flag's is named
+        // as --frames without --mpi names it for the first frame. Every rank has the same flags.
+        if (o.scene.up && *o.scene.up == Vec3f(0.0f) && a.command) {
+            const FramePlan first = list_frames(o, a).front();
+            throw Error(with_camera_flags(*a.command, "camera: up vector is zero",
+                                          first.options.scene, frame_view(a, first)));
+        }
         options_from_json(json, o, "rank 0's options");
         frames = plan_frames(o, output, a, root);  // only rank 0 writes
         for (const FramePlan& f : frames) {
@@ -861,7 +886,7 @@ void run_mpi(dist::MpiContext& ctx, RenderOptions o, const std::string& output, 
     std::vector<dist::FrameJob> jobs;
     dist::check_every_rank(ctx, "set up the frames", [&]() -> dist::Fingerprint {
         for (size_t i = 0; i < frames.size(); ++i) {
-            jobs.push_back({frame_snapshot(scenes, frames, i), frames[i].options});
+            jobs.push_back({frame_snapshot(scenes, frames, i, a), frames[i].options});
             if (!root) continue;
             // The files a scene file names are known once it is loaded.
             const std::vector<std::string> inputs =

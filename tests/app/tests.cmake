@@ -221,16 +221,21 @@ kdt_status_test(smoke.tone_flags_png_output 0 " -> "
   ${_kdt} render --spp 1 --width 8 --height 6 --quiet --exposure 3 --tonemap aces -o
   ${_tmp}/tone_flags.png)
 set_tests_properties(smoke.tone_flags_png_output PROPERTIES FAIL_REGULAR_EXPRESSION "warning")
-# A camera error names the camera flags given, and where the other parts came from.
+# A camera error names the camera flags given, and where the other parts came from; a
+# turntable's or a listed view's the same (the camera's own problem, not its turn's).
+file(WRITE ${_tmp}/camera_views.json "{\"views\": [{\"name\": \"A\", \"eye\": [0, 1, 5], "
+     "\"target\": [0, 1, 0], \"up\": [0, 1, 0], \"vfov_degrees\": 30}]}")
 foreach(_case "eye;--eye 0,0,0;up vector is parallel to the viewing direction \\(--eye 0,0,0 with the scene's target and up\\)"
               "up;--up 0,0,0;up vector is zero \\(--up 0,0,0 with the scene's eye and target\\)"
-              "view;--up 0,0,0 --view A;up vector is zero \\(--up 0,0,0 with --view A's eye and target\\)")
+              "view;--up 0,0,0 --view A;up vector is zero \\(--up 0,0,0 with --view A's eye and target\\)"
+              "turntable;--up 0,0,0 --frames 2 --turntable;up vector is zero \\(--up 0,0,0 with the scene's eye and target\\)"
+              "frames_views;--up 0,0,0 --views ${_tmp}/camera_views.json --frames views:A;up vector is zero \\(--up 0,0,0 with view A's eye and target\\)")
   list(GET _case 0 _id)
   list(GET _case 1 _args)
   list(GET _case 2 _why)
   separate_arguments(_args)
   kdt_status_test(smoke.camera_error_flags_${_id} 1 "^kdtrace: error: camera: ${_why}\n$"
-    ${_kdt} render ${_args} --spp 1 --width 8 --height 6 --quiet -o ${_tmp}/camera_error.pfm)
+    ${_kdt} render ${_args} --spp 1 --width 8 --height 6 --quiet -o ${_tmp}/camera_error_%d.pfm)
 endforeach()
 # Success lines show file names as errors do (printable()): an escape sequence or a newline in
 # a name reaches the terminal as \x1b or \n, never raw.
@@ -461,6 +466,7 @@ foreach(_case "mapping_session;--session;session_mapping.json;session_mapping.js
               "camera_target;--target 1,2,3 --session;session_eye_123.json;error: [^\n]*session_eye_123.json: /scene/eye: eye and target coincide \\(target from --target 1,2,3\\)"
               "camera_eye;--eye 0,0.85,0 --session;session_eye_123.json;error: camera: eye and target coincide \\(--eye 0,0.85,0 with the scene's target and up\\)"
               "camera_up;--up 0,0,0 --session;session_target.json;^kdtrace: error: camera: up vector is zero \\(--up 0,0,0 with the scene's eye and [^\n]*session_target.json's target\\)\n$"
+              "camera_up_frames;--up 0,0,0 --frames;session_target.json;^kdtrace: error: camera: up vector is zero \\(--up 0,0,0 with the scene's eye and [^\n]*session_target.json's target\\)\n$"
               "camera_up_view;--up 0,0,0 --view A --session;session_target.json;^kdtrace: error: camera: up vector is zero \\(--up 0,0,0 with --view A's eye and [^\n]*session_target.json's target\\)\n$")
   list(GET _case 0 _id)
   list(GET _case 1 _args)

@@ -738,5 +738,28 @@ threads_default)
         "$kdtrace" "${args[@]}" --threads 1 --mpi -o mpi.pfm 2>&1) || { echo "$out"; fail "--threads 1"; }
     grep -q "^kdtrace: --mpi:" <<< "$out" && fail "--threads given, and still shared"
     echo "ok: the ranks share the cores" ;;
+camera_errors)
+    # A camera error reads as a single render's under --frames and --mpi (after --mpi's "all N
+    # ranks failed to ...: "): the flags named with their values, the other parts by source.
+    echo '{"scene": {"eye": [1, 2, 3]}}' > eye.json
+    echo '{"scene": {"target": [1, 2, 3]}}' > target.json
+    small=(render "$model" --no-cache --width 8 --height 6 --spp 1 --threads 1 --quiet)
+    for flags in "--target 1,2,3 --session eye.json" "--up 0,0,0 --session target.json" \
+        "--eye 1,1,1 --target 1,1,1" "--up 0,0,0"; do
+        read -ra f <<< "$flags"
+        one=$("$kdtrace" "${small[@]}" "${f[@]}" -o one.pfm 2>&1) && fail "$flags: exit status 0"
+        echo "$one"
+        msg=${one#kdtrace: error: }
+        [ "$msg" != "$one" ] && [ "$(wc -l <<< "$one")" -eq 1 ] || fail "$flags: not one error"
+        [[ $msg == *"${f[0]} ${f[1]}"* ]] || fail "$flags: the flag's value is not named"
+        out=$("$kdtrace" "${small[@]}" "${f[@]}" --frames 2 --turntable -o f%d.pfm 2>&1) &&
+            fail "$flags --frames: exit status 0"
+        [ "$out" = "$one" ] || { echo "$out"; fail "$flags --frames: another message"; }
+        out=$(mpi 2 "${small[@]}" "${f[@]}" --mpi -o m.pfm 2>&1) && fail "$flags --mpi: exit status 0"
+        line=$(grep '^kdtrace: error: ' <<< "$out")
+        [ "$(sed -E 's/^kdtrace: error: all 2 ranks failed to [^:]*: /kdtrace: error: /' <<< "$line")" = "$one" ] ||
+            { echo "$out"; fail "$flags --mpi: another message"; }
+    done
+    echo "ok: camera errors read alike with --frames and --mpi" ;;
 *) fail "unknown case $case_name" ;;
 esac

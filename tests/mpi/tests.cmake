@@ -13,7 +13,7 @@ if(KDT_WITH_MPI AND EXISTS /usr/share/assimp/models/PLY/Wuson.ply)
                 interrupt_worker frames_session worker_warnings bad_result bad_work bad_options
                 bad_log orphan
                 frames_passes
-                threads_default frames_names)
+                threads_default frames_names camera_errors)
     add_test(NAME mpi.${_case}
              COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/mpi_test.sh ${_case} $<TARGET_FILE:kdtrace>
                      ${_mpiexec} ${CMAKE_BINARY_DIR}/mpi_tests/${_case}
