@@ -2,6 +2,7 @@
 
 #include <cstdint>
 #include <set>
+#include <string>
 #include <vector>
 
 #include "renderer/core/error.h"
@@ -39,6 +40,12 @@ nlohmann::json parse_json_without_repeats(std::string_view text, const std::stri
             case json::parse_event_t::array_start:
                 next_element();
                 stack.push_back(Frame{event == json::parse_event_t::array_start, {}, {}, -1});
+                // Before the parser builds any deeper (json_parse.h).
+                if (stack.size() > kMaxJsonNesting) {
+                    throw Error(ErrorLocation{path}, "arrays and objects nested deeper than " +
+                                                         std::to_string(kMaxJsonNesting) +
+                                                         " levels (not a kdtrace file?)");
+                }
                 break;
             case json::parse_event_t::object_end:
             case json::parse_event_t::array_end:
