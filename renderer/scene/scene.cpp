@@ -448,6 +448,11 @@ Scene load_scene_text(const std::string& text, const std::string& path,
         scene.environment = read_environment(r.object("environment"), base, options);
 
     std::map<std::string, std::shared_ptr<const TriangleMesh>> loaded;
+    // Instances share their meshes here, but a render flattens them into one mesh and tree:
+    // a few bytes of JSON can ask for any number of copies, so the total is bounded before
+    // anything is allocated for it, and checked as it grows, so that a file of a million
+    // instances is refused at the first one over the budget, not after reading them all.
+    const uint64_t budget = scene_triangle_budget(options.max_triangles);
     uint64_t instanced_triangles = 0;
     Bounds3f world;
     if (!r.has("meshes") || !r.raw("meshes").is_array() || r.raw("meshes").empty())
@@ -513,16 +518,16 @@ Scene load_scene_text(const std::string& text, const std::string& path,
         }
         instanced_triangles += inst.mesh->triangle_count();
         scene.meshes.push_back(std::move(inst));
-    }
-    // Instances share their meshes here, but a render flattens them into one mesh and tree:
-    // a few bytes of JSON can ask for any number of copies, so the total is bounded before
-    // anything is allocated for it.
-    const uint64_t budget = scene_triangle_budget(options.max_triangles);
-    if (instanced_triangles > budget) {
-        r.fail_key("meshes", std::to_string(scene.meshes.size()) + " instances make " +
-                                 std::to_string(instanced_triangles) +
-                                 " triangles to render, over the budget of " +
-                                 std::to_string(budget) + " (" + describe_budget(options) + ")");
+        if (instanced_triangles > budget) {
+            const std::string count = std::to_string(scene.meshes.size());
+            r.fail_key("meshes",
+                       (i + 1 == meshes.size()
+                            ? count
+                            : "the first " + count + " of " + std::to_string(meshes.size())) +
+                           " instances make " + std::to_string(instanced_triangles) +
+                           " triangles to render, over the budget of " + std::to_string(budget) +
+                           " (" + describe_budget(options) + ")");
+        }
     }
     scene.camera = r.has("camera") ? read_camera(r.object("camera")) : frame_bounds(world);
     return scene;

@@ -529,11 +529,17 @@ TEST(Scene, TriangleBudgetAfterInstancingIsEnforced) {
         } catch (const Error& e) {
             msg = e.what();
         }
-        if (triangles <= scene_triangle_budget(options.max_triangles)) {
+        const uint64_t budget = scene_triangle_budget(options.max_triangles);
+        if (triangles <= budget) {
             EXPECT_EQ(msg, "") << n;
         } else {
-            EXPECT_EQ(msg.rfind(path + ": meshes: " + std::to_string(n) + " instances make " +
-                                    std::to_string(triangles) +
+            // The first instance over the budget ends the reading.
+            const int over = int(budget / 20480u) + 1;
+            const std::string count =
+                over == n ? std::to_string(n)
+                          : "the first " + std::to_string(over) + " of " + std::to_string(n);
+            EXPECT_EQ(msg.rfind(path + ": meshes: " + count + " instances make " +
+                                    std::to_string(uint64_t(over) * 20480u) +
                                     " triangles to render, over the budget of 100000 (at most "
                                     "100000 triangles",
                                 0),
@@ -541,6 +547,31 @@ TEST(Scene, TriangleBudgetAfterInstancingIsEnforced) {
                 << msg;
         }
     }
+}
+
+// The budget is checked as instances are read: a file of 100,000 instances (3.5 MB) is refused
+// at the first one over, naming the count read so far, not after all of them (tens of seconds).
+TEST(Scene, TriangleBudgetStopsReadingInstances) {
+    auto dir = test::temp_dir("scene_budget_early");
+    SceneLoadOptions options;
+    options.max_triangles = 100000;
+    std::string json = R"({"meshes": [)";
+    for (int i = 0; i < 100000; ++i)
+        json += std::string(i ? ", " : "") + R"({"file": "builtin:icosphere"})";
+    // A broken instance far past the budget: reading it would fail with another message.
+    json += R"(, {"file": "builtin:icosphere", "smooth": 1}]})";
+    const std::string path = write_file(dir, "many.json", json);
+    std::string msg;
+    try {
+        load_scene(path, options);
+    } catch (const Error& e) {
+        msg = e.what();
+    }
+    EXPECT_EQ(msg.rfind(path + ": meshes: the first 5 of 100001 instances make 102400 triangles "
+                               "to render, over the budget of 100000",
+                        0),
+              0u)
+        << msg;
 }
 
 // An eye or target near the float limit, or an up vector of huge components, is an
