@@ -65,13 +65,14 @@ void add_scene_command(CLI::App& parent) {
                              ? "the " + std::to_string(budget) + " that fit the memory available"
                              : "--max-triangles " + std::to_string(max_triangles)));
         }
-        // The environment map is decoded as `render` would (the meshes were read above).
-        if (!scene.environment.file.empty()) {
-            try {
-                make_environment_light(scene.environment);
-            } catch (const Error& e) {
-                throw Error(ErrorLocation{input, "environment/file"}, e.what());
-            }
+        // The environment is checked as `render` would (the meshes were read above): a map
+        // decoded, a constant colour's radiance bounded.
+        try {
+            make_environment_light(scene.environment);
+        } catch (const Error& e) {
+            throw Error(ErrorLocation{input, scene.environment.file.empty() ? "environment"
+                                                                            : "environment/file"},
+                        e.what());
         }
         size_t tris = 0, verts = 0;
         for (const MeshInstance& m : scene.meshes) {

@@ -140,7 +140,16 @@ Prepared prepare_render(const RenderOptions& o, const PrepareLog& log, const Pre
     const Camera camera = make_camera(out.scene.camera, o.scene.width, o.scene.height);
     TraceScene ts = merge_instances(out.scene);
     enter(PrepareStage::environment);
-    ts.env = make_environment_light(out.scene.environment, say);
+    try {
+        ts.env = make_environment_light(out.scene.environment, say);
+    } catch (const Error& e) {
+        // A map's errors name the map; a constant colour's radiance (colour times intensity)
+        // names the option that gave the intensity, or else the scene file.
+        if (!out.scene.environment.file.empty()) throw;
+        if (o.scene.env_intensity) throw Error(std::string("scene.env_intensity: ") + e.what());
+        if (o.scene.scene_path.empty()) throw;
+        throw Error(ErrorLocation{o.scene.scene_path, "environment"}, e.what());
+    }
 
     enter(PrepareStage::tree);
     Timer tree_timer;

@@ -844,3 +844,24 @@ add_test(NAME docs.every_option_documented COMMAND bash
          ${CMAKE_SOURCE_DIR}/docs/usage.md)
 set_tests_properties(docs.every_option_documented PROPERTIES
   PASS_REGULAR_EXPRESSION "PASS: all [0-9]+ options" FAIL_REGULAR_EXPRESSION "FAIL: ")
+
+# Hostile inputs (a sweep of broken files and absurd values): each error names the file or
+# the flag and the problem, with status 1.
+# A constant environment's radiance (colour times intensity) over the bound: `scene` refuses it
+# as `render` does, naming the scene file; an --env-intensity that does it names the flag.
+file(WRITE ${_tmp}/bright_env.json "{\"meshes\": [{\"file\": \"builtin:icosphere\"}], \
+\"environment\": {\"color\": [1, 1, 1], \"intensity\": 1e31}}")
+add_test(NAME smoke.scene_env_radiance COMMAND sh -c "\"$@\" 2>&1; echo \"status $?\"" sh
+         ${_kdt} scene ${_tmp}/bright_env.json)
+set_tests_properties(smoke.scene_env_radiance PROPERTIES PASS_REGULAR_EXPRESSION
+  "^kdtrace: error: [^\n]*/bright_env.json: environment: environment colour channel 1 times intensity 1e\\+31 is radiance 1e\\+31, above the limit 1e\\+30[^\n]*\nstatus 1\n$")
+add_test(NAME smoke.render_env_radiance COMMAND sh -c "\"$@\" 2>&1; echo \"status $?\"" sh
+         ${_kdt} render ${_tmp}/bright_env.json --spp 1 --width 8 --height 6 --quiet
+         -o ${_tmp}/bright_env.pfm)
+set_tests_properties(smoke.render_env_radiance PROPERTIES PASS_REGULAR_EXPRESSION
+  "^kdtrace: error: [^\n]*/bright_env.json: environment: environment colour channel 1 times intensity 1e\\+31[^\n]*\nstatus 1\n$")
+add_test(NAME smoke.render_env_intensity_radiance COMMAND sh -c "\"$@\" 2>&1; echo \"status $?\""
+         sh ${_kdt} render --env-intensity 1e31 --spp 1 --width 8 --height 6 --quiet
+         -o ${_tmp}/bright_flag.pfm)
+set_tests_properties(smoke.render_env_intensity_radiance PROPERTIES PASS_REGULAR_EXPRESSION
+  "^kdtrace: error: scene.env_intensity \\(--env-intensity\\): environment colour channel 1 times intensity 1e\\+31 is radiance 1e\\+31, above the limit 1e\\+30[^\n]*\nstatus 1\n$")

@@ -135,3 +135,41 @@ TEST_F(SessionCameraTest, LoadingTheSceneChecks) {
 
 }  // namespace
 }  // namespace kdt
+
+namespace kdt {
+namespace {
+
+// A constant environment whose colour times intensity overflows the radiance bound names
+// where the intensity came from: the option (--env-intensity or a session's), else the scene.
+TEST(PrepareEnvironment, ConstantRadianceErrorsNameTheirSource) {
+    const auto dir = test::temp_dir("prepare_env_radiance");
+    const std::string scene = (dir / "bright.json").string();
+    const std::string json = R"({"meshes": [{"file": "builtin:icosphere"}],
+        "environment": {"color": [1, 1, 1], "intensity": 1e31}})";
+    test::write_bytes(scene, std::vector<unsigned char>(json.begin(), json.end()));
+    const auto quiet = [](const std::string&) {};
+    RenderOptions o;
+    o.scene.scene_path = scene;
+    o.scene.width = 8;
+    o.scene.height = 8;
+    EXPECT_EQ(
+        test::error_of_call([&] { prepare_render(o, quiet); })
+            .rfind(scene + ": environment: environment colour channel 1 times intensity 1e+31 is "
+                           "radiance 1e+31, above the limit 1e+30",
+                   0),
+        0u);
+    // An intensity option that brings it within the bound is used instead of the file's.
+    o.scene.env_intensity = 1.0f;
+    o.scene.use_cache = false;
+    EXPECT_EQ(test::error_of_call([&] { prepare_render(o, quiet); }), "");
+    o.scene.env_intensity = 3e38f;
+    o.scene.scene_path.clear();  // the built-in scene
+    EXPECT_EQ(test::error_of_call([&] { prepare_render(o, quiet); })
+                  .rfind("scene.env_intensity: environment colour channel 1 times intensity "
+                         "3e+38 is radiance 3e+38, above the limit 1e+30",
+                         0),
+              0u);
+}
+
+}  // namespace
+}  // namespace kdt
