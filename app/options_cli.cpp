@@ -312,11 +312,14 @@ void add_scene_options(CLI::App& app, SceneOptions& scene) {
     app.add_option_function<std::string>(
            "--fov",
            [&scene](const std::string& text) {
+               // Checked as the float it is stored as: 179.999999999 is 180 there.
                double v = 0.0;
-               if (!detail::parse_number(text, v) || !(v > 0.0 && v < 180.0))
+               const bool number = detail::parse_number(text, v);
+               const float f = number && std::fabs(v) < 1e38 ? float(v) : 0.0f;
+               if (!(f > 0.0f && f < 180.0f))
                    throw Error("--fov must be a vertical field of view in (0, 180) degrees (got '" +
                                excerpt(text) + "')");
-               scene.vfov_degrees = float(v);
+               scene.vfov_degrees = f;
            },
            "Vertical field of view in degrees, (0, 180)")
         ->type_name("DEG");

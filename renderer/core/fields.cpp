@@ -88,6 +88,15 @@ std::string check_number(double v, double min, double max, bool min_open, bool i
     const double lo = as_float ? double(float(min)) : min, hi = as_float ? double(float(max)) : max;
     const bool below = min_open ? !(v > lo) : !(v >= lo);
     if (below || !(v <= hi)) return "must be in " + range + " (got " + shown(v) + ")";
+    // A value within the bounds can still round out of them as a float: 1e-50 to 0 (which a
+    // stop condition would read as off), 179.999999999 to 180.
+    if (as_float) {
+        const double f = double(float(v));
+        if ((min_open ? !(f > lo) : !(f >= lo)) || !(f <= hi)) {
+            return "must be in " + range + " (got " + number_text(v) + ", which is " +
+                   number_text(f) + " as a float)";
+        }
+    }
     if (integral && v != std::trunc(v))
         return "must be a whole number in " + range + " (got " + number_text(v) + ")";
     return {};

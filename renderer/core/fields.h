@@ -98,8 +98,9 @@ namespace detail {
 std::string number_text(double v);
 std::string range_text(double min, double max, bool min_open, bool integral);
 std::string choices_text(std::span<const char* const> names);
-/// "" when v lies in the range, else why not. `as_float`: v is a float's value, compared with
-/// the bounds as a float holds them, so that the stated bounds themselves pass.
+/// "" when v lies in the range, else why not. `as_float`: v is stored as a float, and both v
+/// and v rounded to float are compared with the bounds as a float holds them, so that the
+/// stated bounds themselves pass and no value within them rounds out of them.
 std::string check_number(double v, double min, double max, bool min_open, bool integral,
                          bool as_float = false);
 bool parse_number(const std::string& text, double& out);

@@ -865,3 +865,17 @@ add_test(NAME smoke.render_env_intensity_radiance COMMAND sh -c "\"$@\" 2>&1; ec
          -o ${_tmp}/bright_flag.pfm)
 set_tests_properties(smoke.render_env_intensity_radiance PROPERTIES PASS_REGULAR_EXPRESSION
   "^kdtrace: error: scene.env_intensity \\(--env-intensity\\): environment colour channel 1 times intensity 1e\\+31 is radiance 1e\\+31, above the limit 1e\\+30[^\n]*\nstatus 1\n$")
+# A value within a flag's range that its float is not is refused naming the flag: --error 1e-50
+# was stored as 0, which reads as no --error (a silent 16 spp render), and --fov 179.999999999
+# as 180, refused later as "camera: ..." without the flag.
+foreach(_case "error_tiny;--error 1e-50;--error must be in \\(0, 1e\\+06\\] \\(got 1e-50, which is 0 as a float\\)"
+              "fov_rounds_to_180;--fov 179.999999999;--fov must be a vertical field of view in \\(0, 180\\) degrees \\(got '179.999999999'\\)")
+  list(GET _case 0 _id)
+  list(GET _case 1 _args)
+  list(GET _case 2 _why)
+  separate_arguments(_args)
+  add_test(NAME smoke.float_rounding_${_id} COMMAND sh -c "\"$@\" 2>&1; echo \"status $?\"" sh
+           ${_kdt} render ${_args} --width 8 --height 6 --quiet -o ${_tmp}/float_rounding.pfm)
+  set_tests_properties(smoke.float_rounding_${_id} PROPERTIES
+    PASS_REGULAR_EXPRESSION "^kdtrace: error: ${_why}\nstatus 1\n$")
+endforeach()

@@ -64,6 +64,13 @@ void check_table(std::span<const Field<S>> fields, const char* group) {
             EXPECT_NE(parse_field(f, s, detail::number_text(f.max * 2.0 + 1.0)), "");
         }
         EXPECT_EQ(parse_field(f, s, detail::number_text(f.max)), "") << f.max;
+        if (std::holds_alternative<float*>(r) && f.min_open) {
+            // Above an open minimum as a double, on it as a float: 1e-50 would be stored as 0.
+            const double inside = f.min == 0.0 ? 1e-50 : f.min * (1.0 + 1e-12);
+            const double kept = field_number(r);
+            EXPECT_NE(parse_field(f, s, detail::number_text(inside)), "") << inside;
+            EXPECT_EQ(field_number(r), kept);
+        }
         if (integral) {
             EXPECT_NE(parse_field(f, s, "1.5"), "");
         }
@@ -137,6 +144,20 @@ TEST(RenderOptions, TheStatedMaximumOfAFloatFieldIsAccepted) {
     o.scene.env_intensity = 3.1e38f;
     EXPECT_THROW(validate(o), Error);
     EXPECT_EQ(parse_field(*cost, p, "3.1e38"), "must be in (0, 3e+38] (got 3.1e+38)");
+}
+
+// A value within a float field's range as typed that its float is not: refused with both,
+// not stored as 0 (which --error and --time read as off) or refused later without the flag.
+TEST(RenderOptions, AValueThatRoundsOutOfAFloatFieldsRangeIsRefused) {
+    KdTreeParams p;
+    const Field<KdTreeParams>* q = nullptr;
+    for (const Field<KdTreeParams>& f : kd_tree_fields())
+        if (std::string(f.name) == "q") q = &f;
+    ASSERT_TRUE(q);
+    EXPECT_EQ(parse_field(*q, p, "1e-50"), "must be in (0, 1] (got 1e-50, which is 0 as a float)");
+    EXPECT_EQ(p.q, KdTreeParams{}.q);
+    EXPECT_EQ(parse_field(*q, p, "1e-30"), "");
+    EXPECT_EQ(p.q, 1e-30f);
 }
 
 TEST(RenderOptions, ResolveHoldsTheRules) {
