@@ -633,6 +633,11 @@ ImageRGB load_pfm(const std::string& path, const std::vector<uint8_t>& data) {
     if (*end != 0 || !std::isfinite(scale) || scale == 0.0) {
         fail(path, "malformed scale '" + scale_token.first + "'", scale_token.second);
     }
+    // Pixels are multiplied by the scale as a float: beyond float range it would make every
+    // pixel infinite or NaN, and the error would blame the first pixel.
+    if (std::fabs(scale) > double(std::numeric_limits<float>::max())) {
+        fail(path, "scale '" + scale_token.first + "' is beyond float range", scale_token.second);
+    }
     ++pos;  // exactly one whitespace character separates the header from the data
     const bool little = scale < 0.0;
     const size_t count = size_t(w) * size_t(h) * size_t(channels);

@@ -392,6 +392,7 @@ TEST_F(ImageIoTest, BrokenPfmFiles) {
         {"PF\n-3 2\n-1\n", "invalid image size"},
         {"PF\n3 2\n0\n", "scale"},
         {"PF\n3 2\nnan\n", "scale"},
+        {"PF\n1 1\n-1e39\n" + std::string(12, '\0'), "byte 7: scale '-1e39' is beyond float range"},
         {"PF\n3 x\n-1\n", "height"},
         {"PF\n3 2\n-1\n" + std::string(71, '\0'), "truncated pixel data"},
         {"PF\n3", "truncated PFM header"},
