@@ -529,7 +529,15 @@ Scene load_scene_text(const std::string& text, const std::string& path,
                            " (" + describe_budget(options) + ")");
         }
     }
-    scene.camera = r.has("camera") ? read_camera(r.object("camera")) : frame_bounds(world);
+    if (r.has("camera")) {
+        scene.camera = read_camera(r.object("camera"));
+    } else {
+        try {
+            scene.camera = frame_bounds(world);
+        } catch (const Error& e) {
+            r.fail_key("camera", std::string(e.what()) + "; give the scene a camera");
+        }
+    }
     return scene;
 }
 
@@ -549,9 +557,8 @@ CameraDesc frame_bounds(const Bounds3f& bounds, float vfov_degrees) {
     c.target = center;
     c.up = Vec3f(0.0f, 1.0f, 0.0f);
     if (!is_finite(c.eye) || !is_finite(c.target) || !(glm::length(c.eye - c.target) > 0.0f))
-        throw Error("camera: cannot frame the scene automatically: its bounds (extent " +
-                    std::to_string(2.0f * radius) +
-                    ") are beyond float range; give the scene a camera");
+        throw Error("cannot frame the scene automatically: its bounds (extent " +
+                    std::to_string(2.0f * radius) + ") are beyond float range");
     return c;
 }
 
@@ -562,7 +569,13 @@ Scene scene_from_model(const std::string& path, const SceneLoadOptions& options)
     inst.file = path;
     inst.mesh = std::make_shared<const TriangleMesh>(load_model(path, options));
     inst.material.albedo = Vec3f(0.8f);
-    scene.camera = frame_bounds(inst.mesh->bounds());
+    try {
+        scene.camera = frame_bounds(inst.mesh->bounds());
+    } catch (const Error& e) {
+        // --eye and --target replace the camera only once the scene is made.
+        throw Error(ErrorLocation{path},
+                    std::string(e.what()) + "; render it from a scene file that gives a camera");
+    }
     scene.meshes.push_back(std::move(inst));
     scene.environment.color = Vec3f(1.0f);
     return scene;

@@ -148,7 +148,8 @@ std::string material_to_json(const MaterialDesc& material);
 MaterialDesc material_from_json(const std::string& json_text, const std::string& file,
                                 const std::string& where);
 
-/// A camera that frames `bounds` from the front-right, above.
+/// A camera that frames `bounds` from the front-right, above. Throws kdt::Error (naming no
+/// file) when the bounds are too large for a camera in float.
 CameraDesc frame_bounds(const Bounds3f& bounds, float vfov_degrees = 40.0f);
 
 }  // namespace kdt

@@ -373,6 +373,32 @@ TEST(Scene, FramingBoundsBeyondFloatRangeIsAnError) {
     }
 }
 
+// A model or camera-less scene too large to frame is an error naming the file.
+TEST(Scene, FramingErrorsNameTheFile) {
+    auto dir = test::temp_dir("scene_framing");
+    const std::string model = write_file(
+        dir, "huge.ply",
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+        "3e38 3e38 3e38\n-3e38 -3e38 -3e38\n3e38 -3e38 0\n3 0 1 2\n");
+    std::string msg;
+    try {
+        load_scene_or_model(model);
+    } catch (const Error& e) {
+        msg = e.what();
+    }
+    EXPECT_EQ(msg.rfind(model + ": cannot frame the scene automatically: its bounds (extent inf) "
+                                "are beyond float range; render it from a scene file that gives "
+                                "a camera",
+                        0),
+              0u)
+        << msg;
+    const std::string scene = write_file(dir, "s.json", R"({"meshes": [{"file": "huge.ply"}]})");
+    EXPECT_EQ(error_of(scene), scene +
+                                   ": camera: cannot frame the scene automatically: its bounds "
+                                   "(extent inf) are beyond float range; give the scene a camera");
+}
+
 TEST(Scene, ModelSceneFramesTheModel) {
     auto dir = test::temp_dir("scene_model");
     auto path = write_file(dir, "cube.ply", kCubePly);
