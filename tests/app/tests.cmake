@@ -851,20 +851,17 @@ set_tests_properties(docs.every_option_documented PROPERTIES
 # as `render` does, naming the scene file; an --env-intensity that does it names the flag.
 file(WRITE ${_tmp}/bright_env.json "{\"meshes\": [{\"file\": \"builtin:icosphere\"}], \
 \"environment\": {\"color\": [1, 1, 1], \"intensity\": 1e31}}")
-add_test(NAME smoke.scene_env_radiance COMMAND sh -c "\"$@\" 2>&1; echo \"status $?\"" sh
-         ${_kdt} scene ${_tmp}/bright_env.json)
-set_tests_properties(smoke.scene_env_radiance PROPERTIES PASS_REGULAR_EXPRESSION
-  "^kdtrace: error: [^\n]*/bright_env.json: environment: environment colour channel 1 times intensity 1e\\+31 is radiance 1e\\+31, above the limit 1e\\+30[^\n]*\nstatus 1\n$")
-add_test(NAME smoke.render_env_radiance COMMAND sh -c "\"$@\" 2>&1; echo \"status $?\"" sh
-         ${_kdt} render ${_tmp}/bright_env.json --spp 1 --width 8 --height 6 --quiet
-         -o ${_tmp}/bright_env.pfm)
-set_tests_properties(smoke.render_env_radiance PROPERTIES PASS_REGULAR_EXPRESSION
-  "^kdtrace: error: [^\n]*/bright_env.json: environment: environment colour channel 1 times intensity 1e\\+31[^\n]*\nstatus 1\n$")
-add_test(NAME smoke.render_env_intensity_radiance COMMAND sh -c "\"$@\" 2>&1; echo \"status $?\""
-         sh ${_kdt} render --env-intensity 1e31 --spp 1 --width 8 --height 6 --quiet
-         -o ${_tmp}/bright_flag.pfm)
-set_tests_properties(smoke.render_env_intensity_radiance PROPERTIES PASS_REGULAR_EXPRESSION
-  "^kdtrace: error: scene.env_intensity \\(--env-intensity\\): environment colour channel 1 times intensity 1e\\+31 is radiance 1e\\+31, above the limit 1e\\+30[^\n]*\nstatus 1\n$")
+kdt_status_test(smoke.scene_env_radiance 1
+  "^kdtrace: error: [^\n]*/bright_env.json: environment: environment colour channel 1 times intensity 1e\\+31 is radiance 1e\\+31, above the limit 1e\\+30[^\n]*\n$"
+  ${_kdt} scene ${_tmp}/bright_env.json)
+kdt_status_test(smoke.render_env_radiance 1
+  "^kdtrace: error: [^\n]*/bright_env.json: environment: environment colour channel 1 times intensity 1e\\+31[^\n]*\n$"
+  ${_kdt} render ${_tmp}/bright_env.json --spp 1 --width 8 --height 6 --quiet
+  -o ${_tmp}/bright_env.pfm)
+kdt_status_test(smoke.render_env_intensity_radiance 1
+  "^kdtrace: error: scene.env_intensity \\(--env-intensity\\): environment colour channel 1 times intensity 1e\\+31 is radiance 1e\\+31, above the limit 1e\\+30[^\n]*\n$"
+  ${_kdt} render --env-intensity 1e31 --spp 1 --width 8 --height 6 --quiet
+  -o ${_tmp}/bright_flag.pfm)
 # A value within a flag's range that its float is not is refused naming the flag: --error 1e-50
 # was stored as 0, which reads as no --error (a silent 16 spp render), and --fov 179.999999999
 # as 180, refused later as "camera: ..." without the flag.
@@ -874,8 +871,6 @@ foreach(_case "error_tiny;--error 1e-50;--error must be in \\(0, 1e\\+06\\] \\(g
   list(GET _case 1 _args)
   list(GET _case 2 _why)
   separate_arguments(_args)
-  add_test(NAME smoke.float_rounding_${_id} COMMAND sh -c "\"$@\" 2>&1; echo \"status $?\"" sh
-           ${_kdt} render ${_args} --width 8 --height 6 --quiet -o ${_tmp}/float_rounding.pfm)
-  set_tests_properties(smoke.float_rounding_${_id} PROPERTIES
-    PASS_REGULAR_EXPRESSION "^kdtrace: error: ${_why}\nstatus 1\n$")
+  kdt_status_test(smoke.float_rounding_${_id} 1 "^kdtrace: error: ${_why}\n$"
+    ${_kdt} render ${_args} --width 8 --height 6 --quiet -o ${_tmp}/float_rounding.pfm)
 endforeach()
