@@ -49,8 +49,9 @@ struct TraceParams {
     /// streams (integrator/wavefront.h), else one path at a time; the image and the counters
     /// are the same bit for bit. Tiles with a heat map take the one-path route.
     bool wavefront = true;
-    /// The wavefront traces each bounce's rays with the partition traversal
-    /// (accel/traversal_partition.h) instead of 32-lane streams; same image and counters.
+    /// The wavefront traces the rays that leave the camera hits (first bounce and its shadow
+    /// rays) with the partition traversal (accel/traversal_partition.h) instead of 32-lane
+    /// streams; later bounces always take the streams. Same image and counters.
     bool partition = false;
 };
 

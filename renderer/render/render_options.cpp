@@ -68,7 +68,7 @@ const Field<TP> kTraceFields[] = {
     KDT_FIELD(TP, wavefront, "--no-wavefront",
               "Trace one path at a time instead of a tile pass's paths as ray streams"),
     KDT_FIELD(TP, partition, "--partition-traversal",
-              "Trace the wavefront's rays by partition traversal instead of ray streams"),
+              "Trace the first bounce's rays by partition traversal instead of ray streams"),
 };
 
 const Field<FP> kFilmFields[] = {
