@@ -51,7 +51,8 @@ struct TraceParams {
     bool wavefront = true;
     /// The wavefront traces the rays that leave the camera hits (first bounce and its shadow
     /// rays) with the partition traversal (accel/traversal_partition.h) instead of 32-lane
-    /// streams; later bounces always take the streams. Same image and counters.
+    /// streams when a tile chunk has enough of them (integrator/wavefront.cpp); later bounces
+    /// always take the streams. Same image and counters.
     bool partition = false;
 };
 

@@ -52,11 +52,8 @@ void trace_camera_hits(const TraceScene& scene, const TraceParams& params, const
             const Hit& h = w.hits[camera ? w.active[a] : a];
             if (h.valid()) __builtin_prefetch(triangles + h.prim);
         }
-        // The rays that leave the camera hits of a tile start close together, which the
-        // partition traversal needs to share the tree's top between them; later bounces
-        // start anywhere on the scene, where it was 0.72-0.83x the streams' speed on the
-        // dragon against 1.12-1.31x for these (docs/performance.md, "Partition traversal of
-        // tile batches"). Both give every ray its single-ray result.
+        // The partition traversal only for the rays leaving the camera hits (see
+        // kWavefrontPartitionMinBatch).
         const bool partition = params.partition && camera;
         size_t shadows = 0;
         for (size_t a = 0; a < w.active.size(); ++a) {
@@ -72,7 +69,7 @@ void trace_camera_hits(const TraceScene& scene, const TraceParams& params, const
         // Each path's shadow rays are resolved in the order it emitted them, before its
         // next step, as the one-path loop does.
         if (shadows > 0) {
-            if (partition)
+            if (partition && shadows >= kWavefrontPartitionMinBatch)
                 occluded_partition(tree, w.shadows.data(), shadows, w.occluded.data(), tcp);
             else
                 occluded_stream(tree, w.shadows.data(), shadows, w.occluded.data(), kWavefrontLanes,
@@ -94,7 +91,7 @@ void trace_camera_hits(const TraceScene& scene, const TraceParams& params, const
             w.active[alive++] = i;
         }
         w.active.resize(alive);
-        if (alive > 0 && partition)
+        if (partition && alive >= kWavefrontPartitionMinBatch)
             intersect_partition(tree, w.rays.data(), alive, w.hits.data(), tcp);
         else if (alive > 0)
             intersect_stream(tree, w.rays.data(), alive, w.hits.data(), kWavefrontLanes, tcp);

@@ -3,6 +3,7 @@
 // shadow rays to a non-constant environment, emissive triangles, dielectrics and roulette.
 #include "renderer/integrator/wavefront.h"
 
+#include <algorithm>
 #include <cstring>
 #include <filesystem>
 #include <string>
@@ -29,9 +30,11 @@ void expect_same_counters(const PathCounters& a, const PathCounters& b, const st
 
 // Every sample of a width x height image, spp each, through trace_camera_hit() one at a time
 // and through trace_camera_hits() in batches of `batch`; returns the one-path counters.
+// camera_hits, when set, gets the number of camera rays that hit.
 PathCounters expect_wavefront_equals_one_path(const TraceScene& scene, const TraceParams& tp,
-                                              const std::string& what, size_t batch) {
-    const int width = 12, height = 10, spp = 3;
+                                              const std::string& what, size_t batch, int spp = 3,
+                                              size_t* camera_hits = nullptr) {
+    const int width = 12, height = 10;
     const Camera cam =
         make_camera({0.3f, 1.2f, 3.2f}, {0, 0.3f, 0}, {0, 1, 0}, 45.0f, width, height);
     std::vector<Ray> rays;
@@ -50,6 +53,9 @@ PathCounters expect_wavefront_equals_one_path(const TraceScene& scene, const Tra
         }
     }
     const size_t n = rays.size();
+    if (camera_hits)
+        *camera_hits =
+            size_t(std::count_if(hits.begin(), hits.end(), [](const Hit& h) { return h.valid(); }));
     std::vector<PixelSampler> one_samplers = samplers;
     std::vector<Vec3f> one(n), wave(n);
     PathCounters one_counters, wave_counters;
@@ -125,7 +131,9 @@ TEST(Wavefront, MatchesOnePathWithShadowRaysEmittersAndGlass) {
     EXPECT_EQ(c.nodes_visited, 0u);
 }
 
-// The wavefront with the partition traversal (TraceParams::partition) instead of streams.
+// The wavefront with the partition traversal (TraceParams::partition) for the first bounce:
+// batches below kWavefrontPartitionMinBatch (streams throughout) and batches whose camera
+// hits reach it (the first bounce and its shadow rays by partition, later ones by streams).
 TEST(Wavefront, PartitionTraversalMatchesOnePath) {
     const TraceScene scene = test::make_mixed_scene(std::make_shared<test::GradientEnv>());
     for (TraceParams tp : strategies()) {
@@ -134,6 +142,11 @@ TEST(Wavefront, PartitionTraversalMatchesOnePath) {
             const std::string what = describe(tp) + ", partition, batch " + std::to_string(batch);
             expect_wavefront_equals_one_path(scene, tp, what, batch);
         }
+        // 12 x 10 pixels x 40 samples in one batch: enough camera hits for the partition.
+        size_t camera_hits = 0;
+        const std::string what = describe(tp) + ", partition, one batch of 4800";
+        expect_wavefront_equals_one_path(scene, tp, what, 4800, 40, &camera_hits);
+        EXPECT_GE(camera_hits, 2 * kWavefrontPartitionMinBatch) << what;
     }
 }
 
