@@ -53,7 +53,7 @@ struct TraceParams {
     /// rays) with the partition traversal (accel/traversal_partition.h) instead of 32-lane
     /// streams when a tile chunk has enough of them (integrator/wavefront.cpp); later bounces
     /// always take the streams. Same image and counters.
-    bool partition = false;
+    bool partition = true;
 };
 
 /// Per-thread counters, summed at the end of a pass.

@@ -67,8 +67,8 @@ const Field<TP> kTraceFields[] = {
     KDT_FIELD(TP, count_traversal, nullptr, "Count kd-tree nodes and triangles per ray"),
     KDT_FIELD(TP, wavefront, "--no-wavefront",
               "Trace one path at a time instead of a tile pass's paths as ray streams"),
-    KDT_FIELD(TP, partition, "--partition-traversal",
-              "Trace the first bounce's rays by partition traversal instead of ray streams"),
+    KDT_FIELD(TP, partition, "--no-partition-traversal",
+              "Trace the first bounce's rays as ray streams instead of by partition traversal"),
 };
 
 const Field<FP> kFilmFields[] = {

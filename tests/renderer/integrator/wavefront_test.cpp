@@ -142,11 +142,16 @@ TEST(Wavefront, PartitionTraversalMatchesOnePath) {
             const std::string what = describe(tp) + ", partition, batch " + std::to_string(batch);
             expect_wavefront_equals_one_path(scene, tp, what, batch);
         }
-        // 12 x 10 pixels x 40 samples in one batch: enough camera hits for the partition.
-        size_t camera_hits = 0;
-        const std::string what = describe(tp) + ", partition, one batch of 4800";
-        expect_wavefront_equals_one_path(scene, tp, what, 4800, 40, &camera_hits);
-        EXPECT_GE(camera_hits, 2 * kWavefrontPartitionMinBatch) << what;
+        // 12 x 10 pixels x 40 samples in one batch: enough camera hits for the partition,
+        // and the same batch with streams only.
+        for (bool partition : {true, false}) {
+            tp.partition = partition;
+            size_t camera_hits = 0;
+            const std::string what =
+                describe(tp) + (partition ? ", partition" : ", streams") + ", one batch of 4800";
+            expect_wavefront_equals_one_path(scene, tp, what, 4800, 40, &camera_hits);
+            EXPECT_GE(camera_hits, 2 * kWavefrontPartitionMinBatch) << what;
+        }
     }
 }
 
