@@ -25,30 +25,24 @@ endif()
 # --mpi outside mpirun is one line and status 1 before MPI_Init, not Open MPI's singleton
 # start-up, which fails in 40 lines without ssh or rsh on PATH.
 if(KDT_WITH_MPI)
-  add_test(NAME smoke.mpi_without_mpirun
-           COMMAND env -u OMPI_COMM_WORLD_RANK -u PMIX_RANK -u PMI_RANK -u SLURM_PROCID
-                   PATH=/nonexistent $<TARGET_FILE:kdtrace> render --mpi --spp 1 --width 8
-                   --height 6 --quiet -o ${CMAKE_BINARY_DIR}/mpi_without_mpirun.pfm)
-  set_tests_properties(smoke.mpi_without_mpirun PROPERTIES PASS_REGULAR_EXPRESSION
-    "^kdtrace: error: --mpi: not started by mpirun \\(run it as `mpirun -np N kdtrace render[^\n]*\n$")
+  kdt_status_test(smoke.mpi_without_mpirun 1
+    "^kdtrace: error: --mpi: not started by mpirun \\(run it as `mpirun -np N kdtrace render[^\n]*\n$"
+    env -u OMPI_COMM_WORLD_RANK -u PMIX_RANK -u PMI_RANK -u SLURM_PROCID
+    PATH=/nonexistent $<TARGET_FILE:kdtrace> render --mpi --spp 1 --width 8
+    --height 6 --quiet -o ${CMAKE_BINARY_DIR}/mpi_without_mpirun.pfm)
 endif()
 
 # --frames without MPI: bad output patterns and a sequence without a kind are errors.
 set(_cube /usr/share/assimp/models/PLY/cube.ply)
 if(EXISTS ${_cube})
-  add_test(NAME smoke.frames_bad_pattern
-           COMMAND $<TARGET_FILE:kdtrace> render ${_cube} --no-cache --width 8 --height 8 --spp 1
-                   --frames 3 --turntable -o ${CMAKE_BINARY_DIR}/frame.png)
-  set_tests_properties(smoke.frames_bad_pattern PROPERTIES
-    PASS_REGULAR_EXPRESSION "frame.png: a --frames output needs exactly one frame number conversion")
-  add_test(NAME smoke.frames_need_turntable
-           COMMAND $<TARGET_FILE:kdtrace> render ${_cube} --no-cache --frames 3
-                   -o ${CMAKE_BINARY_DIR}/frame_%d.png)
-  set_tests_properties(smoke.frames_need_turntable PROPERTIES
-    PASS_REGULAR_EXPRESSION "--frames N needs --turntable")
-  add_test(NAME smoke.turntable_needs_frames
-           COMMAND $<TARGET_FILE:kdtrace> render ${_cube} --no-cache --turntable
-                   -o ${CMAKE_BINARY_DIR}/frame_%d.png)
-  set_tests_properties(smoke.turntable_needs_frames PROPERTIES
-    PASS_REGULAR_EXPRESSION "--turntable needs --frames N")
+  kdt_status_test(smoke.frames_bad_pattern 1
+    "frame.png: a --frames output needs exactly one frame number conversion"
+    $<TARGET_FILE:kdtrace> render ${_cube} --no-cache --width 8 --height 8 --spp 1
+    --frames 3 --turntable -o ${CMAKE_BINARY_DIR}/frame.png)
+  kdt_status_test(smoke.frames_need_turntable 1 "--frames N needs --turntable"
+    $<TARGET_FILE:kdtrace> render ${_cube} --no-cache --frames 3
+    -o ${CMAKE_BINARY_DIR}/frame_%d.png)
+  kdt_status_test(smoke.turntable_needs_frames 1 "--turntable needs --frames N"
+    $<TARGET_FILE:kdtrace> render ${_cube} --no-cache --turntable
+    -o ${CMAKE_BINARY_DIR}/frame_%d.png)
 endif()
