@@ -162,6 +162,7 @@ private:
                                     size_t element_bytes) const;
     void read_elements();
     void check_trailing_text();
+    void check_trailing_bytes();
     void report(MeshLoadInfo* info, const Timer& timer) const;
 
     FileReader& reader_;

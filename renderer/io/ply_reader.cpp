@@ -235,6 +235,41 @@ void PlyParser::check_trailing_text() {
     }
 }
 
+// Bytes after the last binary element are skipped, as Assimp and other readers do: writers
+// may pad or append a footer. But they are also what a header whose counts are too small
+// leaves unread, so they get a warning naming the offset and how many follow, unless they are
+// one line end or a single blank (a writer ending every file with a newline). Input of
+// unknown size (gzip) is looked at for kTrailingLookBytes only, not inflated to its end.
+void PlyParser::check_trailing_bytes() {
+    const uint64_t at = in_.offset();
+    if (!in_.fill(3)) {  // fewer than 3 bytes follow, all of them in the buffer
+        const char* p = in_.pos();
+        const size_t n = in_.avail();
+        if (n == 0 || (n == 1 && is_sep(p[0])) || (n == 2 && p[0] == '\r' && p[1] == '\n')) return;
+    }
+    uint64_t after = 0;
+    bool more = false;
+    if (reader_.size_known()) {
+        after = reader_.size_bound() > at ? reader_.size_bound() - at : 0;
+    } else {
+        while (after < kTrailingLookBytes && (in_.avail() > 0 || in_.fill(1))) {
+            const size_t n = size_t(std::min<uint64_t>(in_.avail(), kTrailingLookBytes - after));
+            in_.advance(n);
+            after += n;
+        }
+        more = in_.avail() > 0 || in_.fill(1);
+    }
+    if (after == 0) return;
+    ErrorLocation w;
+    w.path = reader_.path();
+    w.offset = int64_t(at);
+    warnings_.push_back(Error(w, (more ? "more than " : "") + std::to_string(after) +
+                                     (after == 1 ? " byte" : " bytes") +
+                                     " after the last element, ignored (padding, or data the "
+                                     "header's element counts leave out)")
+                            .what());
+}
+
 TriangleMesh PlyParser::parse(MeshLoadInfo* info) {
     Timer timer;
     try {
@@ -298,7 +333,10 @@ void PlyParser::read_elements() {
                                excerpt(el.name) + " elements the header declares");
         }
     }
-    if (ascii_) check_trailing_text();
+    if (ascii_)
+        check_trailing_text();
+    else
+        check_trailing_bytes();
     try {
         finish(mesh_);
     } catch (const std::bad_alloc&) {

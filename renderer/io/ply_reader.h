@@ -33,8 +33,12 @@ inline constexpr std::array<const char*, 3> kPlyEncodingNames = {"ascii", "binar
 /// properties, lists included, are skipped. Header lines with an unknown keyword are ignored
 /// like comments (old Blender exporters write a bare "Created by ..." line).
 /// Extra data after the last element: trailing bytes of binary files are ignored (some
-/// writers pad); non-blank text within 64 KiB after the last ascii element is an error, since
-/// it means the header's counts do not match the data (what lies further is not read).
+/// writers pad or add a footer) with a warning in info->warnings naming the file, the byte
+/// offset and how many follow (for gzip, up to "more than 65536"), since they may also be data
+/// that counts too small leave out; one line end (LF, CRLF) or one blank is ignored silently.
+/// Non-blank text within 64 KiB after the last ascii element is an error: text is never
+/// padding, so it means the header's counts do not match the data (what lies further is not
+/// read).
 /// Counts are checked before anything is allocated: input of known size must be able to hold
 /// them, gzip input within the inflation limit (io/file_reader.h), and its arrays grow
 /// as its data arrives, so memory follows the data, not the header. Running out of memory is

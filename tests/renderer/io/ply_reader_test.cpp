@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include "renderer/core/error.h"
+#include "renderer/io/ply_input.h"
 #include "tests/renderer/io/ply_test_util.h"
 #include "tests/test_util.h"
 
@@ -461,16 +462,64 @@ TEST(PlyReader, BigPolygonFannedAndDegenerateTestedFast) {
     EXPECT_EQ(m.triangles[5], Vec3u(0, 6, 7));
 }
 
-TEST(PlyReader, BinaryTrailingBytesIgnored) {
+TEST(PlyReader, BinaryTrailingBytesLoadWithAWarning) {
     Bytes b;
     b.put(0.0f).put(0.0f).put(0.0f).put(1.0f).put(0.0f).put(0.0f).put(0.0f).put(1.0f).put(0.0f);
     b.put(uint8_t(3)).put(0).put(1).put(2);
-    std::string t =
+    const std::string data =
         "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float "
         "y\n"
         "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n" +
-        b.s + "\n\n";
-    EXPECT_EQ(load(t).triangle_count(), 1u);
+        b.s;
+    const std::string at = "byte " + std::to_string(data.size()) + ": ";
+    const std::string why =
+        " after the last element, ignored (padding, or data the header's "
+        "element counts leave out)";
+    struct Case {
+        std::string trailing, warning;  // warning "" when none
+    };
+    const Case cases[] = {
+        {"", ""},
+        {"\n", ""},  // one line end or one blank: a writer's final newline
+        {"\r\n", ""},
+        {" ", ""},
+        {"\n\n", at + "2 bytes" + why},
+        {"x", at + "1 byte" + why},
+        {b.s.substr(b.s.size() - 13), at + "13 bytes" + why},  // a face the count leaves out
+    };
+    const std::filesystem::path dir = test::temp_dir("ply_trailing");
+    for (const Case& c : cases) {
+        SCOPED_TRACE("trailing '" + c.trailing + "'");
+        const std::string path = test::write_text(dir, "t.ply", data + c.trailing);
+        // From memory, a buffered file, a mapped file and gzip (its size unknown up front).
+        std::string gz = (dir / "t.ply.gz").string();
+        gzFile f = gzopen(gz.c_str(), "wb");
+        ASSERT_NE(f, nullptr);
+        gzwrite(f, (data + c.trailing).data(), unsigned(data.size() + c.trailing.size()));
+        gzclose(f);
+        for (int how = 0; how < 4; ++how) {
+            SCOPED_TRACE(how);
+            MeshLoadInfo info;
+            TriangleMesh m;
+            if (how == 0) m = load(data + c.trailing, {}, &info);
+            if (how == 1) m = read_ply(path, {}, &info);  // under 1 MiB: buffered
+            if (how == 2) {
+                const ply::MapParams old = ply::set_map_params({1, 7});
+                m = read_ply(path, {}, &info);
+                ply::set_map_params(old);
+            }
+            if (how == 3) m = read_ply(gz, {}, &info);
+            EXPECT_EQ(m.triangle_count(), 1u);
+            const std::string name = how == 0 ? "test.ply" : how == 3 ? gz : path;
+            if (c.warning.empty()) {
+                EXPECT_TRUE(info.warnings.empty()) << info.warnings[0];
+            } else {
+                ASSERT_EQ(info.warnings.size(), 1u);
+                EXPECT_EQ(info.warnings[0], name + ": " + c.warning);
+            }
+        }
+    }
+    std::filesystem::remove_all(dir);
 }
 
 TEST(PlyReader, GzipFileReadTransparently) {
