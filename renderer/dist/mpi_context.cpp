@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -103,6 +104,18 @@ MpiContext::MpiContext() {
     MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided);
     MPI_Comm_rank(MPI_COMM_WORLD, &rank_);
     MPI_Comm_size(MPI_COMM_WORLD, &size_);
+    // Rank 0's host and process id, for rank0_gone().
+    struct {
+        int32_t pid = 0;
+        char host[256] = {};
+    } rank0, mine;
+    mine.pid = int32_t(getpid());
+    gethostname(mine.host, sizeof mine.host - 1);
+    if (rank_ == 0) rank0 = mine;
+    MPI_Bcast(&rank0, int(sizeof rank0), MPI_BYTE, 0, MPI_COMM_WORLD);
+    rank0.host[sizeof rank0.host - 1] = '\0';
+    if (rank_ != 0 && mine.host[0] != '\0' && std::strcmp(rank0.host, mine.host) == 0)
+        rank0_pid_ = rank0.pid;
 }
 
 MpiContext::~MpiContext() {
@@ -219,6 +232,22 @@ bool MpiContext::job_ended() const {
     return flag != 0;
 }
 
+bool MpiContext::rank0_gone() const {
+    if (rank0_pid_ <= 0) return false;
+    // /proc/PID/stat: "PID (COMM) STATE ...", COMM may hold spaces or parentheses.
+    char path[64];
+    std::snprintf(path, sizeof path, "/proc/%d/stat", rank0_pid_);
+    std::FILE* f = std::fopen(path, "r");
+    if (!f) return errno == ENOENT;
+    char buf[512];
+    const size_t n = std::fread(buf, 1, sizeof buf - 1, f);
+    std::fclose(f);
+    buf[n] = '\0';
+    const char* close = std::strrchr(buf, ')');
+    // An exited process its parent has not reaped yet is a zombie (Z), or dead (X).
+    return close && close[1] == ' ' && (close[2] == 'Z' || close[2] == 'X');
+}
+
 void MpiContext::wait_for_the_end() const {
     for (;;) {
         if (job_ended()) die_interrupted();
@@ -230,6 +259,9 @@ void MpiContext::die_interrupted() const {
     if (dying_.exchange(true)) {
         for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));  // the other thread ends it
     }
+    // A worker's signal with rank 0 gone is mpirun ending the job (its SIGKILL can come late
+    // on a loaded machine): rank 0's line, an interrupt's or a failure's, was the news.
+    if (rank_ != 0 && !failed_.load() && rank0_gone()) failed_.store(true);
     if (failed_.load()) {
         // mpirun ending the job after a failure: the failure was the news. The temporary
         // files go as for any signal; the status is the failure's.

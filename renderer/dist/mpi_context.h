@@ -176,6 +176,9 @@ public:
 
 private:
     int rank_ = 0, size_ = 1;
+    // Rank 0's process id when it runs on this rank's host (else 0): a worker ending after a
+    // signal checks whether rank 0 is gone (rank0_gone()).
+    int rank0_pid_ = 0;
     std::atomic<bool> expired_{false};
     double timeout_ = 0.0;
     double failure_grace_ = kFailureGraceSeconds;
@@ -202,6 +205,10 @@ private:
     void tell_workers_the_job_ended() const;
     /// A worker: whether rank 0 said the job ended (then failed_ is set); false on rank 0.
     bool job_ended() const;
+    /// A worker: whether rank 0 runs on this host and has exited (gone or a zombie). Safe on
+    /// any thread (no MPI): rank 0 may have ended the job from its watcher thread, which
+    /// cannot tell the workers.
+    bool rank0_gone() const;
     /// A worker waiting to be ended (by mpirun, its watcher or its watchdog): ends silently
     /// once rank 0 says the job ended.
     [[noreturn]] void wait_for_the_end() const;
