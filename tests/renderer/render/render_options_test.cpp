@@ -19,6 +19,13 @@
 namespace kdt {
 namespace {
 
+// The tree option named `name` (its JSON key); null when there is none.
+const Field<KdTreeParams>* tree_field(const std::string& name) {
+    for (const Field<KdTreeParams>& f : kd_tree_fields())
+        if (f.name == name) return &f;
+    return nullptr;
+}
+
 // Every field of a table: the default is valid, a value past either end of its range is
 // refused by parse_field with a reason, and the range's ends are accepted.
 template <class S>
@@ -134,9 +141,7 @@ TEST(RenderOptions, TheStatedMaximumOfAFloatFieldIsAccepted) {
     o.tree.intersect_cost = float(3e38);
     EXPECT_NO_THROW(validate(o));
     KdTreeParams p;
-    const Field<KdTreeParams>* cost = nullptr;
-    for (const Field<KdTreeParams>& f : kd_tree_fields())
-        if (std::string(f.name) == "traversal_cost") cost = &f;
+    const Field<KdTreeParams>* cost = tree_field("traversal_cost");
     ASSERT_TRUE(cost);
     EXPECT_EQ(parse_field(*cost, p, "3e38"), "");
     EXPECT_EQ(check_field(*cost, p), "");
@@ -150,9 +155,7 @@ TEST(RenderOptions, TheStatedMaximumOfAFloatFieldIsAccepted) {
 // not stored as 0 (which --error and --time read as off) or refused later without the flag.
 TEST(RenderOptions, AValueThatRoundsOutOfAFloatFieldsRangeIsRefused) {
     KdTreeParams p;
-    const Field<KdTreeParams>* q = nullptr;
-    for (const Field<KdTreeParams>& f : kd_tree_fields())
-        if (std::string(f.name) == "q") q = &f;
+    const Field<KdTreeParams>* q = tree_field("q");
     ASSERT_TRUE(q);
     EXPECT_EQ(parse_field(*q, p, "1e-50"), "must be in (0, 1] (got 1e-50, which is 0 as a float)");
     EXPECT_EQ(p.q, KdTreeParams{}.q);

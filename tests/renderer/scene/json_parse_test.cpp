@@ -19,16 +19,6 @@ std::string nested(size_t depth, char open = '[', char close = ']') {
     return std::string(depth, open) + std::string(depth, close);
 }
 
-template <class F>
-std::string error_of(F&& f) {
-    try {
-        f();
-    } catch (const Error& e) {
-        return e.what();
-    }
-    return "";
-}
-
 TEST(JsonParse, NestingUpToTheLimitIsRead) {
     const nlohmann::json j = parse_json_without_repeats(nested(kMaxJsonNesting), "x.json", "");
     EXPECT_TRUE(j.is_array());
@@ -41,7 +31,7 @@ TEST(JsonParse, NestingPastTheLimitIsRefusedNamingTheFile) {
     for (const std::string& text : {nested(kMaxJsonNesting + 1), nested(1000000), objects,
                                     "{\"meshes\": [{\"file\": " + nested(100000) + "}]}"}) {
         const std::string msg =
-            error_of([&] { parse_json_without_repeats(text, "deep.json", ""); });
+            test::error_of_call([&] { parse_json_without_repeats(text, "deep.json", ""); });
         EXPECT_NE(msg.find("deep.json"), std::string::npos) << msg;
         EXPECT_NE(msg.find("nested deeper than 64 levels"), std::string::npos) << msg;
     }
@@ -59,7 +49,7 @@ TEST(JsonParse, DeepScenesViewsAndSessionsAreRefused) {
                                                 RenderOptions o;
                                                 options_from_session_file(path, o);
                                             }}) {
-        const std::string msg = error_of(load);
+        const std::string msg = test::error_of_call(load);
         EXPECT_NE(msg.find(path), std::string::npos) << msg;
         EXPECT_NE(msg.find("nested deeper than"), std::string::npos) << msg;
     }
@@ -87,7 +77,7 @@ TEST(JsonParse, LongArraysOfObjects) {
     ASSERT_EQ(j.at("views").size(), size_t(kCount));
     EXPECT_EQ(j.at("views").back().at("n").get<int>(), kCount - 1);
     text += ", {\"n\": 1, \"m\": [{}, {\"k\": 1, \"k\": 2}]}]}";
-    EXPECT_EQ(error_of([&] { parse_json_without_repeats(text, "v.json", "/"); }),
+    EXPECT_EQ(test::error_of_call([&] { parse_json_without_repeats(text, "v.json", "/"); }),
               "v.json: /views/" + std::to_string(kCount) + "/m/1/k: repeated key");
 }
 
