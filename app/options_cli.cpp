@@ -458,9 +458,9 @@ std::string with_camera_flags(const CLI::App& app, const std::string& message,
         // view's, else the scene's.
         const CameraPartSource source = camera_part_source(scene, i);
         std::string from = "the scene's";
-        if (!source.key.empty()) {
+        if (source.kind == CameraPartSource::Kind::session) {
             from = printable(scene.session_camera.file) + "'s";
-        } else if (source.other == "the view") {
+        } else if (source.kind == CameraPartSource::Kind::view) {
             from = "the view's";
             if (!view.empty()) {
                 from = view + "'s";

@@ -24,32 +24,38 @@ CameraDesc with_camera_overrides(CameraDesc c, const SceneOptions& o) {
     return c;
 }
 
+namespace {
+constexpr const char* kCameraPartNames[] = {"eye", "target", "up"};
+}  // namespace
+
 CameraPartSource camera_part_source(const SceneOptions& o, size_t part) {
-    static constexpr const char* kNames[] = {"eye", "target", "up"};
+    using Kind = CameraPartSource::Kind;
     static constexpr std::optional<Vec3f> SceneOptions::*kSet[] = {
         &SceneOptions::eye, &SceneOptions::target, &SceneOptions::up};
     static constexpr std::optional<Vec3f> SessionCamera::*kRead[] = {
         &SessionCamera::eye, &SessionCamera::target, &SessionCamera::up};
     const SessionCamera& s = o.session_camera;
-    const std::string name = kNames[part];
+    const std::string name = kCameraPartNames[part];
     // As with_camera_overrides() takes the part: its own override, else the camera that
     // replaces the scene's, else the scene.
     if (const std::optional<Vec3f>& set = o.*kSet[part]) {
         const std::optional<Vec3f>& read = s.*kRead[part];
-        if (!s.file.empty() && read && *read == *set) return {"/scene/" + name, ""};
-        return {"", "--" + name};
+        if (!s.file.empty() && read && *read == *set) return {Kind::session, "/scene/" + name, ""};
+        return {Kind::flag, "", "--" + name};
     }
     if (o.camera) {
         const std::optional<CameraDesc>& read = s.camera;
         if (!s.file.empty() && read && read->eye == o.camera->eye &&
             read->target == o.camera->target && read->up == o.camera->up) {
             // A key the object left out is its default: the object is to blame.
-            return {s.camera_keys[part] ? "/scene/camera/" + name : "/scene/camera", ""};
+            return {Kind::session, s.camera_keys[part] ? "/scene/camera/" + name : "/scene/camera",
+                    ""};
         }
-        return {"", "the view"};
+        return {Kind::view, "", "the view"};
     }
-    return {"", o.scene_path.empty() ? "the built-in scene"
-                                     : "the scene file " + printable(o.scene_path)};
+    return {
+        Kind::scene, "",
+        o.scene_path.empty() ? "the built-in scene" : "the scene file " + printable(o.scene_path)};
 }
 
 void check_session_camera(const CameraDesc& scene_camera, const SceneOptions& o) {
@@ -59,19 +65,18 @@ void check_session_camera(const CameraDesc& scene_camera, const SceneOptions& o)
     const CameraFrameProblem problem = camera_frame_problem(c.eye, c.target, c.up);
     if (problem.why.empty()) return;
     const bool blamed[] = {problem.eye, problem.target, problem.up};
-    static constexpr const char* kNames[] = {"eye", "target", "up"};
     std::vector<std::string> keys;
     std::vector<std::pair<std::string, std::string>> others;  // (parts, where from)
     for (size_t i = 0; i < 3; ++i) {
         if (!blamed[i]) continue;
-        const auto [key, other] = camera_part_source(o, i);
+        const auto [kind, key, other] = camera_part_source(o, i);
         if (!key.empty() && std::find(keys.begin(), keys.end(), key) == keys.end())
             keys.push_back(key);
         if (other.empty()) continue;
         if (!others.empty() && others.back().second == other) {
-            others.back().first += std::string(" and ") + kNames[i];
+            others.back().first += std::string(" and ") + kCameraPartNames[i];
         } else {
-            others.emplace_back(kNames[i], other);
+            others.emplace_back(kCameraPartNames[i], other);
         }
     }
     if (keys.empty()) return;

@@ -55,9 +55,11 @@ CameraDesc with_camera_overrides(CameraDesc camera, const SceneOptions& options)
 /// Where with_camera_overrides() takes a camera part from: a key of the session file
 /// (options.session_camera.file) that gave it, or else `other`.
 struct CameraPartSource {
-    std::string key;    ///< "/scene/eye", "/scene/camera/up", "/scene/camera"; or empty
-    std::string other;  ///< "--eye" (or --target, --up), "the view", "the built-in scene" or
-                        ///< "the scene file x.json"; empty with a key
+    enum class Kind { session, flag, view, scene };
+    Kind kind = Kind::scene;
+    std::string key;    ///< session: "/scene/eye", "/scene/camera/up", "/scene/camera"
+    std::string other;  ///< flag: "--eye" (or --target, --up); view: "the view"; scene: "the
+                        ///< built-in scene" or "the scene file x.json"; session: empty
 };
 
 /// The source of camera part `part` (0 eye, 1 target, 2 up) of `options`' overrides over the
