@@ -94,6 +94,15 @@ Scene load_scene_with_overrides(const SceneOptions& o, const PrepareLog& log) {
     lo.warn = log;
     Scene scene =
         o.scene_path.empty() ? make_default_scene() : load_scene_or_model(o.scene_path, lo);
+    if (o.subdivide > 0) {
+        Timer timer;
+        subdivide_scene(scene, o.subdivide, o.scene_path);
+        char line[160];
+        std::snprintf(line, sizeof(line), "subdivided %d times: %llu triangles (%.2f s)",
+                      o.subdivide, static_cast<unsigned long long>(instanced_triangle_count(scene)),
+                      timer.seconds());
+        if (log) log(line);
+    }
     EnvironmentDesc& env = scene.environment;
     if (!o.env_file.empty()) {
         env.file = o.env_file;
@@ -169,8 +178,12 @@ Prepared prepare_render(const RenderOptions& o, const PrepareLog& log, const Pre
         KdCacheReport report;
         // The merged world-space mesh of a scene file differs from the file's mesh; the cache
         // checks the content hash, so naming the file after the scene is safe.
-        ts.tree = get_or_build_kdtree(o.scene.scene_path, ts.mesh, o.tree, o.scene.cache_dir, say,
-                                      &report);
+        // Named as `kdtrace build MODEL --subdivide K` names it, which then finds this tree.
+        const std::string key =
+            o.scene.scene_path.empty() || o.scene.subdivide == 0
+                ? o.scene.scene_path
+                : o.scene.scene_path + ".sub" + std::to_string(o.scene.subdivide);
+        ts.tree = get_or_build_kdtree(key, ts.mesh, o.tree, o.scene.cache_dir, say, &report);
         out.tree_from_cache = report.loaded;
     } else {
         ts.tree = build_kdtree(ts.mesh, o.tree);

@@ -63,6 +63,7 @@ struct SceneOptions {
     /// against the scene's mesh like a cache file; its parameters are the file's.
     std::string tree_file;
     bool drop_invalid = false;  ///< drop faces with non-finite vertices
+    int subdivide = 0;          ///< split every triangle into 4^subdivide (subdivide_scene())
     /// One per mesh instance of the scene, replacing the scene's materials when non-empty
     /// (the viewer's edits, saved with its session); another count is an error.
     std::vector<MaterialDesc> materials;

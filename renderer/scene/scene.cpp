@@ -600,6 +600,43 @@ uint64_t instanced_triangle_count(const Scene& scene) {
     return n;
 }
 
+void subdivide_scene(Scene& scene, int levels, const std::string& what) {
+    if (levels <= 0) return;
+    const std::string prefix =
+        (what.empty() ? "" : what + ": ") + "scene.subdivide " + std::to_string(levels) + ": ";
+    const uint64_t before = instanced_triangle_count(scene);
+    const uint64_t after = subdivided_triangle_count(before, levels);
+    const uint64_t budget = scene_triangle_budget(
+        std::min(kDefaultMaxSceneTriangles, kMaxSubdividedTriangles - 1), kRenderBytesPerTriangle);
+    if (after > budget) {
+        throw Error(prefix + std::to_string(before) + " triangles would become " +
+                    std::to_string(after) + ", more than the " + std::to_string(budget) +
+                    " that fit the kd-tree and the memory available (about " +
+                    std::to_string(kRenderBytesPerTriangle) + " bytes each)");
+    }
+    try {
+        std::map<const TriangleMesh*, std::shared_ptr<const TriangleMesh>> done;
+        for (MeshInstance& inst : scene.meshes) {
+            if (!inst.mesh) continue;
+            auto& slot = done[inst.mesh.get()];
+            if (!slot) {
+                TriangleMesh m = *inst.mesh;
+                const bool smooth = std::any_of(
+                    scene.meshes.begin(), scene.meshes.end(),
+                    [&](const MeshInstance& o) { return o.mesh == inst.mesh && o.smooth; });
+                // What a render does not read is not subdivided (merge_instances()).
+                m.colors.clear();
+                if (m.normals.size() != m.positions.size() || !smooth) m.normals.clear();
+                if (smooth && m.normals.empty()) m.normals = compute_vertex_normals(m);
+                slot = std::make_shared<const TriangleMesh>(subdivide_mesh(m, levels));
+            }
+            inst.mesh = slot;
+        }
+    } catch (const std::bad_alloc&) {
+        throw Error(prefix + "out of memory making " + std::to_string(after) + " triangles");
+    }
+}
+
 std::vector<std::string> scene_input_files(const Scene& scene) {
     std::vector<std::string> files;
     for (const MeshInstance& m : scene.meshes)

@@ -115,6 +115,14 @@ uint64_t scene_triangle_budget(uint64_t max_triangles = kDefaultMaxSceneTriangle
 /// Triangles a render of the scene holds: every instance's mesh counted once per instance.
 uint64_t instanced_triangle_count(const Scene& scene);
 
+/// Splits every triangle of the scene into 4^`levels` by edge midpoints (subdivide_mesh():
+/// the same surface, more triangles; a mesh shared by instances once). Smooth instances keep
+/// their shading: a mesh without normals gets its computed vertex normals first, which the
+/// subdivision interpolates. A result over scene_triangle_budget() or the kd-tree's limit is
+/// refused before any work, as running out of memory on the way is: kdt::Error
+/// "scene.subdivide 3: ...", after "`what`: " when `what` is not empty (the scene file).
+void subdivide_scene(Scene& scene, int levels, const std::string& what);
+
 /// The files a scene reads: its mesh files (not builtins) and its environment map, if any.
 std::vector<std::string> scene_input_files(const Scene& scene);
 

@@ -28,6 +28,20 @@ kdt_status_test(smoke.scene_max_triangles_exact 0 "1 meshes, 8 vertices, 12 tria
 kdt_status_test(smoke.info_cube 0 "triangles: +12"
   ${_kdt} info /usr/share/assimp/models/PLY/cube.ply)
 
+# render --subdivide: the model in 4^K as many triangles, kept in the image's settings (its
+# session renders it again), and a result over the triangle budget refused before any work.
+kdt_status_test(smoke.render_subdivide 0 "kdtrace: subdivided 2 times: 192 triangles \\([0-9.]+ s\\)\n"
+  ${_kdt} render /usr/share/assimp/models/PLY/cube.ply --subdivide 2 --width 16 --height 12
+  --spp 1 --no-cache -o ${_tmp}/subdivide.png)
+kdt_status_test(smoke.render_subdivide_session 0 "kdtrace: subdivided 2 times: 192 triangles"
+  ${_kdt} render --session ${_tmp}/subdivide.png --spp 1 --no-cache -o ${_tmp}/subdivide2.png)
+set_tests_properties(smoke.render_subdivide_session PROPERTIES DEPENDS smoke.render_subdivide)
+file(WRITE ${_tmp}/three_spheres.json "{\"meshes\": [{\"file\": \"builtin:displaced_sphere\"}, "
+     "{\"file\": \"builtin:displaced_sphere\"}, {\"file\": \"builtin:displaced_sphere\"}]}")
+kdt_status_test(smoke.render_subdivide_budget 1
+  "^kdtrace: error: [^\n]*three_spheres.json: scene.subdivide \\(--subdivide\\) 4: 983040 triangles would become 251658240, more than the [0-9]+ that fit the kd-tree and the memory available \\(about 100 bytes each\\)\n$"
+  ${_kdt} render ${_tmp}/three_spheres.json --subdivide 4 --spp 1 -o ${_tmp}/subdivide_never.png)
+
 # A PLY 1.1 file loads with one warning naming it, from `info` and from the model loader.
 file(WRITE ${_tmp}/version_1_1.ply "ply\nformat ascii 1.1\nelement vertex 3\nproperty float x\n"
      "property float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\n"
@@ -54,6 +68,7 @@ foreach(_case "bad_option;render --bogus;unexpected argument --bogus \\(`kdtrace
               "extras_after_dashes;render -- a --spp 2;unexpected arguments --spp 2 \\(`kdtrace render --help` lists the options\\)"
               "subdivide_range;build a.ply --subdivide 5;--subdivide must be in \\[0, 4\\] \\(got 5\\)"
               "bench_subdivide_range;bench kdtree --subdivide 5;--subdivide must be in \\[0, 4\\] \\(got 5\\)"
+              "render_subdivide_range;render --subdivide 5;--subdivide must be in \\[0, 4\\] \\(got 5\\)"
               "info_threads;info a.ply --threads 1025;--threads must be in \\[0, 1024\\] \\(got 1025\\)")
   list(GET _case 0 _id)
   list(GET _case 1 _args)

@@ -775,5 +775,64 @@ TEST(Scene, ModelsThatRenderNothingWarn) {
     }
 }
 
+double surface_area(const TriangleMesh& m) {
+    double a = 0.0;
+    for (const Vec3u& t : m.triangles)
+        a += 0.5 * double(glm::length(
+                       triangle_cross(m.positions[t.x], m.positions[t.y], m.positions[t.z])));
+    return a;
+}
+
+// --subdivide: the same surface in 4^K as many triangles, a shared mesh subdivided once, and
+// smooth instances shaded from normals made before the split (interpolated by it), so that
+// the statue shades like the model.
+TEST(Scene, SubdivideSplitsSharedMeshesOnceAndKeepsSmoothNormals) {
+    Scene s;
+    auto sphere = std::make_shared<const TriangleMesh>(make_icosphere(1));
+    auto plane = std::make_shared<const TriangleMesh>(make_ground_plane(2.0f, 0.0f));
+    for (int i = 0; i < 3; ++i) {
+        MeshInstance inst;
+        inst.mesh = i < 2 ? sphere : plane;
+        inst.smooth = i == 0;  // the sphere: one smooth and one flat instance; the plane flat
+        s.meshes.push_back(inst);
+    }
+    subdivide_scene(s, 2, "s.json");
+    ASSERT_EQ(s.meshes[0].mesh.get(), s.meshes[1].mesh.get());
+    const TriangleMesh& m = *s.meshes[0].mesh;
+    EXPECT_EQ(m.triangle_count(), 16 * sphere->triangle_count());
+    EXPECT_EQ(s.meshes[2].mesh->triangle_count(), 32u);
+    EXPECT_NEAR(surface_area(m), surface_area(*sphere), 1e-5 * surface_area(*sphere));
+    EXPECT_NEAR(surface_area(*s.meshes[2].mesh), 16.0, 1e-4);
+    // Interpolated from the icosphere's vertex normals: every one unit length and within
+    // the angle of one original face of the point's radius, where the subdivided mesh's own
+    // computed normals would be those faces' normals inside each original triangle.
+    ASSERT_EQ(m.normals.size(), m.positions.size());
+    const std::vector<Vec3f> computed = compute_vertex_normals(m);
+    size_t differ = 0;
+    for (size_t v = 0; v < m.positions.size(); ++v) {
+        EXPECT_NEAR(glm::length(m.normals[v]), 1.0f, 1e-5f) << v;
+        EXPECT_GT(glm::dot(m.normals[v], glm::normalize(m.positions[v])), 0.97f) << v;
+        differ += glm::dot(m.normals[v], computed[v]) < 0.9999f;
+    }
+    EXPECT_GT(differ, m.positions.size() / 4);
+    EXPECT_TRUE(s.meshes[2].mesh->normals.empty());  // flat only: no normals to carry
+}
+
+TEST(Scene, SubdivideOverTheBudgetIsRefusedBeforeAnyWork) {
+    Scene s;
+    auto sphere = std::make_shared<const TriangleMesh>(make_icosphere(2));  // 320 triangles
+    // 2500 instances: 800,000 triangles, 204.8M at 4 levels, over the 200M of any machine.
+    for (int i = 0; i < 2500; ++i) s.meshes.push_back(MeshInstance{.mesh = sphere});
+    const std::string msg = test::error_of_call([&] { subdivide_scene(s, 4, "big.json"); });
+    EXPECT_EQ(msg.rfind("big.json: scene.subdivide 4: 800000 triangles would become 204800000, "
+                        "more than the ",
+                        0),
+              0u)
+        << msg;
+    EXPECT_EQ(s.meshes[0].mesh.get(), sphere.get());  // nothing was subdivided
+    subdivide_scene(s, 0, "big.json");                // 0: nothing to do
+    EXPECT_EQ(s.meshes[0].mesh.get(), sphere.get());
+}
+
 }  // namespace
 }  // namespace kdt
