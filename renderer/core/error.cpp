@@ -47,7 +47,7 @@ bool invisible_control(uint32_t cp) {
 
 std::string format(const ErrorLocation& w, const std::string& message) {
     std::string s;
-    if (!w.path.empty()) s += printable(w.path) + ": ";
+    if (!w.path.empty()) s += excerpt_path(w.path) + ": ";
     if (w.line >= 0) s += "line " + std::to_string(w.line) + ": ";
     if (w.offset >= 0) s += "byte " + std::to_string(w.offset) + ": ";
     if (!w.element.empty()) {
@@ -123,6 +123,10 @@ std::string printable_line(std::string_view message, size_t max_bytes) {
     const size_t tail = sequence_boundary(message, message.size() - max_bytes / 4);
     return printable(message.substr(0, head)) + " ... [" + std::to_string(tail - head) +
            " bytes left out] ... " + printable(message.substr(tail));
+}
+
+std::string excerpt_path(std::string_view path, size_t max_bytes) {
+    return printable_line(path, max_bytes);
 }
 
 Error::Error(ErrorLocation where, const std::string& message)

@@ -25,12 +25,16 @@ std::string excerpt(std::string_view text, size_t max_bytes = 120);
 /// tail (where the reason usually is) around "... [N bytes left out] ...".
 std::string printable_line(std::string_view message, size_t max_bytes = 4096);
 
+/// printable(path) for naming a file in a message: when longer than max_bytes, its head and
+/// its tail (which holds the file name) around "... [N bytes left out] ...".
+std::string excerpt_path(std::string_view path, size_t max_bytes = 240);
+
 /// The length of the well-formed UTF-8 sequence at text[i] (1 for ASCII; RFC 3629: no
 /// overlong forms, no surrogates, nothing above U+10FFFF), or 0 when none starts there.
 size_t utf8_length_at(std::string_view text, size_t i);
 
 /// Where in a file an error was found; unset fields are left out of the message. The path
-/// and element are shown through printable().
+/// is shown through excerpt_path(), the element through excerpt().
 struct ErrorLocation {
     std::string path;     ///< file name as the user gave it; may be empty (flags)
     std::string element;  ///< e.g. "face", "vertex", "header", a JSON pointer

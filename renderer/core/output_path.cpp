@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <climits>
 #include <cstring>
 #include <filesystem>
 
@@ -24,6 +25,10 @@ void check_output(const std::string& output, const std::vector<std::string>& inp
     if (output.empty()) throw Error(std::string("no file name given for ") + what);
     struct stat link {};
     if (::lstat(output.c_str(), &link) != 0) {
+        if (errno == ENAMETOOLONG) {
+            const std::string why = path_length_problem(output);
+            fail(why.empty() ? std::string("cannot stat: ") + std::strerror(ENAMETOOLONG) : why);
+        }
         if (errno != ENOENT) fail(std::string("cannot stat: ") + std::strerror(errno));
         // A new file: its directory must exist (checked now, not after a long run).
         std::error_code ec;
@@ -85,6 +90,35 @@ void check_output(const std::string& output, const std::vector<std::string>& inp
     }
     // The output is written as a temporary file renamed over it: one must be creatable.
     TempFile probe(output);
+}
+
+std::string path_length_problem(const std::string& path) {
+    if (path.size() >= PATH_MAX) {
+        return "path too long: " + std::to_string(path.size()) + " bytes, more than the " +
+               std::to_string(PATH_MAX - 1) + " a path may have";
+    }
+    const fs::path whole(path);
+    fs::path dir = whole.parent_path();
+    if (dir.empty()) dir = ".";
+    // The limit is the filesystem's; where the directory is missing (the caller says so when
+    // the names fit), the usual one.
+    long name_max = ::pathconf(dir.c_str(), _PC_NAME_MAX);
+    if (name_max <= 0) name_max = NAME_MAX;
+    const std::string limit = std::to_string(name_max) + " bytes a file name may have";
+    for (const fs::path& part : whole.parent_path()) {
+        const std::string name = part.string();
+        if (long(name.size()) > name_max) {
+            // excerpt() adds the length: the name is longer than the 40 bytes shown.
+            return "file name too long: the directory name " + excerpt(name, 40) +
+                   " is more than the " + limit;
+        }
+    }
+    const std::string name = whole.filename().string();
+    if (long(name.size()) > name_max) {
+        return "file name too long: " + std::to_string(name.size()) + " bytes, more than the " +
+               limit;
+    }
+    return "";
 }
 
 }  // namespace kdt

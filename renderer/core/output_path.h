@@ -20,10 +20,17 @@ namespace kdt {
 ///  - it (a symlink's target) exists and the user may not replace it: a regular file not
 ///    writable by the effective user (root may, as with `cp`), or another user's file in a
 ///    sticky directory such as /tmp (unless the user owns the directory or is root).
+///  - the path, or a name in it, is longer than the system allows (path_length_problem()).
 /// A missing output, or an existing regular file that is no input and may be replaced, is fine.
 /// Inputs that do not exist (yet) are skipped; empty strings in `inputs` are ignored. `what` names
 /// the output in messages ("the image", "the tree").
 void check_output(const std::string& output, const std::vector<std::string>& inputs,
                   const char* what);
+
+/// Why `path` is too long to create (the system would refuse it with ENAMETOOLONG), or an
+/// empty string when it is not: the whole path is PATH_MAX bytes or more, or one of its names
+/// is longer than a file name may be (NAME_MAX of the directory that would hold the file, or
+/// 255 where that directory does not exist). The sentence gives the length and the limit.
+std::string path_length_problem(const std::string& path);
 
 }  // namespace kdt

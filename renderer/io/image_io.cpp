@@ -18,6 +18,7 @@
 
 #include "renderer/core/error.h"
 #include "renderer/core/open_file.h"
+#include "renderer/core/output_path.h"
 #include "renderer/core/temp_file.h"
 #include "renderer/io/exr_io.h"
 
@@ -944,11 +945,15 @@ void check_image_output(const std::string& path, bool with_alpha) {
     check_image_extension(path, ext);
     if (with_alpha && ext != ".png" && ext != ".exr")
         fail(path, "film.transparent needs an alpha channel: write .png or .exr");
+    // Before the directory: a directory name too long reads as a missing directory.
+    const std::string too_long = path_length_problem(path);
+    if (!too_long.empty()) fail(path, too_long);
     fs::path dir = fs::path(path).parent_path();
     if (dir.empty()) dir = ".";
-    if (!fs::is_directory(dir, ec)) fail(path, "no directory " + dir.string() + " to write into");
+    if (!fs::is_directory(dir, ec))
+        fail(path, "no directory " + excerpt_path(dir.string()) + " to write into");
     if (::access(dir.c_str(), W_OK) != 0)
-        fail(path, "cannot write into " + dir.string() + ": " + std::strerror(errno));
+        fail(path, "cannot write into " + excerpt_path(dir.string()) + ": " + std::strerror(errno));
 }
 
 ImageMetadata read_png_metadata(const std::string& path) {

@@ -104,9 +104,9 @@ void write_image(const std::string& path, const ImageRGB& image, const ToneParam
                  const ImageMetadata& metadata = {});
 
 /// Throws kdt::Error naming path when write_image() could not write there: an unknown
-/// extension, a missing directory, a directory in its place, or no write permission; with
-/// `with_alpha` (film.transparent), a format without alpha. For
-/// callers to check before long work; it writes nothing.
+/// extension, a path or file name too long, a missing directory, a directory in its place,
+/// or no write permission; with `with_alpha` (film.transparent), a format without alpha.
+/// For callers to check before long work; it writes nothing.
 void check_image_output(const std::string& path, bool with_alpha = false);
 
 /// Reads the tEXt, zTXt and iTXt chunks of a PNG file without decoding its pixels.

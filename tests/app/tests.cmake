@@ -157,6 +157,12 @@ endif()
 kdt_status_test(smoke.output_is_directory 1
   "^kdtrace: error: -o [^\n]*smoke: is a directory, not an image file name\n$"
   ${_kdt} render --spp 1 --width 8 --height 6 -o ${_tmp})
+# So is a name too long to create, before the render and with the path shortened.
+string(REPEAT "a" 300 _long_name)
+kdt_status_test(smoke.output_name_too_long 1
+  "^kdtrace: error: -o /[^\n]*a \\.\\.\\. \\[[0-9]+ bytes left out\\] \\.\\.\\. [a]*\\.png: \
+file name too long: 304 bytes, more than the 255 bytes a file name may have\n$"
+  ${_kdt} render --spp 1 --width 8 --height 6 -o ${_tmp}/${_long_name}.png)
 kdt_status_test(smoke.empty_name_info 1 "error: info: empty file name"
   ${_kdt} info "")
 # --views FILE is read when given, with --view or without.

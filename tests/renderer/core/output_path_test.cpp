@@ -141,5 +141,26 @@ TEST_F(OutputPathTest, ABrokenSymlinkChainIsRefused) {
               std::string::npos);
 }
 
+// A name the system would refuse (ENAMETOOLONG) is said to be too long, with its length and
+// the limit, and the path in the message is shortened to its head and tail.
+TEST_F(OutputPathTest, ANameTooLongIsSaidToBeSo) {
+    const std::string long_name = path(std::string(300, 'a') + ".png");
+    const std::string why = refusal(long_name, {input_});
+    EXPECT_NE(why.find(": cannot write the result: file name too long: 304 bytes, more than "
+                       "the 255 bytes a file name may have"),
+              std::string::npos)
+        << why;
+    EXPECT_NE(why.find(" bytes left out] ... aaa"), std::string::npos) << why;
+    EXPECT_LT(why.size(), 400u) << why;
+    EXPECT_NE(path_length_problem(path(std::string(300, 'd') + "/x.png"))
+                  .find("file name too long: the directory name dddd"),
+              std::string::npos);
+    std::string deep = path("");
+    while (deep.size() < 4200) deep += "b/";
+    EXPECT_NE(path_length_problem(deep + "x.png").find("path too long: "), std::string::npos);
+    EXPECT_EQ(path_length_problem(path(std::string(255, 'a'))), "");
+    EXPECT_EQ(path_length_problem("x.png"), "");
+}
+
 }  // namespace
 }  // namespace kdt

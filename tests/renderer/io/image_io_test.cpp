@@ -331,6 +331,13 @@ TEST_F(ImageIoTest, OutputIsCheckedBeforehandAndReplacedWhole) {
     EXPECT_NE(error_of(path("d.png")).find("is a directory"), std::string::npos);
     write_text(dir_ / "file", "x");
     EXPECT_NE(error_of(path("file/x.png")).find("no directory"), std::string::npos);
+    try {  // not error_of(): the message shortens so long a path
+        check_image_output(path(std::string(300, 'a') + ".png"));
+        ADD_FAILURE() << "a 304-byte file name passed";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("file name too long: 304 bytes"), std::string::npos)
+            << e.what();
+    }
     EXPECT_TRUE(std::filesystem::exists(dir_ / "file"));  // checking wrote nothing
     EXPECT_FALSE(std::filesystem::exists(dir_ / "ok.png"));
 
