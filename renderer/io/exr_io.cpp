@@ -130,8 +130,9 @@ uint32_t fixed_attribute_size(const std::string& type) {
 /// allocate before reading: the library allocates an unknown attribute's stated size
 /// (found by the image fuzzer: 1.9e9 bytes asked by a 16 KB file), reads a fixed-size type
 /// and a channel list whatever the stated size, and a preview image of the size its own
-/// header states. Names and types end within 256 bytes.
-void check_attribute_sizes(const std::vector<uint8_t>& data, const std::string& path) {
+/// header states. Names and types end within 256 bytes. Returns where the header ends (the
+/// byte after the empty name), which is where a single-part file's offset table starts.
+size_t check_attribute_sizes(const std::vector<uint8_t>& data, const std::string& path) {
     size_t pos = 8;  // magic and version
     auto text = [&](const char* what, size_t at, size_t end) {
         end = std::min(end, pos + 256);
@@ -147,7 +148,7 @@ void check_attribute_sizes(const std::vector<uint8_t>& data, const std::string& 
     };
     for (;;) {
         if (pos >= data.size()) fail(path, "truncated OpenEXR header", int64_t(pos));
-        if (data[pos] == 0) return;
+        if (data[pos] == 0) return pos + 1;
         const size_t at = pos;
         const std::string name = text("name", at, data.size());
         const std::string type = text("type", at, data.size());
@@ -191,9 +192,10 @@ void check_attribute_sizes(const std::vector<uint8_t>& data, const std::string& 
 
 /// Reads and checks the header (and the version field before it). Checks what the library
 /// would allocate from it: the image size against kMaxImagePixels, and the offset table
-/// (8 bytes per block, allocated before it is read) against the file's size.
-Imf::Header read_header(const std::vector<uint8_t>& data, const std::string& path,
-                        int* version_out) {
+/// (8 bytes per block, allocated before it is read) against the file's size. header_end_out
+/// (if given) receives where the header ends.
+Imf::Header read_header(const std::vector<uint8_t>& data, const std::string& path, int* version_out,
+                        size_t* header_end_out = nullptr) {
     set_library_limits();
     if (data.size() < 8)
         fail(path, "truncated OpenEXR file (" + std::to_string(data.size()) + " bytes)");
@@ -204,7 +206,7 @@ Imf::Header read_header(const std::vector<uint8_t>& data, const std::string& pat
     if (!Imf::supportsFlags(Imf::getFlags(version))) fail(path, "unsupported OpenEXR flags", 4);
     if (Imf::isMultiPart(version) || Imf::isNonImage(version))
         fail(path, "multi-part and deep OpenEXR files are not supported");
-    check_attribute_sizes(data, path);
+    const size_t header_end = check_attribute_sizes(data, path);
     MemoryIStream stream(data, path);
     stream.seekg(8);
     Imf::Header header;
@@ -247,7 +249,77 @@ Imf::Header read_header(const std::vector<uint8_t>& data, const std::string& pat
                        std::to_string(data.size()) + "-byte file");
     }
     if (version_out) *version_out = version;
+    if (header_end_out) *header_end_out = header_end;
     return header;
+}
+
+/// floor(log2(n)) or, rounding up, ceil(log2(n)), for n >= 1: how OpenEXR counts levels.
+int level_log2(int64_t n, Imf::LevelRoundingMode rounding) {
+    int k = 0;
+    while ((int64_t(1) << (k + 1)) <= n) ++k;
+    return rounding == Imf::ROUND_UP && (int64_t(1) << k) < n ? k + 1 : k;
+}
+
+/// The size of level l of an image side of n pixels: n / 2^l rounded, at least 1.
+int64_t level_size(int64_t n, int l, Imf::LevelRoundingMode rounding) {
+    const int64_t size = rounding == Imf::ROUND_UP ? (n + (int64_t(1) << l) - 1) >> l : n >> l;
+    return std::max<int64_t>(size, 1);
+}
+
+/// Checks that every tile of every level of a single-part tiled file lies within the file.
+/// The library decodes level 0 only, so a file cut short in its smaller mipmap or ripmap
+/// levels would otherwise load as if whole; a copy cut short is refused like any other.
+/// Reads the offset table (which follows the header) and each tile's 20-byte header
+/// (tile x, y, level x, y, data size); decodes nothing.
+void check_tiles_present(const std::vector<uint8_t>& data, const std::string& path,
+                         const Imf::Header& header, size_t header_end) {
+    const Imath::Box2i dw = header.dataWindow();
+    const int64_t w = int64_t(dw.max.x) - dw.min.x + 1, h = int64_t(dw.max.y) - dw.min.y + 1;
+    const Imf::TileDescription& t = header.tileDescription();
+    const Imf::LevelRoundingMode r = t.roundingMode;
+    int levels_x = 1, levels_y = 1;
+    if (t.mode == Imf::MIPMAP_LEVELS) {
+        levels_x = levels_y = level_log2(std::max(w, h), r) + 1;
+    } else if (t.mode == Imf::RIPMAP_LEVELS) {
+        levels_x = level_log2(w, r) + 1;
+        levels_y = level_log2(h, r) + 1;
+    }
+    auto u32 = [&](size_t at) {
+        return uint32_t(data[at]) | uint32_t(data[at + 1]) << 8 | uint32_t(data[at + 2]) << 16 |
+               uint32_t(data[at + 3]) << 24;
+    };
+    size_t entry = header_end;
+    // The table lists the tiles level by level (a ripmap's levels by y, then x), each level
+    // by rows of tiles.
+    for (int ly = 0; ly < levels_y; ++ly) {
+        for (int lx = 0; lx < levels_x; ++lx) {
+            if (t.mode == Imf::MIPMAP_LEVELS && lx != ly) continue;
+            const int64_t lw = level_size(w, lx, r), lh = level_size(h, ly, r);
+            const int64_t tiles = ((lw + t.xSize - 1) / t.xSize) * ((lh + t.ySize - 1) / t.ySize);
+            auto missing = [&](const std::string& how) {
+                const std::string size = std::to_string(lw) + "x" + std::to_string(lh);
+                const std::string level =
+                    lx == 0 && ly == 0 ? "the full-size image (" + size + ")"
+                    : t.mode == Imf::MIPMAP_LEVELS
+                        ? "mipmap level " + std::to_string(lx) + " (" + size + ")"
+                        : "ripmap level " + std::to_string(lx) + "," + std::to_string(ly) + " (" +
+                              size + ")";
+                fail(path, "truncated OpenEXR file: " + level + " " + how + " (the file has " +
+                               std::to_string(data.size()) + " bytes)");
+            };
+            for (int64_t i = 0; i < tiles; ++i, entry += 8) {
+                if (entry > data.size() || data.size() - entry < 8)
+                    missing("is missing from the offset table");
+                const uint64_t at = uint64_t(u32(entry)) | uint64_t(u32(entry + 4)) << 32;
+                // An offset of 0 is the placeholder a writer leaves until the tile is written.
+                if (at < header_end || at > data.size() || data.size() - at < 20)
+                    missing("has a tile past the end of the file");
+                const uint32_t bytes = u32(size_t(at) + 16);
+                if (bytes > data.size() - at - 20)
+                    missing("has a tile that runs past the end of the file");
+            }
+        }
+    }
 }
 
 ImageMetadata string_attributes(const Imf::Header& header) {
@@ -289,7 +361,10 @@ auto guarded(const std::string& path, const char* what, F&& f) {
 
 ImageRGB decode(const std::vector<uint8_t>& data, const std::string& path,
                 ImageMetadata* metadata) {
-    const Imf::Header checked = read_header(data, path, nullptr);
+    int version = 0;
+    size_t header_end = 0;
+    const Imf::Header checked = read_header(data, path, &version, &header_end);
+    if (Imf::isTiled(version)) check_tiles_present(data, path, checked, header_end);
     const Imf::ChannelList& channels = checked.channels();
     const char* names[3] = {"R", "G", "B"};
     const Imf::Channel* found[3] = {channels.findChannel("R"), channels.findChannel("G"),
@@ -406,7 +481,10 @@ ImageInfo read_exr_info(const std::vector<uint8_t>& data, const std::string& pat
 
 void check_exr_pixels(const std::vector<uint8_t>& data, const std::string& path) {
     guarded(path, "corrupt OpenEXR file", [&] {
-        const Imf::Header checked = read_header(data, path, nullptr);
+        int version = 0;
+        size_t header_end = 0;
+        const Imf::Header checked = read_header(data, path, &version, &header_end);
+        if (Imf::isTiled(version)) check_tiles_present(data, path, checked, header_end);
         MemoryIStream stream(data, path);
         Imf::InputFile file(stream, 0);
         if (file.header().dataWindow() != checked.dataWindow())

@@ -270,6 +270,51 @@ TEST_F(ExrIoTest, InfoOnAFileTruncatedBehindItsHeaderIsAnError) {
     EXPECT_EQ(info_error(file).rfind(file + ": corrupt OpenEXR file: ", 0), 0u) << info_error(file);
 }
 
+// The library decodes the full-size level of a mipmapped or ripmapped file only: a file cut
+// short in its smaller levels is still refused, by load_image() (an --env map) and by `info`,
+// naming the level, as every other file cut short is.
+TEST_F(ExrIoTest, MipmapAndRipmapFilesCutShortInAnyLevelAreErrors) {
+    for (const Imf::LevelMode levels : {Imf::MIPMAP_LEVELS, Imf::RIPMAP_LEVELS}) {
+        for (const Imf::LevelRoundingMode rounding : {Imf::ROUND_DOWN, Imf::ROUND_UP}) {
+            ExrVariant v{13, 6, Imf::HALF, Imf::ZIP_COMPRESSION, false, 4};
+            v.levels = levels;
+            v.rounding = rounding;
+            const std::string name = std::string(levels == Imf::MIPMAP_LEVELS ? "mip" : "rip") +
+                                     (rounding == Imf::ROUND_UP ? "_up" : "_down") + ".exr";
+            SCOPED_TRACE(name);
+            const std::vector<uint8_t> good = test::exr_variant(v);
+            const ImageRGB whole = load_image_memory(good, name);
+            ASSERT_EQ(whole.width, 13);
+            ASSERT_EQ(whole.height, 6);
+            EXPECT_EQ(whole.at(12, 5)[1], test::exr_variant_value(12, 5, 1));
+            const std::string file = path(name);
+            write_bytes(file, good);
+            EXPECT_EQ(info_error(file), "");
+            // The last tile in the file is that of the 1x1 level; every cut from a quarter of
+            // the file on leaves the full-size level whole in some of them.
+            const std::string last =
+                levels == Imf::MIPMAP_LEVELS
+                    ? (rounding == Imf::ROUND_UP ? "mipmap level 4 (1x1)" : "mipmap level 3 (1x1)")
+                    : (rounding == Imf::ROUND_UP ? "ripmap level 4,3 (1x1)"
+                                                 : "ripmap level 3,2 (1x1)");
+            EXPECT_NE(decode_error(std::vector<uint8_t>(good.begin(), good.end() - 1), name)
+                          .find(": truncated OpenEXR file: " + last +
+                                " has a tile that runs past "
+                                "the end of the file (the file has " +
+                                std::to_string(good.size() - 1) + " bytes)"),
+                      std::string::npos);
+            for (size_t cut = good.size() / 4; cut < good.size(); ++cut) {
+                SCOPED_TRACE("cut at " + std::to_string(cut));
+                const std::vector<uint8_t> part(good.begin(), good.begin() + ptrdiff_t(cut));
+                decode_error(part, name);
+                if (cut % 16 != 0 && cut != good.size() - 1) continue;  // the disk is slow
+                write_bytes(file, part);
+                EXPECT_EQ(info_error(file).rfind(file + ": ", 0), 0u) << info_error(file);
+            }
+        }
+    }
+}
+
 /// Offset of the value of the header attribute `name` in an EXR file's bytes.
 size_t attribute_value(const std::vector<uint8_t>& bytes, const std::string& name) {
     size_t pos = 8;

@@ -26,9 +26,11 @@ struct ExrVariant {
     Imf::PixelType type = Imf::HALF;
     Imf::Compression compression = Imf::ZIP_COMPRESSION;
     bool grey = false;    ///< one "Y" channel instead of R, G, B
-    int tile_size = 0;    ///< > 0: tiled, one level
+    int tile_size = 0;    ///< > 0: tiled, with the levels below
     std::string comment;  ///< non-empty: a "comments" string attribute
     int envmap = -1;      ///< >= 0: an "envmap" attribute of this Imf::Envmap value
+    Imf::LevelMode levels = Imf::ONE_LEVEL;  ///< tiled: one level, mipmaps or ripmaps
+    Imf::LevelRoundingMode rounding = Imf::ROUND_DOWN;
 };
 
 /// The value variant v stores in channel c (0..2) of pixel (x, y); exact in half and uint.
@@ -36,7 +38,9 @@ inline float exr_variant_value(int x, int y, int c) {
     return float((x * 7 + y * 3 + c * 5) % 23) * 0.25f + float(c);
 }
 
-/// Writes variant v into memory and returns the file's bytes.
+/// Writes variant v into memory and returns the file's bytes. The smaller levels of a tiled
+/// file hold the top-left part of the full-size image's values; they come after it in the
+/// file, level by level (a ripmap's by y, then x).
 inline std::vector<uint8_t> exr_variant(const ExrVariant& v) {
     ExrMemoryOStream sink("exr_variant");
     Imf::Header header(v.width, v.height);
@@ -68,11 +72,16 @@ inline std::vector<uint8_t> exr_variant(const ExrVariant& v) {
         fb.insert(names[c], Imf::Slice(v.type, planes[c].data(), size, size * size_t(v.width)));
     }
     if (v.tile_size > 0) {
-        header.setTileDescription(
-            Imf::TileDescription(unsigned(v.tile_size), unsigned(v.tile_size), Imf::ONE_LEVEL));
+        header.setTileDescription(Imf::TileDescription(unsigned(v.tile_size), unsigned(v.tile_size),
+                                                       v.levels, v.rounding));
         Imf::TiledOutputFile file(sink, header, 0);
         file.setFrameBuffer(fb);
-        file.writeTiles(0, file.numXTiles() - 1, 0, file.numYTiles() - 1);
+        for (int ly = 0; ly < file.numYLevels(); ++ly) {
+            for (int lx = 0; lx < file.numXLevels(); ++lx) {
+                if (!file.isValidLevel(lx, ly)) continue;
+                file.writeTiles(0, file.numXTiles(lx) - 1, 0, file.numYTiles(ly) - 1, lx, ly);
+            }
+        }
     } else {
         Imf::OutputFile file(sink, header, 0);
         file.setFrameBuffer(fb);
