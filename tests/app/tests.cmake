@@ -99,15 +99,21 @@ kdt_status_test(smoke.help_status 0 "^kdtrace 0.1.0\n$"
 # A repeated option takes its last value (pbrt, Blender), checked values included.
 kdt_status_test(smoke.repeated_option_last 0 "render: default scene: 4x3, [^\n]*, 3.0 spp"
   ${_kdt} render --spp 1 --spp 3 --width 8 --width 4 --height 3 --quiet -o ${_tmp}/repeated.pfm)
+# kdt_render_error_case(PREFIX OUTPUT CASE): CASE is the list "ID;ARGS;WHY"; the test
+# PREFIX_ID runs `kdtrace render ARGS` (split as a command line) for a tiny image into OUTPUT,
+# and passes when it prints the one line "kdtrace: error: WHY" and exits 1.
+function(kdt_render_error_case prefix output case)
+  list(GET case 0 _id)
+  list(GET case 1 _args)
+  list(GET case 2 _why)
+  separate_arguments(_args)
+  kdt_status_test(${prefix}_${_id} 1 "^kdtrace: error: ${_why}\n$"
+    ${_kdt} render ${_args} --width 8 --height 6 --quiet -o ${output})
+endfunction()
 # ... and a bad value before it is still an error, not passed over.
 foreach(_case "spp;--spp abc --spp 2;--spp must be a number \\(got 'abc'\\)"
               "tonemap;--tonemap foo --tonemap clamp;--tonemap must be one of: [^\n]* \\(got 'foo'\\)")
-  list(GET _case 0 _id)
-  list(GET _case 1 _args)
-  list(GET _case 2 _why)
-  separate_arguments(_args)
-  kdt_status_test(smoke.repeated_option_bad_first_${_id} 1 "^kdtrace: error: ${_why}\n$"
-    ${_kdt} render ${_args} --width 8 --height 6 --quiet -o ${_tmp}/repeated_bad.png)
+  kdt_render_error_case(smoke.repeated_option_bad_first ${_tmp}/repeated_bad.png "${_case}")
 endforeach()
 
 # A frame count out of range names the range.
@@ -861,10 +867,5 @@ kdt_status_test(smoke.render_env_intensity_radiance 1
 # as 180, refused later as "camera: ..." without the flag.
 foreach(_case "error_tiny;--error 1e-50;--error must be in \\(0, 1e\\+06\\] \\(got 1e-50, which is 0 as a float\\)"
               "fov_rounds_to_180;--fov 179.999999999;--fov must be a vertical field of view in \\(0, 180\\) degrees \\(got '179.999999999'\\)")
-  list(GET _case 0 _id)
-  list(GET _case 1 _args)
-  list(GET _case 2 _why)
-  separate_arguments(_args)
-  kdt_status_test(smoke.float_rounding_${_id} 1 "^kdtrace: error: ${_why}\n$"
-    ${_kdt} render ${_args} --width 8 --height 6 --quiet -o ${_tmp}/float_rounding.pfm)
+  kdt_render_error_case(smoke.float_rounding ${_tmp}/float_rounding.pfm "${_case}")
 endforeach()
