@@ -37,6 +37,19 @@ std::string write_tetra_ply(const std::filesystem::path& dir, const std::string&
     return path;
 }
 
+/// tiny_options() on a tetrahedron written to dir/name.
+ViewerOptions tetra_options(const std::filesystem::path& dir,
+                            const std::string& name = "model.ply") {
+    ViewerOptions vo = tiny_options();
+    vo.options.scene.scene_path = write_tetra_ply(dir, name);
+    return vo;
+}
+
+/// A viewer that has loaded its first scene (or failed to: see message_) once constructed.
+struct LoadedViewer : Viewer {
+    explicit LoadedViewer(const ViewerOptions& vo) : Viewer(vo) { finish_loading(); }
+};
+
 TEST(ViewerFiles, OpenSwapsTheSceneAndErrorsNameTheFile) {
     const auto dir = test::temp_dir("ui_open");
     ViewerOptions vo = tiny_options();
@@ -89,8 +102,7 @@ TEST(ViewerFiles, OpenSwapsTheSceneAndErrorsNameTheFile) {
 
 TEST(ViewerFiles, ProbeAndMaterialEdits) {
     const auto dir = test::temp_dir("ui_probe_material");
-    Viewer v(tiny_options());
-    v.finish_loading();
+    LoadedViewer v(tiny_options());
     ImageRGB sky(8, 4);
     for (float& c : sky.rgb) c = 0.5f;
     const std::string probe = (dir / "sky.pfm").string(), bad = (dir / "bad.exr").string();
@@ -163,8 +175,7 @@ TEST(ViewerFiles, ProbeAndMaterialEdits) {
     v.save_session(session);
     ViewerOptions again = tiny_options();
     again.session = session;
-    Viewer w(again);
-    w.finish_loading();
+    LoadedViewer w(again);
     EXPECT_EQ(w.message_, "");
     EXPECT_EQ(w.prep_.scene.environment.file, probe);
 }
@@ -180,8 +191,7 @@ TEST(ViewerFiles, SessionsHoldAbsoluteFileNamesAndLoadFromAnywhere) {
     ViewerOptions vo = tiny_options();
     vo.options.scene.scene_path = "model.ply";  // as typed, relative to the working directory
     vo.options.scene.env_file = "sky.pfm";
-    Viewer v(vo);
-    v.finish_loading();
+    LoadedViewer v(vo);
     ASSERT_TRUE(v.worker_) << v.message_;
     v.save_session("s.json");
     const std::string text = [] {
@@ -203,8 +213,7 @@ TEST(ViewerFiles, SessionsHoldAbsoluteFileNamesAndLoadFromAnywhere) {
     ViewerOptions again = tiny_options();
     again.session = (dir / "s.json").string();
     options_from_session_file(again.session, again.options);  // as `kdtrace view --session`
-    Viewer w(again);
-    w.finish_loading();
+    LoadedViewer w(again);
     std::filesystem::current_path(cwd);
     EXPECT_EQ(w.message_, "");
     ASSERT_TRUE(w.worker_);
@@ -214,10 +223,7 @@ TEST(ViewerFiles, SessionsHoldAbsoluteFileNamesAndLoadFromAnywhere) {
 
 TEST(ViewerFiles, ASessionsCameraPartsMoveTheCameraAsRenderTakesThem) {
     const auto dir = test::temp_dir("ui_session_camera");
-    ViewerOptions vo = tiny_options();
-    vo.options.scene.scene_path = write_tetra_ply(dir, "model.ply");
-    Viewer v(vo);
-    v.finish_loading();
+    LoadedViewer v(tetra_options(dir));
     ASSERT_TRUE(v.worker_) << v.message_;
     const CameraDesc home = v.home_camera_;
     auto session = [&](const std::string& name, const Vec3f& eye) {
@@ -248,15 +254,13 @@ std::string file_text(const std::string& path) {
 
 TEST(ViewerFiles, OutputsNeverReplaceTheFilesViewedAndRefuseFifos) {
     const auto dir = test::temp_dir("ui_outputs");
-    ViewerOptions vo = tiny_options();
-    vo.options.scene.scene_path = write_tetra_ply(dir, "model.ply");
+    ViewerOptions vo = tetra_options(dir);
     ImageRGB sky(8, 4);
     for (float& c : sky.rgb) c = 0.5f;
     const std::string probe = (dir / "sky.pfm").string();
     write_image(probe, sky);
     vo.options.scene.env_file = probe;
-    Viewer v(vo);
-    v.finish_loading();
+    LoadedViewer v(vo);
     ASSERT_TRUE(v.worker_) << v.message_;
     const std::string session = (dir / "s.json").string();
     v.save_session(session);
@@ -302,13 +306,10 @@ TEST(ViewerFiles, OutputsNeverReplaceTheFilesViewedAndRefuseFifos) {
 }
 
 TEST(ViewerFiles, CameraMovesThatWouldCollapseTheCameraAreRefused) {
-    const auto dir = test::temp_dir("ui_camera");
-    ViewerOptions vo = tiny_options();
-    vo.options.scene.scene_path = write_tetra_ply(dir, "model.ply");
+    ViewerOptions vo = tetra_options(test::temp_dir("ui_camera"));
     vo.script = "fly 1e10 0 0; pan 1e10 1e10";
     for (int i = 0; i < 100; ++i) vo.script += "; zoom 0.35";
-    Viewer v(vo);
-    v.finish_loading();
+    LoadedViewer v(vo);
     ASSERT_TRUE(v.worker_) << v.message_;
     const CameraDesc home = v.camera_;
     EXPECT_FALSE(v.script_step());
@@ -321,10 +322,7 @@ TEST(ViewerFiles, CameraMovesThatWouldCollapseTheCameraAreRefused) {
 
 TEST(ViewerFiles, EnvironmentEditsWhileAModelLoadsApplyToIt) {
     const auto dir = test::temp_dir("ui_env_edits");
-    ViewerOptions vo = tiny_options();
-    vo.options.scene.scene_path = write_tetra_ply(dir, "first.ply");
-    Viewer v(vo);
-    v.finish_loading();
+    LoadedViewer v(tetra_options(dir, "first.ply"));
     ASSERT_TRUE(v.worker_) << v.message_;
     ImageRGB sky(8, 4);
     for (float& c : sky.rgb) c = 0.5f;
@@ -367,8 +365,7 @@ TEST(ViewerFiles, BadFirstSceneEndsAScriptedRunWithTheMessage) {
     ViewerOptions vo = tiny_options();
     vo.options.scene.scene_path = "/nonexistent/model.ply";
     vo.script = "orbit 10 0";
-    Viewer v(vo);
-    v.finish_loading();
+    LoadedViewer v(vo);
     EXPECT_FALSE(v.worker_);
     EXPECT_NE(v.message_.find("/nonexistent/model.ply"), std::string::npos) << v.message_;
     const std::string e = test::error_of_call([&] { v.script_step(); });
