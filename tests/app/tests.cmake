@@ -250,12 +250,11 @@ $e[2J.ply\" && \"$0\" info \"$d/c
 $e[2J.ply\"" ${_kdt} ${_tmp}/escaped_names)
 # bench load writes --csv through a temporary file renamed over it: a hard link to the old
 # CSV keeps the old text (fopen wrote through it).
-add_test(NAME smoke.bench_load_csv_atomic COMMAND sh -c "mkdir -p \"$1\" && cd \"$1\" && \
+kdt_status_test(smoke.bench_load_csv_atomic 0 "^old\nfile,\n$"
+  sh -c "mkdir -p \"$1\" && cd \"$1\" && \
 echo old > a.csv && ln -f a.csv b.csv && \"$0\" bench load $2 --no-assimp --repeat 1 \
 --csv b.csv >/dev/null && cat a.csv && head -c 5 b.csv && echo" ${_kdt} ${_tmp}/bench_load_csv
-         /usr/share/assimp/models/PLY/cube.ply)
-set_tests_properties(smoke.bench_load_csv_atomic PROPERTIES
-  PASS_REGULAR_EXPRESSION "^old\nfile,\n$")
+  /usr/share/assimp/models/PLY/cube.ply)
 # bench mpi --distributions names a choice as render's --distribution does, with status 1.
 kdt_status_test(smoke.bench_mpi_distributions_bogus 1
   "^kdtrace: error: --distributions must be one of: dynamic, interleaved, strips \\(got 'bogus'\\)\n$"
@@ -612,11 +611,11 @@ cd \"$d\" && cp /usr/share/assimp/models/PLY/cube.ply . && \"$0\" render cube.pl
 --height 6 --spp 1 --quiet -o m.png >/dev/null && \"$0\" info m.png" ${_kdt} ${_tmp}/info_scene_abs)
 
 # -o through a symlink writes the file it leads to, as cp and `>` do; the link stays.
-add_test(NAME smoke.output_symlink COMMAND sh -c "d=\"$1\"; rm -rf \"$d\"; mkdir -p \"$d/real\" \
+kdt_status_test(smoke.output_symlink 0 "^written through\n$"
+  sh -c "d=\"$1\"; rm -rf \"$d\"; mkdir -p \"$d/real\" \
 && echo not-an-image >\"$d/real/a.png\" && ln -s real/a.png \"$d/link.png\" && \"$0\" render --width 8 \
 --height 6 --spp 1 --quiet -o \"$d/link.png\" >/dev/null && test -L \"$d/link.png\" && \
 ! grep -qx not-an-image \"$d/real/a.png\" && echo written through" ${_kdt} ${_tmp}/output_symlink)
-set_tests_properties(smoke.output_symlink PROPERTIES PASS_REGULAR_EXPRESSION "^written through")
 
 # --quiet silences progress and cache news, not problems: an environment map whose shape
 # contradicts its mapping, and a cache directory that cannot be written (every run rebuilds).
@@ -641,15 +640,15 @@ kdt_status_test(smoke.tree_file_render 0 "tree [0-9.]+ s \\(from [^)]*/wuson_the
 set_tests_properties(smoke.tree_file_render PROPERTIES DEPENDS smoke.tree_file_build)
 # --no-cache (alone or with --tree FILE) leaves the cache directory ($KDT_CACHE_DIR/trees)
 # uncreated; a --tree file used with the cache gets a verified-stamp there.
-add_test(NAME smoke.tree_file_no_stamp COMMAND sh -c "k=\"$0\" t=\"$1\" d=\"$2\"; rm -rf \"$d\"; \
+kdt_status_test(smoke.tree_file_no_stamp 0 "PASS: stamps only with the cache\n$"
+  sh -c "k=\"$0\" t=\"$1\" d=\"$2\"; rm -rf \"$d\"; \
 r() { KDT_CACHE_DIR=\"$d\" \"$k\" render /usr/share/assimp/models/PLY/Wuson.ply \"$@\" --spp 1 \
 --width 16 --height 12 --quiet -o \"$d.png\" || exit 1; }; \
 r --tree \"$t\" --no-cache; r --no-cache; \
 if [ -e \"$d\" ]; then find \"$d\"; exit 1; fi; r --tree \"$t\"; \
 ls \"$d\"/trees/verified/*.stamp >/dev/null && echo PASS: stamps only with the cache"
-         ${_kdt} ${_tmp}/wuson_thesis.kdt ${_tmp}/stamp_cache)
-set_tests_properties(smoke.tree_file_no_stamp PROPERTIES DEPENDS smoke.tree_file_build
-  PASS_REGULAR_EXPRESSION "PASS: stamps only with the cache")
+  ${_kdt} ${_tmp}/wuson_thesis.kdt ${_tmp}/stamp_cache)
+set_tests_properties(smoke.tree_file_no_stamp PROPERTIES DEPENDS smoke.tree_file_build)
 kdt_status_test(smoke.tree_file_other_model 1
   "wuson_thesis.kdt: byte [0-9]+: header: stale: built for another mesh"
   ${_kdt} render /usr/share/assimp/models/PLY/cube.ply --tree ${_tmp}/wuson_thesis.kdt --spp 1 -o
@@ -700,17 +699,14 @@ if(EXISTS /dev/full)
     string(REPLACE ";" "_" _name "${_case}")
     string(REGEX REPLACE "_/.*" "" _name "${_name}")
     string(REPLACE ";" " " _args "${_case}")
-    add_test(NAME smoke.stdout_full_${_name} COMMAND sh -c
-             "\"$0\" ${_args} 2>&1 >/dev/full; echo \"status $?\"" ${_kdt})
-    set_tests_properties(smoke.stdout_full_${_name} PROPERTIES PASS_REGULAR_EXPRESSION
-      "^kdtrace: error: cannot write to standard output: No space left on device\nstatus 1\n$")
+    kdt_status_test(smoke.stdout_full_${_name} 1
+      "^kdtrace: error: cannot write to standard output: No space left on device\n$"
+      sh -c "\"$0\" ${_args} >/dev/full" ${_kdt})
   endforeach()
 endif()
-add_test(NAME smoke.stdout_closed COMMAND sh -c
-         "\"$0\" info /usr/share/assimp/models/PLY/cube.ply 2>&1 >&-; echo \"status $?\""
-         ${_kdt})
-set_tests_properties(smoke.stdout_closed PROPERTIES PASS_REGULAR_EXPRESSION
-  "^kdtrace: error: cannot write to standard output: Bad file descriptor\nstatus 1\n$")
+kdt_status_test(smoke.stdout_closed 1
+  "^kdtrace: error: cannot write to standard output: Bad file descriptor\n$"
+  sh -c "\"$0\" info /usr/share/assimp/models/PLY/cube.ply >&-" ${_kdt})
 add_test(NAME smoke.render_rescue COMMAND bash ${CMAKE_CURRENT_LIST_DIR}/rescue_test.sh ${_kdt}
          ${_tmp}/rescue)
 set_tests_properties(smoke.render_rescue PROPERTIES PASS_REGULAR_EXPRESSION "PASS: rescue"
@@ -822,12 +818,12 @@ kdt_status_test(smoke.bench_kdtree_save_views_file 1
   ${_kdt} bench kdtree --model /usr/share/assimp/models/PLY/cube.ply --save-views
   /usr/share/assimp/models/PLY/cube.ply)
 set_tests_properties(smoke.bench_kdtree_save_views_file PROPERTIES FAIL_REGULAR_EXPRESSION "row 1")
-add_test(NAME smoke.bench_kdtree_save_views COMMAND sh -c "rm -rf \"$1\" && \"$0\" bench kdtree \
+kdt_status_test(smoke.bench_kdtree_save_views 0
+  "^view_A.pgm\nview_B.pgm\nview_C.pgm\nview_D.pgm\n$"
+  sh -c "rm -rf \"$1\" && \"$0\" bench kdtree \
          --model /usr/share/assimp/models/PLY/cube.ply --rows 1 --repeat 1 --no-embree \
          --no-robustness --stream-lanes '' --spp 1 --save-views \"$1/new\" >/dev/null 2>&1 && \
          ls \"$1/new\"" ${_kdt} ${_tmp}/save_views)
-set_tests_properties(smoke.bench_kdtree_save_views PROPERTIES
-  PASS_REGULAR_EXPRESSION "^view_A.pgm\nview_B.pgm\nview_C.pgm\nview_D.pgm\n$")
 
 # view --screenshot is taken in the last frame of a --frames run: alone it is refused before
 # any window opens.
