@@ -171,8 +171,11 @@ void evaluate_axis(Context& ctx, const Work& w, int axis, Choice& best) {
     float scale = box_hi > box_lo ? float(bins) / (box_hi - box_lo) : 0.0f;
     if (!std::isfinite(scale) || !(scale > 0.0f)) bins = 1;
     if (bins == 1) scale = 0.0f;
+    // Written so that a NaN lands in bin 0: with one bin the scale is 0, and a box wider
+    // than float's range (coordinates near +-3e38) makes x - box_lo infinite, inf * 0 NaN.
     auto bin = [&](float x) {
-        return int(std::min(std::max((x - box_lo) * scale, 0.0f), float(bins - 1)));
+        const float b = (x - box_lo) * scale;
+        return b > 0.0f ? int(std::min(b, float(bins - 1))) : 0;
     };
     if (want_median && !store) s.hist.assign(size_t(bins), 0);
     if (store && want_median) s.coords.resize(3 * n);

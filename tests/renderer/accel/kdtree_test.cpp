@@ -542,5 +542,36 @@ TEST(KdTree, SameTreeAtEveryPowerOfTwoScale) {
     }
 }
 
+// A model wider than float's range (coordinates near +-2e38, so upper - lower overflows to
+// infinity) once crashed the thesis builder: its median histogram took inf * 0 = NaN as a bin
+// index. Both builders must build it, and rays from the centre must find what brute force does.
+TEST(KdTree, ModelWiderThanFloatRangeBuildsAndTraces) {
+    auto mesh = std::make_shared<TriangleMesh>(test::make_blob(3, 1.0f, 41));
+    for (Vec3f& v : mesh->positions) v *= std::ldexp(1.0f, 127);  // radii up to 2.2e38
+    const Bounds3f b = mesh->bounds();
+    ASSERT_TRUE(std::isinf(b.upper.x - b.lower.x));
+    std::mt19937 rng(42);
+    std::normal_distribution<float> normal;
+    for (KdBuilder builder : {KdBuilder::thesis, KdBuilder::sah}) {
+        KdTreeParams p;
+        p.builder = builder;
+        const auto tree = build_kdtree(mesh, p);
+        const std::string what = kKdBuilderNames[size_t(builder)];
+        EXPECT_GT(tree->nodes().size(), 1u) << what;
+        size_t hits = 0;
+        for (int i = 0; i < 2000; ++i) {
+            Ray r;
+            r.origin = Vec3f(0.0f);
+            r.dir = glm::normalize(Vec3f(normal(rng), normal(rng), normal(rng)));
+            const Hit ref = test::brute_force_hit(*mesh, r);
+            Hit hit;
+            tree->intersect(r, hit);
+            ASSERT_TRUE(test::same_closest_hit(*mesh, r, hit, ref)) << what << ": ray " << i;
+            hits += hit.valid();
+        }
+        EXPECT_EQ(hits, 2000u) << what;  // the blob is closed around the origin
+    }
+}
+
 }  // namespace
 }  // namespace kdt
