@@ -11,6 +11,8 @@
 #include <filesystem>
 #include <functional>
 #include <initializer_list>
+#include <memory>
+#include <new>
 #include <string>
 #include <vector>
 
@@ -179,6 +181,7 @@ void run(const RenderCommand& cmd) {
     const RenderOptions o = resolve(cmd.options);
     // Fail before loading and rendering, not after.
     validate(o);
+    check_image_memory(o.scene.width, o.scene.height);
     if (dist_requested(cmd.dist)) return run_dist_render(o, cmd.output, cmd.quiet, cmd.dist);
     check_image_output_flag(cmd.output, o.film.transparent);
     std::vector<std::string> inputs = {o.scene.scene_path, o.scene.env_file, o.scene.tree_file};
@@ -198,7 +201,15 @@ void run(const RenderCommand& cmd) {
     if (!cmd.view.empty())
         warn_view_model(cmd.views, "--view " + cmd.view, o.scene.scene_path, prep.scene);
 
-    RenderSession session(prep.snapshot, o.trace, o.film);
+    // check_image_memory() counted what was available before the scene was loaded.
+    std::unique_ptr<RenderSession> owned_session;
+    try {
+        owned_session = std::make_unique<RenderSession>(prep.snapshot, o.trace, o.film);
+    } catch (const std::bad_alloc&) {
+        throw Error("--width " + std::to_string(o.scene.width) + " --height " +
+                    std::to_string(o.scene.height) + ": out of memory allocating the film");
+    }
+    RenderSession& session = *owned_session;
     session.set_publishing(false);  // nothing reads the image before the render ends
     const bool tty = !cmd.quiet && isatty(fileno(stderr));
     const double pixels = double(session.film().pixel_count());

@@ -230,6 +230,18 @@ void warn_view_model(const std::string& views, const std::string& label,
     if (!w.empty()) std::fprintf(stderr, "kdtrace: warning: %s\n", w.c_str());
 }
 
+void check_image_memory(int width, int height) {
+    const uint64_t pixels = uint64_t(std::max(width, 0)) * uint64_t(std::max(height, 0));
+    const uint64_t need = pixels * kRenderBytesPerPixel;
+    const uint64_t memory = allocatable_memory_bytes();
+    if (memory == 0 || need <= memory) return;
+    throw Error("--width " + std::to_string(width) + " --height " + std::to_string(height) +
+                ": an image of " + std::to_string(pixels) + " pixels needs about " +
+                std::to_string(need >> 20) + " MiB (" + std::to_string(kRenderBytesPerPixel) +
+                " bytes per pixel), more than the " + std::to_string(memory >> 20) +
+                " MiB of memory available; render a smaller image");
+}
+
 void check_subdivide(uint64_t triangles, int levels, const SubdivideMemory& memory) {
     const uint64_t result = subdivided_triangle_count(triangles, levels);
     const uint64_t budget = scene_triangle_budget(kMaxSubdividedTriangles - 1, memory.bytes);

@@ -2,6 +2,7 @@
 // types are errors naming the file and the key's path.
 #include "renderer/scene/scene.h"
 
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -402,6 +403,21 @@ uint64_t available_memory_bytes() {
     return kb * 1024;
 }
 
+// Address space left under RLIMIT_AS (the limit less the process's mapped size), or
+// UINT64_MAX when there is no limit; 0 when the mapped size cannot be read.
+uint64_t address_space_headroom_bytes() {
+    rlimit limit{};
+    if (getrlimit(RLIMIT_AS, &limit) != 0 || limit.rlim_cur == RLIM_INFINITY) return UINT64_MAX;
+    std::FILE* f = std::fopen("/proc/self/statm", "r");
+    if (!f) return 0;
+    unsigned long long pages = 0;
+    const bool ok = std::fscanf(f, "%llu", &pages) == 1;
+    std::fclose(f);
+    if (!ok) return 0;
+    const uint64_t mapped = pages * uint64_t(sysconf(_SC_PAGESIZE));
+    return uint64_t(limit.rlim_cur) > mapped ? uint64_t(limit.rlim_cur) - mapped : 0;
+}
+
 std::string describe_budget(const SceneLoadOptions& options) {
     const uint64_t memory = available_memory_bytes();
     return "at most " + std::to_string(options.max_triangles) + " triangles, and about " +
@@ -592,6 +608,13 @@ uint64_t scene_triangle_budget(uint64_t max_triangles, uint64_t bytes_per_triang
     const uint64_t memory = available_memory_bytes();
     if (memory == 0) return max_triangles;
     return std::min<uint64_t>(max_triangles, memory / std::max<uint64_t>(bytes_per_triangle, 1));
+}
+
+uint64_t allocatable_memory_bytes() {
+    const uint64_t physical = available_memory_bytes();
+    const uint64_t headroom = address_space_headroom_bytes();
+    if (headroom == UINT64_MAX) return physical;
+    return physical == 0 ? headroom : std::min(physical, headroom);
 }
 
 uint64_t instanced_triangle_count(const Scene& scene) {

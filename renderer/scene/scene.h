@@ -112,6 +112,11 @@ TriangleMesh make_ground_plane(float half_size, float height);  ///< two triangl
 uint64_t scene_triangle_budget(uint64_t max_triangles = kDefaultMaxSceneTriangles,
                                uint64_t bytes_per_triangle = kRenderBytesPerTriangle);
 
+/// Bytes this process may still allocate: the physical memory available now (MemAvailable),
+/// or less when an address-space limit (`ulimit -v`) leaves less above what the process has
+/// mapped; 0 when neither is known.
+uint64_t allocatable_memory_bytes();
+
 /// Triangles a render of the scene holds: every instance's mesh counted once per instance.
 uint64_t instanced_triangle_count(const Scene& scene);
 

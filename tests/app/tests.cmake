@@ -865,3 +865,14 @@ foreach(_case "error_tiny;--error 1e-50;--error must be in \\(0, 1e\\+06\\] \\(g
               "fov_rounds_to_180;--fov 179.999999999;--fov must be a vertical field of view in \\(0, 180\\) degrees \\(got '179.999999999'\\)")
   kdt_render_error_case(smoke.float_rounding ${_tmp}/float_rounding.pfm "${_case}")
 endforeach()
+
+# Pathological geometry and parameters: what would take absurd memory fails first, naming the
+# flags. A 16384x8192 image needs about 16 GiB (128 bytes per pixel); under a 4 GB address
+# space it is refused before the scene loads, not with main()'s bare "out of memory".
+find_program(KDT_PRLIMIT prlimit)
+if(KDT_PRLIMIT)
+  kdt_status_test(smoke.render_image_memory 1
+    "^kdtrace: error: --width 16384 --height 8192: an image of 134217728 pixels needs about 16384 MiB \\(128 bytes per pixel\\), more than the [0-9]+ MiB of memory available; render a smaller image\n$"
+    ${KDT_PRLIMIT} --as=4000000000 ${_kdt} render --width 16384 --height 8192 --spp 1 --quiet
+    -o ${_tmp}/patho_huge_image.pfm)
+endif()
