@@ -230,7 +230,9 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
     for (size_t i = 0; i < table; ++i) ctx.f_table[i] = thesis_f(float(i), params.q, params.n0);
     ctx.meter.add(int64_t(ctx.f_table.capacity() * sizeof(float)));
 
-    // Every triangle with finite vertices; the others are never referenced. Checked in
+    // Every triangle that can be hit (TriangleMesh::triangle_hittable: finite vertices, three
+    // distinct indices), as the thesis builder takes them; the others are never referenced, so
+    // a scan's faces with a repeated index cost no references or tests. Checked in
     // chunks on all threads: flags, counts and bounds per chunk, then the indices are
     // written at each chunk's offset, so the order is the mesh's whatever the threads.
     TopNode top(&ctx.meter);
@@ -256,8 +258,7 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
                 ch.bad = i;
                 break;
             }
-            usable[i] = is_finite(mesh.positions[t.x]) && is_finite(mesh.positions[t.y]) &&
-                        is_finite(mesh.positions[t.z]);
+            usable[i] = mesh.triangle_hittable(i);
             if (!usable[i]) continue;
             ++ch.valid;
             ch.bounds.extend(mesh.triangle_bounds(i));
