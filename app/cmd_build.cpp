@@ -65,6 +65,12 @@ void add_build_command(CLI::App& parent) {
     add_tree_options(*cmd, params);
     cmd->add_option("--subdivide", subdivide, "Split every triangle into 4^K first")
         ->check(in_range(0, 4));
+    // The loader's error for a non-finite vertex names this flag: `build` must take it for
+    // the tree of the model `render --drop-invalid` renders.
+    static bool drop_invalid = false;
+    cmd->add_flag("--drop-invalid", drop_invalid,
+                  "Drop faces with non-finite vertices (or fewer than 3 indices) instead of "
+                  "failing, as render --drop-invalid does");
     static bool quiet = false;
     cmd->add_flag("--quiet", quiet, "No cache messages (warnings are still printed)");
     non_empty_file_name(
@@ -86,7 +92,9 @@ void add_build_command(CLI::App& parent) {
         MeshLoadInfo info;
         // Through the scene loader's model loading, so that a model without faces gets the
         // warning `render` gives: the tree is valid (one empty leaf) and `render` accepts it.
-        auto mesh = std::make_shared<TriangleMesh>(load_model(model, {}, &info));
+        SceneLoadOptions load;
+        load.drop_invalid = drop_invalid;
+        auto mesh = std::make_shared<TriangleMesh>(load_model(model, load, &info));
         std::printf("%s: %zu vertices, %zu triangles, loaded in %.3f s\n", printable(model).c_str(),
                     mesh->vertex_count(), mesh->triangle_count(), info.seconds);
         std::string model_key = model;

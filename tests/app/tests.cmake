@@ -876,3 +876,14 @@ if(KDT_PRLIMIT)
     ${KDT_PRLIMIT} --as=4000000000 ${_kdt} render --width 16384 --height 8192 --spp 1 --quiet
     -o ${_tmp}/patho_huge_image.pfm)
 endif()
+# A non-finite vertex is an error whose message names --drop-invalid; `build` takes the flag
+# (it once refused it as an unknown argument) and builds the tree of what is left.
+file(WRITE ${_tmp}/patho_nan.ply "ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\n\
+property float y\nproperty float z\nelement face 2\nproperty list uchar int vertex_indices\n\
+end_header\n0 0 0\n1 0 0\n0 1 0\nnan 0 0\n1 1 0\n0 1 1\n3 0 1 2\n3 3 4 5\n")
+kdt_status_test(smoke.build_nan_vertex 1
+  "^kdtrace: error: [^\n]*patho_nan.ply: line 13: vertex 3: non-finite coordinate \\(nan, 0.000000, 0.000000\\); --drop-invalid drops the faces using it\n$"
+  ${_kdt} build ${_tmp}/patho_nan.ply -o ${_tmp}/patho_nan.kdt)
+kdt_status_test(smoke.build_drop_invalid 0
+  "^kdtrace: warning: [^\n]*patho_nan.ply: --drop-invalid dropped 1 face [^\n]*\n[^\n]*: 5 vertices, 1 triangles, loaded in [^\n]*\n(.*\n)?wrote [^\n]*patho_nan.kdt\n"
+  ${_kdt} build ${_tmp}/patho_nan.ply --drop-invalid -o ${_tmp}/patho_nan.kdt)
