@@ -159,24 +159,35 @@ std::string kdtree_leaf_warning(const KdTree& tree) {
     const auto& nodes = tree.nodes();
     const uint32_t root_bound = std::max<uint32_t>(kRootLeafTriangles, 4 * uint32_t(p.n0));
     const uint32_t bound = std::max<uint32_t>(kLargeLeafTriangles, 4 * uint32_t(p.n0));
-    // The largest leaf and its depth (the first of equals in depth-first order).
+    // The largest leaf, its depth and its box (the first of equals in depth-first order).
     uint32_t largest = 0;
     int depth = 0;
-    std::vector<std::pair<uint32_t, int>> stack{{0u, 0}};
+    Bounds3f largest_box;
+    struct Entry {
+        uint32_t node;
+        int depth;
+        Bounds3f box;
+    };
+    std::vector<Entry> stack{{0u, 0, tree.bounds()}};
     while (!stack.empty()) {
-        const auto [i, d] = stack.back();
+        const Entry e = stack.back();
         stack.pop_back();
-        const KdNode& n = nodes[i];
+        const KdNode& n = nodes[e.node];
         if (n.is_leaf()) {
             if (n.count() > largest) {
                 largest = n.count();
-                depth = d;
+                depth = e.depth;
+                largest_box = e.box;
             }
         } else {
-            stack.emplace_back(n.child() + 1, d + 1);
-            stack.emplace_back(n.child(), d + 1);
+            Bounds3f left = e.box, right = e.box;
+            left.upper[n.axis()] = n.split;
+            right.lower[n.axis()] = n.split;
+            stack.push_back({n.child() + 1, e.depth + 1, right});
+            stack.push_back({n.child(), e.depth + 1, left});
         }
     }
+    const int depth_axis = depth % 3;
     const bool root_leaf = nodes.size() == 1;
     if (largest <= (root_leaf ? root_bound : bound)) return {};
     const int limit = p.max_depth > 0 ? std::min(p.max_depth, kMaxTreeDepth)
@@ -209,6 +220,15 @@ std::string kdtree_leaf_warning(const KdTree& tree) {
             ": --sah-traversal-cost %g exceeds its leaf cost; try a lower --sah-traversal-cost "
             "or a higher --sah-intersect-cost",
             double(p.traversal_cost));
+    } else if (!root_leaf && p.builder == KdBuilder::thesis && !p.thesis_all_axes &&
+               !(largest_box.upper[depth_axis] > largest_box.lower[depth_axis])) {
+        // A model in an axis-aligned plane: below the root, every node at a depth that
+        // alternates to the plane's normal has a box without extent there, so no candidate.
+        std::snprintf(cause, sizeof(cause),
+                      ": its box is flat along %c, the one axis the thesis builder tries at "
+                      "depth %d (it alternates x, y, z by depth); --all-axes tries all three, "
+                      "--builder sah chooses among them",
+                      "xyz"[depth_axis], depth);
     } else if (root_leaf && p.builder == KdBuilder::thesis && !p.thesis_all_axes) {
         // The thesis builder tries one axis per level, x at the root: a model whose every
         // triangle spans its whole x extent (a tube along x) cannot be split there.
