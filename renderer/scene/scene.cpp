@@ -572,6 +572,17 @@ CameraDesc frame_bounds(const Bounds3f& bounds, float vfov_degrees) {
     c.eye = center + dist * dir;
     c.target = center;
     c.up = Vec3f(0.0f, 1.0f, 0.0f);
+    if (is_finite(c.eye) && is_finite(c.target) && !(glm::length(c.eye - c.target) > 0.0f)) {
+        // A small model far from the origin: the camera's offset is below float's spacing
+        // there (a model of size 1 at 1e20, whose spacing is about 1e13).
+        char text[200];
+        std::snprintf(text, sizeof(text),
+                      "cannot frame the scene automatically: its extent %g is below float's "
+                      "resolution at its centre (%g, %g, %g), too far from the origin",
+                      double(2.0f * m * (m > 0.0f ? glm::length(ext / m) : 0.0f)), double(center.x),
+                      double(center.y), double(center.z));
+        throw Error(text);
+    }
     if (!is_finite(c.eye) || !is_finite(c.target) || !(glm::length(c.eye - c.target) > 0.0f))
         throw Error("cannot frame the scene automatically: its bounds (extent " +
                     std::to_string(2.0f * radius) + ") are beyond float range");

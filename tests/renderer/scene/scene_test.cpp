@@ -373,6 +373,24 @@ TEST(Scene, FramingBoundsBeyondFloatRangeIsAnError) {
     }
 }
 
+// A small model far from the origin cannot be framed either, since float cannot place the
+// camera beside it; the error says so instead of calling its tiny extent beyond float range.
+TEST(Scene, FramingASmallModelFarFromTheOriginSaysWhy) {
+    try {
+        // Vertices within about 1e13 of 1e20 all round to one float: a point.
+        frame_bounds(Bounds3f{Vec3f(1e20f), Vec3f(1e20f)});
+        ADD_FAILURE() << "no error";
+    } catch (const Error& e) {
+        const std::string msg = e.what();
+        EXPECT_EQ(msg.rfind("cannot frame the scene automatically: its extent 0 is "
+                            "below float's resolution at its centre (1e+20, 1e+20, 1e+20), too "
+                            "far from the origin",
+                            0),
+                  0u)
+            << msg;
+    }
+}
+
 // A model or camera-less scene too large to frame is an error naming the file.
 TEST(Scene, FramingErrorsNameTheFile) {
     auto dir = test::temp_dir("scene_framing");
