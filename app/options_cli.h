@@ -117,9 +117,10 @@ void warn_view_model(const std::string& views, const std::string& label,
 void check_subdivide(uint64_t triangles, int levels, const SubdivideMemory& memory = {});
 
 /// `mesh` (of the file `model`) split into 4^`levels` triangles each, after check_subdivide().
-/// Memory running out on the way (the check counts what is available, not a ulimit or what
-/// other processes take meanwhile) is an Error naming the model and the flag, "dragon.ply:
-/// --subdivide 3: out of memory making 55770496 triangles", not main()'s bare "out of memory".
+/// Memory running out on the way (the check counts what is available now and what a ulimit
+/// leaves, not what other processes take meanwhile) is an Error naming the model and the flag,
+/// "dragon.ply: --subdivide 3: out of memory making 55770496 triangles", not main()'s bare
+/// "out of memory".
 void subdivide_model(const std::string& model, TriangleMesh& mesh, int levels,
                      const SubdivideMemory& memory = {});
 

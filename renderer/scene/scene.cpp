@@ -419,7 +419,7 @@ uint64_t address_space_headroom_bytes() {
 }
 
 std::string describe_budget(const SceneLoadOptions& options) {
-    const uint64_t memory = available_memory_bytes();
+    const uint64_t memory = allocatable_memory_bytes();
     return "at most " + std::to_string(options.max_triangles) + " triangles, and about " +
            std::to_string(kRenderBytesPerTriangle) + " bytes each must fit the " +
            std::to_string(memory >> 20) + " MiB of memory available";
@@ -616,7 +616,7 @@ Scene load_scene_or_model(const std::string& path, const SceneLoadOptions& optio
 }
 
 uint64_t scene_triangle_budget(uint64_t max_triangles, uint64_t bytes_per_triangle) {
-    const uint64_t memory = available_memory_bytes();
+    const uint64_t memory = allocatable_memory_bytes();
     if (memory == 0) return max_triangles;
     return std::min<uint64_t>(max_triangles, memory / std::max<uint64_t>(bytes_per_triangle, 1));
 }

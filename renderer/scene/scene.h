@@ -108,7 +108,8 @@ TriangleMesh make_displaced_sphere(int levels);  ///< the default scene's object
 TriangleMesh make_ground_plane(float half_size, float height);  ///< two triangles facing +y
 
 /// The triangle budget: max_triangles, or fewer when bytes_per_triangle times it would not
-/// fit the physical memory available now.
+/// fit allocatable_memory_bytes() (the physical memory available now, or what a `ulimit -v`
+/// leaves).
 uint64_t scene_triangle_budget(uint64_t max_triangles = kDefaultMaxSceneTriangles,
                                uint64_t bytes_per_triangle = kRenderBytesPerTriangle);
 
