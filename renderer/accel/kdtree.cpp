@@ -220,6 +220,16 @@ std::string kdtree_leaf_warning(const KdTree& tree) {
             ": --sah-traversal-cost %g exceeds its leaf cost; try a lower --sah-traversal-cost "
             "or a higher --sah-intersect-cost",
             double(p.traversal_cost));
+    } else if (p.builder == KdBuilder::sah &&
+               !std::isfinite(p.intersect_cost * thesis_f(float(largest), p.q, p.n0))) {
+        // The costs are floats: a leaf's cost overflowing to infinity makes every split as dear
+        // as the leaf. Only their ratio matters, which a smaller pair gives as well.
+        std::snprintf(cause, sizeof(cause),
+                      ": --sah-intersect-cost %g times the leaf cost f(%u) overflows float, so no "
+                      "split prices below it; only the ratio of the costs matters: try "
+                      "--sah-intersect-cost 1 --sah-traversal-cost %g",
+                      double(p.intersect_cost), largest,
+                      double(p.traversal_cost) / double(p.intersect_cost));
     } else if (!root_leaf && p.builder == KdBuilder::thesis && !p.thesis_all_axes &&
                !(largest_box.upper[depth_axis] > largest_box.lower[depth_axis])) {
         // A model in an axis-aligned plane: below the root, every node at a depth that

@@ -239,8 +239,10 @@ inline constexpr uint32_t kLargeLeafTriangles = 128;
 /// can change. The causes, checked in this order: a thesis builder with neither median nor
 /// spatial-middle split candidates (cut-off planes alone stop at a tight box), q below 0.9 (f(n)
 /// then grows as n^(1 + log2 q), so a split rarely pays; at q 0.5 never), the depth limit reached,
-/// an SAH traversal cost above the leaf's cost; for a root leaf without any of these, triangles
-/// that no plane separates. The message says what to try.
+/// an SAH traversal cost above the leaf's cost, an SAH intersection cost whose product with the
+/// leaf's f(n) overflows float, a thesis builder (one axis per depth) at a leaf whose box is
+/// flat along that axis; for a root leaf without any of these, triangles that no plane
+/// separates. The message says what to try.
 std::string kdtree_leaf_warning(const KdTree& tree);
 
 /// The depth limit of KdTreeParams::max_depth = 0 for a tree over `triangles` triangles:

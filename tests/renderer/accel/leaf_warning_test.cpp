@@ -65,6 +65,16 @@ TEST(LeafWarning, NamesTheCause) {
     EXPECT_NE(warning_of(blob, p).find("(the root is a leaf): --sah-traversal-cost 1e+30 exceeds"),
               std::string::npos)
         << warning_of(blob, p);
+    // An intersection cost in range whose product with f(n) overflows float: every cost is
+    // infinite, the root stays a leaf, and the warning once blamed the triangles ("no split
+    // plane separates them"). 1e35 x 8192 is about 8e38.
+    p = KdTreeParams{};
+    p.intersect_cost = 1e35f;
+    EXPECT_EQ(warning_of(blob, p),
+              "the kd-tree's largest leaf holds 8192 triangles (the root is a leaf): "
+              "--sah-intersect-cost 1e+35 times the leaf cost f(8192) overflows float, so no "
+              "split prices below it; only the ratio of the costs matters: try "
+              "--sah-intersect-cost 1 --sah-traversal-cost 4e-35");
     // 100 copies of one triangle: no plane separates them.
     TriangleMesh same;
     same.positions = {Vec3f(0, 0, 0), Vec3f(1, 0, 0), Vec3f(0, 1, 0)};
