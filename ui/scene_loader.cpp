@@ -16,6 +16,7 @@ SceneLoader::~SceneLoader() {
     {
         std::lock_guard<std::mutex> lock(mutex_);
         quit_ = true;
+        cancel_build_ = true;
     }
     wake_.notify_all();
     thread_.join();
@@ -24,7 +25,8 @@ SceneLoader::~SceneLoader() {
 uint64_t SceneLoader::request(LoadRequest request) {
     std::lock_guard<std::mutex> lock(mutex_);
     next_ = std::move(request);
-    result_.reset();  // an older result is superseded
+    result_.reset();                     // an older result is superseded
+    if (loading_) cancel_build_ = true;  // and so is a load in flight, even mid-build
     requested_at_ = std::chrono::steady_clock::now();
     wake_.notify_all();
     return ++requested_;
@@ -75,6 +77,7 @@ LoadResult SceneLoader::load(const LoadRequest& request, uint64_t id) {
         std::lock_guard<std::mutex> lock(mutex_);
         return requested_ != id || quit_;
     };
+    hooks.cancel_build = &cancel_build_;
     try {
         if (request.kind == LoadKind::scene) {
             r.prepared = prepare_render(
@@ -109,6 +112,7 @@ void SceneLoader::run() {
             request = next_;
             id = started_ = requested_;
             loading_ = true;
+            cancel_build_ = false;
             stage_started_ = false;
             stage_ = PrepareStage::reading;
         }

@@ -5,6 +5,7 @@
 // the material edit of a loaded snapshot. Depends on renderer/render only (no GL).
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <memory>
@@ -54,10 +55,11 @@ public:
     SceneLoader();
     SceneLoader(const SceneLoader&) = delete;
     SceneLoader& operator=(const SceneLoader&) = delete;
-    /// Waits for the stage in flight (a tree build has no cancel point), then joins.
+    /// Cancels a tree build in flight, waits for any other stage in flight, then joins.
     ~SceneLoader();
 
-    /// Queues `request`, superseding (cancelling) any older one; returns its number (1, 2, ...).
+    /// Queues `request`, superseding (cancelling) any older one at its next stage boundary,
+    /// or within its tree build; returns its number (1, 2, ...).
     uint64_t request(LoadRequest request);
     /// The result of the newest request once it is done (then cleared), else nullopt.
     std::optional<LoadResult> take();
@@ -75,6 +77,8 @@ private:
     LoadRequest next_;
     uint64_t requested_ = 0, started_ = 0;
     bool loading_ = false, stage_started_ = false, quit_ = false;
+    /// Set (under mutex_) by a newer request or the destructor; a tree build in flight reads it.
+    std::atomic<bool> cancel_build_{false};
     PrepareStage stage_ = PrepareStage::reading;
     std::chrono::steady_clock::time_point requested_at_{};
     int cancelled_ = 0;

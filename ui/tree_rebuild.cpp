@@ -13,9 +13,10 @@ TreeRebuilder::~TreeRebuilder() {
     {
         std::lock_guard<std::mutex> lock(mutex_);
         quit_ = true;
+        cancel_ = true;  // a build in flight stops within its current node's split
     }
     wake_.notify_all();
-    thread_.join();  // a build in flight finishes first: the builder has no cancel point
+    thread_.join();
 }
 
 uint64_t TreeRebuilder::request(std::shared_ptr<const RenderSnapshot> base,
@@ -23,7 +24,8 @@ uint64_t TreeRebuilder::request(std::shared_ptr<const RenderSnapshot> base,
     std::lock_guard<std::mutex> lock(mutex_);
     base_ = std::move(base);
     params_ = params;
-    result_.reset();  // an older result is superseded
+    result_.reset();                // an older result is superseded
+    if (building_) cancel_ = true;  // and so is a build in flight
     wake_.notify_all();
     return ++requested_;
 }
@@ -55,12 +57,15 @@ void TreeRebuilder::run() {
             params = params_;
             id = started_ = requested_;
             building_ = true;
+            cancel_ = false;
         }
         RebuildResult r;
         r.request = id;
         Timer timer;
         try {
-            r.snapshot = with_tree(*base, build_kdtree(base->scene->mesh, params));
+            r.snapshot = with_tree(*base, build_kdtree(base->scene->mesh, params, &cancel_));
+        } catch (const BuildCancelled&) {
+            // Only a newer request or the destructor cancels: this result would be dropped.
         } catch (const Error& e) {
             r.error = e.what();
         }

@@ -1,7 +1,8 @@
 // Background kd-tree rebuilds for the viewer: request() queues a build of the current scene's
 // mesh with new parameters; one thread builds the newest request (a request made during a
-// build supersedes it: its tree is dropped when done) and hands back a snapshot with the new
-// tree, which the viewer swaps in while the old tree keeps rendering meanwhile.
+// build supersedes it: that build is cancelled, within a node's split) and hands back a
+// snapshot with the new tree, which the viewer swaps in while the old tree keeps rendering
+// meanwhile.
 // Depends on renderer/render only.
 #pragma once
 
@@ -54,6 +55,8 @@ private:
     KdTreeParams params_;
     uint64_t requested_ = 0, started_ = 0;
     bool building_ = false, quit_ = false;
+    /// Set (under mutex_) by a newer request or the destructor; the build in flight reads it.
+    std::atomic<bool> cancel_{false};
     std::optional<RebuildResult> result_;
     std::atomic<uint64_t> finished_{0};
     std::thread thread_;

@@ -74,10 +74,18 @@ void release(MeteredVector<T>& v) {
 
 /// The thesis's builder (section 5.2.2): candidates cut-off left/right, spatial middle,
 /// median vertex and terminate, under the Szécsi cost with the f(n) correction.
-KdBuildOutput build_thesis_tree(const TriangleMesh& mesh, const KdTreeParams& params);
+/// `cancel` as for build_kdtree(): BuildCancelled once it is set.
+KdBuildOutput build_thesis_tree(const TriangleMesh& mesh, const KdTreeParams& params,
+                                const std::atomic<bool>* cancel = nullptr);
 
 /// Wald & Havran 2006 O(N log N) SAH builder with perfect splits.
 KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& params);
+
+/// Whether a build's cancel flag (build_kdtree()) is set; read relaxed at every node, as a
+/// late read only delays the stop.
+inline bool build_cancelled(const std::atomic<bool>* cancel) {
+    return cancel && cancel->load(std::memory_order_relaxed);
+}
 
 /// The thesis's f(n): n for n <= n0, (n - n0)^(1 + log2 q) + n0 otherwise.
 inline float thesis_f(float n, float q, int n0) {

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "renderer/accel/builder.h"
+#include "renderer/accel/sah_builder.h"
 #include "renderer/core/error.h"
 #include "renderer/core/fields.h"
 #include "renderer/core/timer.h"
@@ -141,12 +142,14 @@ void finalize_stats(KdBuildOutput& out, size_t triangle_count) {
 }
 
 std::shared_ptr<const KdTree> build_kdtree(std::shared_ptr<const TriangleMesh> mesh,
-                                           const KdTreeParams& params) {
+                                           const KdTreeParams& params,
+                                           const std::atomic<bool>* cancel) {
     validate(params);
     if (!mesh) throw Error("build_kdtree: no mesh");
     Timer timer;
-    KdBuildOutput out = params.builder == KdBuilder::thesis ? build_thesis_tree(*mesh, params)
-                                                            : build_sah_tree(*mesh, params);
+    KdBuildOutput out = params.builder == KdBuilder::thesis
+                            ? build_thesis_tree(*mesh, params, cancel)
+                            : build_sah_tree(*mesh, params, SahTuning{}, cancel);
     out.stats.build_seconds = timer.seconds();
     // Idempotent; makes the counts consistent whichever builder ran.
     finalize_stats(out, mesh->triangles.size());

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <memory>
@@ -13,6 +14,7 @@
 #include <string_view>
 #include <vector>
 
+#include "renderer/core/error.h"
 #include "renderer/core/fields.h"
 #include "renderer/core/math.h"
 #include "renderer/geometry/mesh.h"
@@ -219,9 +221,21 @@ private:
     KdTreeStats stats_;
 };
 
-/// Builds a tree with params.builder. Throws kdt::Error for out-of-range parameters.
+/// What build_kdtree() throws when its cancel flag was set during the build: the build was
+/// abandoned, and nothing of it is kept.
+class BuildCancelled : public Error {
+public:
+    BuildCancelled() : Error("kd-tree build cancelled") {}
+};
+
+/// Builds a tree with params.builder. Throws kdt::Error for out-of-range parameters. Another
+/// thread may set *cancel to stop the build early: every node still to be decided becomes an
+/// empty leaf at once and BuildCancelled is thrown instead of a tree (a node in the middle of
+/// its split finishes it first, at most a pass over its triangles: well under a second on
+/// 14M triangles).
 std::shared_ptr<const KdTree> build_kdtree(std::shared_ptr<const TriangleMesh> mesh,
-                                           const KdTreeParams& params);
+                                           const KdTreeParams& params,
+                                           const std::atomic<bool>* cancel = nullptr);
 
 /// Deepest tree the traversal's stack holds (one entry per level).
 inline constexpr int kMaxTreeDepth = 64;

@@ -697,7 +697,8 @@ std::shared_ptr<const KdTree> get_or_build_kdtree(const std::string& model_path,
                                                   std::shared_ptr<const TriangleMesh> mesh,
                                                   const KdTreeParams& params,
                                                   const std::string& cache_dir,
-                                                  const KdCacheLog& log, KdCacheReport* report) {
+                                                  const KdCacheLog& log, KdCacheReport* report,
+                                                  const std::atomic<bool>* cancel) {
     validate(params);
     const KdCacheLog& say = log ? log : KdCacheLog(default_log);
     Timer timer;
@@ -752,7 +753,7 @@ std::shared_ptr<const KdTree> get_or_build_kdtree(const std::string& model_path,
     }
     rep.reason = reasons;
 
-    auto tree = build_kdtree(mesh, params);
+    auto tree = build_kdtree(mesh, params, cancel);
     if (const std::string w = kdtree_leaf_warning(*tree); !w.empty()) say("warning: " + w);
     for (const fs::path& dir : dirs) {
         std::error_code ec;

@@ -4,6 +4,7 @@
 // Depends on core, geometry and the kd-tree; touches files (the one accel file that does).
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -107,12 +108,10 @@ std::string default_kdtree_cache_dir();
 /// A corrupt, truncated, stale or foreign file is reported through `log` (one line with the
 /// reason; stderr when `log` is empty), rebuilt and rewritten atomically. A cache that cannot
 /// be written is reported and the built tree still returned. Throws only what the build
-/// throws (bad parameters).
-std::shared_ptr<const KdTree> get_or_build_kdtree(const std::string& model_path,
-                                                  std::shared_ptr<const TriangleMesh> mesh,
-                                                  const KdTreeParams& params,
-                                                  const std::string& cache_dir = {},
-                                                  const KdCacheLog& log = {},
-                                                  KdCacheReport* report = nullptr);
+/// throws (bad parameters; BuildCancelled once `cancel`, build_kdtree()'s, is set).
+std::shared_ptr<const KdTree> get_or_build_kdtree(
+    const std::string& model_path, std::shared_ptr<const TriangleMesh> mesh,
+    const KdTreeParams& params, const std::string& cache_dir = {}, const KdCacheLog& log = {},
+    KdCacheReport* report = nullptr, const std::atomic<bool>* cancel = nullptr);
 
 }  // namespace kdt

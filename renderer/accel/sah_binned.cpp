@@ -138,6 +138,7 @@ public:
         Context& ctx = ctx_;
         const TriangleMesh& mesh = *ctx.mesh;
         const size_t n = job->size();
+        if (build_cancelled(ctx.cancel)) return;  // the tree is dropped: no more work
         // (A split's N_L + N_R is at least N: none fits a budget below N.)
         if (n <= ctx.tuning.sweep_threshold || job->depth >= ctx.max_depth ||
             !fits_budget(n, 0, job->budget)) {

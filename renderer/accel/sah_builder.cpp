@@ -208,7 +208,7 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
 }
 
 KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& params,
-                             const SahTuning& tuning) {
+                             const SahTuning& tuning, const std::atomic<bool>* cancel) {
     const size_t tri_count = mesh.triangle_count();
     if (tri_count >= kMaxRefs) {
         throw Error(ErrorLocation{"", "mesh", -1, -1, -1},
@@ -219,6 +219,7 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
     ctx.mesh = &mesh;
     ctx.params = params;
     ctx.tuning = tuning;
+    ctx.cancel = cancel;
     ctx.max_depth = params.max_depth > 0 ? std::min(params.max_depth, kMaxTreeDepth)
                                          : automatic_max_depth(tri_count);
     const int threads = params.threads > 0 ? params.threads : omp_get_max_threads();
@@ -299,6 +300,7 @@ KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& param
     root->box = root_box;
     root->budget = tuning.ref_budget_per_triangle * double(valid_count);
     build_top(ctx, std::move(root), threads);
+    if (build_cancelled(cancel)) throw BuildCancelled();
 
     size_t node_count = 1, index_count = 0;
     uint64_t splits = 0;

@@ -22,9 +22,10 @@ struct SahTuning {
     double ref_budget_per_triangle = 256.0;
 };
 
-/// build_sah_tree() with explicit tuning (tests use tiny thresholds to exercise both phases).
+/// build_sah_tree() with explicit tuning (tests use tiny thresholds to exercise both phases)
+/// and `cancel` as for build_kdtree().
 KdBuildOutput build_sah_tree(const TriangleMesh& mesh, const KdTreeParams& params,
-                             const SahTuning& tuning);
+                             const SahTuning& tuning, const std::atomic<bool>* cancel = nullptr);
 
 /// Conservative bounds of triangle (a, b, c) clipped to the closed box [lower, upper]
 /// (Sutherland-Hodgman in double, rounded outward to float, intersected with the box).

@@ -71,6 +71,7 @@ struct Context {
     const TriangleMesh* mesh = nullptr;
     KdTreeParams params;
     SahTuning tuning;
+    const std::atomic<bool>* cancel = nullptr;  // build_kdtree()'s
     int max_depth = 0;
     std::vector<float> f_table;   // thesis_f(n) for small n
     size_t workspace_budget = 0;  // bytes a thread's workspace keeps between subtrees

@@ -289,6 +289,12 @@ private:
     void recurse(SweepNode& node, const Bounds3f& box, int depth, double budget, int level,
                  uint32_t slot) {
         const size_t n = node.refs.size();
+        if (build_cancelled(ctx_.cancel)) {
+            // The tree is dropped: an empty leaf ends this branch at once.
+            make_empty_leaf(slot);
+            node.clear();
+            return;
+        }
         SweepSplit best;
         // Every split costs at least traversal_cost, so a node whose leaf is no dearer
         // stays a leaf without a sweep (the sweep could not find a cheaper split).

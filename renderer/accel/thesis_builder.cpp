@@ -89,6 +89,7 @@ struct Scratch {
 struct Context {
     const TriangleMesh& mesh;
     const KdTreeParams& params;
+    const std::atomic<bool>* cancel = nullptr;  // build_kdtree()'s
     int max_depth = 0;
     bool parallel = false;
     size_t max_stored = 0;  // nodes up to this size keep extents in the scratch
@@ -304,6 +305,11 @@ void build_child_task(Context& ctx, Subtree* sub, Work* w) {
 }
 
 void build_node(Context& ctx, Subtree& st, uint32_t slot, Work w) {
+    if (build_cancelled(ctx.cancel)) {
+        // The tree is dropped: an empty leaf ends this branch at once.
+        st.nodes[slot] = KdNode::make_leaf(0, uint32_t(st.indices.size()));
+        return;
+    }
     const size_t n = w.tris.size();
     if (n <= size_t(ctx.params.n0) || w.depth >= ctx.max_depth || !(box_area(w.box) > 0.0)) {
         make_leaf(st, slot, w.tris);
@@ -441,13 +447,14 @@ void flatten_indices(Subtree& st, std::vector<uint32_t>& out, size_t& freed) {
 
 }  // namespace
 
-KdBuildOutput build_thesis_tree(const TriangleMesh& mesh, const KdTreeParams& params) {
+KdBuildOutput build_thesis_tree(const TriangleMesh& mesh, const KdTreeParams& params,
+                                const std::atomic<bool>* cancel) {
     KdBuildOutput out;
     if (mesh.triangles.size() >= (size_t(1) << 30)) {
         throw Error("mesh has " + std::to_string(mesh.triangles.size()) +
                     " triangles; the kd-tree supports fewer than 2^30");
     }
-    Context ctx{mesh, params};
+    Context ctx{mesh, params, cancel};
     // Triangles that cannot be hit are left out (TriangleMesh::triangle_hittable):
     // out-of-range indices, repeated vertices (zero area), non-finite coordinates.
     Work root(&ctx.meter);
@@ -492,6 +499,7 @@ KdBuildOutput build_thesis_tree(const TriangleMesh& mesh, const KdTreeParams& pa
     }
     ctx.scratch.clear();
     release(root.tris);
+    if (build_cancelled(cancel)) throw BuildCancelled();
     return_free_pages();
 
     size_t node_count = 1, index_count = 0;

@@ -183,10 +183,11 @@ Prepared prepare_render(const RenderOptions& o, const PrepareLog& log, const Pre
             o.scene.scene_path.empty() || o.scene.subdivide == 0
                 ? o.scene.scene_path
                 : o.scene.scene_path + ".sub" + std::to_string(o.scene.subdivide);
-        ts.tree = get_or_build_kdtree(key, ts.mesh, o.tree, o.scene.cache_dir, say, &report);
+        ts.tree = get_or_build_kdtree(key, ts.mesh, o.tree, o.scene.cache_dir, say, &report,
+                                      hooks.cancel_build);
         out.tree_from_cache = report.loaded;
     } else {
-        ts.tree = build_kdtree(ts.mesh, o.tree);
+        ts.tree = build_kdtree(ts.mesh, o.tree, hooks.cancel_build);
         if (const std::string w = kdtree_leaf_warning(*ts.tree); !w.empty()) say("warning: " + w);
     }
     out.tree_seconds = tree_timer.seconds();

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -40,6 +41,9 @@ struct PrepareHooks {
     /// Polled before each stage (a stage in flight runs to its end): true makes
     /// prepare_render throw kdt::Error("... cancelled") without doing the rest.
     std::function<bool()> cancelled;
+    /// Set by another thread, stops the tree stage's build in flight (build_kdtree()'s
+    /// `cancel`): prepare_render then throws BuildCancelled.
+    const std::atomic<bool>* cancel_build = nullptr;
 };
 
 /// Loads options.scene, applies its overrides and compiles the snapshot with the tree of

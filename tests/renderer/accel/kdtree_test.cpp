@@ -2,11 +2,14 @@
 // parameter validation, statistics and the node layout.
 #include "renderer/accel/kdtree.h"
 
+#include <atomic>
 #include <bit>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <random>
 #include <string>
+#include <thread>
 
 #include <gtest/gtest.h>
 
@@ -570,6 +573,49 @@ TEST(KdTree, ModelWiderThanFloatRangeBuildsAndTraces) {
             hits += hit.valid();
         }
         EXPECT_EQ(hits, 2000u) << what;  // the blob is closed around the origin
+    }
+}
+
+// A build whose cancel flag is set gives no tree: BuildCancelled, whatever the builder and
+// threads, and never a partial tree (the viewer drops a superseded build this way).
+TEST(KdTree, CancelledBuildThrowsAndNeverReturnsAPartialTree) {
+    auto mesh = std::make_shared<const TriangleMesh>(test::make_blob(6, 1.0f, 21));  // 32k
+    for (KdBuilder builder : {KdBuilder::thesis, KdBuilder::sah}) {
+        for (int threads : {1, 2}) {
+            KdTreeParams p;
+            p.builder = builder;
+            p.threads = threads;
+            const std::string what = std::string(kKdBuilderNames[size_t(builder)]) + ", threads " +
+                                     std::to_string(threads);
+            const std::atomic<bool> set{true};
+            EXPECT_THROW(build_kdtree(mesh, p, &set), BuildCancelled) << what;
+            const std::atomic<bool> clear{false};
+            const auto whole = build_kdtree(mesh, p, &clear);
+            EXPECT_EQ(whole->nodes().size(), build_kdtree(mesh, p)->nodes().size()) << what;
+            // Set from another thread at some point of the build (or after it): either the
+            // tree of an uncancelled build, node for node and reference for reference, or
+            // BuildCancelled. Which one depends on timing; both are checked for.
+            for (int delay_us : {0, 200, 1000, 5000, 20000}) {
+                std::atomic<bool> flag{false};
+                std::thread setter([&] {
+                    std::this_thread::sleep_for(std::chrono::microseconds(delay_us));
+                    flag = true;
+                });
+                std::shared_ptr<const KdTree> tree;
+                try {
+                    tree = build_kdtree(mesh, p, &flag);
+                } catch (const BuildCancelled&) {
+                }
+                setter.join();
+                if (!tree) continue;
+                ASSERT_EQ(tree->nodes().size(), whole->nodes().size()) << what;
+                EXPECT_EQ(std::memcmp(tree->nodes().data(), whole->nodes().data(),
+                                      whole->nodes().size() * sizeof(KdNode)),
+                          0)
+                    << what;
+                EXPECT_EQ(tree->indices(), whole->indices()) << what;
+            }
+        }
     }
 }
 
