@@ -36,6 +36,9 @@ void add_view_command(CLI::App& parent) {
         // closes would exit without it.
         if (!vo.screenshot.empty() && vo.frames == 0)
             throw Error("--screenshot needs --frames N (it is taken N frames after the script)");
+        // The viewer's film is render's and more: one that cannot fit is refused before the
+        // window opens and the scene loads, naming the flags, as render refuses it.
+        check_image_memory(vo.options.scene.width, vo.options.scene.height);
         try {
             ui::run_viewer(vo);
         } catch (const Error& e) {

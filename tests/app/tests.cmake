@@ -831,6 +831,13 @@ if(TARGET kdt_ui_core)
   kdt_status_test(smoke.view_screenshot_needs_frames 1
     "^kdtrace: error: --screenshot needs --frames N"
     ${_kdt} view --screenshot ${_tmp}/never.png)
+  # An image too large for the memory is refused as render refuses it, before any window.
+  find_program(KDT_PRLIMIT prlimit)
+  if(KDT_PRLIMIT)
+    kdt_status_test(smoke.view_image_memory 1
+      "^kdtrace: error: --width 16384 --height 8192: an image of 134217728 pixels needs about 16384 MiB \\(128 bytes per pixel\\), more than the [0-9]+ MiB of memory available; render a smaller image\n$"
+      ${KDT_PRLIMIT} --as=4000000000 ${_kdt} view --width 16384 --height 8192 --frames 1)
+  endif()
 endif()
 
 # Every long option of every command's --help is described in docs/usage.md
