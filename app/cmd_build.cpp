@@ -97,13 +97,11 @@ void add_build_command(CLI::App& parent) {
         auto mesh = std::make_shared<TriangleMesh>(load_model(model, load, &info));
         std::printf("%s: %zu vertices, %zu triangles, loaded in %.3f s\n", printable(model).c_str(),
                     mesh->vertex_count(), mesh->triangle_count(), info.seconds);
-        std::string model_key = model;
         if (subdivide > 0) {
             Timer t;
             subdivide_model(model, *mesh, subdivide);
             std::printf("subdivided %d times: %zu triangles (%.2f s)\n", subdivide,
                         mesh->triangle_count(), t.seconds());
-            model_key += ".sub" + std::to_string(subdivide);
         }
         // The renderer builds its trees over the mesh in spatial order (compile_snapshot);
         // so does this command, so that `kdtrace render` finds the cached tree.
@@ -124,7 +122,8 @@ void add_build_command(CLI::App& parent) {
             const KdCacheLog log = [](const std::string& line) {
                 if (!quiet || is_warning(line)) std::fprintf(stderr, "kdtrace: %s\n", line.c_str());
             };
-            tree = get_or_build_kdtree(model_key, shared, params, cache_dir, log, &report);
+            tree = get_or_build_kdtree(subdivided_model_key(model, subdivide), shared, params,
+                                       cache_dir, log, &report);
             std::printf("%s in %.3f s%s%s\n", report.loaded ? "loaded from cache" : "built",
                         report.seconds, report.path.empty() ? "" : ": ",
                         printable(report.path).c_str());

@@ -242,29 +242,6 @@ void check_image_memory(int width, int height) {
                 " MiB of memory available; render a smaller image");
 }
 
-void check_subdivide(uint64_t triangles, int levels, const SubdivideMemory& memory) {
-    const uint64_t result = subdivided_triangle_count(triangles, levels);
-    const uint64_t budget = scene_triangle_budget(kMaxSubdividedTriangles - 1, memory.bytes);
-    if (result <= budget) return;
-    throw Error("--subdivide " + std::to_string(levels) + ": " + std::to_string(triangles) +
-                " triangles become " + std::to_string(result) + ", more than the " +
-                std::to_string(budget) + " that fit the kd-tree and the memory available (about " +
-                std::to_string(memory.bytes) + " bytes each" +
-                (memory.why.empty() ? "" : ", with " + memory.why) + ")");
-}
-
-void subdivide_model(const std::string& model, TriangleMesh& mesh, int levels,
-                     const SubdivideMemory& memory) {
-    check_subdivide(mesh.triangle_count(), levels, memory);
-    try {
-        mesh = subdivide_mesh(mesh, levels);
-    } catch (const std::bad_alloc&) {
-        throw Error(model + ": --subdivide " + std::to_string(levels) + ": out of memory making " +
-                    std::to_string(subdivided_triangle_count(mesh.triangle_count(), levels)) +
-                    " triangles");
-    }
-}
-
 void add_scene_options(CLI::App& app, SceneOptions& scene) {
     non_empty_file_name(
         app.add_option("SCENE", scene.scene_path,

@@ -86,14 +86,6 @@ void warn_unused_render_flags(const CLI::App& app, const RenderOptions& options)
 /// tone-mapped.
 void warn_unused_output_flags(const CLI::App& app, const std::string& output);
 
-/// What a command holds per triangle of its model, for check_subdivide(): `bytes` (a render's
-/// or build's kRenderBytesPerTriangle by default) and, when a command holds more, what the
-/// rest is for (said in the error, e.g. "8 rows' trees and Embree's BVH").
-struct SubdivideMemory {
-    uint64_t bytes = kRenderBytesPerTriangle;
-    std::string why;
-};
-
 /// Peak bytes per pixel of a render: the film's sums, counts and scratch, and the linear and
 /// output images made from it at the end. Measured with /usr/bin/time at 4096x4096: 113,
 /// 119 with --adaptive, 122 with --transparent; rounded up.
@@ -110,19 +102,6 @@ void check_image_memory(int width, int height);
 /// `scene`, loaded from `scene_path` ("" = the built-in scene), if there is one.
 void warn_view_model(const std::string& views, const std::string& label,
                      const std::string& scene_path, const Scene& scene);
-
-/// Refuses --subdivide LEVELS of a mesh of `triangles` when the result would not fit in the
-/// memory available (scene_triangle_budget() at memory.bytes per triangle) or the kd-tree,
-/// before the minutes of work.
-void check_subdivide(uint64_t triangles, int levels, const SubdivideMemory& memory = {});
-
-/// `mesh` (of the file `model`) split into 4^`levels` triangles each, after check_subdivide().
-/// Memory running out on the way (the check counts what is available now and what a ulimit
-/// leaves, not what other processes take meanwhile) is an Error naming the model and the flag,
-/// "dragon.ply: --subdivide 3: out of memory making 55770496 triangles", not main()'s bare
-/// "out of memory".
-void subdivide_model(const std::string& model, TriangleMesh& mesh, int levels,
-                     const SubdivideMemory& memory = {});
 
 /// A camera error ("camera: up vector is zero") followed by the camera flags given on `app`'s
 /// command line, and where the other parts of `scene` (the options that made the camera)

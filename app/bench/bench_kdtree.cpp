@@ -110,11 +110,9 @@ Context load_context(const Options& opt) {
         throw Error(ErrorLocation{ctx.model}, "no faces (a point cloud?): nothing to benchmark");
     mesh->normals.clear();
     mesh->colors.clear();
-    ctx.model_key = ctx.model;
-    if (opt.subdivide > 0) {
+    if (opt.subdivide > 0)
         subdivide_model(ctx.model, *mesh, opt.subdivide, bench_memory(opt, ctx.configs.size()));
-        ctx.model_key += ".sub" + std::to_string(opt.subdivide);
-    }
+    ctx.model_key = subdivided_model_key(ctx.model, opt.subdivide);
     // The renderer's spatial triangle order (compile_snapshot), for every engine alike.
     apply_order(*mesh, spatial_order(*mesh));
     ctx.mesh = mesh;

@@ -178,12 +178,8 @@ Prepared prepare_render(const RenderOptions& o, const PrepareLog& log, const Pre
         KdCacheReport report;
         // The merged world-space mesh of a scene file differs from the file's mesh; the cache
         // checks the content hash, so naming the file after the scene is safe.
-        // Named as `kdtrace build MODEL --subdivide K` names it, which then finds this tree.
-        const std::string key =
-            o.scene.scene_path.empty() || o.scene.subdivide == 0
-                ? o.scene.scene_path
-                : o.scene.scene_path + ".sub" + std::to_string(o.scene.subdivide);
-        ts.tree = get_or_build_kdtree(key, ts.mesh, o.tree, o.scene.cache_dir, say, &report,
+        ts.tree = get_or_build_kdtree(subdivided_model_key(o.scene.scene_path, o.scene.subdivide),
+                                      ts.mesh, o.tree, o.scene.cache_dir, say, &report,
                                       hooks.cancel_build);
         out.tree_from_cache = report.loaded;
     } else {

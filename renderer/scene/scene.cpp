@@ -634,41 +634,68 @@ uint64_t instanced_triangle_count(const Scene& scene) {
     return n;
 }
 
+namespace {
+
+// subdivide_mesh() with running out of memory an Error naming the model and the flag.
+TriangleMesh subdivided(const std::string& model, const TriangleMesh& mesh, int levels) {
+    try {
+        return subdivide_mesh(mesh, levels);
+    } catch (const std::bad_alloc&) {
+        throw Error((model.empty() ? "" : model + ": ") + "--subdivide " + std::to_string(levels) +
+                    ": out of memory making " +
+                    std::to_string(subdivided_triangle_count(mesh.triangle_count(), levels)) +
+                    " triangles");
+    }
+}
+
+}  // namespace
+
+void check_subdivide(uint64_t triangles, int levels, const SubdivideMemory& memory,
+                     const std::string& model) {
+    const uint64_t result = subdivided_triangle_count(triangles, levels);
+    const uint64_t budget = scene_triangle_budget(memory.max_triangles, memory.bytes);
+    if (result <= budget) return;
+    throw Error((model.empty() ? "" : model + ": ") + "--subdivide " + std::to_string(levels) +
+                ": " + std::to_string(triangles) + " triangles become " + std::to_string(result) +
+                ", more than the " + std::to_string(budget) +
+                " that fit the kd-tree and the memory available (about " +
+                std::to_string(memory.bytes) + " bytes each" +
+                (memory.why.empty() ? "" : ", with " + memory.why) + ")");
+}
+
+void subdivide_model(const std::string& model, TriangleMesh& mesh, int levels,
+                     const SubdivideMemory& memory) {
+    check_subdivide(mesh.triangle_count(), levels, memory);
+    mesh = subdivided(model, mesh, levels);
+}
+
 void subdivide_scene(Scene& scene, int levels, const std::string& what) {
     if (levels <= 0) return;
-    const std::string prefix =
-        (what.empty() ? "" : what + ": ") + "scene.subdivide " + std::to_string(levels) + ": ";
-    const uint64_t before = instanced_triangle_count(scene);
-    const uint64_t after = subdivided_triangle_count(before, levels);
-    const uint64_t budget = scene_triangle_budget(
-        std::min(kDefaultMaxSceneTriangles, kMaxSubdividedTriangles - 1), kRenderBytesPerTriangle);
-    if (after > budget) {
-        throw Error(prefix + std::to_string(before) + " triangles would become " +
-                    std::to_string(after) + ", more than the " + std::to_string(budget) +
-                    " that fit the kd-tree and the memory available (about " +
-                    std::to_string(kRenderBytesPerTriangle) + " bytes each)");
-    }
-    try {
-        std::map<const TriangleMesh*, std::shared_ptr<const TriangleMesh>> done;
-        for (MeshInstance& inst : scene.meshes) {
-            if (!inst.mesh) continue;
-            auto& slot = done[inst.mesh.get()];
-            if (!slot) {
-                TriangleMesh m = *inst.mesh;
-                const bool smooth = std::any_of(
-                    scene.meshes.begin(), scene.meshes.end(),
-                    [&](const MeshInstance& o) { return o.mesh == inst.mesh && o.smooth; });
-                // What a render does not read is not subdivided (merge_instances()).
-                m.colors.clear();
-                if (m.normals.size() != m.positions.size() || !smooth) m.normals.clear();
-                if (smooth && m.normals.empty()) m.normals = compute_vertex_normals(m);
-                slot = std::make_shared<const TriangleMesh>(subdivide_mesh(m, levels));
-            }
-            inst.mesh = slot;
+    SubdivideMemory render;  // the scene loader's limit too: a render holds the result
+    render.max_triangles = std::min(render.max_triangles, kDefaultMaxSceneTriangles);
+    check_subdivide(instanced_triangle_count(scene), levels, render, what);
+    std::map<const TriangleMesh*, std::shared_ptr<const TriangleMesh>> done;
+    for (MeshInstance& inst : scene.meshes) {
+        if (!inst.mesh) continue;
+        auto& slot = done[inst.mesh.get()];
+        if (!slot) {
+            TriangleMesh m = *inst.mesh;
+            const bool smooth =
+                std::any_of(scene.meshes.begin(), scene.meshes.end(),
+                            [&](const MeshInstance& o) { return o.mesh == inst.mesh && o.smooth; });
+            // What a render does not read is not subdivided (merge_instances()).
+            m.colors.clear();
+            if (m.normals.size() != m.positions.size() || !smooth) m.normals.clear();
+            if (smooth && m.normals.empty()) m.normals = compute_vertex_normals(m);
+            slot = std::make_shared<const TriangleMesh>(subdivided(what, m, levels));
         }
-    } catch (const std::bad_alloc&) {
-        throw Error(prefix + "out of memory making " + std::to_string(after) + " triangles");
+        inst.mesh = slot;
     }
+}
+
+std::string subdivided_model_key(const std::string& model, int levels) {
+    if (model.empty() || levels <= 0) return model;
+    return model + ".sub" + std::to_string(levels);
 }
 
 std::vector<std::string> scene_input_files(const Scene& scene) {

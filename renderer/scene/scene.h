@@ -121,13 +121,44 @@ uint64_t allocatable_memory_bytes();
 /// Triangles a render of the scene holds: every instance's mesh counted once per instance.
 uint64_t instanced_triangle_count(const Scene& scene);
 
+/// What a command holds per triangle of its model, for check_subdivide(): `bytes` (a render's
+/// or build's kRenderBytesPerTriangle by default) and, when a command holds more, what the
+/// rest is for (said in the error, e.g. "8 rows' trees and Embree's BVH"); and the most
+/// triangles it takes (the kd-tree's limit; a render's scene also kDefaultMaxSceneTriangles).
+struct SubdivideMemory {
+    uint64_t bytes = kRenderBytesPerTriangle;
+    std::string why;
+    uint64_t max_triangles = kMaxSubdividedTriangles - 1;
+};
+
+/// Refuses --subdivide `levels` of `triangles` when the result would not fit in the memory
+/// available (scene_triangle_budget() at memory.bytes per triangle) or memory.max_triangles,
+/// before the minutes of work: kdt::Error "--subdivide 3: 200000 triangles become 12800000,
+/// more than the ... that fit the kd-tree and the memory available (about 100 bytes each)",
+/// after "`model`: " when `model` is not empty.
+void check_subdivide(uint64_t triangles, int levels, const SubdivideMemory& memory = {},
+                     const std::string& model = {});
+
+/// `mesh` (of the file `model`) split into 4^`levels` triangles each, after check_subdivide().
+/// Memory running out on the way (the check counts what is available now and what a ulimit
+/// leaves, not what other processes take meanwhile) is an Error naming the model and the flag,
+/// "dragon.ply: --subdivide 3: out of memory making 55770496 triangles", not main()'s bare
+/// "out of memory".
+void subdivide_model(const std::string& model, TriangleMesh& mesh, int levels,
+                     const SubdivideMemory& memory = {});
+
 /// Splits every triangle of the scene into 4^`levels` by edge midpoints (subdivide_mesh():
-/// the same surface, more triangles; a mesh shared by instances once). Smooth instances keep
+/// the same surface, more triangles; a mesh shared by instances once), after
+/// check_subdivide() of the instanced count within a render's budget. Smooth instances keep
 /// their shading: a mesh without normals gets its computed vertex normals first, which the
-/// subdivision interpolates. A result over scene_triangle_budget() or the kd-tree's limit is
-/// refused before any work, as running out of memory on the way is: kdt::Error
-/// "scene.subdivide 3: ...", after "`what`: " when `what` is not empty (the scene file).
+/// subdivision interpolates. Errors as subdivide_model()'s, naming `what` (the scene file;
+/// empty for the built-in scene).
 void subdivide_scene(Scene& scene, int levels, const std::string& what);
+
+/// The name the tree of `model` after --subdivide `levels` is cached under: "`model`.subK", or
+/// `model` itself at 0 levels or for an empty name (the built-in scene). `build`, `bench
+/// kdtree` and a render name it alike, so each finds the others' tree.
+std::string subdivided_model_key(const std::string& model, int levels);
 
 /// The files a scene reads: its mesh files (not builtins) and its environment map, if any.
 std::vector<std::string> scene_input_files(const Scene& scene);

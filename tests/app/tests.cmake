@@ -39,7 +39,7 @@ set_tests_properties(smoke.render_subdivide_session PROPERTIES DEPENDS smoke.ren
 file(WRITE ${_tmp}/three_spheres.json "{\"meshes\": [{\"file\": \"builtin:displaced_sphere\"}, "
      "{\"file\": \"builtin:displaced_sphere\"}, {\"file\": \"builtin:displaced_sphere\"}]}")
 kdt_status_test(smoke.render_subdivide_budget 1
-  "^kdtrace: error: [^\n]*three_spheres.json: scene.subdivide \\(--subdivide\\) 4: 983040 triangles would become 251658240, more than the [0-9]+ that fit the kd-tree and the memory available \\(about 100 bytes each\\)\n$"
+  "^kdtrace: error: [^\n]*three_spheres.json: --subdivide 4: 983040 triangles become 251658240, more than the [0-9]+ that fit the kd-tree and the memory available \\(about 100 bytes each\\)\n$"
   ${_kdt} render ${_tmp}/three_spheres.json --subdivide 4 --spp 1 -o ${_tmp}/subdivide_never.png)
 
 # A PLY 1.1 file loads with one warning naming it, from `info` and from the model loader.

@@ -842,7 +842,7 @@ TEST(Scene, SubdivideOverTheBudgetIsRefusedBeforeAnyWork) {
     // 2500 instances: 800,000 triangles, 204.8M at 4 levels, over the 200M of any machine.
     for (int i = 0; i < 2500; ++i) s.meshes.push_back(MeshInstance{.mesh = sphere});
     const std::string msg = test::error_of_call([&] { subdivide_scene(s, 4, "big.json"); });
-    EXPECT_EQ(msg.rfind("big.json: scene.subdivide 4: 800000 triangles would become 204800000, "
+    EXPECT_EQ(msg.rfind("big.json: --subdivide 4: 800000 triangles become 204800000, "
                         "more than the ",
                         0),
               0u)
