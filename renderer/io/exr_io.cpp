@@ -322,6 +322,16 @@ void check_tiles_present(const std::vector<uint8_t>& data, const std::string& pa
     }
 }
 
+/// read_header() and, for a tiled file, check_tiles_present(): the header of a file whose
+/// every tile lies within it, for the readers that decode it.
+Imf::Header read_whole_file_header(const std::vector<uint8_t>& data, const std::string& path) {
+    int version = 0;
+    size_t header_end = 0;
+    Imf::Header header = read_header(data, path, &version, &header_end);
+    if (Imf::isTiled(version)) check_tiles_present(data, path, header, header_end);
+    return header;
+}
+
 ImageMetadata string_attributes(const Imf::Header& header) {
     ImageMetadata metadata;
     for (auto it = header.begin(); it != header.end(); ++it) {
@@ -361,10 +371,7 @@ auto guarded(const std::string& path, const char* what, F&& f) {
 
 ImageRGB decode(const std::vector<uint8_t>& data, const std::string& path,
                 ImageMetadata* metadata) {
-    int version = 0;
-    size_t header_end = 0;
-    const Imf::Header checked = read_header(data, path, &version, &header_end);
-    if (Imf::isTiled(version)) check_tiles_present(data, path, checked, header_end);
+    const Imf::Header checked = read_whole_file_header(data, path);
     const Imf::ChannelList& channels = checked.channels();
     const char* names[3] = {"R", "G", "B"};
     const Imf::Channel* found[3] = {channels.findChannel("R"), channels.findChannel("G"),
@@ -481,10 +488,7 @@ ImageInfo read_exr_info(const std::vector<uint8_t>& data, const std::string& pat
 
 void check_exr_pixels(const std::vector<uint8_t>& data, const std::string& path) {
     guarded(path, "corrupt OpenEXR file", [&] {
-        int version = 0;
-        size_t header_end = 0;
-        const Imf::Header checked = read_header(data, path, &version, &header_end);
-        if (Imf::isTiled(version)) check_tiles_present(data, path, checked, header_end);
+        const Imf::Header checked = read_whole_file_header(data, path);
         MemoryIStream stream(data, path);
         Imf::InputFile file(stream, 0);
         if (file.header().dataWindow() != checked.dataWindow())

@@ -565,28 +565,27 @@ CameraDesc frame_bounds(const Bounds3f& bounds, float vfov_degrees) {
     // Scaled by the largest extent, so that the squares cannot overflow for huge scenes.
     const Vec3f ext = 0.5f * bounds.upper - 0.5f * bounds.lower;
     const float m = std::max(ext.x, std::max(ext.y, ext.z));
-    float radius = m > 0.0f ? m * glm::length(ext / m) : 0.0f;
-    radius = std::max(radius, 1e-6f);
+    const float half_diagonal = m > 0.0f ? m * glm::length(ext / m) : 0.0f;
+    const float radius = std::max(half_diagonal, 1e-6f);
     float dist = radius / std::sin(glm::radians(0.5f * vfov_degrees)) * 1.05f;
     Vec3f dir = glm::normalize(Vec3f(0.35f, 0.3f, 1.0f));
     c.eye = center + dist * dir;
     c.target = center;
     c.up = Vec3f(0.0f, 1.0f, 0.0f);
-    if (is_finite(c.eye) && is_finite(c.target) && !(glm::length(c.eye - c.target) > 0.0f)) {
-        // A small model far from the origin: the camera's offset is below float's spacing
-        // there (a model of size 1 at 1e20, whose spacing is about 1e13).
-        char text[200];
-        std::snprintf(text, sizeof(text),
-                      "cannot frame the scene automatically: its extent %g is below float's "
-                      "resolution at its centre (%g, %g, %g), too far from the origin",
-                      double(2.0f * m * (m > 0.0f ? glm::length(ext / m) : 0.0f)), double(center.x),
-                      double(center.y), double(center.z));
-        throw Error(text);
-    }
-    if (!is_finite(c.eye) || !is_finite(c.target) || !(glm::length(c.eye - c.target) > 0.0f))
+    const bool finite = is_finite(c.eye) && is_finite(c.target);
+    if (finite && glm::length(c.eye - c.target) > 0.0f) return c;
+    if (!finite)
         throw Error("cannot frame the scene automatically: its bounds (extent " +
                     std::to_string(2.0f * radius) + ") are beyond float range");
-    return c;
+    // A small model far from the origin: the camera's offset is below float's spacing there
+    // (a model of size 1 at 1e20, whose spacing is about 1e13).
+    char text[200];
+    std::snprintf(text, sizeof(text),
+                  "cannot frame the scene automatically: its extent %g is below float's "
+                  "resolution at its centre (%g, %g, %g), too far from the origin",
+                  double(2.0f * half_diagonal), double(center.x), double(center.y),
+                  double(center.z));
+    throw Error(text);
 }
 
 Scene scene_from_model(const std::string& path, const SceneLoadOptions& options) {
