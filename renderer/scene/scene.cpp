@@ -673,15 +673,16 @@ void subdivide_scene(Scene& scene, int levels, const std::string& what) {
     SubdivideMemory render;  // the scene loader's limit too: a render holds the result
     render.max_triangles = std::min(render.max_triangles, kDefaultMaxSceneTriangles);
     check_subdivide(instanced_triangle_count(scene), levels, render, what);
+    std::set<const TriangleMesh*> smooth_meshes;  // used by at least one smooth instance
+    for (const MeshInstance& inst : scene.meshes)
+        if (inst.smooth) smooth_meshes.insert(inst.mesh.get());
     std::map<const TriangleMesh*, std::shared_ptr<const TriangleMesh>> done;
     for (MeshInstance& inst : scene.meshes) {
         if (!inst.mesh) continue;
         auto& slot = done[inst.mesh.get()];
         if (!slot) {
             TriangleMesh m = *inst.mesh;
-            const bool smooth =
-                std::any_of(scene.meshes.begin(), scene.meshes.end(),
-                            [&](const MeshInstance& o) { return o.mesh == inst.mesh && o.smooth; });
+            const bool smooth = smooth_meshes.count(inst.mesh.get()) > 0;
             // What a render does not read is not subdivided (merge_instances()).
             m.colors.clear();
             if (m.normals.size() != m.positions.size() || !smooth) m.normals.clear();
